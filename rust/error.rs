@@ -1,0 +1,62 @@
+//! The core's error type. Every fallible public function returns `Result<_, CoreError>`;
+//! `py/` maps each variant to one `robocal.exceptions` class. Messages name the argument and
+//! say what was expected and what was got, scipy style.
+
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum CoreError {
+    /// An array has the wrong shape or length.
+    #[error("`{arg}` must have shape {expected}; got {got}")]
+    Shape {
+        arg: &'static str,
+        expected: String,
+        got: String,
+    },
+    /// An input holds NaN or infinity.
+    #[error("`{arg}` must be finite; got {value} at index {index}")]
+    NonFinite {
+        arg: &'static str,
+        index: usize,
+        value: f64,
+    },
+    /// A parameter or option is outside its domain.
+    #[error("`{arg}`: {reason}")]
+    InvalidParameter { arg: &'static str, reason: String },
+    /// A linear system has no unique solution.
+    #[error("singular problem: {0}")]
+    Singular(String),
+    /// A matrix that must be positive definite is not.
+    #[error("not positive definite: {0}")]
+    NotPositiveDefinite(String),
+    /// An iterative routine failed to converge (rarely raised: results report it instead).
+    #[error("no convergence: {0}")]
+    NoConvergence(String),
+}
+
+pub type CoreResult<T> = Result<T, CoreError>;
+
+/// Fails with `NonFinite` at the first NaN/inf of `values`.
+pub fn check_finite(arg: &'static str, values: &[f64]) -> CoreResult<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(index) => Err(CoreError::NonFinite {
+            arg,
+            index,
+            value: values[index],
+        }),
+    }
+}
+
+/// Fails with `Shape` unless `len == expected`.
+pub fn check_len(arg: &'static str, len: usize, expected: usize) -> CoreResult<()> {
+    if len == expected {
+        Ok(())
+    } else {
+        Err(CoreError::Shape {
+            arg,
+            expected: format!("({expected},)"),
+            got: format!("({len},)"),
+        })
+    }
+}

@@ -1,0 +1,341 @@
+//! Serial-chain forward kinematics: the paper's eq. (1)–(2) (standard DH), Craig's modified DH,
+//! and Hayati's extra rotation β about y, with a base and a tool frame.
+//!
+//! A chain is compiled once into a flat list of elementary transforms (`Op`), each a rotation or a
+//! translation along one local axis and driven by one entry of the parameter vector (plus a joint
+//! variable). Forward kinematics post-multiplies a frame by each op in place: a rotation touches
+//! two columns, a translation one vector, so a 6-joint pose costs a few hundred flops.
+//!
+//! Parameter vector layout (see `docs/core-model.md`), N joints, length `5N + 17`:
+//! `alpha_i a_i d_i theta_i beta_i` per joint, then `base_{x,y,z,rx,ry,rz}`,
+//! `tool_{x,y,z,rx,ry,rz}`, `anchor_{x,y,z}`, `cable_offset`, `cable_scale`.
+//! Units: mm and rad (`cable_scale` is dimensionless).
+
+mod frame;
+mod layout;
+
+pub use frame::Frame;
+pub use layout::{Layout, JOINT_PARAMS, SENSOR_PARAMS};
+
+use crate::error::{check_finite, check_len, CoreError, CoreResult};
+use nalgebra::Vector3;
+
+/// Link convention of one joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Convention {
+    /// Standard DH: `Rz(θ+q)·Tz(d)·Tx(a)·Rx(α)·Ry(β)`.
+    Dh,
+    /// Modified DH (Craig): `Rx(α)·Tx(a)·Ry(β)·Rz(θ+q)·Tz(d)`.
+    Mdh,
+}
+
+impl Convention {
+    pub fn parse(s: &str) -> CoreResult<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "dh" => Ok(Self::Dh),
+            "mdh" => Ok(Self::Mdh),
+            other => Err(CoreError::InvalidParameter {
+                arg: "conventions",
+                reason: format!("expected 'dh' or 'mdh'; got '{other}'"),
+            }),
+        }
+    }
+}
+
+/// What the joint variable drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    /// `q` adds to θ (rad).
+    Revolute,
+    /// `q` adds to d (mm).
+    Prismatic,
+}
+
+impl JointKind {
+    pub fn parse(s: &str) -> CoreResult<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "revolute" | "r" => Ok(Self::Revolute),
+            "prismatic" | "p" => Ok(Self::Prismatic),
+            other => Err(CoreError::InvalidParameter {
+                arg: "kinds",
+                reason: format!("expected 'revolute' or 'prismatic'; got '{other}'"),
+            }),
+        }
+    }
+}
+
+/// One elementary transform: rotation about / translation along local axis `axis` (0=x,1=y,2=z)
+/// by `params[param]` (+ `q[joint]` when driven by a joint).
+#[derive(Debug, Clone, Copy)]
+pub struct Op {
+    pub axis: usize,
+    pub rotation: bool,
+    pub param: usize,
+    pub joint: Option<usize>,
+}
+
+/// A compiled serial chain: base, N links, tool.
+#[derive(Debug, Clone)]
+pub struct Chain {
+    conventions: Vec<Convention>,
+    kinds: Vec<JointKind>,
+    layout: Layout,
+    ops: Vec<Op>,
+    /// Ops `[0, flange_end)` give the flange frame; the rest is the tool.
+    flange_end: usize,
+}
+
+const X: usize = 0;
+const Y: usize = 1;
+const Z: usize = 2;
+
+impl Chain {
+    /// Builds a chain from one convention and one kind per joint.
+    ///
+    /// Errors: `Shape` if the lists differ in length or are empty.
+    pub fn new(conventions: Vec<Convention>, kinds: Vec<JointKind>) -> CoreResult<Self> {
+        if conventions.is_empty() || conventions.len() != kinds.len() {
+            return Err(CoreError::Shape {
+                arg: "kinds",
+                expected: format!("({},) matching `conventions` (at least one joint)", conventions.len()),
+                got: format!("({},)", kinds.len()),
+            });
+        }
+        if 12 + 5 * conventions.len() > MAX_OPS {
+            return Err(CoreError::InvalidParameter {
+                arg: "conventions",
+                reason: format!("at most 64 joints are supported; got {}", conventions.len()),
+            });
+        }
+        let layout = Layout::new(conventions.len());
+        let rot = |axis, param, joint| Op { axis, rotation: true, param, joint };
+        let trans = |axis, param, joint| Op { axis, rotation: false, param, joint };
+        let rpy_block = |start: usize| {
+            [
+                trans(X, start, None),
+                trans(Y, start + 1, None),
+                trans(Z, start + 2, None),
+                rot(Z, start + 5, None),
+                rot(Y, start + 4, None),
+                rot(X, start + 3, None),
+            ]
+        };
+        let mut ops: Vec<Op> = rpy_block(layout.base()).to_vec();
+        for (j, (&conv, &kind)) in conventions.iter().zip(&kinds).enumerate() {
+            let (alpha, a, d, theta, beta) = layout.joint(j);
+            let (q_theta, q_d) = match kind {
+                JointKind::Revolute => (Some(j), None),
+                JointKind::Prismatic => (None, Some(j)),
+            };
+            let link = match conv {
+                Convention::Dh => [
+                    rot(Z, theta, q_theta),
+                    trans(Z, d, q_d),
+                    trans(X, a, None),
+                    rot(X, alpha, None),
+                    rot(Y, beta, None),
+                ],
+                Convention::Mdh => [
+                    rot(X, alpha, None),
+                    trans(X, a, None),
+                    rot(Y, beta, None),
+                    rot(Z, theta, q_theta),
+                    trans(Z, d, q_d),
+                ],
+            };
+            ops.extend_from_slice(&link);
+        }
+        let flange_end = ops.len();
+        ops.extend_from_slice(&rpy_block(layout.tool()));
+        Ok(Self { conventions, kinds, layout, ops, flange_end })
+    }
+
+    /// Parses convention and kind names (`"dh"|"mdh"`, `"revolute"|"prismatic"`).
+    pub fn from_names<S: AsRef<str>>(conventions: &[S], kinds: &[S]) -> CoreResult<Self> {
+        let c = conventions.iter().map(|s| Convention::parse(s.as_ref())).collect::<CoreResult<_>>()?;
+        let k = kinds.iter().map(|s| JointKind::parse(s.as_ref())).collect::<CoreResult<_>>()?;
+        Self::new(c, k)
+    }
+
+    pub fn n_joints(&self) -> usize {
+        self.conventions.len()
+    }
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+    pub fn conventions(&self) -> &[Convention] {
+        &self.conventions
+    }
+    pub fn kinds(&self) -> &[JointKind] {
+        &self.kinds
+    }
+
+    /// Validates a parameter vector and a batch of joint vectors; returns the sample count.
+    ///
+    /// Errors: `Shape` (lengths), `NonFinite`.
+    pub fn check_inputs(&self, params: &[f64], q: &[f64]) -> CoreResult<usize> {
+        check_len("params", params.len(), self.layout.n_params())?;
+        check_finite("params", params)?;
+        let n = self.n_joints();
+        if q.len() % n != 0 {
+            return Err(CoreError::Shape {
+                arg: "q",
+                expected: format!("(m, {n})"),
+                got: format!("{} values, not a multiple of {n}", q.len()),
+            });
+        }
+        check_finite("q", q)?;
+        Ok(q.len() / n)
+    }
+
+    #[inline]
+    fn op_value(op: &Op, params: &[f64], q: &[f64]) -> f64 {
+        params[op.param] + op.joint.map_or(0.0, |j| q[j])
+    }
+
+    /// Pose of the flange (`tool = false`) or of the tool frame, for one joint vector `q` (N).
+    /// Inputs are assumed validated (`check_inputs`).
+    pub fn forward(&self, params: &[f64], q: &[f64], tool: bool) -> Frame {
+        let end = if tool { self.ops.len() } else { self.flange_end };
+        let mut f = Frame::identity();
+        for op in &self.ops[..end] {
+            f.apply(op, Self::op_value(op, params, q));
+        }
+        f
+    }
+
+    /// Tool frame of one sample and its derivatives with respect to every parameter:
+    /// `dp[k]` (mm per unit of parameter k) of the tool origin and `dw[k]` (rad per unit) of its
+    /// orientation, both in the base (world) frame. Parameters outside the chain (sensor block)
+    /// get zeros. `dp`, `dw` must have length `n_params`.
+    pub fn forward_with_jacobian(
+        &self,
+        params: &[f64],
+        q: &[f64],
+        dp: &mut [Vector3<f64>],
+        dw: &mut [Vector3<f64>],
+    ) -> Frame {
+        // An elementary rotation about world axis ω through o moves the end point by ω×(p−o);
+        // a translation along world axis u moves it by u. Axes and origins are those of the
+        // frame *before* the op, so they are recorded on the way out and used once p is known.
+        let mut axes = [(Vector3::zeros(), Vector3::zeros()); MAX_OPS];
+        let n_ops = self.ops.len();
+                let mut f = Frame::identity();
+        for (k, op) in self.ops.iter().enumerate() {
+            axes[k] = (f.cols[op.axis], f.t);
+            f.apply(op, Self::op_value(op, params, q));
+        }
+        dp.iter_mut().for_each(|v| *v = Vector3::zeros());
+        dw.iter_mut().for_each(|v| *v = Vector3::zeros());
+        for (op, (axis, origin)) in self.ops.iter().zip(&axes[..n_ops]) {
+            if op.rotation {
+                dp[op.param] = axis.cross(&(f.t - origin));
+                dw[op.param] = *axis;
+            } else {
+                dp[op.param] = *axis;
+            }
+        }
+        f
+    }
+
+    /// Batched forward kinematics: `q` is (m, N) row-major; returns (m, 4, 4) row-major.
+    ///
+    /// Errors: `Shape`, `NonFinite`.
+    pub fn fk_batch(&self, params: &[f64], q: &[f64], tool: bool) -> CoreResult<Vec<f64>> {
+        let m = self.check_inputs(params, q)?;
+        let n = self.n_joints();
+        let mut out = vec![0.0; m * 16];
+        for (qi, oi) in q.chunks_exact(n).zip(out.chunks_exact_mut(16)) {
+            self.forward(params, qi, tool).write_homogeneous(oi);
+        }
+        Ok(out)
+    }
+}
+
+/// Longest supported chain, in elementary ops (6 base + 5 per joint + 6 tool): 64 joints.
+const MAX_OPS: usize = 12 + 5 * 64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hsr() -> (Chain, Vec<f64>) {
+        let chain = Chain::new(vec![Convention::Dh; 6], vec![JointKind::Revolute; 6]).unwrap();
+        let deg = std::f64::consts::PI / 180.0;
+        let table = [
+            (-90.0, 250.0, 653.5, 0.0),
+            (0.0, 900.0, 0.0, -90.0),
+            (90.0, -205.0, 0.0, 180.0),
+            (-90.0, 0.0, 1030.2, 0.0),
+            (90.0, 0.0, 0.0, 90.0),
+            (0.0, 0.0, 200.6, 0.0),
+        ];
+        let mut p = vec![0.0; chain.layout().n_params()];
+        for (j, (al, a, d, th)) in table.iter().enumerate() {
+            let (ia, ii, id, it, _) = chain.layout().joint(j);
+            p[ia] = al * deg;
+            p[ii] = *a;
+            p[id] = *d;
+            p[it] = th * deg;
+        }
+        p[chain.layout().sensor() + 4] = 1.0;
+        (chain, p)
+    }
+
+    /// The paper's eq. (1) link matrix, multiplied out directly.
+    fn dh_matrix(alpha: f64, a: f64, d: f64, theta: f64) -> nalgebra::Matrix4<f64> {
+        let (st, ct) = theta.sin_cos();
+        let (sa, ca) = alpha.sin_cos();
+        nalgebra::Matrix4::new(
+            ct, -st * ca, st * sa, a * ct, st, ct * ca, -ct * sa, a * st, 0.0, sa, ca, d, 0.0, 0.0, 0.0, 1.0,
+        )
+    }
+
+    #[test]
+    fn dh_chain_matches_eq1_product() {
+        let (chain, p) = hsr();
+        let q = [0.3, -0.2, 0.5, 1.1, -0.7, 2.0];
+        let f = chain.forward(&p, &q, false);
+        let mut expected = nalgebra::Matrix4::<f64>::identity();
+        for j in 0..6 {
+            let (ia, ii, id, it, _) = chain.layout().joint(j);
+            expected *= dh_matrix(p[ia], p[ii], p[id], p[it] + q[j]);
+        }
+        let mut got = [0.0; 16];
+        f.write_homogeneous(&mut got);
+        for r in 0..4 {
+            for c in 0..4 {
+                assert!((got[r * 4 + c] - expected[(r, c)]).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences() {
+        let (chain, mut p) = hsr();
+        let tool = chain.layout().tool();
+        p[tool] = 12.0;
+        p[tool + 1] = -30.0;
+        p[tool + 2] = 95.0;
+        p[tool + 4] = 0.2;
+        let q = [0.1, -1.2, 0.4, 0.9, 0.5, -0.3];
+        let n = p.len();
+        let mut dp = vec![Vector3::zeros(); n];
+        let mut dw = vec![Vector3::zeros(); n];
+        let f0 = chain.forward_with_jacobian(&p, &q, &mut dp, &mut dw);
+        for k in 0..n {
+            let h = 1e-6;
+            let mut pp = p.clone();
+            pp[k] += h;
+            let fp = chain.forward(&pp, &q, true);
+            pp[k] -= 2.0 * h;
+            let fm = chain.forward(&pp, &q, true);
+            let num = (fp.t - fm.t) / (2.0 * h);
+            assert!((num - dp[k]).norm() < 1e-5 * (1.0 + dp[k].norm()), "param {k}");
+            // Angular velocity from the rotation difference: skew(ω) ≈ (R+ − R−)/(2h)·R0ᵀ.
+            let dr = (fp.rotation() - fm.rotation()) / (2.0 * h) * f0.rotation().transpose();
+            let w = Vector3::new(dr[(2, 1)], dr[(0, 2)], dr[(1, 0)]);
+            assert!((w - dw[k]).norm() < 1e-6, "param {k}: {w} vs {}", dw[k]);
+        }
+    }
+}

@@ -1,0 +1,304 @@
+//! Measurement models, batched over samples (rows are samples, row-major buffers):
+//!
+//! - `cable` — the paper's eq. (7) with a sensor zero and scale:
+//!   `L = cable_scale·‖p − anchor‖ − cable_offset` (mm), `p` the tool point.
+//! - `position` — a 3-D point in the measurement frame: `p` (base = measurement → robot base).
+//! - `pose` — a 6-D pose; observations `x,y,z,qw,qx,qy,qz`, residual `(y_p − p, log(R_meas·Rᵀ))`.
+//!
+//! Residuals are `r = y − h(θ)`; the identification Jacobian is `J = ∂h/∂θ` (the paper's
+//! `e = J·X`, eq. 5), so `r(θ+δ) ≈ r(θ) − J·δ`. For `pose` the rotation rows carry the inverse
+//! right Jacobian of SO(3) and are the exact derivative of the residual.
+
+mod cable_init;
+pub mod so3;
+
+pub use cable_init::cable_initial_guess;
+
+use crate::error::{check_finite, CoreError, CoreResult};
+use crate::kinematics::{Chain, Frame};
+use nalgebra::Vector3;
+
+/// What a sample observes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measurement {
+    Cable,
+    Position,
+    Pose,
+}
+
+impl Measurement {
+    pub fn parse(s: &str) -> CoreResult<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "cable" => Ok(Self::Cable),
+            "position" => Ok(Self::Position),
+            "pose" => Ok(Self::Pose),
+            other => Err(CoreError::InvalidParameter {
+                arg: "measurement",
+                reason: format!("expected 'cable', 'position' or 'pose'; got '{other}'"),
+            }),
+        }
+    }
+
+    /// Values observed per sample: 1 (L), 3 (x,y,z), 7 (x,y,z,qw,qx,qy,qz).
+    pub fn obs_width(self) -> usize {
+        match self {
+            Self::Cable => 1,
+            Self::Position => 3,
+            Self::Pose => 7,
+        }
+    }
+
+    /// Residual components per sample: 1, 3, 6.
+    pub fn res_width(self) -> usize {
+        match self {
+            Self::Cable => 1,
+            Self::Position => 3,
+            Self::Pose => 6,
+        }
+    }
+}
+
+/// A validated batch: chain, parameters, joint vectors and (optionally) observations.
+pub struct Batch<'a> {
+    pub chain: &'a Chain,
+    pub measurement: Measurement,
+    pub params: &'a [f64],
+    pub q: &'a [f64],
+    pub y: Option<&'a [f64]>,
+    pub m: usize,
+}
+
+impl<'a> Batch<'a> {
+    /// Checks lengths and finiteness; for `pose`, that every observed quaternion has unit-ish
+    /// norm. `y` may be omitted only where it is not needed (prediction, cable/position Jacobian).
+    ///
+    /// Errors: `Shape`, `NonFinite`, `InvalidParameter`.
+    pub fn new(
+        chain: &'a Chain,
+        measurement: Measurement,
+        params: &'a [f64],
+        q: &'a [f64],
+        y: Option<&'a [f64]>,
+    ) -> CoreResult<Self> {
+        let m = chain.check_inputs(params, q)?;
+        if m == 0 {
+            return Err(CoreError::Shape {
+                arg: "q",
+                expected: format!("(m, {}) with m >= 1", chain.n_joints()),
+                got: format!("(0, {})", chain.n_joints()),
+            });
+        }
+        if let Some(y) = y {
+            let w = measurement.obs_width();
+            if y.len() != m * w {
+                return Err(CoreError::Shape {
+                    arg: "y",
+                    expected: format!("({m}, {w})"),
+                    got: format!("{} values", y.len()),
+                });
+            }
+            check_finite("y", y)?;
+            if measurement == Measurement::Pose {
+                for (i, row) in y.chunks_exact(7).enumerate() {
+                    let n = (row[3] * row[3] + row[4] * row[4] + row[5] * row[5] + row[6] * row[6]).sqrt();
+                    if (n - 1.0).abs() > 1e-3 {
+                        return Err(CoreError::InvalidParameter {
+                            arg: "y",
+                            reason: format!("row {i}: quaternion (qw,qx,qy,qz) must have unit norm; got norm {n}"),
+                        });
+                    }
+                }
+            }
+        } else if measurement == Measurement::Pose {
+            return Err(CoreError::InvalidParameter {
+                arg: "y",
+                reason: "the pose model needs the measured poses".into(),
+            });
+        }
+        Ok(Self { chain, measurement, params, q, y, m })
+    }
+
+    fn q_row(&self, i: usize) -> &[f64] {
+        let n = self.chain.n_joints();
+        &self.q[i * n..(i + 1) * n]
+    }
+
+    fn y_row(&self, i: usize) -> &[f64] {
+        let w = self.measurement.obs_width();
+        &self.y.expect("validated")[i * w..(i + 1) * w]
+    }
+
+    fn cable_terms(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>, f64, f64) {
+        let s = self.chain.layout().sensor();
+        let anchor = Vector3::new(self.params[s], self.params[s + 1], self.params[s + 2]);
+        let diff = p - anchor;
+        let dist = diff.norm();
+        // A tool point exactly on the anchor has no direction; any unit vector is a valid
+        // subgradient, and returning one keeps the Jacobian finite.
+        let u = if dist > 0.0 { diff / dist } else { Vector3::x() };
+        (dist, u, self.params[s + 3], self.params[s + 4])
+    }
+
+    /// Model prediction of sample `i` into `out` (obs_width values).
+    fn predict_row(&self, i: usize, out: &mut [f64]) {
+        let f = self.chain.forward(self.params, self.q_row(i), true);
+        match self.measurement {
+            Measurement::Cable => {
+                let (dist, _, offset, scale) = self.cable_terms(&f.t);
+                out[0] = scale * dist - offset;
+            }
+            Measurement::Position => out.copy_from_slice(f.t.as_slice()),
+            Measurement::Pose => {
+                out[..3].copy_from_slice(f.t.as_slice());
+                out[3..].copy_from_slice(&so3::quaternion_from_matrix(&f.rotation()));
+            }
+        }
+    }
+
+    /// Residual `y − h` of sample `i` given its tool frame.
+    fn residual_row(&self, i: usize, f: &Frame, out: &mut [f64]) {
+        let y = self.y_row(i);
+        match self.measurement {
+            Measurement::Cable => {
+                let (dist, _, offset, scale) = self.cable_terms(&f.t);
+                out[0] = y[0] - (scale * dist - offset);
+            }
+            Measurement::Position => {
+                for c in 0..3 {
+                    out[c] = y[c] - f.t[c];
+                }
+            }
+            Measurement::Pose => {
+                for c in 0..3 {
+                    out[c] = y[c] - f.t[c];
+                }
+                let e = so3::log(&(so3::matrix_from_quaternion(&y[3..7]) * f.rotation().transpose()));
+                out[3..6].copy_from_slice(e.as_slice());
+            }
+        }
+    }
+
+    /// Model predictions, (m, obs_width) row-major.
+    pub fn predict(&self) -> Vec<f64> {
+        let w = self.measurement.obs_width();
+        let mut out = vec![0.0; self.m * w];
+        for (i, row) in out.chunks_exact_mut(w).enumerate() {
+            self.predict_row(i, row);
+        }
+        out
+    }
+
+    /// Residuals `y − h`, (m, res_width) row-major.
+    pub fn residuals(&self) -> Vec<f64> {
+        let k = self.measurement.res_width();
+        let mut out = vec![0.0; self.m * k];
+        for (i, row) in out.chunks_exact_mut(k).enumerate() {
+            let f = self.chain.forward(self.params, self.q_row(i), true);
+            self.residual_row(i, &f, row);
+        }
+        out
+    }
+
+    /// Identification Jacobian `∂h/∂params[cols]`, (m·res_width, cols.len()) row-major.
+    ///
+    /// Errors: `InvalidParameter` if a column index is out of range.
+    pub fn jacobian(&self, cols: &[usize]) -> CoreResult<Vec<f64>> {
+        let n_params = self.chain.layout().n_params();
+        if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
+            return Err(CoreError::InvalidParameter {
+                arg: "cols",
+                reason: format!("column index {bad} out of range for {n_params} parameters"),
+            });
+        }
+        let k = self.measurement.res_width();
+        let nc = cols.len();
+        let mut out = vec![0.0; self.m * k * nc];
+        let mut dp = vec![Vector3::zeros(); n_params];
+        let mut dw = vec![Vector3::zeros(); n_params];
+        for (i, block) in out.chunks_exact_mut(k * nc.max(1)).enumerate().take(self.m) {
+            let f = self.chain.forward_with_jacobian(self.params, self.q_row(i), &mut dp, &mut dw);
+            self.jacobian_rows(i, &f, &dp, &dw, cols, block);
+        }
+        Ok(out)
+    }
+
+    /// The `res_width` Jacobian rows of sample `i`, restricted to `cols`.
+    fn jacobian_rows(
+        &self,
+        i: usize,
+        f: &Frame,
+        dp: &[Vector3<f64>],
+        dw: &[Vector3<f64>],
+        cols: &[usize],
+        block: &mut [f64],
+    ) {
+        let nc = cols.len();
+        match self.measurement {
+            Measurement::Cable => {
+                let (dist, u, _, scale) = self.cable_terms(&f.t);
+                let s = self.chain.layout().sensor();
+                for (c, &col) in cols.iter().enumerate() {
+                    block[c] = match col.checked_sub(s) {
+                        Some(0..=2) => -scale * u[col - s],
+                        Some(3) => -1.0,
+                        Some(4) => dist,
+                        _ => scale * u.dot(&dp[col]),
+                    };
+                }
+            }
+            Measurement::Position => {
+                for (c, &col) in cols.iter().enumerate() {
+                    for r in 0..3 {
+                        block[r * nc + c] = dp[col][r];
+                    }
+                }
+            }
+            Measurement::Pose => {
+                let mut e = [0.0; 6];
+                self.residual_row(i, f, &mut e);
+                let jinv = so3::right_jacobian_inverse(&Vector3::new(e[3], e[4], e[5]));
+                for (c, &col) in cols.iter().enumerate() {
+                    let rot = jinv * dw[col];
+                    for r in 0..3 {
+                        block[r * nc + c] = dp[col][r];
+                        block[(r + 3) * nc + c] = rot[r];
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Residuals of every sigma point: row `s` holds `r(θ_s)` (m·res_width values) where `θ_s` is
+/// `params` with `params[cols] = sigmas[s]`. `sigmas` is (S, cols.len()) row-major.
+///
+/// Errors: `Shape`, `NonFinite`, `InvalidParameter`.
+pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreResult<Vec<f64>> {
+    let n_params = batch.chain.layout().n_params();
+    if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
+        return Err(CoreError::InvalidParameter {
+            arg: "cols",
+            reason: format!("column index {bad} out of range for {n_params} parameters"),
+        });
+    }
+    let nc = cols.len();
+    if nc == 0 || sigmas.len() % nc != 0 {
+        return Err(CoreError::Shape {
+            arg: "sigmas",
+            expected: format!("(S, {nc}) with {nc} >= 1"),
+            got: format!("{} values", sigmas.len()),
+        });
+    }
+    check_finite("sigmas", sigmas)?;
+    let width = batch.m * batch.measurement.res_width();
+    let mut out = Vec::with_capacity(sigmas.len() / nc * width);
+    let mut params = batch.params.to_vec();
+    for sigma in sigmas.chunks_exact(nc) {
+        for (&col, &v) in cols.iter().zip(sigma) {
+            params[col] = v;
+        }
+        let b = Batch { params: &params, ..*batch };
+        out.extend(b.residuals());
+    }
+    Ok(out)
+}
