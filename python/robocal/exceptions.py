@@ -1,0 +1,50 @@
+"""robocal's exceptions.
+
+Every error raised by robocal (including the compiled core) is a :class:`RobocalError`. Each
+subclass also derives from the standard type a caller would naturally catch, so
+``except ValueError`` keeps working for bad input and ``except numpy.linalg.LinAlgError`` for
+singular problems.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class RobocalError(Exception):
+    """Base class of all robocal errors."""
+
+
+class ShapeError(RobocalError, ValueError):
+    """An array has the wrong shape, length or joint count."""
+
+
+class NonFiniteError(RobocalError, ValueError):
+    """An input holds NaN or infinity."""
+
+
+class InvalidParameterError(RobocalError, ValueError):
+    """A parameter, option or name is outside its domain."""
+
+
+class SingularError(RobocalError, np.linalg.LinAlgError):
+    """A linear problem has no unique solution (degenerate data or geometry)."""
+
+
+class NotPositiveDefiniteError(RobocalError, np.linalg.LinAlgError):
+    """A matrix that must be positive definite is not."""
+
+
+class NoConvergenceError(RobocalError, RuntimeError):
+    """An iterative routine failed (results normally report non-convergence instead)."""
+
+
+__all__ = [
+    "RobocalError",
+    "ShapeError",
+    "NonFiniteError",
+    "InvalidParameterError",
+    "SingularError",
+    "NotPositiveDefiniteError",
+    "NoConvergenceError",
+]

@@ -1,0 +1,297 @@
+"""Robots: a serial chain, its nominal parameter vector, joint limits and the masks of what a
+calibration estimates.
+
+Units inside are mm and radians; degrees appear only where a table is read or written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from . import _robocal
+from .catalog import BUILTIN
+from .core import as_float_array
+from .exceptions import InvalidParameterError, ShapeError
+
+MEASUREMENTS = ("cable", "position", "pose")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint of a serial chain.
+
+    Attributes
+    ----------
+    convention : {"dh", "mdh"}
+        Standard DH (the paper's eq. 1) or modified DH (Craig).
+    kind : {"revolute", "prismatic"}
+        Whether the joint variable adds to ``theta`` (rad) or to ``d`` (mm).
+    hayati : bool
+        The link's axes are nominally parallel: calibration estimates Hayati's ``beta`` and holds
+        ``d`` fixed (``d`` is ill-conditioned there).
+    limits : tuple of float
+        Joint range ``(lower, upper)`` in rad (mm for prismatic joints).
+    """
+
+    convention: str = "dh"
+    kind: str = "revolute"
+    hayati: bool = False
+    limits: tuple[float, float] = (-math.pi, math.pi)
+
+
+class Robot:
+    """A serial robot: joints, nominal parameters (mm, rad) and its compiled chain.
+
+    Parameters
+    ----------
+    name : str
+    joints : sequence of Joint
+    params : array_like, shape (5N + 17,)
+        Nominal parameter vector in the order of :attr:`param_names`.
+
+    Examples
+    --------
+    >>> import numpy as np, robocal
+    >>> r = robocal.robot("hsr-jr680")
+    >>> T = r.fkine(np.zeros((1, 6)))
+    >>> T.shape
+    (1, 4, 4)
+    """
+
+    def __init__(self, name: str, joints: Sequence[Joint], params: np.ndarray):
+        self.name = name
+        self.joints = tuple(joints)
+        self.chain = _robocal.Chain([j.convention for j in self.joints], [j.kind for j in self.joints])
+        self.param_names: list[str] = self.chain.param_names()
+        self.param_units: list[str] = self.chain.param_units()
+        self.params = self._check_params(params, "params")
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_dh(
+        cls,
+        name: str,
+        rows: Iterable[Sequence],
+        convention: str = "dh",
+        degrees: bool = True,
+    ) -> "Robot":
+        """Builds a revolute robot from rows ``(alpha, a, d, theta[, (lower, upper)[, hayati]])``.
+
+        Angles are in degrees when ``degrees`` (the way DH tables are published), lengths in mm.
+        """
+        to_rad = math.radians if degrees else float
+        joints, values = [], []
+        for i, row in enumerate(rows, start=1):
+            if len(row) < 4:
+                raise ShapeError(f"DH row {i} must hold at least (alpha, a, d, theta); got {tuple(row)!r}")
+            alpha, a, d, theta = (float(v) for v in row[:4])
+            limits = tuple(to_rad(float(v)) for v in row[4]) if len(row) > 4 else (-math.pi, math.pi)
+            hayati = bool(row[5]) if len(row) > 5 else False
+            joints.append(Joint(convention=convention, limits=limits, hayati=hayati))
+            values.append((to_rad(alpha), a, d, to_rad(theta), 0.0))
+        params = np.zeros(5 * len(joints) + 17)
+        params[: 5 * len(joints)] = np.ravel(values)
+        params[-1] = 1.0  # cable_scale
+        return cls(name, joints, params)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "Robot":
+        """Reads a robot from JSON or YAML.
+
+        The file holds ``name``, optional ``convention`` (``dh``/``mdh``, default ``dh``) and
+        ``joints``: a list of mappings with ``alpha`` (deg), ``a`` (mm), ``d`` (mm), ``theta`` (deg)
+        and optional ``limits`` ``[lower, upper]`` (deg) and ``hayati`` (bool).
+        """
+        path = Path(path)
+        text = path.read_text()
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            spec = yaml.safe_load(text)
+        else:
+            spec = json.loads(text)
+        if not isinstance(spec, Mapping) or "joints" not in spec:
+            raise InvalidParameterError(f"{path}: expected a mapping with a 'joints' list")
+        rows = []
+        for i, joint in enumerate(spec["joints"], start=1):
+            missing = [k for k in ("alpha", "a", "d", "theta") if k not in joint]
+            if missing:
+                raise InvalidParameterError(f"{path}: joint {i} lacks {', '.join(missing)}")
+            limits = joint.get("limits", (-180.0, 180.0))
+            rows.append((joint["alpha"], joint["a"], joint["d"], joint["theta"], limits, joint.get("hayati", False)))
+        return cls.from_dh(spec.get("name", path.stem), rows, convention=spec.get("convention", "dh"))
+
+    # -- the vector ---------------------------------------------------------------------------
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    def index(self, name: str) -> int:
+        """Position of parameter ``name`` in the vector."""
+        try:
+            return self.param_names.index(name)
+        except ValueError:
+            raise InvalidParameterError(f"unknown parameter {name!r}; robot {self.name!r} has {self.param_names}") from None
+
+    def with_params(self, **values: float) -> "Robot":
+        """A copy with some parameters replaced (by name, in mm / rad)."""
+        params = self.params.copy()
+        for name, value in values.items():
+            params[self.index(name)] = value
+        return Robot(self.name, self.joints, params)
+
+    def _check_params(self, params, arg: str) -> np.ndarray:
+        p = np.ascontiguousarray(params, dtype=np.float64)
+        if p.shape != (self.n_params,):
+            raise ShapeError(f"`{arg}` must have shape ({self.n_params},); got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise InvalidParameterError(f"`{arg}` must be finite; got non-finite values at {np.flatnonzero(~np.isfinite(p)).tolist()}")
+        return p
+
+    def default_mask(self, measurement: str) -> np.ndarray:
+        """Parameters a calibration with ``measurement`` data estimates by default.
+
+        Every DH parameter (``beta`` instead of ``d`` on Hayati joints), and what the measurement
+        needs: ``cable`` the tool point, anchor and sensor zero; ``position`` the base frame and
+        tool point; ``pose`` the base and tool frames. The identifiable subset of this set is
+        decided from the data (``robocal.identifiability``).
+        """
+        if measurement not in MEASUREMENTS:
+            raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
+        mask = np.zeros(self.n_params, dtype=bool)
+        for j, joint in enumerate(self.joints, start=1):
+            for p in ("alpha", "a", "theta"):
+                mask[self.index(f"{p}{j}")] = True
+            mask[self.index(f"beta{j}" if joint.hayati else f"d{j}")] = True
+        tool = ["tool_x", "tool_y", "tool_z"]
+        extra = {
+            "cable": tool + ["anchor_x", "anchor_y", "anchor_z", "cable_offset"],
+            "position": tool + [f"base_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")],
+            "pose": tool + [f"{f}_{c}" for f in ("base", "tool") for c in ("x", "y", "z", "rx", "ry", "rz")],
+        }[measurement]
+        for name in extra:
+            mask[self.index(name)] = True
+        return mask
+
+    # -- kinematics ---------------------------------------------------------------------------
+    def _joints_array(self, q) -> np.ndarray:
+        qa = as_float_array(q, "q")
+        if qa.ndim == 1:
+            qa = qa[None, :]
+        if qa.ndim != 2 or qa.shape[1] != self.n_joints:
+            raise ShapeError(f"`q` must have shape (m, {self.n_joints}); got {np.shape(q)}")
+        return np.ascontiguousarray(qa)
+
+    def fkine(self, q, params=None, tool: bool = False) -> np.ndarray:
+        """Forward kinematics.
+
+        Parameters
+        ----------
+        q : array_like, shape (m, N) or (N,)
+            Joint values in rad (mm for prismatic joints).
+        params : array_like, shape (5N + 17,), optional
+            Parameter vector; the nominal one by default.
+        tool : bool
+            Pose of the tool frame instead of the flange.
+
+        Returns
+        -------
+        ndarray, shape (m, 4, 4)
+            Homogeneous transforms in the base frame, translations in mm.
+        """
+        p = self.params if params is None else self._check_params(params, "params")
+        return self.chain.fk(p, self._joints_array(q), tool)
+
+    def _measurement_inputs(self, measurement: str, q, y, params):
+        if measurement not in MEASUREMENTS:
+            raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
+        p = self.params if params is None else self._check_params(params, "params")
+        qa = self._joints_array(q)
+        if y is None:
+            return p, qa, None
+        ya = as_float_array(y, "y")
+        if ya.ndim == 1 and measurement == "cable":
+            ya = ya[:, None]
+        return p, qa, np.ascontiguousarray(ya)
+
+    def predict(self, measurement: str, q, params=None) -> np.ndarray:
+        """Model prediction ``h`` per sample, shape (m, 1 | 3 | 7) for cable | position | pose."""
+        p, qa, _ = self._measurement_inputs(measurement, q, None, params)
+        return self.chain.predict(measurement, p, qa)
+
+    def residuals(self, measurement: str, q, y, params=None) -> np.ndarray:
+        """Residuals ``y − h``, shape (m, 1 | 3 | 6) (pose: position then rotation vector)."""
+        p, qa, ya = self._measurement_inputs(measurement, q, y, params)
+        return self.chain.residuals(measurement, p, qa, ya)
+
+    def jacobian(self, measurement: str, q, y=None, params=None, cols=None) -> np.ndarray:
+        """Identification Jacobian ``∂h/∂params[cols]``, shape (m·k, len(cols)), rows sample-major.
+
+        ``cols`` is an index list or boolean mask over the parameter vector (default: all).
+        ``y`` is needed for ``pose`` only.
+        """
+        p, qa, ya = self._measurement_inputs(measurement, q, y, params)
+        if cols is not None:
+            c = np.asarray(cols)
+            cols = np.flatnonzero(c).tolist() if c.dtype == bool else [int(v) for v in c]
+        return self.chain.jacobian(measurement, p, qa, ya, cols)
+
+    def to_mdh(self) -> "Robot":
+        """The same robot in modified DH, with identical tool-frame kinematics.
+
+        Standard DH regroups as ``Rz Tz · [Tx Rx Ry · Rz Tz] · … · Tx Rx Ry``: joint i of the MDH
+        chain takes ``alpha, a, beta`` of DH link i-1, and the last link's ``Tx(a_N) Rx(alpha_N)
+        Ry(beta_N)`` moves into the tool frame. The flange frame therefore differs; the tool frame
+        does not.
+        """
+        from .reference import frame_params, frame_transform
+
+        if any(j.convention != "dh" for j in self.joints):
+            raise InvalidParameterError("to_mdh converts a chain whose joints are all standard DH")
+        n = self.n_joints
+        dh = self.params[: 5 * n].reshape(n, 5)  # alpha, a, d, theta, beta
+        mdh = dh.copy()
+        mdh[0, [0, 1, 4]] = 0.0
+        mdh[1:, [0, 1, 4]] = dh[:-1, [0, 1, 4]]
+        alpha_n, a_n, _, _, beta_n = dh[-1]
+        last = _elementary("x", a_n, False) @ _elementary("x", alpha_n, True) @ _elementary("y", beta_n, True)
+        tool = frame_params(last @ frame_transform(self.params[self.index("tool_x") : self.index("tool_x") + 6]))
+        params = self.params.copy()
+        params[: 5 * n] = mdh.ravel()
+        params[self.index("tool_x") : self.index("tool_x") + 6] = tool
+        joints = [Joint("mdh", j.kind, j.hayati, j.limits) for j in self.joints]
+        return Robot(self.name, joints, params)
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, {self.n_joints} joints, {self.n_params} parameters)"
+
+
+def _elementary(axis: str, value: float, rotation: bool) -> np.ndarray:
+    k = "xyz".index(axis)
+    T = np.eye(4)
+    if rotation:
+        i, j = (k + 1) % 3, (k + 2) % 3
+        c, s = math.cos(value), math.sin(value)
+        T[i, i], T[i, j], T[j, i], T[j, j] = c, -s, s, c
+    else:
+        T[k, 3] = value
+    return T
+
+
+def robot(name: str) -> Robot:
+    """A built-in robot by name (``hsr-jr680``, ``abb-irb120``, ``ur10``) or a JSON/YAML file."""
+    if name in BUILTIN:
+        return Robot.from_dh(name, BUILTIN[name]["dh"])
+    if Path(name).suffix.lower() in (".json", ".yaml", ".yml"):
+        return Robot.from_file(name)
+    raise InvalidParameterError(f"unknown robot {name!r}; built-in robots are {sorted(BUILTIN)} (or give a .json/.yaml file)")

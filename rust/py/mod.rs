@@ -1,0 +1,279 @@
+//! The Python boundary: the only module that knows pyo3 and numpy.
+//!
+//! Inputs are copied into owned buffers (so the interpreter can be released while the core
+//! runs and no other thread can mutate them underneath), validated again here and in the core,
+//! and every `CoreError` becomes the matching `robocal.exceptions` class. Outputs are new
+//! C-order float64 arrays.
+
+mod convert;
+
+use crate::identify;
+use crate::kinematics::Chain;
+use crate::measurement::{self, Batch, Measurement};
+use crate::sigma;
+use crate::solve::{self, Damping};
+use convert::{array1, array2, core_err, index_list};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// A compiled serial chain (see `docs/core-model.md`). Immutable and thread-safe.
+#[pyclass(name = "Chain", module = "robocal._robocal", frozen)]
+struct PyChain {
+    inner: Chain,
+}
+
+type Arr1<'py> = Bound<'py, PyArray1<f64>>;
+type Arr2<'py> = Bound<'py, PyArray2<f64>>;
+
+fn matrix<'py>(py: Python<'py>, data: Vec<f64>, rows: usize, cols: usize) -> PyResult<Arr2<'py>> {
+    PyArray1::from_vec(py, data).reshape([rows, cols])
+}
+
+impl PyChain {
+    /// Copies and shape-checks `params` (P) and `q` (m, N).
+    fn inputs(&self, params: &Bound<'_, PyAny>, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
+        let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
+        let (q, _, _) = array2(q, "q", Some(self.inner.n_joints()))?;
+        Ok((params, q))
+    }
+
+    fn observations(&self, y: &Bound<'_, PyAny>, meas: Measurement) -> PyResult<Vec<f64>> {
+        Ok(array2(y, "y", Some(meas.obs_width()))?.0)
+    }
+}
+
+#[pymethods]
+impl PyChain {
+    #[new]
+    fn new(conventions: Vec<String>, kinds: Vec<String>) -> PyResult<Self> {
+        Ok(Self { inner: Chain::from_names(&conventions, &kinds).map_err(core_err)? })
+    }
+
+    #[getter]
+    fn n_joints(&self) -> usize {
+        self.inner.n_joints()
+    }
+
+    #[getter]
+    fn n_params(&self) -> usize {
+        self.inner.layout().n_params()
+    }
+
+    fn param_names(&self) -> Vec<String> {
+        self.inner.layout().names_and_units().into_iter().map(|(n, _)| n).collect()
+    }
+
+    fn param_units(&self) -> Vec<&'static str> {
+        self.inner.layout().names_and_units().into_iter().map(|(_, u)| u).collect()
+    }
+
+    /// Flange (or tool) poses, (m, 4, 4) in mm.
+    #[pyo3(signature = (params, q, tool = false))]
+    fn fk<'py>(&self, py: Python<'py>, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let (params, q) = self.inputs(params, q)?;
+        let out = py.detach(|| self.inner.fk_batch(&params, &q, tool)).map_err(core_err)?;
+        let m = out.len() / 16;
+        PyArray1::from_vec(py, out).reshape([m, 4, 4])
+    }
+
+    /// Model predictions, (m, obs_width).
+    fn predict<'py>(&self, py: Python<'py>, measurement: &str, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>) -> PyResult<Arr2<'py>> {
+        let meas = Measurement::parse(measurement).map_err(core_err)?;
+        let (params, q) = self.inputs(params, q)?;
+        let out = py
+            .detach(|| Batch::new(&self.inner, meas, &params, &q, None).map(|b| b.predict()))
+            .map_err(core_err)?;
+        let w = meas.obs_width();
+        let m = out.len() / w;
+        matrix(py, out, m, w)
+    }
+
+    /// Residuals `y − h`, (m, res_width).
+    fn residuals<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+    ) -> PyResult<Arr2<'py>> {
+        let meas = Measurement::parse(measurement).map_err(core_err)?;
+        let (params, q) = self.inputs(params, q)?;
+        let y = self.observations(y, meas)?;
+        let out = py
+            .detach(|| Batch::new(&self.inner, meas, &params, &q, Some(&y)).map(|b| b.residuals()))
+            .map_err(core_err)?;
+        let k = meas.res_width();
+        matrix(py, out, y.len() / meas.obs_width(), k)
+    }
+
+    /// Identification Jacobian `∂h/∂params[cols]`, (m·res_width, len(cols)).
+    #[pyo3(signature = (measurement, params, q, y = None, cols = None))]
+    fn jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: Option<&Bound<'py, PyAny>>,
+        cols: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Arr2<'py>> {
+        let meas = Measurement::parse(measurement).map_err(core_err)?;
+        let (params, q) = self.inputs(params, q)?;
+        let y = y.map(|y| self.observations(y, meas)).transpose()?;
+        let cols = match cols {
+            Some(c) => index_list(c, "cols")?,
+            None => (0..params.len()).collect(),
+        };
+        let out = py
+            .detach(|| Batch::new(&self.inner, meas, &params, &q, y.as_deref())?.jacobian(&cols))
+            .map_err(core_err)?;
+        let rows = q.len() / self.inner.n_joints() * meas.res_width();
+        matrix(py, out, rows, cols.len())
+    }
+
+    /// Residuals of every sigma point, (S, m·res_width); `sigmas` (S, len(cols)) are absolute
+    /// values of `params[cols]`.
+    fn sigma_residuals<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        cols: &Bound<'py, PyAny>,
+        sigmas: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+    ) -> PyResult<Arr2<'py>> {
+        let meas = Measurement::parse(measurement).map_err(core_err)?;
+        let (params, q) = self.inputs(params, q)?;
+        let y = self.observations(y, meas)?;
+        let cols = index_list(cols, "cols")?;
+        let (sigmas, s, _) = array2(sigmas, "sigmas", Some(cols.len()))?;
+        let out = py
+            .detach(|| {
+                let batch = Batch::new(&self.inner, meas, &params, &q, Some(&y))?;
+                measurement::sigma_residuals(&batch, &cols, &sigmas)
+            })
+            .map_err(core_err)?;
+        let width = out.len() / s.max(1);
+        matrix(py, out, s, width)
+    }
+
+    fn __repr__(&self) -> String {
+        let joints: Vec<String> = self
+            .inner
+            .conventions()
+            .iter()
+            .zip(self.inner.kinds())
+            .map(|(c, k)| format!("{c:?}/{k:?}").to_lowercase())
+            .collect();
+        format!("Chain([{}])", joints.join(", "))
+    }
+}
+
+/// Merwe scaled sigma points around `x` (n) with covariance `P` (n, n):
+/// returns `(sigmas (2n+1, n), Wm (2n+1), Wc (2n+1))`.
+#[pyfunction]
+#[pyo3(signature = (x, P, alpha, beta, kappa))]
+#[allow(non_snake_case)]
+fn merwe_sigma_points<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    P: &Bound<'py, PyAny>,
+    alpha: f64,
+    beta: f64,
+    kappa: f64,
+) -> PyResult<(Arr2<'py>, Arr1<'py>, Arr1<'py>)> {
+    let x = array1(x, "x", None)?;
+    let (p, _, _) = array2(P, "P", Some(x.len()))?;
+    let (pts, wm, wc) = sigma::merwe_sigma_points(&x, &p, alpha, beta, kappa).map_err(core_err)?;
+    let n = x.len();
+    Ok((matrix(py, pts, 2 * n + 1, n)?, PyArray1::from_vec(py, wm), PyArray1::from_vec(py, wc)))
+}
+
+/// Weighted mean and covariance of propagated points and their cross-covariance with the
+/// points: returns `(mean_y (k), cov_y (k, k), cross (n, k))`.
+#[pyfunction]
+#[pyo3(signature = (sigmas_x, sigmas_y, Wm, Wc))]
+#[allow(non_snake_case)]
+fn unscented_transform<'py>(
+    py: Python<'py>,
+    sigmas_x: &Bound<'py, PyAny>,
+    sigmas_y: &Bound<'py, PyAny>,
+    Wm: &Bound<'py, PyAny>,
+    Wc: &Bound<'py, PyAny>,
+) -> PyResult<(Arr1<'py>, Arr2<'py>, Arr2<'py>)> {
+    let (sx, _, n) = array2(sigmas_x, "sigmas_x", None)?;
+    let (sy, _, k) = array2(sigmas_y, "sigmas_y", None)?;
+    let wm = array1(Wm, "Wm", None)?;
+    let wc = array1(Wc, "Wc", None)?;
+    let (mean, cov, cross) = sigma::unscented_transform(&sx, &sy, &wm, &wc).map_err(core_err)?;
+    Ok((PyArray1::from_vec(py, mean), matrix(py, cov, k, k)?, matrix(py, cross, n, k)?))
+}
+
+/// Damped normal-equation step `(JᵀJ + λD) δ = Jᵀr`: returns `(delta, "cholesky" | "svd")`.
+#[pyfunction]
+#[pyo3(signature = (J, r, lam, damping = "marquardt"))]
+#[allow(non_snake_case)]
+fn solve_damped<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>, lam: f64, damping: &str) -> PyResult<(Arr1<'py>, &'static str)> {
+    let damping = Damping::parse(damping).map_err(core_err)?;
+    let (j, m, n) = array2(J, "J", None)?;
+    let r = array1(r, "r", Some(m))?;
+    let (x, how) = py.detach(|| solve::solve_damped(&j, &r, m, n, lam, damping)).map_err(core_err)?;
+    Ok((PyArray1::from_vec(py, x), how.name()))
+}
+
+/// Identifiability of `J` (m, n): rank, singular values, identifiable subset, redundancy.
+#[pyfunction]
+#[pyo3(signature = (J, tol = 1e-9))]
+#[allow(non_snake_case)]
+fn identifiability<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, tol: f64) -> PyResult<Bound<'py, PyDict>> {
+    let (j, m, n) = array2(J, "J", None)?;
+    let id = py.detach(|| identify::identifiability(&j, m, n, tol)).map_err(core_err)?;
+    let d = PyDict::new(py);
+    d.set_item("singular_values", PyArray1::from_vec(py, id.singular_values))?;
+    d.set_item("rank", id.rank)?;
+    d.set_item("condition_number", id.condition_number)?;
+    d.set_item("column_norms", PyArray1::from_vec(py, id.column_norms))?;
+    d.set_item("identifiable", id.identifiable)?;
+    d.set_item("no_effect", id.no_effect)?;
+    d.set_item("redundant", id.redundant)?;
+    Ok(d)
+}
+
+/// Parameter covariance `σ̂²(JᵀJ)⁺`: returns `(cov (n, n), sigma2, dof, rank)`.
+#[pyfunction]
+#[pyo3(signature = (J, r, tol = 1e-9))]
+#[allow(non_snake_case)]
+fn covariance<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>, tol: f64) -> PyResult<(Arr2<'py>, f64, usize, usize)> {
+    let (j, m, n) = array2(J, "J", None)?;
+    let r = array1(r, "r", Some(m))?;
+    let (cov, s2, dof, rank) = py.detach(|| identify::covariance(&j, &r, m, n, tol)).map_err(core_err)?;
+    Ok((matrix(py, cov, n, n)?, s2, dof, rank))
+}
+
+/// Closed-form cable anchor and sensor zero from tool points `p` (m, 3) and lengths `L` (m):
+/// returns `(anchor (3,), cable_offset)`.
+#[pyfunction]
+#[pyo3(signature = (p, L))]
+#[allow(non_snake_case)]
+fn cable_initial_guess<'py>(py: Python<'py>, p: &Bound<'py, PyAny>, L: &Bound<'py, PyAny>) -> PyResult<(Arr1<'py>, f64)> {
+    let (p, m, _) = array2(p, "p", Some(3))?;
+    let l = array1(L, "L", Some(m))?;
+    let (anchor, offset) = measurement::cable_initial_guess(&p, &l).map_err(core_err)?;
+    Ok((PyArray1::from_vec(py, anchor.to_vec()), offset))
+}
+
+#[pymodule]
+fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyChain>()?;
+    m.add_function(wrap_pyfunction!(merwe_sigma_points, m)?)?;
+    m.add_function(wrap_pyfunction!(unscented_transform, m)?)?;
+    m.add_function(wrap_pyfunction!(solve_damped, m)?)?;
+    m.add_function(wrap_pyfunction!(identifiability, m)?)?;
+    m.add_function(wrap_pyfunction!(covariance, m)?)?;
+    m.add_function(wrap_pyfunction!(cable_initial_guess, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
