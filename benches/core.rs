@@ -1,1 +1,115 @@
-fn main() {}
+//! `cargo bench`: profiles the core kernels on a 6-joint standard-DH robot (the HSR JR680
+//! geometry of the paper's Table I) at m = 100, 1 000, 10 000 samples.
+
+use _robocal::kinematics::{Chain, Convention, JointKind};
+use _robocal::measurement::{sigma_residuals, Batch, Measurement};
+use _robocal::sigma::merwe_sigma_points;
+use _robocal::solve::{solve_damped, Damping};
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use std::hint::black_box;
+
+const SIZES: [usize; 3] = [100, 1_000, 10_000];
+
+/// HSR JR680 nominal DH (deg, mm) with a tool point and a cable anchor.
+fn robot() -> (Chain, Vec<f64>) {
+    let chain = Chain::new(vec![Convention::Dh; 6], vec![JointKind::Revolute; 6]).unwrap();
+    let table = [
+        (-90.0f64, 250.0, 653.5, 0.0f64),
+        (0.0, 900.0, 0.0, -90.0),
+        (90.0, -205.0, 0.0, 180.0),
+        (-90.0, 0.0, 1030.2, 0.0),
+        (90.0, 0.0, 0.0, 90.0),
+        (0.0, 0.0, 200.6, 0.0),
+    ];
+    let mut p = vec![0.0; chain.layout().n_params()];
+    for (j, (al, a, d, th)) in table.iter().enumerate() {
+        let (ia, ii, id, it, _) = chain.layout().joint(j);
+        (p[ia], p[ii], p[id], p[it]) = (al.to_radians(), *a, *d, th.to_radians());
+    }
+    let (tool, sensor) = (chain.layout().tool(), chain.layout().sensor());
+    p[tool..tool + 3].copy_from_slice(&[20.0, -15.0, 60.0]);
+    p[sensor..sensor + 5].copy_from_slice(&[1500.0, 300.0, -200.0, 950.0, 1.0]);
+    (chain, p)
+}
+
+/// Deterministic joint configurations spread over ±1 rad around a working pose.
+fn configurations(m: usize) -> Vec<f64> {
+    let centre = [0.1, -1.0, 3.5, -2.8, 0.7, 1.0];
+    (0..m * 6).map(|k| centre[k % 6] + ((k as f64) * 0.618_033_988_75).fract() * 2.0 - 1.0).collect()
+}
+
+/// The paper's cable parameter set: 24 DH + tool point (3) + anchor (3) + sensor zero (1).
+fn cable_columns(chain: &Chain) -> Vec<usize> {
+    let s = chain.layout().sensor();
+    let mut cols: Vec<usize> = (0..6).flat_map(|j| (0..4).map(move |k| 5 * j + k)).collect();
+    cols.extend(chain.layout().tool()..chain.layout().tool() + 3);
+    cols.extend(s..s + 4);
+    cols
+}
+
+fn bench_fk(c: &mut Criterion) {
+    let (chain, p) = robot();
+    let mut group = c.benchmark_group("fk_batch");
+    for m in SIZES {
+        let q = configurations(m);
+        group.throughput(Throughput::Elements(m as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &q, |b, q| b.iter(|| chain.fk_batch(black_box(&p), q, true).unwrap()));
+    }
+    group.finish();
+}
+
+fn bench_cable_jacobian(c: &mut Criterion) {
+    let (chain, p) = robot();
+    let cols = cable_columns(&chain);
+    let mut group = c.benchmark_group("cable_jacobian_31");
+    for m in SIZES {
+        let q = configurations(m);
+        group.throughput(Throughput::Elements(m as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &q, |b, q| {
+            b.iter(|| Batch::new(&chain, Measurement::Cable, black_box(&p), q, None).unwrap().jacobian(&cols).unwrap())
+        });
+    }
+    group.finish();
+}
+
+fn bench_sigma(c: &mut Criterion) {
+    let (chain, p) = robot();
+    let cols = cable_columns(&chain);
+    let n = cols.len();
+    let x: Vec<f64> = cols.iter().map(|&k| p[k]).collect();
+    let cov: Vec<f64> = (0..n * n).map(|k| if k % (n + 1) == 0 { 1e-4 } else { 0.0 }).collect();
+    let (sigmas, _, _) = merwe_sigma_points(&x, &cov, 1e-3, 2.0, 0.0).unwrap();
+    let mut group = c.benchmark_group("sigma_residuals_63x");
+    group.sample_size(10);
+    for m in SIZES {
+        let q = configurations(m);
+        let y = Batch::new(&chain, Measurement::Cable, &p, &q, None).unwrap().predict();
+        group.throughput(Throughput::Elements((m * (2 * n + 1)) as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &q, |b, q| {
+            let batch = Batch::new(&chain, Measurement::Cable, &p, q, Some(&y)).unwrap();
+            b.iter(|| sigma_residuals(&batch, &cols, black_box(&sigmas)).unwrap())
+        });
+    }
+    group.finish();
+}
+
+fn bench_solve(c: &mut Criterion) {
+    let mut group = c.benchmark_group("solve_damped");
+    for n in [24usize, 31, 60] {
+        for m in SIZES {
+            let j: Vec<f64> = (0..m * n).map(|k| ((k as f64) * 0.754_877_666).fract() - 0.5).collect();
+            let r: Vec<f64> = (0..m).map(|k| ((k as f64) * 0.569_840_29).fract()).collect();
+            group.bench_with_input(BenchmarkId::new(format!("n{n}"), m), &j, |b, j| {
+                b.iter(|| solve_damped(black_box(j), &r, m, n, 1e-3, Damping::Marquardt).unwrap())
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
+    targets = bench_fk, bench_cable_jacobian, bench_sigma, bench_solve
+}
+criterion_main!(benches);

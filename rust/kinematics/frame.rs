@@ -20,14 +20,14 @@ impl Frame {
         }
     }
 
-    /// Post-multiplies by the elementary transform `op` with value `v` (rad or mm).
+    /// Post-multiplies by the elementary transform `op` with value `v` (mm for a translation;
+    /// a rotation uses its precomputed sine and cosine `s`, `c`).
     #[inline]
-    pub fn apply(&mut self, op: &Op, v: f64) {
+    pub fn apply(&mut self, op: &Op, (v, s, c): (f64, f64, f64)) {
         let k = op.axis;
         if op.rotation {
             // R·R_k(v) mixes the two other columns (i, j) = (k+1, k+2) mod 3.
             let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-            let (s, c) = v.sin_cos();
             let (ci, cj) = (self.cols[i], self.cols[j]);
             self.cols[i] = ci * c + cj * s;
             self.cols[j] = cj * c - ci * s;

@@ -74,6 +74,13 @@ pub struct Op {
     pub joint: Option<usize>,
 }
 
+/// Per-op constants of one parameter vector: the parameter value and, for ops not driven by a
+/// joint, its sine and cosine — so a batch evaluates only the joints' trigonometry per sample.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    ops: Vec<[f64; 3]>,
+}
+
 /// A compiled serial chain: base, N links, tool.
 #[derive(Debug, Clone)]
 pub struct Chain {
@@ -99,12 +106,6 @@ impl Chain {
                 arg: "kinds",
                 expected: format!("({},) matching `conventions` (at least one joint)", conventions.len()),
                 got: format!("({},)", kinds.len()),
-            });
-        }
-        if 12 + 5 * conventions.len() > MAX_OPS {
-            return Err(CoreError::InvalidParameter {
-                arg: "conventions",
-                reason: format!("at most 64 joints are supported; got {}", conventions.len()),
             });
         }
         let layout = Layout::new(conventions.len());
@@ -188,51 +189,79 @@ impl Chain {
         Ok(q.len() / n)
     }
 
+    /// Per-op constants of one parameter vector (see [`Prepared`]).
+    pub fn prepare(&self, params: &[f64]) -> Prepared {
+        let ops = self
+            .ops
+            .iter()
+            .map(|op| {
+                let v = params[op.param];
+                let (s, c) = if op.rotation && op.joint.is_none() { v.sin_cos() } else { (0.0, 1.0) };
+                [v, s, c]
+            })
+            .collect();
+        Prepared { ops }
+    }
+
+    /// Value, sine and cosine of op `k` for joint vector `q`.
     #[inline]
-    fn op_value(op: &Op, params: &[f64], q: &[f64]) -> f64 {
-        params[op.param] + op.joint.map_or(0.0, |j| q[j])
+    fn op_value(&self, k: usize, pre: &Prepared, q: &[f64]) -> (f64, f64, f64) {
+        let [v, s, c] = pre.ops[k];
+        let op = &self.ops[k];
+        match op.joint {
+            Some(j) => {
+                let v = v + q[j];
+                let (s, c) = if op.rotation { v.sin_cos() } else { (0.0, 1.0) };
+                (v, s, c)
+            }
+            None => (v, s, c),
+        }
     }
 
     /// Pose of the flange (`tool = false`) or of the tool frame, for one joint vector `q` (N).
     /// Inputs are assumed validated (`check_inputs`).
-    pub fn forward(&self, params: &[f64], q: &[f64], tool: bool) -> Frame {
+    pub fn forward(&self, pre: &Prepared, q: &[f64], tool: bool) -> Frame {
         let end = if tool { self.ops.len() } else { self.flange_end };
         let mut f = Frame::identity();
-        for op in &self.ops[..end] {
-            f.apply(op, Self::op_value(op, params, q));
+        for (k, op) in self.ops[..end].iter().enumerate() {
+            f.apply(op, self.op_value(k, pre, q));
         }
         f
+    }
+
+    /// Number of elementary ops (the length of the scratch buffer of `forward_with_jacobian`).
+    pub fn n_ops(&self) -> usize {
+        self.ops.len()
     }
 
     /// Tool frame of one sample and its derivatives with respect to every parameter:
     /// `dp[k]` (mm per unit of parameter k) of the tool origin and `dw[k]` (rad per unit) of its
     /// orientation, both in the base (world) frame. Parameters outside the chain (sensor block)
-    /// get zeros. `dp`, `dw` must have length `n_params`.
+    /// keep whatever `dp`, `dw` held (zero them once). `dp`, `dw` have length `n_params`;
+    /// `axes` is scratch space of length `n_ops`.
     pub fn forward_with_jacobian(
         &self,
-        params: &[f64],
+        pre: &Prepared,
         q: &[f64],
+        axes: &mut [(Vector3<f64>, Vector3<f64>)],
         dp: &mut [Vector3<f64>],
         dw: &mut [Vector3<f64>],
     ) -> Frame {
         // An elementary rotation about world axis ω through o moves the end point by ω×(p−o);
         // a translation along world axis u moves it by u. Axes and origins are those of the
         // frame *before* the op, so they are recorded on the way out and used once p is known.
-        let mut axes = [(Vector3::zeros(), Vector3::zeros()); MAX_OPS];
-        let n_ops = self.ops.len();
-                let mut f = Frame::identity();
+        let mut f = Frame::identity();
         for (k, op) in self.ops.iter().enumerate() {
             axes[k] = (f.cols[op.axis], f.t);
-            f.apply(op, Self::op_value(op, params, q));
+            f.apply(op, self.op_value(k, pre, q));
         }
-        dp.iter_mut().for_each(|v| *v = Vector3::zeros());
-        dw.iter_mut().for_each(|v| *v = Vector3::zeros());
-        for (op, (axis, origin)) in self.ops.iter().zip(&axes[..n_ops]) {
+        for (op, (axis, origin)) in self.ops.iter().zip(axes.iter()) {
             if op.rotation {
                 dp[op.param] = axis.cross(&(f.t - origin));
                 dw[op.param] = *axis;
             } else {
                 dp[op.param] = *axis;
+                dw[op.param] = Vector3::zeros();
             }
         }
         f
@@ -244,16 +273,14 @@ impl Chain {
     pub fn fk_batch(&self, params: &[f64], q: &[f64], tool: bool) -> CoreResult<Vec<f64>> {
         let m = self.check_inputs(params, q)?;
         let n = self.n_joints();
+        let pre = self.prepare(params);
         let mut out = vec![0.0; m * 16];
         for (qi, oi) in q.chunks_exact(n).zip(out.chunks_exact_mut(16)) {
-            self.forward(params, qi, tool).write_homogeneous(oi);
+            self.forward(&pre, qi, tool).write_homogeneous(oi);
         }
         Ok(out)
     }
 }
-
-/// Longest supported chain, in elementary ops (6 base + 5 per joint + 6 tool): 64 joints.
-const MAX_OPS: usize = 12 + 5 * 64;
 
 #[cfg(test)]
 mod tests {
@@ -295,7 +322,7 @@ mod tests {
     fn dh_chain_matches_eq1_product() {
         let (chain, p) = hsr();
         let q = [0.3, -0.2, 0.5, 1.1, -0.7, 2.0];
-        let f = chain.forward(&p, &q, false);
+        let f = chain.forward(&chain.prepare(&p), &q, false);
         let mut expected = nalgebra::Matrix4::<f64>::identity();
         for j in 0..6 {
             let (ia, ii, id, it, _) = chain.layout().joint(j);
@@ -322,14 +349,15 @@ mod tests {
         let n = p.len();
         let mut dp = vec![Vector3::zeros(); n];
         let mut dw = vec![Vector3::zeros(); n];
-        let f0 = chain.forward_with_jacobian(&p, &q, &mut dp, &mut dw);
+        let mut axes = vec![(Vector3::zeros(), Vector3::zeros()); chain.n_ops()];
+        let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &q, &mut axes, &mut dp, &mut dw);
         for k in 0..n {
             let h = 1e-6;
             let mut pp = p.clone();
             pp[k] += h;
-            let fp = chain.forward(&pp, &q, true);
+            let fp = chain.forward(&chain.prepare(&pp), &q, true);
             pp[k] -= 2.0 * h;
-            let fm = chain.forward(&pp, &q, true);
+            let fm = chain.forward(&chain.prepare(&pp), &q, true);
             let num = (fp.t - fm.t) / (2.0 * h);
             assert!((num - dp[k]).norm() < 1e-5 * (1.0 + dp[k].norm()), "param {k}");
             // Angular velocity from the rotation difference: skew(ω) ≈ (R+ − R−)/(2h)·R0ᵀ.

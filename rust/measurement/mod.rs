@@ -15,7 +15,7 @@ pub mod so3;
 pub use cable_init::cable_initial_guess;
 
 use crate::error::{check_finite, CoreError, CoreResult};
-use crate::kinematics::{Chain, Frame};
+use crate::kinematics::{Chain, Frame, Prepared};
 use nalgebra::Vector3;
 
 /// What a sample observes.
@@ -66,6 +66,7 @@ pub struct Batch<'a> {
     pub q: &'a [f64],
     pub y: Option<&'a [f64]>,
     pub m: usize,
+    prepared: Prepared,
 }
 
 impl<'a> Batch<'a> {
@@ -115,7 +116,8 @@ impl<'a> Batch<'a> {
                 reason: "the pose model needs the measured poses".into(),
             });
         }
-        Ok(Self { chain, measurement, params, q, y, m })
+        let prepared = chain.prepare(params);
+        Ok(Self { chain, measurement, params, q, y, m, prepared })
     }
 
     fn q_row(&self, i: usize) -> &[f64] {
@@ -141,7 +143,7 @@ impl<'a> Batch<'a> {
 
     /// Model prediction of sample `i` into `out` (obs_width values).
     fn predict_row(&self, i: usize, out: &mut [f64]) {
-        let f = self.chain.forward(self.params, self.q_row(i), true);
+        let f = self.chain.forward(&self.prepared, self.q_row(i), true);
         match self.measurement {
             Measurement::Cable => {
                 let (dist, _, offset, scale) = self.cable_terms(&f.t);
@@ -193,7 +195,7 @@ impl<'a> Batch<'a> {
         let k = self.measurement.res_width();
         let mut out = vec![0.0; self.m * k];
         for (i, row) in out.chunks_exact_mut(k).enumerate() {
-            let f = self.chain.forward(self.params, self.q_row(i), true);
+            let f = self.chain.forward(&self.prepared, self.q_row(i), true);
             self.residual_row(i, &f, row);
         }
         out
@@ -215,8 +217,9 @@ impl<'a> Batch<'a> {
         let mut out = vec![0.0; self.m * k * nc];
         let mut dp = vec![Vector3::zeros(); n_params];
         let mut dw = vec![Vector3::zeros(); n_params];
+        let mut axes = vec![(Vector3::zeros(), Vector3::zeros()); self.chain.n_ops()];
         for (i, block) in out.chunks_exact_mut(k * nc.max(1)).enumerate().take(self.m) {
-            let f = self.chain.forward_with_jacobian(self.params, self.q_row(i), &mut dp, &mut dw);
+            let f = self.chain.forward_with_jacobian(&self.prepared, self.q_row(i), &mut axes, &mut dp, &mut dw);
             self.jacobian_rows(i, &f, &dp, &dw, cols, block);
         }
         Ok(out)
@@ -297,7 +300,7 @@ pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreRes
         for (&col, &v) in cols.iter().zip(sigma) {
             params[col] = v;
         }
-        let b = Batch { params: &params, ..*batch };
+        let b = Batch { params: &params, prepared: batch.chain.prepare(&params), ..*batch };
         out.extend(b.residuals());
     }
     Ok(out)
