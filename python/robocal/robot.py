@@ -17,7 +17,7 @@ import numpy as np
 from . import _robocal
 from .catalog import BUILTIN
 from .core import as_float_array
-from .exceptions import InvalidParameterError, ShapeError
+from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 
 MEASUREMENTS = ("cable", "position", "pose")
 
@@ -154,8 +154,9 @@ class Robot:
         p = np.ascontiguousarray(params, dtype=np.float64)
         if p.shape != (self.n_params,):
             raise ShapeError(f"`{arg}` must have shape ({self.n_params},); got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise InvalidParameterError(f"`{arg}` must be finite; got non-finite values at {np.flatnonzero(~np.isfinite(p)).tolist()}")
+        bad = np.flatnonzero(~np.isfinite(p))
+        if bad.size:
+            raise NonFiniteError(f"`{arg}` must be finite; got {p[bad[0]]} at index {bad[0]} ({self.param_names[bad[0]]})")
         return p
 
     def default_mask(self, measurement: str) -> np.ndarray:

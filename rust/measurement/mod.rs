@@ -70,8 +70,8 @@ pub struct Batch<'a> {
 }
 
 impl<'a> Batch<'a> {
-    /// Checks lengths and finiteness; for `pose`, that every observed quaternion has unit-ish
-    /// norm. `y` may be omitted only where it is not needed (prediction, cable/position Jacobian).
+    /// Checks lengths and finiteness; for `pose`, that every observed quaternion has unit norm
+    /// (to 1e-3). `y` may be omitted where it is not needed (prediction, cable/position Jacobian).
     ///
     /// Errors: `Shape`, `NonFinite`, `InvalidParameter`.
     pub fn new(
@@ -110,11 +110,6 @@ impl<'a> Batch<'a> {
                     }
                 }
             }
-        } else if measurement == Measurement::Pose {
-            return Err(CoreError::InvalidParameter {
-                arg: "y",
-                reason: "the pose model needs the measured poses".into(),
-            });
         }
         let prepared = chain.prepare(params);
         Ok(Self { chain, measurement, params, q, y, m, prepared })
@@ -125,9 +120,18 @@ impl<'a> Batch<'a> {
         &self.q[i * n..(i + 1) * n]
     }
 
+    /// The observations, or an error saying that this computation needs them.
+    fn observed(&self) -> CoreResult<&[f64]> {
+        self.y.ok_or_else(|| CoreError::InvalidParameter {
+            arg: "y",
+            reason: format!("the {:?} residuals need the measured values", self.measurement).to_lowercase(),
+        })
+    }
+
+    /// Observations of sample `i`; only called after `observed()` succeeded.
     fn y_row(&self, i: usize) -> &[f64] {
         let w = self.measurement.obs_width();
-        &self.y.expect("validated")[i * w..(i + 1) * w]
+        &self.y.unwrap_or_default()[i * w..(i + 1) * w]
     }
 
     fn cable_terms(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>, f64, f64) {
@@ -191,20 +195,27 @@ impl<'a> Batch<'a> {
     }
 
     /// Residuals `y − h`, (m, res_width) row-major.
-    pub fn residuals(&self) -> Vec<f64> {
+    ///
+    /// Errors: `InvalidParameter` when the batch has no observations.
+    pub fn residuals(&self) -> CoreResult<Vec<f64>> {
+        self.observed()?;
         let k = self.measurement.res_width();
         let mut out = vec![0.0; self.m * k];
         for (i, row) in out.chunks_exact_mut(k).enumerate() {
             let f = self.chain.forward(&self.prepared, self.q_row(i), true);
             self.residual_row(i, &f, row);
         }
-        out
+        Ok(out)
     }
 
     /// Identification Jacobian `∂h/∂params[cols]`, (m·res_width, cols.len()) row-major.
     ///
-    /// Errors: `InvalidParameter` if a column index is out of range.
+    /// Errors: `InvalidParameter` if a column index is out of range, or for `pose` without
+    /// observations (its rotation rows depend on the residual).
     pub fn jacobian(&self, cols: &[usize]) -> CoreResult<Vec<f64>> {
+        if self.measurement == Measurement::Pose {
+            self.observed()?;
+        }
         let n_params = self.chain.layout().n_params();
         if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
             return Err(CoreError::InvalidParameter {
@@ -301,7 +312,7 @@ pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreRes
             params[col] = v;
         }
         let b = Batch { params: &params, prepared: batch.chain.prepare(&params), ..*batch };
-        out.extend(b.residuals());
+        out.extend(b.residuals()?);
     }
     Ok(out)
 }

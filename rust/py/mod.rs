@@ -102,7 +102,7 @@ impl PyChain {
         let (params, q) = self.inputs(params, q)?;
         let y = self.observations(y, meas)?;
         let out = py
-            .detach(|| Batch::new(&self.inner, meas, &params, &q, Some(&y)).map(|b| b.residuals()))
+            .detach(|| Batch::new(&self.inner, meas, &params, &q, Some(&y)).and_then(|b| b.residuals()))
             .map_err(core_err)?;
         let k = meas.res_width();
         matrix(py, out, y.len() / meas.obs_width(), k)

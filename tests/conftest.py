@@ -1,0 +1,26 @@
+"""Shared test settings: a deterministic hypothesis profile and the public datasets."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile("ci", derandomize=True, deadline=None, max_examples=50, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("thorough", deadline=None, max_examples=500)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+DATASETS = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets")).resolve()
+
+
+@pytest.fixture(scope="session")
+def datasets() -> Path:
+    """The public datasets (never copied into the repo). CI sets ROBOCAL_REQUIRE_DATASETS=1 so
+    that their absence fails instead of skipping."""
+    if not DATASETS.is_dir():
+        if os.environ.get("ROBOCAL_REQUIRE_DATASETS"):
+            pytest.fail(f"public datasets not found at {DATASETS} (set ROBOCAL_DATASETS)")
+        pytest.skip(f"public datasets not found at {DATASETS} (set ROBOCAL_DATASETS)")
+    return DATASETS
