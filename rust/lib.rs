@@ -17,6 +17,7 @@ pub mod identify;
 pub mod kinematics;
 mod linalg;
 pub mod measurement;
+mod parallel;
 pub mod sigma;
 pub mod solve;
 

@@ -12,13 +12,16 @@
 //! Units: mm and rad (`cable_scale` is dimensionless).
 
 mod frame;
+mod lanes;
 mod layout;
 
 pub use frame::Frame;
+pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, LANES};
+use lanes::sin_cos;
 pub use layout::{Layout, JOINT_PARAMS, SENSOR_PARAMS};
 
 use crate::error::{check_finite, check_len, CoreError, CoreResult};
-use nalgebra::Vector3;
+use crate::parallel::for_each_group;
 
 /// Link convention of one joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -79,6 +82,18 @@ pub struct Op {
 #[derive(Debug, Clone)]
 pub struct Prepared {
     ops: Vec<[f64; 3]>,
+}
+
+/// Copies joint vectors `first .. first+count` of `q` ((m, n) row-major) into lanes
+/// `out[j][lane]`, repeating the last one in unused lanes.
+#[inline(always)]
+pub fn gather_lanes(q: &[f64], n: usize, first: usize, count: usize, out: &mut [Lane]) {
+    for l in 0..LANES {
+        let i = first + l.min(count - 1);
+        for (j, lane) in out.iter_mut().enumerate() {
+            lane[l] = q[i * n + j];
+        }
+    }
 }
 
 /// A compiled serial chain: base, N links, tool.
@@ -203,28 +218,31 @@ impl Chain {
         Prepared { ops }
     }
 
-    /// Value, sine and cosine of op `k` for joint vector `q`.
-    #[inline]
-    fn op_value(&self, k: usize, pre: &Prepared, q: &[f64]) -> (f64, f64, f64) {
+    /// Values, sines and cosines of op `k` for a group of joint vectors (`q[j][lane]`).
+    #[inline(always)]
+    fn op_lanes(&self, k: usize, pre: &Prepared, q: &[Lane]) -> (Lane, Lane, Lane) {
         let [v, s, c] = pre.ops[k];
         let op = &self.ops[k];
         match op.joint {
+            None => (splat(v), splat(s), splat(c)),
             Some(j) => {
-                let v = v + q[j];
-                let (s, c) = if op.rotation { v.sin_cos() } else { (0.0, 1.0) };
-                (v, s, c)
+                let mut vl = q[j];
+                vl.iter_mut().for_each(|x| *x += v);
+                let (s, c) = if op.rotation { sin_cos(&vl) } else { (splat(0.0), splat(1.0)) };
+                (vl, s, c)
             }
-            None => (v, s, c),
         }
     }
 
-    /// Pose of the flange (`tool = false`) or of the tool frame, for one joint vector `q` (N).
-    /// Inputs are assumed validated (`check_inputs`).
-    pub fn forward(&self, pre: &Prepared, q: &[f64], tool: bool) -> Frame {
+    /// Poses of the flange (`tool = false`) or of the tool frame for `LANES` joint vectors
+    /// `q[j][lane]`. Inputs are assumed validated (`check_inputs`).
+    #[inline(always)]
+    pub fn forward(&self, pre: &Prepared, q: &[Lane], tool: bool) -> Frames {
         let end = if tool { self.ops.len() } else { self.flange_end };
-        let mut f = Frame::identity();
+        let mut f = Frames::identity();
         for (k, op) in self.ops[..end].iter().enumerate() {
-            f.apply(op, self.op_value(k, pre, q));
+            let (v, s, c) = self.op_lanes(k, pre, q);
+            f.apply(op, &v, &s, &c);
         }
         f
     }
@@ -234,34 +252,52 @@ impl Chain {
         self.ops.len()
     }
 
-    /// Tool frame of one sample and its derivatives with respect to every parameter:
+    /// Tool frames of `LANES` samples and their derivatives with respect to every parameter:
     /// `dp[k]` (mm per unit of parameter k) of the tool origin and `dw[k]` (rad per unit) of its
-    /// orientation, both in the base (world) frame. Parameters outside the chain (sensor block)
-    /// keep whatever `dp`, `dw` held (zero them once). `dp`, `dw` have length `n_params`;
-    /// `axes` is scratch space of length `n_ops`.
+    /// orientation (only when `orientation`), in the base (world) frame. Parameters outside the
+    /// chain (sensor block) keep whatever `dp`, `dw` held (zero them once). `dp`, `dw` have
+    /// length `n_params`; `axes` is scratch space of length `n_ops`.
+    #[inline(always)]
     pub fn forward_with_jacobian(
         &self,
         pre: &Prepared,
-        q: &[f64],
-        axes: &mut [(Vector3<f64>, Vector3<f64>)],
-        dp: &mut [Vector3<f64>],
-        dw: &mut [Vector3<f64>],
-    ) -> Frame {
+        q: &[Lane],
+        orientation: bool,
+        axes: &mut [(Vec3L, Vec3L)],
+        dp: &mut [Vec3L],
+        dw: &mut [Vec3L],
+    ) -> Frames {
         // An elementary rotation about world axis ω through o moves the end point by ω×(p−o);
         // a translation along world axis u moves it by u. Axes and origins are those of the
         // frame *before* the op, so they are recorded on the way out and used once p is known.
-        let mut f = Frame::identity();
+        let mut f = Frames::identity();
         for (k, op) in self.ops.iter().enumerate() {
             axes[k] = (f.cols[op.axis], f.t);
-            f.apply(op, self.op_value(k, pre, q));
+            let (v, s, c) = self.op_lanes(k, pre, q);
+            f.apply(op, &v, &s, &c);
         }
-        for (op, (axis, origin)) in self.ops.iter().zip(axes.iter()) {
+        for (op, (w, o)) in self.ops.iter().zip(axes.iter()) {
             if op.rotation {
-                dp[op.param] = axis.cross(&(f.t - origin));
-                dw[op.param] = *axis;
+                let mut d = [splat(0.0); 3];
+                for r in 0..3 {
+                    for l in 0..LANES {
+                        d[r][l] = f.t[r][l] - o[r][l];
+                    }
+                }
+                let out = &mut dp[op.param];
+                for l in 0..LANES {
+                    out[0][l] = w[1][l] * d[2][l] - w[2][l] * d[1][l];
+                    out[1][l] = w[2][l] * d[0][l] - w[0][l] * d[2][l];
+                    out[2][l] = w[0][l] * d[1][l] - w[1][l] * d[0][l];
+                }
+                if orientation {
+                    dw[op.param] = *w;
+                }
             } else {
-                dp[op.param] = *axis;
-                dw[op.param] = Vector3::zeros();
+                dp[op.param] = *w;
+                if orientation {
+                    dw[op.param] = [splat(0.0); 3];
+                }
             }
         }
         f
@@ -275,9 +311,13 @@ impl Chain {
         let n = self.n_joints();
         let pre = self.prepare(params);
         let mut out = vec![0.0; m * 16];
-        for (qi, oi) in q.chunks_exact(n).zip(out.chunks_exact_mut(16)) {
-            self.forward(&pre, qi, tool).write_homogeneous(oi);
-        }
+        for_each_group(&mut out, 16, || vec![splat(0.0); n], |first, count, rows, ql| {
+            gather_lanes(q, n, first, count, ql);
+            let f = self.forward(&pre, ql, tool);
+            for (l, row) in rows.chunks_exact_mut(16).enumerate() {
+                f.lane(l).write_homogeneous(row);
+            }
+        });
         Ok(out)
     }
 }
@@ -285,6 +325,7 @@ impl Chain {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
 
     fn hsr() -> (Chain, Vec<f64>) {
         let chain = Chain::new(vec![Convention::Dh; 6], vec![JointKind::Revolute; 6]).unwrap();
@@ -309,6 +350,12 @@ mod tests {
         (chain, p)
     }
 
+    fn single(chain: &Chain, p: &[f64], q: &[f64], tool: bool) -> Frame {
+        let mut ql = vec![splat(0.0); q.len()];
+        gather_lanes(q, q.len(), 0, 1, &mut ql);
+        chain.forward(&chain.prepare(p), &ql, tool).lane(0)
+    }
+
     /// The paper's eq. (1) link matrix, multiplied out directly.
     fn dh_matrix(alpha: f64, a: f64, d: f64, theta: f64) -> nalgebra::Matrix4<f64> {
         let (st, ct) = theta.sin_cos();
@@ -322,7 +369,7 @@ mod tests {
     fn dh_chain_matches_eq1_product() {
         let (chain, p) = hsr();
         let q = [0.3, -0.2, 0.5, 1.1, -0.7, 2.0];
-        let f = chain.forward(&chain.prepare(&p), &q, false);
+        let f = single(&chain, &p, &q, false);
         let mut expected = nalgebra::Matrix4::<f64>::identity();
         for j in 0..6 {
             let (ia, ii, id, it, _) = chain.layout().joint(j);
@@ -347,17 +394,21 @@ mod tests {
         p[tool + 4] = 0.2;
         let q = [0.1, -1.2, 0.4, 0.9, 0.5, -0.3];
         let n = p.len();
-        let mut dp = vec![Vector3::zeros(); n];
-        let mut dw = vec![Vector3::zeros(); n];
-        let mut axes = vec![(Vector3::zeros(), Vector3::zeros()); chain.n_ops()];
-        let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &q, &mut axes, &mut dp, &mut dw);
+        let mut dpl = vec![[splat(0.0); 3]; n];
+        let mut dwl = vec![[splat(0.0); 3]; n];
+        let mut axes = vec![([splat(0.0); 3], [splat(0.0); 3]); chain.n_ops()];
+        let mut ql = vec![splat(0.0); 6];
+        gather_lanes(&q, 6, 0, 1, &mut ql);
+        let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &ql, true, &mut axes, &mut dpl, &mut dwl).lane(0);
+        let dp: Vec<Vector3<f64>> = dpl.iter().map(|v| lane_vec(v, 0)).collect();
+        let dw: Vec<Vector3<f64>> = dwl.iter().map(|v| lane_vec(v, 0)).collect();
         for k in 0..n {
             let h = 1e-6;
             let mut pp = p.clone();
             pp[k] += h;
-            let fp = chain.forward(&chain.prepare(&pp), &q, true);
+            let fp = single(&chain, &pp, &q, true);
             pp[k] -= 2.0 * h;
-            let fm = chain.forward(&chain.prepare(&pp), &q, true);
+            let fm = single(&chain, &pp, &q, true);
             let num = (fp.t - fm.t) / (2.0 * h);
             assert!((num - dp[k]).norm() < 1e-5 * (1.0 + dp[k].norm()), "param {k}");
             // Angular velocity from the rotation difference: skew(ω) ≈ (R+ − R−)/(2h)·R0ᵀ.

@@ -15,7 +15,8 @@ pub mod so3;
 pub use cable_init::cable_initial_guess;
 
 use crate::error::{check_finite, CoreError, CoreResult};
-use crate::kinematics::{Chain, Frame, Prepared};
+use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, LANES};
+use crate::parallel::for_each_group;
 use nalgebra::Vector3;
 
 /// What a sample observes.
@@ -115,9 +116,16 @@ impl<'a> Batch<'a> {
         Ok(Self { chain, measurement, params, q, y, m, prepared })
     }
 
-    fn q_row(&self, i: usize) -> &[f64] {
-        let n = self.chain.n_joints();
-        &self.q[i * n..(i + 1) * n]
+    /// Scratch lanes for one group's joint vectors.
+    fn q_scratch(&self) -> Vec<Lane> {
+        vec![splat(0.0); self.chain.n_joints()]
+    }
+
+    /// Tool frames of samples `first .. first+count` (unused lanes repeat the last sample).
+    #[inline(always)]
+    fn tool_frames(&self, first: usize, count: usize, ql: &mut [Lane]) -> crate::kinematics::Frames {
+        gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
+        self.chain.forward(&self.prepared, ql, true)
     }
 
     /// The observations, or an error saying that this computation needs them.
@@ -145,9 +153,8 @@ impl<'a> Batch<'a> {
         (dist, u, self.params[s + 3], self.params[s + 4])
     }
 
-    /// Model prediction of sample `i` into `out` (obs_width values).
-    fn predict_row(&self, i: usize, out: &mut [f64]) {
-        let f = self.chain.forward(&self.prepared, self.q_row(i), true);
+    /// Model prediction of one sample with tool frame `f` into `out` (obs_width values).
+    fn predict_row(&self, f: &Frame, out: &mut [f64]) {
         match self.measurement {
             Measurement::Cable => {
                 let (dist, _, offset, scale) = self.cable_terms(&f.t);
@@ -188,9 +195,12 @@ impl<'a> Batch<'a> {
     pub fn predict(&self) -> Vec<f64> {
         let w = self.measurement.obs_width();
         let mut out = vec![0.0; self.m * w];
-        for (i, row) in out.chunks_exact_mut(w).enumerate() {
-            self.predict_row(i, row);
-        }
+        for_each_group(&mut out, w, || self.q_scratch(), |first, count, rows, ql| {
+            let f = self.tool_frames(first, count, ql);
+            for (l, row) in rows.chunks_exact_mut(w).enumerate() {
+                self.predict_row(&f.lane(l), row);
+            }
+        });
         out
     }
 
@@ -201,10 +211,12 @@ impl<'a> Batch<'a> {
         self.observed()?;
         let k = self.measurement.res_width();
         let mut out = vec![0.0; self.m * k];
-        for (i, row) in out.chunks_exact_mut(k).enumerate() {
-            let f = self.chain.forward(&self.prepared, self.q_row(i), true);
-            self.residual_row(i, &f, row);
-        }
+        for_each_group(&mut out, k, || self.q_scratch(), |first, count, rows, ql| {
+            let f = self.tool_frames(first, count, ql);
+            for (l, row) in rows.chunks_exact_mut(k).enumerate() {
+                self.residual_row(first + l, &f.lane(l), row);
+            }
+        });
         Ok(out)
     }
 
@@ -223,59 +235,69 @@ impl<'a> Batch<'a> {
                 reason: format!("column index {bad} out of range for {n_params} parameters"),
             });
         }
-        let k = self.measurement.res_width();
-        let nc = cols.len();
-        let mut out = vec![0.0; self.m * k * nc];
-        let mut dp = vec![Vector3::zeros(); n_params];
-        let mut dw = vec![Vector3::zeros(); n_params];
-        let mut axes = vec![(Vector3::zeros(), Vector3::zeros()); self.chain.n_ops()];
-        for (i, block) in out.chunks_exact_mut(k * nc.max(1)).enumerate().take(self.m) {
-            let f = self.chain.forward_with_jacobian(&self.prepared, self.q_row(i), &mut axes, &mut dp, &mut dw);
-            self.jacobian_rows(i, &f, &dp, &dw, cols, block);
-        }
+        let width = self.measurement.res_width() * cols.len();
+        let mut out = vec![0.0; self.m * width];
+        let scratch = || {
+            let zero: Vec3L = [splat(0.0); 3];
+            (self.q_scratch(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
+        };
+        for_each_group(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
+            gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
+            let orientation = self.measurement == Measurement::Pose;
+            let f = self.chain.forward_with_jacobian(&self.prepared, ql, orientation, axes, dp, dw);
+            self.jacobian_group(first, count, &f, dp, dw, cols, rows);
+        });
         Ok(out)
     }
 
-    /// The `res_width` Jacobian rows of sample `i`, restricted to `cols`.
-    fn jacobian_rows(
-        &self,
-        i: usize,
-        f: &Frame,
-        dp: &[Vector3<f64>],
-        dw: &[Vector3<f64>],
-        cols: &[usize],
-        block: &mut [f64],
-    ) {
+    /// The Jacobian rows of samples `first .. first+count` (lanes of `f`, `dp`, `dw`) into
+    /// `rows` (`count · res_width · cols.len()` values), restricted to `cols`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn jacobian_group(&self, first: usize, count: usize, f: &Frames, dp: &[Vec3L], dw: &[Vec3L], cols: &[usize], rows: &mut [f64]) {
         let nc = cols.len();
+        let width = self.measurement.res_width() * nc;
         match self.measurement {
             Measurement::Cable => {
-                let (dist, u, _, scale) = self.cable_terms(&f.t);
                 let s = self.chain.layout().sensor();
+                let terms: [_; LANES] = std::array::from_fn(|l| self.cable_terms(&lane_vec(&f.t, l)));
+                let scale = self.params[s + 4];
+                let u: Vec3L = std::array::from_fn(|r| std::array::from_fn(|l| terms[l].1[r]));
                 for (c, &col) in cols.iter().enumerate() {
-                    block[c] = match col.checked_sub(s) {
-                        Some(0..=2) => -scale * u[col - s],
-                        Some(3) => -1.0,
-                        Some(4) => dist,
-                        _ => scale * u.dot(&dp[col]),
+                    let v: Lane = match col.checked_sub(s) {
+                        Some(a @ 0..=2) => std::array::from_fn(|l| -scale * u[a][l]),
+                        Some(3) => splat(-1.0),
+                        Some(4) => std::array::from_fn(|l| terms[l].0),
+                        _ => {
+                            let d = &dp[col];
+                            std::array::from_fn(|l| scale * (u[0][l] * d[0][l] + u[1][l] * d[1][l] + u[2][l] * d[2][l]))
+                        }
                     };
+                    for l in 0..count {
+                        rows[l * width + c] = v[l];
+                    }
                 }
             }
             Measurement::Position => {
                 for (c, &col) in cols.iter().enumerate() {
                     for r in 0..3 {
-                        block[r * nc + c] = dp[col][r];
+                        for l in 0..count {
+                            rows[l * width + r * nc + c] = dp[col][r][l];
+                        }
                     }
                 }
             }
             Measurement::Pose => {
-                let mut e = [0.0; 6];
-                self.residual_row(i, f, &mut e);
-                let jinv = so3::right_jacobian_inverse(&Vector3::new(e[3], e[4], e[5]));
-                for (c, &col) in cols.iter().enumerate() {
-                    let rot = jinv * dw[col];
-                    for r in 0..3 {
-                        block[r * nc + c] = dp[col][r];
-                        block[(r + 3) * nc + c] = rot[r];
+                for (l, block) in rows.chunks_exact_mut(width).enumerate() {
+                    let mut e = [0.0; 6];
+                    self.residual_row(first + l, &f.lane(l), &mut e);
+                    let jinv = so3::right_jacobian_inverse(&Vector3::new(e[3], e[4], e[5]));
+                    for (c, &col) in cols.iter().enumerate() {
+                        let rot = jinv * lane_vec(&dw[col], l);
+                        for r in 0..3 {
+                            block[r * nc + c] = dp[col][r][l];
+                            block[(r + 3) * nc + c] = rot[r];
+                        }
                     }
                 }
             }

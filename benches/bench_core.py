@@ -1,0 +1,110 @@
+"""Side-by-side benchmark of the Rust core against its pure-NumPy twin (``robocal.reference``).
+
+Both run in this one process on the same inputs (the HSR JR680 of the paper, cable model, the
+paper's 31-parameter set); each figure is the best of several repeats. Prints a Markdown table
+with absolute times, throughput and the Rust/NumPy ratio, plus the machine.
+
+    python benches/bench_core.py                 # all cores (rayon default)
+    python benches/bench_core.py --threads 1     # single-core figures
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+
+
+def best_time(fn, min_total: float = 0.3, max_repeats: int = 50) -> float:
+    """Best wall time of ``fn()`` over repeats lasting about ``min_total`` seconds."""
+    fn()
+    best, spent, n = float("inf"), 0.0, 0
+    while (spent < min_total or n < 3) and n < max_repeats:
+        start = time.perf_counter()
+        fn()
+        elapsed = time.perf_counter() - start
+        best, spent, n = min(best, elapsed), spent + elapsed, n + 1
+    return best
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=None, help="rayon threads (default: all cores)")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1_000, 10_000])
+    args = parser.parse_args()
+    if args.threads:
+        os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
+
+    import numpy as np
+
+    import robocal
+    from robocal import reference as ref
+
+    r = robocal.robot("hsr-jr680")
+    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
+    params = r.with_params(tool_x=20.0, tool_y=-15.0, tool_z=60.0, anchor_x=1500.0, anchor_y=300.0, anchor_z=-200.0, cable_offset=950.0).params
+    cols = np.flatnonzero(r.default_mask("cable"))
+    col_list = cols.tolist()
+    rng = np.random.default_rng(0)
+    threads = args.threads or os.cpu_count()
+
+    print(f"machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}")
+    print(f"python {sys.version.split()[0]}, numpy {np.__version__}, robocal {robocal.__version__}")
+    print(f"cable model, HSR JR680, {len(cols)} parameters; best of repeats\n")
+    print("| kernel | m | Rust | NumPy twin | NumPy / Rust | Rust throughput |")
+    print("|---|---:|---:|---:|---:|---:|")
+
+    def row(name, m, rust, numpy, unit_count, unit):
+        tr, tn = best_time(rust), best_time(numpy)
+        print(f"| {name} | {m:,} | {tr * 1e3:.3f} ms | {tn * 1e3:.3f} ms | {tn / tr:.1f}x | {unit_count / tr:,.0f} {unit}/s |")
+
+    for m in args.sizes:
+        q = np.radians([5.0, -60.0, 200.0, -160.0, 40.0, 60.0]) + rng.uniform(-0.6, 0.6, size=(m, 6))
+        y = r.chain.predict("cable", params, q)
+        row("fk (tool frame)", m, lambda: r.chain.fk(params, q, True), lambda: ref.fk(conv, kinds, params, q, True), m, "poses")
+        row(
+            "cable Jacobian (31 cols)",
+            m,
+            lambda: r.chain.jacobian("cable", params, q, None, col_list),
+            lambda: ref.jacobian(conv, kinds, "cable", params, q, None, cols),
+            m,
+            "rows",
+        )
+        n = len(cols)
+        sigmas, _, _ = robocal.merwe_sigma_points(params[cols], np.eye(n) * 1e-4, 1e-3, 2.0, 0.0)
+        row(
+            f"sigma residuals ({2 * n + 1} points)",
+            m,
+            lambda: r.chain.sigma_residuals("cable", params, col_list, sigmas, q, y),
+            lambda: ref.sigma_residuals(conv, kinds, "cable", params, cols, sigmas, q, y),
+            m * (2 * n + 1),
+            "poses",
+        )
+        for n_par in (24, 31, 60):
+            J = rng.standard_normal((m, n_par))
+            res = rng.standard_normal(m)
+            row(
+                f"damped solve (n={n_par})",
+                m,
+                lambda: robocal.solve_damped(J, res, 1e-3),
+                lambda: ref.solve_damped(J, res, 1e-3),
+                1,
+                "solves",
+            )
+
+
+if __name__ == "__main__":
+    main()

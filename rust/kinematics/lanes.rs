@@ -1,0 +1,159 @@
+//! `LANES` samples evaluated in lockstep (structure of arrays), so that every elementary
+//! transform is one SIMD operation across samples, and a polynomial sine/cosine that
+//! vectorises the same way (libm's `sin_cos` is a scalar call per angle).
+
+use super::{Frame, Op};
+use nalgebra::Vector3;
+
+/// Samples per group.
+pub const LANES: usize = 4;
+/// One value per sample of a group.
+pub type Lane = [f64; LANES];
+/// A 3-vector per sample: `v[row][lane]`.
+pub type Vec3L = [Lane; 3];
+
+#[inline(always)]
+pub fn splat(v: f64) -> Lane {
+    [v; LANES]
+}
+
+/// Angles beyond this go through libm (the two-term π/2 reduction below is exact to ~1e-16
+/// relative only while `k·PIO2_1` stays exact).
+const REDUCTION_LIMIT: f64 = 1.0e5;
+
+/// Sine and cosine of every lane: Cody–Waite reduction to [−π/4, π/4] and fdlibm's kernel
+/// polynomials (error ≲ 2 ulp for |x| < 1e5).
+#[inline(always)]
+pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
+    const PIO2_1: f64 = 1.570_796_326_734_125_614_17;
+    const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
+    const S: [f64; 6] = [
+        -1.666_666_666_666_663_243_48e-01,
+        8.333_333_333_322_489_461_24e-03,
+        -1.984_126_982_985_794_931_34e-04,
+        2.755_731_370_707_006_767_89e-06,
+        -2.505_076_025_340_686_341_95e-08,
+        1.589_690_995_211_550_102_21e-10,
+    ];
+    const C: [f64; 6] = [
+        4.166_666_666_666_660_190_37e-02,
+        -1.388_888_888_887_410_957_49e-03,
+        2.480_158_728_947_672_941_78e-05,
+        -2.755_731_435_139_066_330_35e-07,
+        2.087_572_321_298_174_827_90e-09,
+        -1.135_964_755_778_819_482_65e-11,
+    ];
+    // Round-to-nearest by adding 1.5·2⁵² (exact for |x| < 2⁵¹), so no libm `round` call blocks
+    // vectorisation; the low bits of the sum are k mod 4. Quadrant swaps and signs are bit
+    // selects: (sin, cos) = (s, c), (c, −s), (−s, −c), (−c, s) for k mod 4 = 0, 1, 2, 3.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    let mut s = [0.0; LANES];
+    let mut c = [0.0; LANES];
+    for l in 0..LANES {
+        let shifted = x[l] * std::f64::consts::FRAC_2_PI + SHIFT;
+        let k = shifted - SHIFT;
+        let q = shifted.to_bits();
+        let r = (x[l] - k * PIO2_1) - k * PIO2_1T;
+        let z = r * r;
+        let sr = r + r * z * (S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5])))));
+        let cr = 1.0 - 0.5 * z + z * z * (C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5])))));
+        let swap = 0u64.wrapping_sub(q & 1);
+        let (sb, cb) = (sr.to_bits(), cr.to_bits());
+        let a = (sb & !swap) | (cb & swap);
+        let b = (cb & !swap) | (sb & swap);
+        s[l] = f64::from_bits(a ^ (((q >> 1) & 1) << 63));
+        c[l] = f64::from_bits(b ^ ((((q + 1) >> 1) & 1) << 63));
+    }
+    if x.iter().any(|v| v.abs() > REDUCTION_LIMIT) {
+        for l in 0..LANES {
+            if x[l].abs() > REDUCTION_LIMIT {
+                (s[l], c[l]) = x[l].sin_cos();
+            }
+        }
+    }
+    (s, c)
+}
+
+/// `LANES` rigid frames: rotation columns `cols[c][row][lane]` and origins `t[row][lane]`.
+#[derive(Debug, Clone, Copy)]
+pub struct Frames {
+    pub cols: [Vec3L; 3],
+    pub t: Vec3L,
+}
+
+impl Frames {
+    pub fn identity() -> Self {
+        let mut cols = [[splat(0.0); 3]; 3];
+        for (k, col) in cols.iter_mut().enumerate() {
+            col[k] = splat(1.0);
+        }
+        Self { cols, t: [splat(0.0); 3] }
+    }
+
+    /// Post-multiplies every lane by the elementary transform `op`: a translation by `v`, a
+    /// rotation with sines `s` and cosines `c`.
+    #[inline(always)]
+    pub fn apply(&mut self, op: &Op, v: &Lane, s: &Lane, c: &Lane) {
+        // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; spelled out per axis so
+        // the indices are constants.
+        match (op.rotation, op.axis) {
+            (true, 0) => self.rotate::<1, 2>(s, c),
+            (true, 1) => self.rotate::<2, 0>(s, c),
+            (true, _) => self.rotate::<0, 1>(s, c),
+            (false, k) => {
+                for r in 0..3 {
+                    for l in 0..LANES {
+                        self.t[r][l] += self.cols[k][r][l] * v[l];
+                    }
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn rotate<const I: usize, const J: usize>(&mut self, s: &Lane, c: &Lane) {
+        for r in 0..3 {
+            for l in 0..LANES {
+                let (ci, cj) = (self.cols[I][r][l], self.cols[J][r][l]);
+                self.cols[I][r][l] = ci * c[l] + cj * s[l];
+                self.cols[J][r][l] = cj * c[l] - ci * s[l];
+            }
+        }
+    }
+
+    /// The frame of lane `l`.
+    pub fn lane(&self, l: usize) -> Frame {
+        let v = |a: &Vec3L| Vector3::new(a[0][l], a[1][l], a[2][l]);
+        Frame { cols: [v(&self.cols[0]), v(&self.cols[1]), v(&self.cols[2])], t: v(&self.t) }
+    }
+}
+
+/// Lane `l` of a 3-vector.
+#[inline(always)]
+pub fn lane_vec(a: &Vec3L, l: usize) -> Vector3<f64> {
+    Vector3::new(a[0][l], a[1][l], a[2][l])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_matches_libm() {
+        let mut worst: f64 = 0.0;
+        for k in -200_000..200_000 {
+            let x = [k as f64 * 1e-4, k as f64 * 0.37, -(k as f64) * 2.5e-3, k as f64 * 1e-9];
+            let (s, c) = sin_cos(&x);
+            for l in 0..LANES {
+                let (es, ec) = x[l].sin_cos();
+                worst = worst.max((s[l] - es).abs()).max((c[l] - ec).abs());
+            }
+        }
+        assert!(worst < 4e-16, "worst absolute error {worst:e}");
+        let huge = [1e6, -3e9, 1e300, 0.5];
+        let (s, c) = sin_cos(&huge);
+        for l in 0..3 {
+            assert_eq!((s[l], c[l]), huge[l].sin_cos(), "lane {l}");
+        }
+    }
+}

@@ -1,0 +1,52 @@
+//! Data parallelism over samples (rayon). Every sample is computed independently and written to
+//! its own rows, so results are bit-identical whatever the number of threads
+//! (`RAYON_NUM_THREADS=1` gives the single-core figures of the benchmarks).
+
+use crate::kinematics::LANES;
+use rayon::prelude::*;
+
+/// Samples per task (a multiple of `LANES`): large enough to amortise scheduling, small enough
+/// to balance two cores.
+const CHUNK: usize = 256;
+
+/// Fills `out` — consecutive rows of `width` values, one row per sample — group by group:
+/// `fill(first, count, rows, scratch)` computes samples `first .. first+count` (`count ≤ LANES`)
+/// into `rows` (`count·width` values). Each parallel task makes its own scratch with `make`.
+pub fn for_each_group<S, M, F>(out: &mut [f64], width: usize, make: M, fill: F)
+where
+    M: Fn() -> S + Sync,
+    F: Fn(usize, usize, &mut [f64], &mut S) + Sync,
+{
+    if width == 0 {
+        return;
+    }
+    out.par_chunks_mut(CHUNK * width).enumerate().for_each(|(c, chunk)| {
+        let mut scratch = make();
+        let samples = chunk.len() / width;
+        with_best_simd(|| {
+            for g in (0..samples).step_by(LANES) {
+                let count = LANES.min(samples - g);
+                fill(c * CHUNK + g, count, &mut chunk[g * width..(g + count) * width], &mut scratch);
+            }
+        });
+    });
+}
+
+/// Runs `f` compiled for AVX2 + FMA when this CPU has them, else for the baseline target. The
+/// kernels are `#[inline(always)]`, so they are inlined here and vectorised four lanes wide;
+/// one wheel then serves old and new CPUs alike.
+#[inline(always)]
+fn with_best_simd<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn avx2_fma<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports both features, checked just above.
+            return unsafe { avx2_fma(f) };
+        }
+    }
+    f()
+}
