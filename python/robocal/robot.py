@@ -255,7 +255,7 @@ class Robot:
         Ry(beta_N)`` moves into the tool frame. The flange frame therefore differs; the tool frame
         does not.
         """
-        from .reference import frame_params, frame_transform
+        from .reference import frame_params, frame_transform, rotation  # not at import time: it loads scipy
 
         if any(j.convention != "dh" for j in self.joints):
             raise InvalidParameterError("to_mdh converts a chain whose joints are all standard DH")
@@ -265,7 +265,9 @@ class Robot:
         mdh[0, [0, 1, 4]] = 0.0
         mdh[1:, [0, 1, 4]] = dh[:-1, [0, 1, 4]]
         alpha_n, a_n, _, _, beta_n = dh[-1]
-        last = _elementary("x", a_n, False) @ _elementary("x", alpha_n, True) @ _elementary("y", beta_n, True)
+        last = np.eye(4)  # Tx(a_N) · Rx(alpha_N) · Ry(beta_N)
+        last[:3, :3] = rotation(0, alpha_n) @ rotation(1, beta_n)
+        last[0, 3] = a_n
         tool = frame_params(last @ frame_transform(self.params[self.index("tool_x") : self.index("tool_x") + 6]))
         params = self.params.copy()
         params[: 5 * n] = mdh.ravel()
@@ -275,18 +277,6 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, {self.n_joints} joints, {self.n_params} parameters)"
-
-
-def _elementary(axis: str, value: float, rotation: bool) -> np.ndarray:
-    k = "xyz".index(axis)
-    T = np.eye(4)
-    if rotation:
-        i, j = (k + 1) % 3, (k + 2) % 3
-        c, s = math.cos(value), math.sin(value)
-        T[i, i], T[i, j], T[j, i], T[j, j] = c, -s, s, c
-    else:
-        T[k, 3] = value
-    return T
 
 
 def robot(name: str) -> Robot:
