@@ -1,7 +1,8 @@
 //! `cargo bench`: profiles the core kernels on a 6-joint standard-DH robot (the HSR JR680
 //! geometry of the paper's Table I) at m = 100, 1 000, 10 000 samples.
 
-use _robocal::kinematics::{Chain, Convention, JointKind};
+use _robocal::fixtures::hsr_jr680 as robot;
+use _robocal::kinematics::Chain;
 use _robocal::measurement::{sigma_residuals, Batch, Measurement};
 use _robocal::sigma::merwe_sigma_points;
 use _robocal::solve::{solve_damped, Damping};
@@ -9,28 +10,6 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use std::hint::black_box;
 
 const SIZES: [usize; 3] = [100, 1_000, 10_000];
-
-/// HSR JR680 nominal DH (deg, mm) with a tool point and a cable anchor.
-fn robot() -> (Chain, Vec<f64>) {
-    let chain = Chain::new(vec![Convention::Dh; 6], vec![JointKind::Revolute; 6]).unwrap();
-    let table = [
-        (-90.0f64, 250.0, 653.5, 0.0f64),
-        (0.0, 900.0, 0.0, -90.0),
-        (90.0, -205.0, 0.0, 180.0),
-        (-90.0, 0.0, 1030.2, 0.0),
-        (90.0, 0.0, 0.0, 90.0),
-        (0.0, 0.0, 200.6, 0.0),
-    ];
-    let mut p = vec![0.0; chain.layout().n_params()];
-    for (j, (al, a, d, th)) in table.iter().enumerate() {
-        let (ia, ii, id, it, _) = chain.layout().joint(j);
-        (p[ia], p[ii], p[id], p[it]) = (al.to_radians(), *a, *d, th.to_radians());
-    }
-    let (tool, sensor) = (chain.layout().tool(), chain.layout().sensor());
-    p[tool..tool + 3].copy_from_slice(&[20.0, -15.0, 60.0]);
-    p[sensor..sensor + 5].copy_from_slice(&[1500.0, 300.0, -200.0, 950.0, 1.0]);
-    (chain, p)
-}
 
 /// Deterministic joint configurations spread over ±1 rad around a working pose.
 fn configurations(m: usize) -> Vec<f64> {

@@ -13,6 +13,8 @@
 //! - [`identify`]: identifiability (rank, subset, redundancy) and parameter covariance.
 
 pub mod error;
+#[doc(hidden)]
+pub mod fixtures;
 pub mod identify;
 pub mod kinematics;
 mod linalg;

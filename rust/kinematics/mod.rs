@@ -328,25 +328,9 @@ mod tests {
     use nalgebra::Vector3;
 
     fn hsr() -> (Chain, Vec<f64>) {
-        let chain = Chain::new(vec![Convention::Dh; 6], vec![JointKind::Revolute; 6]).unwrap();
-        let deg = std::f64::consts::PI / 180.0;
-        let table = [
-            (-90.0, 250.0, 653.5, 0.0),
-            (0.0, 900.0, 0.0, -90.0),
-            (90.0, -205.0, 0.0, 180.0),
-            (-90.0, 0.0, 1030.2, 0.0),
-            (90.0, 0.0, 0.0, 90.0),
-            (0.0, 0.0, 200.6, 0.0),
-        ];
-        let mut p = vec![0.0; chain.layout().n_params()];
-        for (j, (al, a, d, th)) in table.iter().enumerate() {
-            let (ia, ii, id, it, _) = chain.layout().joint(j);
-            p[ia] = al * deg;
-            p[ii] = *a;
-            p[id] = *d;
-            p[it] = th * deg;
-        }
-        p[chain.layout().sensor() + 4] = 1.0;
+        let (chain, mut p) = crate::fixtures::hsr_jr680();
+        let tool = chain.layout().tool();
+        p[tool..tool + 6].fill(0.0);
         (chain, p)
     }
 

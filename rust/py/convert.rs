@@ -57,9 +57,11 @@ fn owned(obj: &Bound<'_, PyAny>, arg: &'static str) -> PyResult<(Vec<f64>, Vec<u
         })
     })?;
     let shape = arr.shape().to_vec();
+    // `as_slice` also succeeds on Fortran-ordered arrays (memory order); only a C-ordered
+    // buffer may be copied as is, anything else is copied in logical order.
     let data = match arr.as_slice() {
-        Ok(s) => s.to_vec(),
-        Err(_) => arr.as_array().iter().copied().collect(),
+        Ok(s) if arr.is_c_contiguous() => s.to_vec(),
+        _ => arr.as_array().iter().copied().collect(),
     };
     Ok((data, shape))
 }

@@ -30,16 +30,29 @@ fn matrix<'py>(py: Python<'py>, data: Vec<f64>, rows: usize, cols: usize) -> PyR
     PyArray1::from_vec(py, data).reshape([rows, cols])
 }
 
-impl PyChain {
-    /// Copies and shape-checks `params` (P) and `q` (m, N).
-    fn inputs(&self, params: &Bound<'_, PyAny>, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
-        let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
-        let (q, _, _) = array2(q, "q", Some(self.inner.n_joints()))?;
-        Ok((params, q))
-    }
+/// A measurement call's inputs, copied out of Python so the interpreter can be released.
+struct Owned {
+    measurement: Measurement,
+    params: Vec<f64>,
+    q: Vec<f64>,
+    y: Option<Vec<f64>>,
+    m: usize,
+}
 
-    fn observations(&self, y: &Bound<'_, PyAny>, meas: Measurement) -> PyResult<Vec<f64>> {
-        Ok(array2(y, "y", Some(meas.obs_width()))?.0)
+impl Owned {
+    fn batch<'a>(&'a self, chain: &'a Chain) -> crate::error::CoreResult<Batch<'a>> {
+        Batch::new(chain, self.measurement, &self.params, &self.q, self.y.as_deref())
+    }
+}
+
+impl PyChain {
+    /// Parses the measurement name and copies `params` (P), `q` (m, N) and `y` (m, obs_width).
+    fn owned(&self, measurement: &str, params: &Bound<'_, PyAny>, q: &Bound<'_, PyAny>, y: Option<&Bound<'_, PyAny>>) -> PyResult<Owned> {
+        let measurement = Measurement::parse(measurement).map_err(core_err)?;
+        let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
+        let (q, m, _) = array2(q, "q", Some(self.inner.n_joints()))?;
+        let y = y.map(|y| array2(y, "y", Some(measurement.obs_width())).map(|a| a.0)).transpose()?;
+        Ok(Owned { measurement, params, q, y, m })
     }
 }
 
@@ -71,22 +84,17 @@ impl PyChain {
     /// Flange (or tool) poses, (m, 4, 4) in mm.
     #[pyo3(signature = (params, q, tool = false))]
     fn fk<'py>(&self, py: Python<'py>, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyArray3<f64>>> {
-        let (params, q) = self.inputs(params, q)?;
+        let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
+        let (q, m, _) = array2(q, "q", Some(self.inner.n_joints()))?;
         let out = py.detach(|| self.inner.fk_batch(&params, &q, tool)).map_err(core_err)?;
-        let m = out.len() / 16;
         PyArray1::from_vec(py, out).reshape([m, 4, 4])
     }
 
     /// Model predictions, (m, obs_width).
     fn predict<'py>(&self, py: Python<'py>, measurement: &str, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>) -> PyResult<Arr2<'py>> {
-        let meas = Measurement::parse(measurement).map_err(core_err)?;
-        let (params, q) = self.inputs(params, q)?;
-        let out = py
-            .detach(|| Batch::new(&self.inner, meas, &params, &q, None).map(|b| b.predict()))
-            .map_err(core_err)?;
-        let w = meas.obs_width();
-        let m = out.len() / w;
-        matrix(py, out, m, w)
+        let inp = self.owned(measurement, params, q, None)?;
+        let out = py.detach(|| inp.batch(&self.inner).map(|b| b.predict())).map_err(core_err)?;
+        matrix(py, out, inp.m, inp.measurement.obs_width())
     }
 
     /// Residuals `y − h`, (m, res_width).
@@ -98,14 +106,9 @@ impl PyChain {
         q: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
     ) -> PyResult<Arr2<'py>> {
-        let meas = Measurement::parse(measurement).map_err(core_err)?;
-        let (params, q) = self.inputs(params, q)?;
-        let y = self.observations(y, meas)?;
-        let out = py
-            .detach(|| Batch::new(&self.inner, meas, &params, &q, Some(&y)).and_then(|b| b.residuals()))
-            .map_err(core_err)?;
-        let k = meas.res_width();
-        matrix(py, out, y.len() / meas.obs_width(), k)
+        let inp = self.owned(measurement, params, q, Some(y))?;
+        let out = py.detach(|| inp.batch(&self.inner)?.residuals()).map_err(core_err)?;
+        matrix(py, out, inp.m, inp.measurement.res_width())
     }
 
     /// Identification Jacobian `∂h/∂params[cols]`, (m·res_width, len(cols)).
@@ -119,18 +122,13 @@ impl PyChain {
         y: Option<&Bound<'py, PyAny>>,
         cols: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Arr2<'py>> {
-        let meas = Measurement::parse(measurement).map_err(core_err)?;
-        let (params, q) = self.inputs(params, q)?;
-        let y = y.map(|y| self.observations(y, meas)).transpose()?;
+        let inp = self.owned(measurement, params, q, y)?;
         let cols = match cols {
             Some(c) => index_list(c, "cols")?,
-            None => (0..params.len()).collect(),
+            None => (0..inp.params.len()).collect(),
         };
-        let out = py
-            .detach(|| Batch::new(&self.inner, meas, &params, &q, y.as_deref())?.jacobian(&cols))
-            .map_err(core_err)?;
-        let rows = q.len() / self.inner.n_joints() * meas.res_width();
-        matrix(py, out, rows, cols.len())
+        let out = py.detach(|| inp.batch(&self.inner)?.jacobian(&cols)).map_err(core_err)?;
+        matrix(py, out, inp.m * inp.measurement.res_width(), cols.len())
     }
 
     /// Residuals of every sigma point, (S, m·res_width); `sigmas` (S, len(cols)) are absolute
@@ -145,19 +143,13 @@ impl PyChain {
         q: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
     ) -> PyResult<Arr2<'py>> {
-        let meas = Measurement::parse(measurement).map_err(core_err)?;
-        let (params, q) = self.inputs(params, q)?;
-        let y = self.observations(y, meas)?;
+        let inp = self.owned(measurement, params, q, Some(y))?;
         let cols = index_list(cols, "cols")?;
         let (sigmas, s, _) = array2(sigmas, "sigmas", Some(cols.len()))?;
         let out = py
-            .detach(|| {
-                let batch = Batch::new(&self.inner, meas, &params, &q, Some(&y))?;
-                measurement::sigma_residuals(&batch, &cols, &sigmas)
-            })
+            .detach(|| measurement::sigma_residuals(&inp.batch(&self.inner)?, &cols, &sigmas))
             .map_err(core_err)?;
-        let width = out.len() / s.max(1);
-        matrix(py, out, s, width)
+        matrix(py, out, s, inp.m * inp.measurement.res_width())
     }
 
     fn __repr__(&self) -> String {
@@ -208,7 +200,7 @@ fn unscented_transform<'py>(
     let (sy, _, k) = array2(sigmas_y, "sigmas_y", None)?;
     let wm = array1(Wm, "Wm", None)?;
     let wc = array1(Wc, "Wc", None)?;
-    let (mean, cov, cross) = sigma::unscented_transform(&sx, &sy, &wm, &wc).map_err(core_err)?;
+    let (mean, cov, cross) = sigma::unscented_transform(&sx, n, &sy, k, &wm, &wc).map_err(core_err)?;
     Ok((PyArray1::from_vec(py, mean), matrix(py, cov, k, k)?, matrix(py, cross, n, k)?))
 }
 

@@ -33,10 +33,13 @@ pub fn merwe_weights(n: usize, alpha: f64, beta: f64, kappa: f64) -> CoreResult<
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter`, `NotPositiveDefinite`.
 pub fn merwe_sigma_points(x: &[f64], p: &[f64], alpha: f64, beta: f64, kappa: f64) -> CoreResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let n = x.len();
-    if n == 0 || p.len() != n * n {
+    if n == 0 {
+        return Err(CoreError::Shape { arg: "x", expected: "(n,) with n >= 1".into(), got: "(0,)".into() });
+    }
+    if p.len() != n * n {
         return Err(CoreError::Shape {
             arg: "P",
-            expected: format!("({n}, {n}) with n >= 1"),
+            expected: format!("({n}, {n})"),
             got: format!("{} values", p.len()),
         });
     }
@@ -65,22 +68,29 @@ pub fn merwe_sigma_points(x: &[f64], p: &[f64], alpha: f64, beta: f64, kappa: f6
 }
 
 /// Weighted statistics of propagated sigma points: `sx` (S, n) the points, `sy` (S, k) their
-/// images. Returns `(ŷ (k), S_yy (k, k), P_xy (n, k))`, the paper's eq. (10)–(11).
+/// images, row-major. Returns `(ŷ (k), S_yy (k, k), P_xy (n, k))`, the paper's eq. (10)–(11).
 ///
 /// Errors: `Shape`, `NonFinite`.
-pub fn unscented_transform(sx: &[f64], sy: &[f64], wm: &[f64], wc: &[f64]) -> CoreResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+pub fn unscented_transform(sx: &[f64], n: usize, sy: &[f64], k: usize, wm: &[f64], wc: &[f64]) -> CoreResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let s = wm.len();
-    if s == 0 || wc.len() != s || sx.len() % s != 0 || sy.len() % s != 0 {
-        return Err(CoreError::Shape {
-            arg: "sigmas_y",
-            expected: format!("(S, ·) with S = len(Wm) = len(Wc) = {s}"),
-            got: format!("len(Wc) = {}, sigmas_x {} values, sigmas_y {} values", wc.len(), sx.len(), sy.len()),
-        });
+    let shape = |arg, len: usize, expected: String| {
+        Err(CoreError::Shape { arg, expected, got: format!("{len} values") })
+    };
+    if s == 0 {
+        return shape("Wm", 0, "(S,) with S >= 1".into());
+    }
+    if wc.len() != s {
+        return shape("Wc", wc.len(), format!("({s},) like `Wm`"));
+    }
+    if sx.len() != s * n {
+        return shape("sigmas_x", sx.len(), format!("({s}, {n}): one row per weight"));
+    }
+    if sy.len() != s * k {
+        return shape("sigmas_y", sy.len(), format!("({s}, {k}): one row per weight"));
     }
     for (arg, v) in [("sigmas_x", sx), ("sigmas_y", sy), ("Wm", wm), ("Wc", wc)] {
         check_finite(arg, v)?;
     }
-    let (n, k) = (sx.len() / s, sy.len() / s);
     let x = DMatrix::from_row_slice(s, n, sx);
     let y = DMatrix::from_row_slice(s, k, sy);
     let wm_v = DVector::from_column_slice(wm);
@@ -111,7 +121,7 @@ mod tests {
         let x = [1.0, -2.0, 0.5];
         let p = [2.0, 0.3, 0.1, 0.3, 1.0, -0.2, 0.1, -0.2, 0.5];
         let (pts, wm, wc) = merwe_sigma_points(&x, &p, 0.3, 2.0, 0.0).unwrap();
-        let (mean, cov, cross) = unscented_transform(&pts, &pts, &wm, &wc).unwrap();
+        let (mean, cov, cross) = unscented_transform(&pts, 3, &pts, 3, &wm, &wc).unwrap();
         for i in 0..3 {
             assert!((mean[i] - x[i]).abs() < 1e-12);
         }
