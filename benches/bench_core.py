@@ -17,7 +17,7 @@ import sys
 import time
 
 
-def best_time(fn, min_total: float = 0.3, max_repeats: int = 50) -> float:
+def best_time(fn, min_total: float = 1.0, max_repeats: int = 100) -> float:
     """Best wall time of ``fn()`` over repeats lasting about ``min_total`` seconds."""
     fn()
     best, spent, n = float("inf"), 0.0, 0

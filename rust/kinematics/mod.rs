@@ -254,14 +254,17 @@ impl Chain {
 
     /// Tool frames of `LANES` samples and their derivatives with respect to every parameter:
     /// `dp[k]` (mm per unit of parameter k) of the tool origin and `dw[k]` (rad per unit) of its
-    /// orientation (only when `orientation`), in the base (world) frame. Parameters outside the
-    /// chain (sensor block) keep whatever `dp`, `dw` held (zero them once). `dp`, `dw` have
-    /// length `n_params`; `axes` is scratch space of length `n_ops`.
+    /// orientation (only when `orientation`), in the base (world) frame, for the parameters
+    /// flagged in `wanted` (length `n_params`); the others, and parameters outside the chain
+    /// (sensor block), keep whatever `dp`, `dw` held. `dp`, `dw` have length `n_params`; `axes`
+    /// is scratch space of length `n_ops`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn forward_with_jacobian(
         &self,
         pre: &Prepared,
         q: &[Lane],
+        wanted: &[bool],
         orientation: bool,
         axes: &mut [(Vec3L, Vec3L)],
         dp: &mut [Vec3L],
@@ -272,11 +275,19 @@ impl Chain {
         // frame *before* the op, so they are recorded on the way out and used once p is known.
         let mut f = Frames::identity();
         for (k, op) in self.ops.iter().enumerate() {
-            axes[k] = (f.cols[op.axis], f.t);
+            if wanted[op.param] {
+                axes[k].0 = f.cols[op.axis];
+                if op.rotation {
+                    axes[k].1 = f.t;
+                }
+            }
             let (v, s, c) = self.op_lanes(k, pre, q);
             f.apply(op, &v, &s, &c);
         }
         for (op, (w, o)) in self.ops.iter().zip(axes.iter()) {
+            if !wanted[op.param] {
+                continue;
+            }
             if op.rotation {
                 let mut d = [splat(0.0); 3];
                 for r in 0..3 {
@@ -383,7 +394,7 @@ mod tests {
         let mut axes = vec![([splat(0.0); 3], [splat(0.0); 3]); chain.n_ops()];
         let mut ql = vec![splat(0.0); 6];
         gather_lanes(&q, 6, 0, 1, &mut ql);
-        let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &ql, true, &mut axes, &mut dpl, &mut dwl).lane(0);
+        let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &ql, &vec![true; n], true, &mut axes, &mut dpl, &mut dwl).lane(0);
         let dp: Vec<Vector3<f64>> = dpl.iter().map(|v| lane_vec(v, 0)).collect();
         let dw: Vec<Vector3<f64>> = dwl.iter().map(|v| lane_vec(v, 0)).collect();
         for k in 0..n {

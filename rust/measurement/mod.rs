@@ -237,6 +237,8 @@ impl<'a> Batch<'a> {
         }
         let width = self.measurement.res_width() * cols.len();
         let mut out = vec![0.0; self.m * width];
+        let mut wanted = vec![false; n_params];
+        cols.iter().for_each(|&c| wanted[c] = true);
         let scratch = || {
             let zero: Vec3L = [splat(0.0); 3];
             (self.q_scratch(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
@@ -244,7 +246,7 @@ impl<'a> Batch<'a> {
         for_each_group(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
             gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
             let orientation = self.measurement == Measurement::Pose;
-            let f = self.chain.forward_with_jacobian(&self.prepared, ql, orientation, axes, dp, dw);
+            let f = self.chain.forward_with_jacobian(&self.prepared, ql, &wanted, orientation, axes, dp, dw);
             self.jacobian_group(first, count, &f, dp, dw, cols, rows);
         });
         Ok(out)
