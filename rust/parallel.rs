@@ -23,30 +23,9 @@ where
     out.par_chunks_mut(CHUNK * width).enumerate().for_each(|(c, chunk)| {
         let mut scratch = make();
         let samples = chunk.len() / width;
-        with_best_simd(|| {
-            for g in (0..samples).step_by(LANES) {
-                let count = LANES.min(samples - g);
-                fill(c * CHUNK + g, count, &mut chunk[g * width..(g + count) * width], &mut scratch);
-            }
-        });
+        for g in (0..samples).step_by(LANES) {
+            let count = LANES.min(samples - g);
+            fill(c * CHUNK + g, count, &mut chunk[g * width..(g + count) * width], &mut scratch);
+        }
     });
-}
-
-/// Runs `f` compiled for AVX2 + FMA when this CPU has them, else for the baseline target. The
-/// kernels are `#[inline(always)]`, so they are inlined here and vectorised four lanes wide;
-/// one wheel then serves old and new CPUs alike.
-#[inline(always)]
-fn with_best_simd<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn avx2_fma<R>(f: impl FnOnce() -> R) -> R {
-            f()
-        }
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports both features, checked just above.
-            return unsafe { avx2_fma(f) };
-        }
-    }
-    f()
 }

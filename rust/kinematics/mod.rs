@@ -82,6 +82,8 @@ pub struct Op {
 #[derive(Debug, Clone)]
 pub struct Prepared {
     ops: Vec<[f64; 3]>,
+    /// `false` for ops that are the identity for these parameters (skipped).
+    active: Vec<bool>,
 }
 
 /// Copies joint vectors `first .. first+count` of `q` ((m, n) row-major) into lanes
@@ -215,7 +217,9 @@ impl Chain {
                 [v, s, c]
             })
             .collect();
-        Prepared { ops }
+        // A constant op with value 0 is the identity: base, tool rotations and β are usually 0.
+        let active = self.ops.iter().map(|op| op.joint.is_some() || params[op.param] != 0.0).collect();
+        Prepared { ops, active }
     }
 
     /// Values, sines and cosines of op `k` for a group of joint vectors (`q[j][lane]`).
@@ -241,8 +245,10 @@ impl Chain {
         let end = if tool { self.ops.len() } else { self.flange_end };
         let mut f = Frames::identity();
         for (k, op) in self.ops[..end].iter().enumerate() {
-            let (v, s, c) = self.op_lanes(k, pre, q);
-            f.apply(op, &v, &s, &c);
+            if pre.active[k] {
+                let (v, s, c) = self.op_lanes(k, pre, q);
+                f.apply(op, &v, &s, &c);
+            }
         }
         f
     }
@@ -281,8 +287,10 @@ impl Chain {
                     axes[k].1 = f.t;
                 }
             }
-            let (v, s, c) = self.op_lanes(k, pre, q);
-            f.apply(op, &v, &s, &c);
+            if pre.active[k] {
+                let (v, s, c) = self.op_lanes(k, pre, q);
+                f.apply(op, &v, &s, &c);
+            }
         }
         for (op, (w, o)) in self.ops.iter().zip(axes.iter()) {
             if !wanted[op.param] {
