@@ -13,6 +13,11 @@ pub type Lane = [f64; LANES];
 pub type Vec3L = [Lane; 3];
 
 #[inline(always)]
+fn lanewise(f: impl Fn(usize) -> f64) -> Lane {
+    std::array::from_fn(f)
+}
+
+#[inline(always)]
 pub fn splat(v: f64) -> Lane {
     [v; LANES]
 }
@@ -46,19 +51,20 @@ pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
     // Round-to-nearest by adding 1.5·2⁵² (exact for |x| < 2⁵¹), so no libm `round` call blocks
     // vectorisation; the low bits of the sum are k mod 4. Quadrant swaps and signs are bit
     // selects: (sin, cos) = (s, c), (c, −s), (−s, −c), (−c, s) for k mod 4 = 0, 1, 2, 3.
+    // Each stage is its own loop over lanes so that the compiler vectorises it.
     const SHIFT: f64 = 6_755_399_441_055_744.0;
+    let shifted = lanewise(|l| x[l] * std::f64::consts::FRAC_2_PI + SHIFT);
+    let k = lanewise(|l| shifted[l] - SHIFT);
+    let r = lanewise(|l| (x[l] - k[l] * PIO2_1) - k[l] * PIO2_1T);
+    let z = lanewise(|l| r[l] * r[l]);
+    let sr = lanewise(|l| r[l] + r[l] * z[l] * (S[0] + z[l] * (S[1] + z[l] * (S[2] + z[l] * (S[3] + z[l] * (S[4] + z[l] * S[5]))))));
+    let cr = lanewise(|l| 1.0 - 0.5 * z[l] + z[l] * z[l] * (C[0] + z[l] * (C[1] + z[l] * (C[2] + z[l] * (C[3] + z[l] * (C[4] + z[l] * C[5]))))));
     let mut s = [0.0; LANES];
     let mut c = [0.0; LANES];
     for l in 0..LANES {
-        let shifted = x[l] * std::f64::consts::FRAC_2_PI + SHIFT;
-        let k = shifted - SHIFT;
-        let q = shifted.to_bits();
-        let r = (x[l] - k * PIO2_1) - k * PIO2_1T;
-        let z = r * r;
-        let sr = r + r * z * (S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5])))));
-        let cr = 1.0 - 0.5 * z + z * z * (C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5])))));
+        let q = shifted[l].to_bits();
         let swap = 0u64.wrapping_sub(q & 1);
-        let (sb, cb) = (sr.to_bits(), cr.to_bits());
+        let (sb, cb) = (sr[l].to_bits(), cr[l].to_bits());
         let a = (sb & !swap) | (cb & swap);
         let b = (cb & !swap) | (sb & swap);
         s[l] = f64::from_bits(a ^ (((q >> 1) & 1) << 63));
