@@ -80,6 +80,25 @@ pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
     (s, c)
 }
 
+/// A value given per lane or once for all lanes.
+pub trait PerLane: Copy {
+    fn at(self, l: usize) -> f64;
+}
+
+impl PerLane for f64 {
+    #[inline(always)]
+    fn at(self, _: usize) -> f64 {
+        self
+    }
+}
+
+impl PerLane for &Lane {
+    #[inline(always)]
+    fn at(self, l: usize) -> f64 {
+        self[l]
+    }
+}
+
 /// `LANES` rigid frames: rotation columns `cols[c][row][lane]` and origins `t[row][lane]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Frames {
@@ -97,19 +116,20 @@ impl Frames {
     }
 
     /// Post-multiplies every lane by the elementary transform `op`: a translation by `v`, a
-    /// rotation with sines `s` and cosines `c`.
+    /// rotation with sines `s` and cosines `c` — per lane (`Lane`) or one value for all (`f64`,
+    /// kept in a register instead of being spread over a lane array).
     #[inline(always)]
-    pub fn apply(&mut self, op: &Op, v: &Lane, s: &Lane, c: &Lane) {
+    pub fn apply<V: PerLane>(&mut self, op: &Op, v: V, s: V, c: V) {
         // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; spelled out per axis so
         // the indices are constants.
         match (op.rotation, op.axis) {
-            (true, 0) => self.rotate::<1, 2>(s, c),
-            (true, 1) => self.rotate::<2, 0>(s, c),
-            (true, _) => self.rotate::<0, 1>(s, c),
+            (true, 0) => self.rotate::<1, 2, V>(s, c),
+            (true, 1) => self.rotate::<2, 0, V>(s, c),
+            (true, _) => self.rotate::<0, 1, V>(s, c),
             (false, k) => {
                 for r in 0..3 {
                     for l in 0..LANES {
-                        self.t[r][l] += self.cols[k][r][l] * v[l];
+                        self.t[r][l] += self.cols[k][r][l] * v.at(l);
                     }
                 }
             }
@@ -117,12 +137,12 @@ impl Frames {
     }
 
     #[inline(always)]
-    fn rotate<const I: usize, const J: usize>(&mut self, s: &Lane, c: &Lane) {
+    fn rotate<const I: usize, const J: usize, V: PerLane>(&mut self, s: V, c: V) {
         for r in 0..3 {
             for l in 0..LANES {
                 let (ci, cj) = (self.cols[I][r][l], self.cols[J][r][l]);
-                self.cols[I][r][l] = ci * c[l] + cj * s[l];
-                self.cols[J][r][l] = cj * c[l] - ci * s[l];
+                self.cols[I][r][l] = ci * c.at(l) + cj * s.at(l);
+                self.cols[J][r][l] = cj * c.at(l) - ci * s.at(l);
             }
         }
     }

@@ -222,18 +222,19 @@ impl Chain {
         Prepared { ops, active }
     }
 
-    /// Values, sines and cosines of op `k` for a group of joint vectors (`q[j][lane]`).
+    /// Post-multiplies `f` by op `k` for a group of joint vectors (`q[j][lane]`): constant ops
+    /// with their prepared value, joint ops with the joint variable added per lane.
     #[inline(always)]
-    fn op_lanes(&self, k: usize, pre: &Prepared, q: &[Lane]) -> (Lane, Lane, Lane) {
+    fn apply_op(&self, k: usize, pre: &Prepared, q: &[Lane], f: &mut Frames) {
         let [v, s, c] = pre.ops[k];
         let op = &self.ops[k];
         match op.joint {
-            None => (splat(v), splat(s), splat(c)),
+            None => f.apply(op, v, s, c),
             Some(j) => {
                 let mut vl = q[j];
                 vl.iter_mut().for_each(|x| *x += v);
                 let (s, c) = if op.rotation { sin_cos(&vl) } else { (splat(0.0), splat(1.0)) };
-                (vl, s, c)
+                f.apply(op, &vl, &s, &c);
             }
         }
     }
@@ -244,10 +245,9 @@ impl Chain {
     pub fn forward(&self, pre: &Prepared, q: &[Lane], tool: bool) -> Frames {
         let end = if tool { self.ops.len() } else { self.flange_end };
         let mut f = Frames::identity();
-        for (k, op) in self.ops[..end].iter().enumerate() {
+        for k in 0..end {
             if pre.active[k] {
-                let (v, s, c) = self.op_lanes(k, pre, q);
-                f.apply(op, &v, &s, &c);
+                self.apply_op(k, pre, q, &mut f);
             }
         }
         f
@@ -288,8 +288,7 @@ impl Chain {
                 }
             }
             if pre.active[k] {
-                let (v, s, c) = self.op_lanes(k, pre, q);
-                f.apply(op, &v, &s, &c);
+                self.apply_op(k, pre, q, &mut f);
             }
         }
         for (op, (w, o)) in self.ops.iter().zip(axes.iter()) {
