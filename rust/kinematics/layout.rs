@@ -1,12 +1,12 @@
 //! The stable, named order of the parameter vector.
 
 /// Per-joint parameter names, in order, and their units.
-pub const JOINT_PARAMS: [(&str, &str); 5] =
+const JOINT_PARAMS: [(&str, &str); 5] =
     [("alpha", "rad"), ("a", "mm"), ("d", "mm"), ("theta", "rad"), ("beta", "rad")];
 const FRAME_PARAMS: [(&str, &str); 6] =
     [("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "rad"), ("ry", "rad"), ("rz", "rad")];
 /// Sensor parameters (cable model), in order, and their units.
-pub const SENSOR_PARAMS: [(&str, &str); 5] = [
+const SENSOR_PARAMS: [(&str, &str); 5] = [
     ("anchor_x", "mm"),
     ("anchor_y", "mm"),
     ("anchor_z", "mm"),

@@ -18,7 +18,7 @@ mod layout;
 pub use frame::Frame;
 pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, LANES};
 use lanes::sin_cos;
-pub use layout::{Layout, JOINT_PARAMS, SENSOR_PARAMS};
+pub use layout::Layout;
 
 use crate::error::{check_finite, check_len, CoreError, CoreResult};
 use crate::parallel::for_each_group;

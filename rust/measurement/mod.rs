@@ -123,7 +123,7 @@ impl<'a> Batch<'a> {
 
     /// Tool frames of samples `first .. first+count` (unused lanes repeat the last sample).
     #[inline(always)]
-    fn tool_frames(&self, first: usize, count: usize, ql: &mut [Lane]) -> crate::kinematics::Frames {
+    fn tool_frames(&self, first: usize, count: usize, ql: &mut [Lane]) -> Frames {
         gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
         self.chain.forward(&self.prepared, ql, true)
     }
