@@ -1,0 +1,132 @@
+"""robocal's canonical measurement file: a CSV with a header (see docs/data-format.md).
+
+Columns: ``q1..qN`` (degrees by default), the observation columns of the measurement type
+(``L``; ``x,y,z``; ``x,y,z,qw,qx,qy,qz``), optionally ``t`` (s), ``temp`` (deg C) and ``sample``.
+Rows are in acquisition order. Unknown columns are reported in ``Dataset.notes`` and ignored.
+Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and column.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..exceptions import DataError
+from .dataset import OBSERVATION_COLUMNS, Dataset
+
+ANGLE_UNITS = ("deg", "rad")
+OPTIONAL_COLUMNS = ("t", "temp", "sample")
+
+
+def _measurement_from_header(header: list[str], path) -> str:
+    present = set(header)
+    if "L" in present:
+        return "cable"
+    if set(OBSERVATION_COLUMNS["pose"]) <= present:
+        return "pose"
+    if set(OBSERVATION_COLUMNS["position"]) <= present:
+        return "position"
+    raise DataError(f"no measurement columns: expected 'L' (cable), 'x,y,z' (position) or 'x,y,z,qw,qx,qy,qz' (pose); got {header}", path, 1)
+
+
+def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None) -> Dataset:
+    """Reads a canonical CSV file into a :class:`Dataset` (joint angles converted to rad).
+
+    Parameters
+    ----------
+    path : str or Path
+    angle_unit : {"deg", "rad"}
+        Unit of the ``q`` columns in the file.
+    measurement : {"cable", "position", "pose"}, optional
+        Which observation to read; detected from the header by default.
+    robot : str, optional
+        Recorded in the dataset.
+    """
+    path = Path(path)
+    if angle_unit not in ANGLE_UNITS:
+        raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise DataError(f"cannot read the file ({exc.strerror})", path) from None
+    lines = list(csv.reader(text.splitlines()))
+    if not lines or not any(cell.strip() for cell in lines[0]):
+        raise DataError("the file is empty (a header row is expected)", path, 1)
+    header = [h.strip() for h in lines[0]]
+    if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
+        sep = ";" if ";" in header[0] else "tab"
+        raise DataError(f"the header has a single column containing '{sep}': canonical files are comma-separated", path, 1)
+    joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
+    expected = [f"q{i}" for i in range(1, len(joints) + 1)]
+    if not joints or joints != expected:
+        raise DataError(f"joint columns must be q1..qN without gaps; got {joints or 'none'}", path, 1)
+    measurement = measurement or _measurement_from_header(header, path)
+    if measurement not in OBSERVATION_COLUMNS:
+        raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
+    obs = OBSERVATION_COLUMNS[measurement]
+    missing = [c for c in obs if c not in header]
+    if missing:
+        raise DataError(f"a {measurement} file needs columns {list(obs)}; missing {missing}", path, 1)
+    wanted = joints + list(obs) + [c for c in OPTIONAL_COLUMNS if c in header]
+    ignored = [h for h in header if h not in wanted]
+    position = {h: header.index(h) for h in wanted}
+
+    body = [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+    if not body:
+        raise DataError("the file has a header but no data rows", path, 2)
+    values = np.empty((len(body), len(wanted)))
+    for k, (row_number, row) in enumerate(body):
+        if len(row) != len(header):
+            raise DataError(f"expected {len(header)} cells like the header; got {len(row)}", path, row_number)
+        for c, name in enumerate(wanted):
+            cell = row[position[name]].strip()
+            try:
+                v = float(cell)
+            except ValueError:
+                raise DataError(f"expected a number; got {cell!r}", path, row_number, name) from None
+            if not math.isfinite(v) and name != "temp":
+                raise DataError(f"expected a finite number; got {cell!r}", path, row_number, name)
+            values[k, c] = v
+    n = len(joints)
+    q = values[:, :n]
+    if angle_unit == "deg":
+        q = np.radians(q)
+    column = {name: values[:, i] for i, name in enumerate(wanted)}
+    notes = [f"ignored unknown columns {ignored}"] if ignored else []
+    return Dataset(
+        q=q,
+        y=values[:, n : n + len(obs)],
+        measurement=measurement,
+        robot=robot,
+        t=column.get("t"),
+        temp=column.get("temp"),
+        rows=np.array([r for r, _ in body]),
+        source=str(path),
+        notes=notes,
+    )
+
+
+def write_canonical(dataset: Dataset, path, angle_unit: str = "deg") -> Path:
+    """Writes ``dataset`` as a canonical CSV (joint angles in ``angle_unit``); returns the path."""
+    if angle_unit not in ANGLE_UNITS:
+        raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
+    path = Path(path)
+    q = np.degrees(dataset.q) if angle_unit == "deg" else dataset.q
+    columns = [f"q{i}" for i in range(1, dataset.n_joints + 1)] + list(OBSERVATION_COLUMNS[dataset.measurement])
+    blocks = [q, dataset.y]
+    for name in ("t", "temp"):
+        value = getattr(dataset, name)
+        if value is not None:
+            columns.append(name)
+            blocks.append(value[:, None])
+    table = np.hstack(blocks)
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(columns)
+        writer.writerows([[repr(float(v)) for v in row] for row in table])
+    return path

@@ -1,0 +1,99 @@
+"""The in-memory dataset every reader produces and every calibrator consumes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+
+from ..exceptions import ShapeError
+
+#: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).
+OBSERVATION_COLUMNS = {
+    "cable": ("L",),
+    "position": ("x", "y", "z"),
+    "pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
+}
+
+
+@dataclass
+class Dataset:
+    """Measured (or simulated) samples of one robot.
+
+    Attributes
+    ----------
+    q : ndarray, shape (m, N)
+        Joint values in rad (mm for prismatic joints).
+    y : ndarray, shape (m, 1 | 3 | 7)
+        Observations: cable length ``L`` (mm); or ``x, y, z`` (mm, measurement frame); or
+        ``x, y, z, qw, qx, qy, qz``.
+    measurement : {"cable", "position", "pose"}
+    robot : str, optional
+        Name of the robot the data belong to (a built-in name or a robot file).
+    t : ndarray, shape (m,), optional
+        Acquisition time in s. Without it, row order is the acquisition order.
+    temp : ndarray, shape (m,), optional
+        Temperature in deg C.
+    rows : ndarray of int, shape (m,)
+        Each sample's row in the source file (1-based, the header is row 1).
+    source : str, optional
+        The file the samples came from.
+    excluded : list of dict
+        Rows left out on request, each ``{"row": int, "reason": str}``. Nothing is ever left out
+        silently.
+    notes : list of str
+        What the reader noticed (ignored columns, degraded timestamps, ...).
+    """
+
+    q: np.ndarray
+    y: np.ndarray
+    measurement: str
+    robot: Optional[str] = None
+    t: Optional[np.ndarray] = None
+    temp: Optional[np.ndarray] = None
+    rows: Optional[np.ndarray] = None
+    source: Optional[str] = None
+    excluded: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+    def __post_init__(self):
+        if self.measurement not in OBSERVATION_COLUMNS:
+            raise ShapeError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {self.measurement!r}")
+        self.q = np.ascontiguousarray(self.q, dtype=np.float64)
+        self.y = np.ascontiguousarray(self.y, dtype=np.float64)
+        if self.y.ndim == 1:
+            self.y = self.y[:, None]
+        m, width = len(self.q), len(OBSERVATION_COLUMNS[self.measurement])
+        if self.q.ndim != 2 or self.y.shape != (m, width):
+            raise ShapeError(f"a {self.measurement} dataset needs `q` (m, N) and `y` ({m}, {width}); got {self.q.shape} and {self.y.shape}")
+        for name in ("t", "temp"):
+            value = getattr(self, name)
+            if value is not None:
+                value = np.asarray(value, dtype=np.float64)
+                if value.shape != (m,):
+                    raise ShapeError(f"`{name}` must have shape ({m},); got {value.shape}")
+                setattr(self, name, value)
+        self.rows = np.arange(2, m + 2) if self.rows is None else np.asarray(self.rows, dtype=np.int64)
+        if self.rows.shape != (m,):
+            raise ShapeError(f"`rows` must have shape ({m},); got {self.rows.shape}")
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    def subset(self, index) -> "Dataset":
+        """The samples at ``index`` (an index array or boolean mask), provenance kept."""
+        idx = np.asarray(index)
+        if idx.dtype == bool:
+            idx = np.flatnonzero(idx)
+        pick = lambda a: None if a is None else a[idx]  # noqa: E731
+        return replace(self, q=self.q[idx], y=self.y[idx], t=pick(self.t), temp=pick(self.temp), rows=self.rows[idx],
+                       excluded=list(self.excluded), notes=list(self.notes))  # fmt: skip
+
+    def __repr__(self) -> str:
+        where = f" from {self.source}" if self.source else ""
+        return f"Dataset({len(self)} {self.measurement} samples, {self.n_joints} joints, robot={self.robot!r}{where})"
