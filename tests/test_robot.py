@@ -106,3 +106,11 @@ def test_demo_runs_end_to_end(capsys):
     assert "identified" in out and "rank" in out
     identified = float(out.split("identified ")[1].split(" mm")[0])
     assert identified < 0.03  # the simulated noise is 0.02 mm
+
+
+def test_cli_bad_use_is_one_line_and_exit_code_2(capsys):
+    from robocal.cli import main
+
+    assert main(["demo", "--samples", "3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("robocal: error:") and "at least 5 samples" in err[0]
