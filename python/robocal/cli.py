@@ -13,6 +13,7 @@ from .exceptions import RobocalError
 #: subcommand -> (module, help)
 COMMANDS = {
     "demo": ("robocal.demo", "run the core on a built-in simulated robot (no files needed)"),
+    "inspect": ("robocal.data.inspect", "validate a measurement file (canonical CSV or a public dataset)"),
 }
 
 

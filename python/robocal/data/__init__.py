@@ -1,7 +1,25 @@
-"""Measured data in: the :class:`Dataset`, the canonical CSV format and (later) the readers of
-the public datasets, validation and splits."""
+"""Measured data in: the :class:`Dataset`, the canonical CSV format, the readers of the public
+datasets (:func:`load` detects the format), splits, and the validation report in
+:mod:`robocal.data.inspect` (not re-exported: the function would shadow its module)."""
 
 from .canonical import read_canonical, write_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset
+from .public import FORMATS, detect_format, load, read_hsr, read_ipa, read_robotcali
+from .splits import chronological, kfold, paper_split, random_split
 
-__all__ = ["OBSERVATION_COLUMNS", "Dataset", "read_canonical", "write_canonical"]
+__all__ = [
+    "FORMATS",
+    "OBSERVATION_COLUMNS",
+    "Dataset",
+    "chronological",
+    "detect_format",
+    "kfold",
+    "load",
+    "paper_split",
+    "random_split",
+    "read_canonical",
+    "read_hsr",
+    "read_ipa",
+    "read_robotcali",
+    "write_canonical",
+]

@@ -9,7 +9,6 @@ Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and c
 from __future__ import annotations
 
 import csv
-import math
 import re
 from pathlib import Path
 from typing import Optional
@@ -18,6 +17,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from .dataset import OBSERVATION_COLUMNS, Dataset
+from .table import numeric_columns, read_text, require_columns, split_delimited
 
 ANGLE_UNITS = ("deg", "rad")
 OPTIONAL_COLUMNS = ("t", "temp", "sample")
@@ -34,7 +34,9 @@ def _measurement_from_header(header: list[str], path) -> str:
     raise DataError(f"no measurement columns: expected 'L' (cable), 'x,y,z' (position) or 'x,y,z,qw,qx,qy,qz' (pose); got {header}", path, 1)
 
 
-def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None) -> Dataset:
+def read_canonical(
+    path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False
+) -> Dataset:
     """Reads a canonical CSV file into a :class:`Dataset` (joint angles converted to rad).
 
     Parameters
@@ -46,18 +48,14 @@ def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = N
         Which observation to read; detected from the header by default.
     robot : str, optional
         Recorded in the dataset.
+    exclude_bad_rows : bool
+        Leave out rows with a bad cell, recording each in ``Dataset.excluded``, instead of
+        raising a :class:`DataError` on the first.
     """
     path = Path(path)
     if angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise DataError(f"cannot read the file ({exc.strerror})", path) from None
-    lines = list(csv.reader(text.splitlines()))
-    if not lines or not any(cell.strip() for cell in lines[0]):
-        raise DataError("the file is empty (a header row is expected)", path, 1)
-    header = [h.strip() for h in lines[0]]
+    header, body = split_delimited(read_text(path), ",", path)
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
         sep = ";" if ";" in header[0] else "tab"
         raise DataError(f"the header has a single column containing '{sep}': canonical files are comma-separated", path, 1)
@@ -69,35 +67,18 @@ def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = N
     if measurement not in OBSERVATION_COLUMNS:
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     obs = OBSERVATION_COLUMNS[measurement]
-    missing = [c for c in obs if c not in header]
-    if missing:
-        raise DataError(f"a {measurement} file needs columns {list(obs)}; missing {missing}", path, 1)
+    require_columns(header, obs, path, f"a {measurement} file")
     wanted = joints + list(obs) + [c for c in OPTIONAL_COLUMNS if c in header]
     ignored = [h for h in header if h not in wanted]
-    position = {h: header.index(h) for h in wanted}
-
-    body = [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
-    if not body:
-        raise DataError("the file has a header but no data rows", path, 2)
-    values = np.empty((len(body), len(wanted)))
-    for k, (row_number, row) in enumerate(body):
-        if len(row) != len(header):
-            raise DataError(f"expected {len(header)} cells like the header; got {len(row)}", path, row_number)
-        for c, name in enumerate(wanted):
-            cell = row[position[name]].strip()
-            try:
-                v = float(cell)
-            except ValueError:
-                raise DataError(f"expected a number; got {cell!r}", path, row_number, name) from None
-            if not math.isfinite(v) and name != "temp":
-                raise DataError(f"expected a finite number; got {cell!r}", path, row_number, name)
-            values[k, c] = v
+    values, rows, excluded = numeric_columns(header, body, wanted, path, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
     n = len(joints)
     q = values[:, :n]
     if angle_unit == "deg":
         q = np.radians(q)
     column = {name: values[:, i] for i, name in enumerate(wanted)}
     notes = [f"ignored unknown columns {ignored}"] if ignored else []
+    if excluded:
+        notes.append(f"excluded {len(excluded)} rows with bad cells (see `excluded`)")
     return Dataset(
         q=q,
         y=values[:, n : n + len(obs)],
@@ -105,8 +86,9 @@ def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = N
         robot=robot,
         t=column.get("t"),
         temp=column.get("temp"),
-        rows=np.array([r for r, _ in body]),
+        rows=rows,
         source=str(path),
+        excluded=excluded,
         notes=notes,
     )
 

@@ -44,6 +44,9 @@ class Dataset:
         silently.
     notes : list of str
         What the reader noticed (ignored columns, degraded timestamps, ...).
+    extra : dict of str to ndarray
+        Side columns a source file carries beside the samples, each an array of first dimension m
+        (e.g. ``controller_xyz`` of the RobotCali data). Sliced with the samples.
     """
 
     q: np.ndarray
@@ -56,6 +59,7 @@ class Dataset:
     source: Optional[str] = None
     excluded: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.measurement not in OBSERVATION_COLUMNS:
@@ -77,6 +81,10 @@ class Dataset:
         self.rows = np.arange(2, m + 2) if self.rows is None else np.asarray(self.rows, dtype=np.int64)
         if self.rows.shape != (m,):
             raise ShapeError(f"`rows` must have shape ({m},); got {self.rows.shape}")
+        self.extra = {name: np.asarray(value) for name, value in self.extra.items()}
+        for name, value in self.extra.items():
+            if value.ndim == 0 or len(value) != m:
+                raise ShapeError(f"`extra[{name!r}]` must have first dimension {m}; got shape {value.shape}")
 
     def __len__(self) -> int:
         return len(self.q)
@@ -92,7 +100,8 @@ class Dataset:
             idx = np.flatnonzero(idx)
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
         return replace(self, q=self.q[idx], y=self.y[idx], t=pick(self.t), temp=pick(self.temp), rows=self.rows[idx],
-                       excluded=list(self.excluded), notes=list(self.notes))  # fmt: skip
+                       excluded=list(self.excluded), notes=list(self.notes),
+                       extra={k: v[idx] for k, v in self.extra.items()})  # fmt: skip
 
     def __repr__(self) -> str:
         where = f" from {self.source}" if self.source else ""

@@ -1,0 +1,433 @@
+"""Readers of the three public calibration datasets in their original formats, and :func:`load`,
+which recognises a file's format by its content.
+
+========== =========================================== ============= ===========
+format     files                                       robot         measurement
+========== =========================================== ============= ===========
+hsr        ``HSR-RobotCali.xlsx`` (D1)                  hsr-jr680     cable
+robotcali  ``RobotCali-new.xlsx``, ``RobotCali.xlsx``,  abb-irb120    cable
+           ``abb_irb120_cable.csv`` (D2)
+ipa        ``Series_*/measurements_*.csv`` (D3)         ur10          pose / position
+canonical  robocal's own CSV (docs/data-format.md)      given         from the header
+========== =========================================== ============= ===========
+
+Every reader returns a :class:`~robocal.data.Dataset` (mm, rad) whose ``rows`` are the rows of
+the source file (header = row 1) and raises :class:`~robocal.exceptions.DataError` naming file,
+row and column. A row with a bad cell is an error unless ``exclude_bad_rows=True``, which records
+it in ``Dataset.excluded``.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from datetime import datetime
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..exceptions import DataError
+from .canonical import ANGLE_UNITS, read_canonical
+from .dataset import OBSERVATION_COLUMNS, Dataset
+from .table import numeric_columns, read_text, require_columns, split_delimited
+
+FORMATS = ("canonical", "hsr", "robotcali", "ipa")
+#: The robot each public format belongs to.
+FORMAT_ROBOT = {"hsr": "hsr-jr680", "robotcali": "abb-irb120", "ipa": "ur10"}
+
+JOINTS6 = [f"q{i}" for i in range(1, 7)]
+HSR_COLUMNS = JOINTS6 + ["L"]
+ROBOTCALI_COLUMNS = ["x", "y", "z"] + JOINTS6 + ["L"]
+IPA_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+IPA_POSITION = ["measurement_x", "measurement_y", "measurement_z"]
+IPA_EULER = ["measurement_rx", "measurement_ry", "measurement_rz"]
+IPA_STD = [f"measurement_std_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")]
+IPA_GOAL = ["Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw"]
+
+XLSX_SIGNATURE = b"PK\x03\x04"
+
+
+# -- tables ------------------------------------------------------------------------------------
+def _open_workbook(path: Path):
+    import openpyxl
+
+    try:  # from bytes: openpyxl would judge a path by its extension, we judge by content
+        return openpyxl.load_workbook(io.BytesIO(path.read_bytes()), read_only=True, data_only=True)
+    except OSError as exc:
+        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+    except Exception as exc:  # openpyxl raises many types (zipfile, KeyError, XML errors) on corrupt files
+        raise DataError(f"not a readable .xlsx workbook ({type(exc).__name__}: {exc})", path) from None
+
+
+def _sheet_rows(sheet) -> list[tuple]:
+    """The rows of a worksheet without trailing empty columns and empty rows (as
+    ``(row_number, cells)``) plus the header, or ``([], [])`` for an empty sheet."""
+    rows = list(sheet.iter_rows(values_only=True))
+    if not rows:
+        return [], []
+    head = list(rows[0])
+    while head and (head[-1] is None or str(head[-1]).strip() == ""):
+        head.pop()
+    header = ["" if h is None else str(h).strip() for h in head]
+    body = []
+    for number, cells in enumerate(rows[1:], start=2):
+        cells = list(cells)
+        if all(c is None or (isinstance(c, str) and not c.strip()) for c in cells):
+            continue
+        if any(c is not None for c in cells[len(header) :]):
+            # a value beyond the header: keep the row's full width so that the cell count check names it
+            body.append((number, cells))
+        else:
+            body.append((number, (cells + [None] * len(header))[: len(header)]))
+    return header, body
+
+
+def _read_xlsx(path: Path, sheet: Optional[str] = None):
+    """Header, body and notes (other non-empty sheets) of one worksheet."""
+    book = _open_workbook(path)
+    try:
+        names = book.sheetnames
+        if sheet is not None and sheet not in names:
+            raise DataError(f"no sheet {sheet!r}; the workbook has {names}", path)
+        chosen = sheet or names[0]
+        header, body = _sheet_rows(book[chosen])
+        notes = [f"read sheet {chosen!r}"] if len(names) > 1 else []
+        where = {tuple(cells): number for number, cells in body}
+        for name in names:
+            if name != chosen:
+                other_header, other_body = _sheet_rows(book[name])
+                if other_body:
+                    repeats = [where[tuple(cells)] for _, cells in other_body if tuple(cells) in where]
+                    same = f"; {len(repeats)} of its rows repeat rows {_ranges(repeats)} of this sheet" if repeats else ""
+                    notes.append(f"sheet {name!r} ({len(other_body)} rows, columns {other_header}) not read{same}; pass sheet={name!r} to read it")
+    finally:
+        book.close()
+    if not header:
+        raise DataError(f"sheet {chosen!r} is empty (a header row is expected)", path, 1)
+    return header, body, notes
+
+
+def _ranges(numbers) -> str:
+    """``[2, 3, 4, 9]`` as ``"2-4, 9"``."""
+    numbers, parts = sorted(numbers), []
+    for n in numbers:
+        if parts and n == parts[-1][1] + 1:
+            parts[-1][1] = n
+        else:
+            parts.append([n, n])
+    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in parts)
+
+
+def _read_table(path, sheet: Optional[str] = None, delimiter: str = ","):
+    """Header, body and notes of an .xlsx workbook (by signature) or a delimited text file."""
+    path = Path(path)
+    if _signature(path) == XLSX_SIGNATURE:
+        return _read_xlsx(path, sheet)
+    if sheet is not None:
+        raise DataError(f"`sheet` applies to .xlsx workbooks; this is a text file (sheet={sheet!r})", path)
+    header, body = split_delimited(read_text(path), delimiter, path)
+    if len(header) == 1:
+        for other in {",", ";", "\t"} - {delimiter}:
+            if other in header[0]:
+                raise DataError(f"the header is a single column containing {other!r}: this file is {delimiter!r}-separated", path, 1)
+    return header, body, []
+
+
+def _signature(path: Path) -> bytes:
+    try:
+        with path.open("rb") as f:
+            return f.read(4)
+    except OSError as exc:
+        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+
+
+def _check_joint_columns(header, n: int, robot: str, path) -> None:
+    joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
+    if joints and joints != [f"q{i}" for i in range(1, n + 1)]:
+        raise DataError(f"the {robot} has {n} joints (columns q1..q{n}); the header has joint columns {joints}", path, 1)
+
+
+def _ignored_note(header, used) -> list[str]:
+    ignored = [h for h in header if h not in used]
+    return [f"ignored columns {ignored}"] if ignored else []
+
+
+def _excluded_note(excluded) -> list[str]:
+    return [f"excluded {len(excluded)} rows with bad cells (see `excluded`)"] if excluded else []
+
+
+# -- D1 and D2: cable ----------------------------------------------------------------------------
+def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
+    """Reads D1, HSR-RobotCali (HSR JR680, cable): ``HSR-RobotCali.xlsx`` or its CSV copy.
+
+    Columns ``q1..q6`` (deg, controller readings) and ``L`` (mm, drawstring sensor).
+
+    Parameters
+    ----------
+    path : str or Path
+        The workbook or the comma-separated copy ``hsr_jr680_cable.csv``.
+    exclude_bad_rows : bool
+        Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
+
+    Returns
+    -------
+    Dataset
+        ``robot="hsr-jr680"``, ``measurement="cable"``, q in rad.
+    """
+    header, body, notes = _read_table(path)
+    _check_joint_columns(header, 6, "hsr-jr680", path)
+    require_columns(header, HSR_COLUMNS, path, "an HSR-RobotCali (D1) file")
+    values, rows, excluded = numeric_columns(header, body, HSR_COLUMNS, path, exclude_bad_rows=exclude_bad_rows)
+    return Dataset(
+        q=np.radians(values[:, :6]), y=values[:, 6], measurement="cable", robot="hsr-jr680", rows=rows, source=str(path),
+        excluded=excluded, notes=notes + _ignored_note(header, HSR_COLUMNS) + _excluded_note(excluded),
+    )  # fmt: skip
+
+
+def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
+    """Reads D2, RobotCali (ABB IRB 120, cable): ``RobotCali-new.xlsx``, ``RobotCali.xlsx`` or
+    the CSV copy ``abb_irb120_cable.csv``.
+
+    Columns ``x, y, z`` (mm, the controller's own position of the flange — not a measurement),
+    ``q1..q6`` (deg, rounded to 0.1) and ``L`` (mm, drawstring sensor).
+
+    Parameters
+    ----------
+    path : str or Path
+    sheet : str, optional
+        Worksheet to read; the first by default. ``RobotCali.xlsx`` holds 120 samples in
+        ``Sheet1`` and, in ``Sheet2``, 10 samples that repeat ``Sheet1`` rows 92-101.
+    exclude_bad_rows : bool
+        Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
+
+    Returns
+    -------
+    Dataset
+        ``robot="abb-irb120"``, ``measurement="cable"``; ``extra["controller_xyz"]`` (m, 3) holds
+        the controller's x, y, z for the cross-check in :func:`robocal.data.inspect.inspect`.
+    """
+    header, body, notes = _read_table(path, sheet)
+    _check_joint_columns(header, 6, "abb-irb120", path)
+    require_columns(header, ROBOTCALI_COLUMNS, path, "a RobotCali (D2) file")
+    values, rows, excluded = numeric_columns(header, body, ROBOTCALI_COLUMNS, path, exclude_bad_rows=exclude_bad_rows)
+    return Dataset(
+        q=np.radians(values[:, 3:9]), y=values[:, 9], measurement="cable", robot="abb-irb120", rows=rows, source=str(path),
+        excluded=excluded, notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + _excluded_note(excluded),
+        extra={"controller_xyz": values[:, :3]},
+    )  # fmt: skip
+
+
+# -- D3: laser tracker ----------------------------------------------------------------------------
+def _quaternions(euler_deg: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``w, x, y, z`` (w >= 0) of intrinsic XYZ Euler angles in degrees."""
+    from scipy.spatial.transform import Rotation
+
+    xyzw = Rotation.from_euler("XYZ", euler_deg, degrees=True).as_quat()
+    wxyz = np.column_stack([xyzw[:, 3], xyzw[:, :3]])
+    return wxyz * np.where(wxyz[:, :1] < 0, -1.0, 1.0)
+
+
+def _timestamps(stamps: list[str], rows: np.ndarray, path):
+    """``(t, notes)`` from the ``Timestamp`` cells: seconds since the earliest sample when every
+    stamp is ``yyyymmddHHMMSS``; ``None`` with an explanatory note otherwise."""
+    if all(re.fullmatch(r"\d{14}", s) for s in stamps):
+        clock = []
+        for s, row in zip(stamps, rows):
+            try:
+                clock.append(datetime.strptime(s, "%Y%m%d%H%M%S").timestamp())
+            except ValueError:
+                raise DataError(f"expected a time yyyymmddHHMMSS; got {s!r}", path, int(row), "Timestamp") from None
+        t = np.array(clock) - min(clock)
+        back = np.flatnonzero(np.diff(t) < 0) + 1
+        notes = []
+        if back.size:
+            shown = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
+            notes.append(f"the clock goes backwards at {back.size} rows ({shown}): file order is not acquisition order; sort by `t`")
+        return t, notes
+    if all(re.fullmatch(r"[-+]?\d+([.,]\d*)?[eE][-+]?\d+", s) for s in stamps):
+        return None, [
+            f"Timestamp is in a lossy scientific notation (e.g. {stamps[0]!r}; {len(set(stamps))} distinct value(s) over "
+            f"{len(stamps)} rows): not usable as a clock, `t` left unset; row order is the only ordering"
+        ]
+    example = next(s for s in stamps if not re.fullmatch(r"\d{14}", s))
+    return None, [f"Timestamp is not yyyymmddHHMMSS throughout (e.g. {example!r}): not used, `t` left unset"]
+
+
+def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) -> Dataset:
+    """Reads D3, ipa-robot-accuracy (UR10, laser tracker): a ``Series_*/measurements_*.csv``.
+
+    The files are ``;``-separated with decimal commas. Joints in rad; ``measurement_x/y/z`` in
+    mm (tracker frame); ``measurement_rx/ry/rz`` in deg, intrinsic XYZ Euler angles of the T-Mac,
+    converted to a unit quaternion ``w, x, y, z``; ``measurement_temperature`` (deg C) becomes
+    ``temp``; ``Timestamp`` becomes ``t`` (s since the earliest sample) where it is a real
+    ``yyyymmddHHMMSS`` clock (Series A), and is reported in the notes where it was exported in
+    a lossy scientific notation (Series B and C).
+
+    Parameters
+    ----------
+    path : str or Path
+    measurement : {"pose", "position"}
+        Read the full pose, or only the position.
+    exclude_bad_rows : bool
+        Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
+
+    Returns
+    -------
+    Dataset
+        ``robot="ur10"``. ``extra["goal_pose"]`` (m, 6): the commanded flange pose in the robot
+        base frame, x, y, z in mm and roll, pitch, yaw in rad; ``extra["measurement_std"]``
+        (m, 6) where the file has it: standard deviations of x, y, z (mm) and rx, ry, rz (deg).
+    """
+    if measurement not in ("pose", "position"):
+        raise DataError(f"`measurement` must be 'pose' or 'position' for tracker data; got {measurement!r}", path)
+    header, body, _ = _read_table(path, delimiter=";")
+    obs = IPA_POSITION + (IPA_EULER if measurement == "pose" else [])
+    require_columns(header, IPA_JOINTS + obs, path, f"an ipa-robot-accuracy (D3) {measurement} file")
+    optional = [c for c in ["measurement_temperature"] + IPA_GOAL + IPA_STD if c in header]
+    wanted = IPA_JOINTS + obs + optional
+    values, rows, excluded = numeric_columns(
+        header, body, wanted, path, decimal_comma=True, allow_nonfinite=["measurement_temperature"], exclude_bad_rows=exclude_bad_rows
+    )
+    column = dict(zip(wanted, values.T))
+    y = values[:, 6:9]
+    if measurement == "pose":
+        y = np.hstack([y, _quaternions(values[:, 9:12])])
+    notes, t = [], None
+    if "Timestamp" in header:
+        kept = {int(r) for r in rows}
+        stamps = [cells[header.index("Timestamp")].strip() for number, cells in body if number in kept]
+        t, notes = _timestamps(stamps, rows, path)
+    extra = {}
+    if all(c in column for c in IPA_GOAL):
+        goal = np.column_stack([column[c] for c in IPA_GOAL])
+        goal[:, :3] *= 1000.0
+        extra["goal_pose"] = goal
+    if all(c in column for c in IPA_STD):
+        extra["measurement_std"] = np.column_stack([column[c] for c in IPA_STD])
+    used = IPA_JOINTS + obs + optional + ["Timestamp"]
+    return Dataset(
+        q=values[:, :6], y=y, measurement=measurement, robot="ur10", t=t, temp=column.get("measurement_temperature"),
+        rows=rows, source=str(path), excluded=excluded, notes=notes + _ignored_note(header, used) + _excluded_note(excluded),
+        extra=extra,
+    )  # fmt: skip
+
+
+# -- detection and load ---------------------------------------------------------------------------
+def detect_format(path) -> str:
+    """The format of ``path`` judged by its content: ``"hsr"``, ``"robotcali"``, ``"ipa"`` or
+    ``"canonical"``.
+
+    An .xlsx signature with the D1 or D2 header; a ``;``-separated header with the D3 joint and
+    measurement columns; a comma-separated header ``x,y,z,q1..q6,L`` (D2's layout); any other
+    comma-separated header with ``q1..qN`` columns (canonical; the CSV copy of D1 is one).
+
+    Raises
+    ------
+    DataError
+        Saying what was found when the content matches no format.
+    """
+    path = Path(path)
+    if _signature(path) == XLSX_SIGNATURE:
+        header, _, _ = _read_xlsx(path)
+        if all(c in header for c in ROBOTCALI_COLUMNS):
+            return "robotcali"
+        if all(c in header for c in HSR_COLUMNS):
+            return "hsr"
+        raise DataError(f"an .xlsx workbook whose first sheet's header {header} is neither D1 ({HSR_COLUMNS}) nor D2 ({ROBOTCALI_COLUMNS})", path, 1)
+    text = read_text(path)
+    first = text.splitlines()[0] if text.strip() else ""
+    if not first.strip():
+        raise DataError("the file is empty (a header row is expected)", path, 1)
+    fields = {sep: [c.strip() for c in first.split(sep)] for sep in (";", ",")}
+    if "shoulder_pan_joint" in fields[";"] or "measurement_x" in fields[";"]:
+        return "ipa"
+    if fields[","] == ROBOTCALI_COLUMNS:
+        return "robotcali"
+    if any(re.fullmatch(r"q\d+", c) for c in fields[","]):
+        return "canonical"
+    seps = max(fields, key=lambda s: len(fields[s]))
+    raise DataError(
+        f"unknown format: the first line has {len(fields[seps])} {seps!r}-separated field(s) {fields[seps][:8]}; expected a canonical "
+        "header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, or an .xlsx workbook of D1/D2",
+        path,
+        1,
+    )
+
+
+def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Dataset:
+    """Records ``robot`` in ``dataset`` after checking it matches the file."""
+    if robot is None:
+        return dataset
+    from ..catalog import BUILTIN
+    from ..robot import robot as load_robot
+
+    native = FORMAT_ROBOT.get(fmt)
+    if native and robot in BUILTIN and robot != native:
+        raise DataError(f"this is {fmt} data of the {native}; got robot={robot!r}", path)
+    n = load_robot(robot).n_joints
+    if n != dataset.n_joints:
+        raise DataError(f"robot {robot!r} has {n} joints; the file has {dataset.n_joints} joint columns", path, 1)
+    dataset.robot = robot
+    return dataset
+
+
+def load(
+    path,
+    format: Optional[str] = None,
+    measurement: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    robot: Optional[str] = None,
+    exclude_bad_rows: bool = False,
+    sheet: Optional[str] = None,
+) -> Dataset:
+    """Reads a measurement file of any supported format into a :class:`Dataset`.
+
+    Parameters
+    ----------
+    path : str or Path
+    format : {"canonical", "hsr", "robotcali", "ipa"}, optional
+        Detected from the content by default (:func:`detect_format`).
+    measurement : {"cable", "position", "pose"}, optional
+        Canonical: detected from the header by default. ipa: ``"pose"`` (default) or
+        ``"position"``. hsr / robotcali: ``"cable"`` only.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of canonical ``q`` columns (``"deg"`` by default). The public formats have fixed
+        units (D1, D2 deg; D3 rad): a contradicting value is an error.
+    robot : str, optional
+        Built-in robot name or robot file, checked against the file (the public formats belong to
+        one robot each; the joint count must match).
+    exclude_bad_rows : bool
+        Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
+    sheet : str, optional
+        Worksheet of an .xlsx workbook (first by default).
+
+    Raises
+    ------
+    DataError
+        On an unknown format, a mismatching robot, measurement or unit, or any bad content.
+    """
+    path = Path(path)
+    if format is not None and format not in FORMATS:
+        raise DataError(f"`format` must be one of {FORMATS}; got {format!r}", path)
+    if angle_unit is not None and angle_unit not in ANGLE_UNITS:
+        raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
+    if measurement is not None and measurement not in OBSERVATION_COLUMNS:
+        raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
+    fmt = format or detect_format(path)
+    native_unit = {"hsr": "deg", "robotcali": "deg", "ipa": "rad"}.get(fmt)
+    if native_unit and angle_unit not in (None, native_unit):
+        raise DataError(f"{fmt} files give joint angles in {native_unit}; got angle_unit={angle_unit!r}", path)
+    if fmt in ("hsr", "robotcali") and measurement not in (None, "cable"):
+        raise DataError(f"{fmt} files hold cable measurements; got measurement={measurement!r}", path)
+    if fmt == "canonical":
+        dataset = read_canonical(path, angle_unit or "deg", measurement, None, exclude_bad_rows)
+        if sheet is not None:
+            raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
+    elif fmt == "hsr":
+        dataset = read_hsr(path, exclude_bad_rows)
+    elif fmt == "robotcali":
+        dataset = read_robotcali(path, sheet, exclude_bad_rows)
+    else:
+        dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
+    return _check_robot(dataset, fmt, robot, path)
