@@ -1,0 +1,408 @@
+"""The simulator ("digital twin"): a simulated acquisition with known ground truth.
+
+A simulation draws an acquisition path within the joint limits and the sensor's range, a true
+robot (nominal kinematics plus random geometric errors of realistic size), applies the requested
+non-geometric effects (:mod:`robocal.effects`) and sensor noise, and returns the data as a
+:class:`~robocal.data.Dataset` together with a JSON-serialisable record of everything it drew.
+See ``docs/simulator.md``.
+
+Units: mm and rad inside, degrees for joint angles in files, s for time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from .core import identifiability
+from .data.canonical import write_canonical
+from .data.dataset import Dataset
+from .effects import EFFECTS, Acquisition, Effect, parse_effect
+from .exceptions import InvalidParameterError
+from .robot import MEASUREMENTS, Robot, robot as load_robot
+
+#: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
+CABLE_SENSOR = "HY150-2000"
+CABLE_RANGE = (0.0, 2000.0)
+#: The path keeps nominal readings this far (mm) inside the range, so that geometric errors and
+#: mm-size effects stay within it.
+RANGE_MARGIN = 25.0
+#: The measured point on the flange (mm): a cable attachment or tracker reflector holder.
+DEFAULT_TOOL = (30.0, -10.0, 80.0)
+#: Geometric errors: standard deviations of lengths (mm) and angles (deg).
+LENGTH_ERROR_MM = 0.5
+ANGLE_ERROR_DEG = 0.05
+#: Random-walk step per joint and sample (deg, standard deviation), and candidates per step.
+STEP_DEG = 5.0
+CANDIDATES = 64
+ROUNDS = 50
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Sensor noise.
+
+    Attributes
+    ----------
+    sigma : float
+        Standard deviation of a length (cable) or of each position coordinate, mm.
+    sigma_rotation : float
+        Standard deviation of each rotation-vector component of a pose, rad.
+    resolution : float
+        Quantisation step of the reading, mm (0: none).
+    """
+
+    sigma: float = 0.0
+    sigma_rotation: float = 0.0
+    resolution: float = 0.0
+
+
+#: Defaults: cable HY150-2000 (0.004 mm resolution, ~0.03 mm repeatability); laser tracker
+#: (~0.02 mm, ~1e-5 rad for a 6-DoF probe).
+DEFAULT_NOISE = {
+    "cable": SensorNoise(sigma=0.03, resolution=0.004),
+    "position": SensorNoise(sigma=0.02),
+    "pose": SensorNoise(sigma=0.02, sigma_rotation=1e-5),
+}
+
+
+def sensor_noise(measurement: str, noise=None) -> SensorNoise:
+    """The noise of a simulation.
+
+    ``None``: the sensor's default (:data:`DEFAULT_NOISE`); ``0``: noiseless (no quantisation
+    either); another number: ``sigma`` in mm, the rest default; a mapping: defaults with some
+    fields replaced; or a :class:`SensorNoise`.
+    """
+    default = DEFAULT_NOISE[measurement]
+    if noise is None:
+        return default
+    if isinstance(noise, SensorNoise):
+        chosen = noise
+    elif isinstance(noise, Mapping):
+        unknown = sorted(set(noise) - {f.name for f in fields(SensorNoise)})
+        if unknown:
+            raise InvalidParameterError(f"`noise` has unknown key {unknown[0]!r}; keys are {[f.name for f in fields(SensorNoise)]}")
+        chosen = replace(default, **{k: float(v) for k, v in noise.items()})
+    elif isinstance(noise, (int, float)) and not isinstance(noise, bool):
+        chosen = SensorNoise() if noise == 0 else replace(default, sigma=float(noise))
+    else:
+        raise InvalidParameterError(f"`noise` must be None, a number (mm), a mapping or SensorNoise; got {noise!r}")
+    for f in fields(SensorNoise):
+        value = getattr(chosen, f.name)
+        if not (math.isfinite(value) and value >= 0):
+            raise InvalidParameterError(f"`noise` {f.name} must be finite and >= 0; got {value}")
+    return chosen
+
+
+def setup(r: Robot, measurement: str, tool=None, anchor=None) -> Robot:
+    """The nominal robot of a simulation: ``r`` with the tool point and, for cable data, the
+    sensor placed.
+
+    The cable anchor defaults to ``(reach/2, 0, 0)``: on the floor in front of the robot, with
+    ``reach`` the sum of the link lengths beyond the base column plus the tool (an upper bound
+    of the horizontal reach); the sensor zero (``cable_offset``) is 0.
+    """
+    tool = DEFAULT_TOOL if tool is None else tuple(float(v) for v in tool)
+    if len(tool) != 3:
+        raise InvalidParameterError(f"`tool` must be (x, y, z) in mm; got {tool!r}")
+    values = dict(zip(("tool_x", "tool_y", "tool_z"), tool))
+    if measurement == "cable":
+        if anchor is None:
+            n = r.n_joints
+            lengths = [abs(r.params[r.index(f"a{j}")]) for j in range(1, n + 1)] + [abs(r.params[r.index(f"d{j}")]) for j in range(2, n + 1)]
+            anchor = (0.5 * (sum(lengths) + math.hypot(*tool)), 0.0, 0.0)
+        anchor = tuple(float(v) for v in anchor)
+        if len(anchor) != 3:
+            raise InvalidParameterError(f"`anchor` must be (x, y, z) in mm; got {anchor!r}")
+        values.update(zip(("anchor_x", "anchor_y", "anchor_z"), anchor), cable_offset=0.0)
+    return r.with_params(**values)
+
+
+def _valid(r: Robot, measurement: str, q: np.ndarray) -> np.ndarray:
+    """Which configurations can be measured: the tool point above the mounting plane (z > 0 in
+    the robot base frame, a crude stand-in for collision checks) and, for the cable sensor, the
+    nominal reading inside the range by :data:`RANGE_MARGIN`."""
+    ok = r.fkine(q, tool=True)[:, 2, 3] > 0.0
+    if measurement == "cable":
+        L = r.predict("cable", q)[:, 0]
+        ok &= (L > CABLE_RANGE[0] + RANGE_MARGIN) & (L < CABLE_RANGE[1] - RANGE_MARGIN)
+    return ok
+
+
+def _reflect(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``q`` folded back into ``[lo, hi]`` at the limits (a mirror at each end)."""
+    width = hi - lo
+    u = np.mod(q - lo, 2.0 * width)
+    return lo + width - np.abs(u - width)
+
+
+def acquisition_path(r: Robot, measurement: str, samples: int, rng: np.random.Generator, step_deg: float = STEP_DEG) -> np.ndarray:
+    """Joint configurations along a plausible acquisition path.
+
+    A random walk: the first configuration is drawn uniformly within the joint limits, each next
+    one is the previous plus a normal step (``step_deg`` per joint), mirrored at the limits. A
+    candidate that cannot be measured (:func:`_valid`) is re-drawn, so the path has exactly
+    ``samples`` rows.
+
+    Returns
+    -------
+    ndarray, shape (samples, N)
+        Joint values in rad.
+    """
+    lo, hi = np.array([j.limits for j in r.joints]).T
+    q = np.empty((samples, r.n_joints))
+    for i in range(samples):
+        for _ in range(ROUNDS):
+            if i == 0:
+                candidates = rng.uniform(lo, hi, (CANDIDATES, r.n_joints))
+            else:
+                candidates = _reflect(q[i - 1] + rng.normal(0.0, math.radians(step_deg), (CANDIDATES, r.n_joints)), lo, hi)
+            ok = np.flatnonzero(_valid(r, measurement, candidates))
+            if ok.size:
+                q[i] = candidates[ok[0]]
+                break
+        else:
+            raise InvalidParameterError(
+                f"no measurable configuration found near sample {i} of the path of {r.name} ({measurement}); the sensor placement leaves too little of the workspace in range"
+            )
+    return q
+
+
+def geometric_errors(r: Robot, measurement: str, q: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Random geometric errors on the identifiable subset of the default mask.
+
+    Lengths get N(0, :data:`LENGTH_ERROR_MM`) mm, angles N(0, :data:`ANGLE_ERROR_DEG`) deg.
+    Parameters redundant with others on these configurations (e.g. ``theta1`` and ``base_rz``)
+    keep their nominal values, so that the truth is unique.
+
+    Returns
+    -------
+    errors : ndarray, shape (P,)
+    perturbed : ndarray of int
+        Indices of the perturbed parameters.
+    """
+    cols = np.flatnonzero(r.default_mask(measurement))
+    J = r.jacobian(measurement, q, y=r.predict(measurement, q), cols=cols)
+    perturbed = cols[identifiability(J)["identifiable"]]
+    units = np.array(r.param_units)[perturbed]
+    errors = np.zeros(r.n_params)
+    errors[perturbed] = np.where(units == "mm", rng.normal(0.0, LENGTH_ERROR_MM, perturbed.size), np.radians(rng.normal(0.0, ANGLE_ERROR_DEG, perturbed.size)))
+    return errors, np.sort(perturbed)
+
+
+def _predict(r: Robot, measurement: str, q: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """Predictions with one parameter vector per sample (one call when they are all equal)."""
+    if np.all(params == params[0]):
+        return r.predict(measurement, q, params[0])
+    return np.vstack([r.predict(measurement, q[i : i + 1], params[i]) for i in range(len(q))])
+
+
+def _add_noise(measurement: str, y: np.ndarray, noise: SensorNoise, rng: np.random.Generator) -> np.ndarray:
+    y = y.copy()
+    width = 1 if measurement == "cable" else 3
+    y[:, :width] += rng.normal(0.0, 1.0, (len(y), width)) * noise.sigma
+    if measurement == "pose" and noise.sigma_rotation > 0:
+        from .reference import matrix_from_quaternion, quaternion_from_matrix, so3_exp  # scipy only when needed
+
+        phi = rng.normal(0.0, 1.0, (len(y), 3)) * noise.sigma_rotation
+        y[:, 3:] = quaternion_from_matrix(so3_exp(phi) @ matrix_from_quaternion(y[:, 3:]))
+    return y
+
+
+def _quantise(measurement: str, y: np.ndarray, resolution: float) -> np.ndarray:
+    if resolution == 0:
+        return y
+    y = y.copy()
+    width = 1 if measurement == "cable" else 3
+    y[:, :width] = np.round(np.round(y[:, :width] / resolution) * resolution, 9)
+    return y
+
+
+def _quantity(value: float, unit: str) -> dict:
+    return {"value": value, "unit": unit}
+
+
+def simulate(
+    robot: Union[str, Robot] = "hsr-jr680",
+    measurement: str = "cable",
+    samples: int = 400,
+    seed: int = 1,
+    effects: Sequence[Union[str, Effect]] = (),
+    noise=None,
+    geometric_error: bool = True,
+    outliers: float = 0.0,
+    dt: float = 2.0,
+    tool: Optional[Sequence[float]] = None,
+    anchor: Optional[Sequence[float]] = None,
+) -> tuple[Dataset, dict]:
+    """Simulates an acquisition of ``robot`` with known ground truth.
+
+    Parameters
+    ----------
+    robot : str or Robot
+        A built-in robot name, a robot file, or a :class:`Robot`.
+    measurement : {"cable", "position", "pose"}
+    samples : int
+        Number of samples (exactly).
+    seed : int
+        Seed of every random draw; equal seeds give equal simulations. The path, the geometric
+        errors, the noise and the effects draw from independent streams, so adding an effect
+        leaves the rest unchanged.
+    effects : sequence of str or Effect
+        Non-geometric effects, as specs ``KIND[:key=value,...]`` (see :mod:`robocal.effects`).
+    noise : None, float, mapping or SensorNoise
+        Sensor noise (see :func:`sensor_noise`); ``0`` for none.
+    geometric_error : bool
+        Perturb the nominal geometry (else the true robot is the nominal one).
+    outliers : float
+        Fraction of gross outliers (shorthand for the effect ``outliers:fraction=...``).
+    dt : float
+        Time per sample in s.
+    tool : (3,) float, optional
+        The measured point on the flange in mm (default :data:`DEFAULT_TOOL`).
+    anchor : (3,) float, optional
+        Cable anchor in mm (default: see :func:`setup`).
+
+    Returns
+    -------
+    dataset : Dataset
+        Recorded joint values ``q`` (rad), observations, ``t`` (s) and, with a temperature
+        effect, ``temp`` (deg C).
+    truth : dict
+        The ground truth (JSON-serialisable): true and nominal parameters, noise, effects and
+        what they did, outlier rows.
+
+    Examples
+    --------
+    >>> data, truth = simulate("ur10", "position", samples=50, effects=["backlash:joint=2"])
+    >>> len(data), truth["effects"][0]["kind"]
+    (50, 'backlash')
+    """
+    if measurement not in MEASUREMENTS:
+        raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise InvalidParameterError(f"`samples` must be a positive integer; got {samples!r}")
+    if not (math.isfinite(dt) and dt > 0):
+        raise InvalidParameterError(f"`dt` must be > 0 s; got {dt!r}")
+    if not 0.0 <= outliers <= 1.0:
+        raise InvalidParameterError(f"`outliers` must be a fraction within 0..1; got {outliers!r}")
+    base = robot if isinstance(robot, Robot) else load_robot(robot)
+    nominal = setup(base, measurement, tool, anchor)
+    chosen = [e if isinstance(e, Effect) else parse_effect(e) for e in effects]
+    if outliers > 0:
+        chosen.append(EFFECTS["outliers"](fraction=outliers))
+    for effect in chosen:
+        effect.check(nominal, measurement)
+    if sum(e.kind == "temperature" for e in chosen) > 1:
+        raise InvalidParameterError("at most one temperature effect: the dataset has one temperature column")
+    noise = sensor_noise(measurement, noise)
+    seeds = np.random.SeedSequence(seed)  # seed=None draws fresh entropy, recorded in the truth
+    rng_path, rng_errors, rng_noise, rng_effects = (np.random.default_rng(s) for s in seeds.spawn(4))
+
+    q = acquisition_path(nominal, measurement, int(samples), rng_path)
+    t = dt * np.arange(len(q))
+    errors, perturbed = geometric_errors(nominal, measurement, q, rng_errors) if geometric_error else (np.zeros(nominal.n_params), np.array([], int))
+    true = nominal.params + errors
+    acq = Acquisition(nominal, measurement, q, t, np.tile(true, (len(q), 1)), np.zeros_like(q), rng_effects)
+    for effect in chosen:
+        effect.prepare(acq)
+    stages = ("parameters", "joints", "observations")
+    magnitudes = [None] * len(chosen)
+    for k in sorted(range(len(chosen)), key=lambda k: stages.index(chosen[k].stage)):
+        if chosen[k].stage == "observations" and acq.y is None:
+            acq.y = _add_noise(measurement, _predict(nominal, measurement, q + acq.dq, acq.params), noise, rng_noise)
+        magnitudes[k] = chosen[k].apply(acq)
+    if acq.y is None:
+        acq.y = _add_noise(measurement, _predict(nominal, measurement, q + acq.dq, acq.params), noise, rng_noise)
+    y = _quantise(measurement, acq.y, noise.resolution)
+    if measurement == "cable":
+        outside = np.flatnonzero((y[:, 0] < CABLE_RANGE[0]) | (y[:, 0] > CABLE_RANGE[1]))
+        if outside.size:
+            raise InvalidParameterError(
+                f"the effects {[e.spec for e in chosen]} push {outside.size} readings outside the {CABLE_SENSOR} range "
+                f"{CABLE_RANGE[0]:g}..{CABLE_RANGE[1]:g} mm (e.g. sample {outside[0]}: {y[outside[0], 0]:.3f} mm)"
+            )
+
+    dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp,
+                      notes=[f"simulated by robocal.simulate (seed {seeds.entropy})"])  # fmt: skip
+    records = [effect.record(magnitude) for effect, magnitude in zip(chosen, magnitudes)]
+    outlier_samples = sorted({i for rec in records for i in rec.get("samples", [])})
+    truth = {
+        "robot": base.name,
+        "measurement": measurement,
+        "seed": int(seeds.entropy),
+        "samples": len(q),
+        "dt": _quantity(dt, "s"),
+        "parameters": {
+            name: {"value": float(v), "nominal": float(v0), "unit": unit}
+            for name, v, v0, unit in zip(nominal.param_names, acq.params[0], nominal.params, nominal.param_units)
+        },
+        "perturbed": [nominal.param_names[i] for i in perturbed],
+        "geometric_error": {"lengths": _quantity(LENGTH_ERROR_MM, "mm"), "angles": _quantity(ANGLE_ERROR_DEG, "deg")} if geometric_error else None,
+        "sensor": {"name": CABLE_SENSOR, "range": _quantity(list(CABLE_RANGE), "mm")} if measurement == "cable" else {"name": "laser tracker"},
+        "noise": {
+            "sigma": _quantity(noise.sigma, "mm"),
+            "sigma_rotation": _quantity(noise.sigma_rotation, "rad"),
+            "resolution": _quantity(noise.resolution, "mm"),
+        },
+        "effects": records,
+        "outliers": [{"sample": i, "row": int(dataset.rows[i])} for i in outlier_samples],
+    }
+    return dataset, truth
+
+
+def true_params(truth: Mapping, r: Robot) -> np.ndarray:
+    """The true parameter vector (mm, rad) of a simulation's truth, in ``r``'s order.
+
+    With a ``temperature`` effect on the links these are the values at its start temperature.
+    """
+    table = truth["parameters"]
+    missing = [n for n in r.param_names if n not in table]
+    if missing:
+        raise InvalidParameterError(f"the truth lacks parameters {missing} of robot {r.name!r}")
+    return np.array([table[n]["value"] for n in r.param_names])
+
+
+def write_simulation(dataset: Dataset, truth: Mapping, out_csv, truth_json=None) -> tuple[Path, Optional[Path]]:
+    """Writes the dataset as a canonical CSV (joint angles in deg) and, if asked, the truth as
+    JSON; returns both paths."""
+    csv_path = write_canonical(dataset, out_csv)
+    json_path = None
+    if truth_json is not None:
+        json_path = Path(truth_json)
+        json_path.write_text(json.dumps(truth, indent=2) + "\n")
+    return csv_path, json_path
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: robocal simulate
+# ---------------------------------------------------------------------------------------------
+def add_arguments(parser) -> None:
+    """Arguments of ``robocal simulate``."""
+    parser.add_argument("--robot", default="hsr-jr680", help="built-in robot or robot file (default hsr-jr680)")
+    parser.add_argument("--measurement", default="cable", choices=MEASUREMENTS, help="observation type (default cable)")
+    parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
+    parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    parser.add_argument("--effect", action="append", default=[], metavar="KIND[:key=value,...]",
+                        help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}")  # fmt: skip
+    parser.add_argument("--noise", type=float, default=None, metavar="MM", help="sensor noise sigma in mm (0: noiseless; default: the sensor's)")
+    parser.add_argument("--outliers", type=float, default=0.0, metavar="FRACTION", help="fraction of gross outliers (default 0)")
+    parser.add_argument("--no-geometric-error", dest="geometric_error", action="store_false", help="true geometry = nominal")
+    parser.add_argument("--out", required=True, help="output CSV (canonical format)")
+    parser.add_argument("--truth", default=None, help="output JSON with the ground truth")
+
+
+def run(args) -> int:
+    """Runs ``robocal simulate``; returns the exit code."""
+    dataset, truth = simulate(args.robot, args.measurement, args.samples, args.seed, args.effect, noise=args.noise,
+                              geometric_error=args.geometric_error, outliers=args.outliers)  # fmt: skip
+    csv_path, json_path = write_simulation(dataset, truth, args.out, args.truth)
+    effects = ", ".join(e["spec"] for e in truth["effects"]) or "none"
+    print(f"wrote {len(dataset)} {args.measurement} samples of {truth['robot']} to {csv_path}" + (f" and the truth to {json_path}" if json_path else ""))
+    print(f"effects: {effects}")
+    return 0
