@@ -1,0 +1,117 @@
+"""``robocal.calibrate``: data in, calibrated robot and held-out metrics out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Callable, Optional, Union
+
+from ..data.dataset import Dataset
+from ..data.public import load
+from ..data.splits import random_split
+from ..exceptions import InvalidParameterError
+from ..robot import Robot, robot as load_robot
+from .lm import levenberg_marquardt
+from .metrics import metrics
+from .problem import Problem
+from .result import CalibrationResult
+
+#: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
+METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
+    "lm": ("-", "robocal's production Levenberg-Marquardt (adaptive damping)", levenberg_marquardt),
+}
+
+
+def calibrate(
+    data: Union[str, Path, Dataset],
+    robot: Union[str, Robot, None] = None,
+    measurement: Optional[str] = None,
+    method: str = "lm",
+    test_fraction: float = 0.2,
+    seed: int = 0,
+    mask=None,
+    **options,
+) -> CalibrationResult:
+    """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
+
+    Parameters
+    ----------
+    data : path or Dataset
+        A measurement file (canonical CSV or a public dataset, see :func:`robocal.data.load`)
+        or a :class:`Dataset`.
+    robot : str or Robot, optional
+        Default: the robot recorded in the data.
+    measurement : {"cable", "position", "pose"}, optional
+        For files that can provide more than one (the UR10 tracker files: ``pose`` or ``position``).
+    method : str
+        One of :data:`METHODS`.
+    test_fraction : float
+        Share of samples held out (seeded random split); 0 fits on everything.
+    seed : int
+    mask : optional
+        Parameters to consider (default: the robot's default mask for the measurement).
+    **options
+        Passed to the method.
+
+    Returns
+    -------
+    CalibrationResult
+        ``to_dict()`` is the result JSON (``method``, ``parameters``, ``metrics`` with ``train``
+        and ``test``, ...).
+    """
+    if method not in METHODS:
+        raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+    if not 0.0 <= test_fraction < 1.0:
+        raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
+    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, robot=robot if isinstance(robot, str) else None)
+    if measurement is not None and dataset.measurement != measurement:
+        raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
+    if robot is None:
+        if dataset.robot is None:
+            raise InvalidParameterError("the data do not name their robot: pass `robot`")
+        robot = dataset.robot
+    r = load_robot(robot) if isinstance(robot, str) else robot
+    if test_fraction > 0:
+        train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
+        train, test = dataset.subset(train_idx), dataset.subset(test_idx)
+    else:
+        train, test = dataset, None
+    problem = Problem.build(r, train, mask=mask)
+    result = METHODS[method][2](problem, **options)
+    if test is not None:
+        held_out = problem.with_data(test)
+        result.metrics["test"] = metrics(held_out.residuals(result.x), test.measurement)
+    return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
+    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
+    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
+    parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", help="write the result JSON here")
+    parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
+                       test_fraction=args.test_fraction, seed=args.seed)  # fmt: skip
+    doc = result.to_dict()
+    if args.out:
+        Path(args.out).write_text(json.dumps(doc, indent=2))
+    if args.json:
+        print(json.dumps(doc, indent=2))
+        return 0
+    train, test = doc["metrics"]["train"], doc["metrics"]["test"]
+    print(f"{doc['method']} on {doc['robot']} ({doc['measurement']}, {train['n']} training samples): "
+          f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms")  # fmt: skip
+    print(f"  train: RMSE {train['rmse']:.4f}  MAE {train['mae']:.4f}  MAX {train['max']:.4f} mm")
+    if test:
+        print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
+    print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
+    if args.out:
+        print(f"  result written to {args.out}")
+    return 0

@@ -1,0 +1,155 @@
+"""A calibration problem: robot, data, which parameters are estimated, and where they start.
+
+Every calibrator works on the same :class:`Problem`: a residual ``r(x) = y − h(θ(x))`` and its
+identification Jacobian ``J = ∂h/∂x`` over the free parameters ``x = θ[free]``. By default the
+free set is the *identifiable* subset of the robot's default mask for the measurement type,
+decided from the data at the start point; every parameter left out says why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ..core import cable_initial_guess, identifiability, solve_damped
+from ..data.dataset import Dataset
+from ..exceptions import InvalidParameterError
+from ..reference import frame_params
+from ..robot import Robot
+
+
+def _kabsch(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Rigid transform (4x4) best mapping ``points`` onto ``targets`` (both (m, 3))."""
+    pc, tc = points.mean(axis=0), targets.mean(axis=0)
+    u, _, vt = np.linalg.svd((points - pc).T @ (targets - tc))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, tc - R @ pc
+    return T
+
+
+def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
+    """Nominal kinematics plus a closed-form start for the measurement set-up.
+
+    Cable: the anchor and sensor zero from :func:`robocal.cable_initial_guess`, polished by a
+    few Gauss-Newton steps on the geometric residual (kinematics held nominal). Position and
+    pose: the base frame (measurement frame → robot base) that best maps the nominal tool points
+    onto the measured points (Kabsch). Nothing needs to be supplied by the user.
+    """
+    p = robot.params.copy() if params is None else np.array(params, dtype=np.float64)
+    if data.measurement == "cable":
+        points = robot.fkine(data.q, params=p, tool=True)[:, :3, 3]
+        anchor, offset = cable_initial_guess(points, data.y[:, 0])
+        setup = [robot.index(n) for n in ("anchor_x", "anchor_y", "anchor_z", "cable_offset")]
+        p[setup] = (*anchor, offset)
+        # The closed form minimises an algebraic error (squared lengths), which the model error of
+        # nominal kinematics biases; a few geometric Gauss-Newton steps on the set-up alone fix it.
+        for _ in range(10):
+            r = robot.residuals("cable", data.q, data.y, params=p)[:, 0]
+            step, _ = solve_damped(robot.jacobian("cable", data.q, params=p, cols=setup), r, 0.0)
+            p[setup] += step
+            if np.max(np.abs(step)) < 1e-9:
+                break
+    else:
+        base_index = robot.index("base_x")
+        # Fit the base to tool points computed without any base transform.
+        p_no_base = p.copy()
+        p_no_base[base_index : base_index + 6] = 0.0
+        local = robot.fkine(data.q, params=p_no_base, tool=True)[:, :3, 3]
+        p[base_index : base_index + 6] = frame_params(_kabsch(local, data.y[:, :3]))
+    return p
+
+
+@dataclass
+class Problem:
+    """Residuals and Jacobians of one robot on one dataset over the free parameters.
+
+    Attributes
+    ----------
+    robot : Robot
+    data : Dataset
+    free : ndarray of int
+        Indices (into the full parameter vector) of the estimated parameters.
+    start : ndarray, shape (P,)
+        Full parameter vector at the start; the fixed entries keep these values.
+    fixed : dict
+        ``name -> reason`` for every masked parameter that is not estimated.
+    """
+
+    robot: Robot
+    data: Dataset
+    free: np.ndarray
+    start: np.ndarray
+    fixed: dict = field(default_factory=dict)
+
+    @classmethod
+    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9) -> "Problem":
+        """The identifiable subset of ``mask`` (default: ``robot.default_mask``) at the start point.
+
+        Parameters
+        ----------
+        robot : Robot
+        data : Dataset
+            Must have ``data.n_joints == robot.n_joints``.
+        mask : array_like of bool or of names, optional
+        params : array_like, optional
+            Start parameter vector (default: nominal + closed-form set-up, see
+            :func:`start_parameters`).
+        tol : float
+            Rank tolerance of the identifiability analysis.
+        """
+        if data.n_joints != robot.n_joints:
+            raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
+        if mask is None:
+            mask = robot.default_mask(data.measurement)
+        elif len(mask) and isinstance(mask[0], str):
+            names = list(mask)
+            mask = np.zeros(robot.n_params, dtype=bool)
+            mask[[robot.index(n) for n in names]] = True
+        cols = np.flatnonzero(np.asarray(mask, dtype=bool))
+        start = start_parameters(robot, data, params)
+        J = robot.jacobian(data.measurement, data.q, y=data.y, params=start, cols=cols)
+        ident = identifiability(J, tol)
+        names = [robot.param_names[c] for c in cols]
+        fixed = {names[j]: "no effect on the measurements" for j in ident["no_effect"]}
+        for j, partners in ident["redundant"]:
+            strongest = sorted(partners, key=lambda p: -abs(p[1]))[:3]
+            fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
+        free = cols[np.sort(ident["identifiable"])]
+        return cls(robot=robot, data=data, free=free, start=start, fixed=fixed)
+
+    # -- the free vector ----------------------------------------------------------------------
+    @property
+    def x0(self) -> np.ndarray:
+        return self.start[self.free].copy()
+
+    @property
+    def names(self) -> list[str]:
+        return [self.robot.param_names[k] for k in self.free]
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """The full parameter vector with the free entries set to ``x``."""
+        p = self.start.copy()
+        p[self.free] = x
+        return p
+
+    def with_data(self, data: Dataset) -> "Problem":
+        """The same parameterisation on other data (e.g. the held-out samples)."""
+        return Problem(self.robot, data, self.free, self.start, dict(self.fixed))
+
+    # -- residuals ----------------------------------------------------------------------------
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """``y − h`` of every sample, flattened to (m·k,)."""
+        return self.robot.residuals(self.data.measurement, self.data.q, self.data.y, params=self.full(x)).ravel()
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """``∂h/∂x``, (m·k, n_free)."""
+        return self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=self.full(x), cols=self.free)
+
+    def cost(self, x: np.ndarray) -> float:
+        """``½‖r‖²`` (scipy's convention)."""
+        r = self.residuals(x)
+        return 0.5 * float(r @ r)

@@ -1,0 +1,108 @@
+"""One result type for every calibrator (scipy's vocabulary: ``x, cost, nit, nfev, status,
+success, message``), serialisable to the result JSON other tools read."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ..core import covariance
+from .metrics import metrics
+from .problem import Problem
+
+
+@dataclass
+class CalibrationResult:
+    """What a calibration found.
+
+    Attributes
+    ----------
+    method : str
+        The method's name (``lm``, ``ukf-vslm``, ...).
+    problem : Problem
+        Robot, training data, free parameters and start.
+    x : ndarray
+        Estimated free parameters (in ``problem.free`` order).
+    std : ndarray or None
+        Their standard deviations from ``σ̂²(JᵀJ)⁺`` where defined.
+    cost : float
+        Final ``½‖r‖²`` on the training data.
+    history : list of float
+        Cost after each iteration (index 0: the start).
+    nit, nfev : int
+        Iterations and residual evaluations.
+    success : bool
+    message : str
+    time_s : float
+        Wall time of the fit.
+    metrics : dict
+        ``{"train": {...}, "test": {...} or None}`` per eq. (28).
+    """
+
+    method: str
+    problem: Problem
+    x: np.ndarray
+    std: Optional[np.ndarray]
+    cost: float
+    history: list
+    nit: int
+    nfev: int
+    success: bool
+    message: str
+    time_s: float
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def params(self) -> np.ndarray:
+        """The full calibrated parameter vector."""
+        return self.problem.full(self.x)
+
+    def parameters(self) -> list[dict]:
+        """``{name, unit, nominal, value, std}`` for every parameter of the robot (``std`` is
+        ``None`` for parameters that were not estimated)."""
+        robot, full = self.problem.robot, self.params
+        std = dict(zip(self.problem.free.tolist(), self.std.tolist())) if self.std is not None else {}
+        return [
+            {"name": n, "unit": u, "nominal": float(nom), "value": float(v), "std": std.get(k)}
+            for k, (n, u, nom, v) in enumerate(zip(robot.param_names, robot.param_units, robot.params, full))
+        ]
+
+    def to_dict(self) -> dict:
+        """The result JSON: ``method``, ``robot``, ``measurement``, ``parameters``, ``free``,
+        ``fixed`` (name -> reason), ``metrics``, ``convergence``."""
+        return {
+            "method": self.method,
+            "robot": self.problem.robot.name,
+            "measurement": self.problem.data.measurement,
+            "parameters": self.parameters(),
+            "free": self.problem.names,
+            "fixed": self.problem.fixed,
+            "metrics": self.metrics,
+            "convergence": {
+                "success": bool(self.success),
+                "message": self.message,
+                "nit": int(self.nit),
+                "nfev": int(self.nfev),
+                "cost": float(self.cost),
+                "history": [float(c) for c in self.history],
+                "time_s": float(self.time_s),
+            },
+        }
+
+    @classmethod
+    def from_fit(cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float) -> "CalibrationResult":
+        """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics."""
+        x = np.asarray(x, dtype=np.float64)
+        r = problem.residuals(x)
+        J = problem.jacobian(x)
+        std = None
+        if J.shape[0] > J.shape[1]:
+            cov, _, _, rank = covariance(J, r)
+            if rank == J.shape[1]:
+                std = np.sqrt(np.diag(cov))
+        return cls(
+            method=method, problem=problem, x=x, std=std, cost=0.5 * float(r @ r), history=list(history), nit=nit, nfev=nfev,
+            success=success, message=message, time_s=time_s, metrics={"train": metrics(r, problem.data.measurement), "test": None},
+        )  # fmt: skip

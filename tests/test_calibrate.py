@@ -1,0 +1,99 @@
+"""robocal.calibrate: the problem set-up, the production LM against scipy, the API, the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+import robocal
+from robocal.calibrate import Problem, metrics
+from robocal.calibrate.lm import levenberg_marquardt
+from robocal.exceptions import InvalidParameterError
+from robocal.simulate import simulate
+
+
+@pytest.fixture(scope="module")
+def cable_data():
+    data, truth = simulate("hsr-jr680", "cable", samples=300, seed=3)
+    return data, truth
+
+
+def test_metrics_follow_eq_28():
+    m = metrics(np.array([3.0, -4.0, 0.0, 1.0]), "cable")
+    assert m == {"rmse": pytest.approx(np.sqrt(26 / 4)), "mae": 2.0, "max": 4.0, "n": 4}
+    # Position: the per-sample error is the Euclidean norm.
+    assert metrics(np.array([[3.0, 4.0, 0.0]]), "position")["max"] == 5.0
+
+
+def test_problem_starts_from_closed_form_setup_and_names_what_it_fixes(cable_data):
+    data, truth = cable_data
+    p = Problem.build(robocal.robot("hsr-jr680"), data)
+    # With nominal kinematics and no tool offset, the anchor and sensor zero already explain the
+    # cable to well within the size of the still unknown tool offset (85 mm).
+    anchorless = p.robot.residuals("cable", data.q, data.y, params=p.robot.params)
+    assert np.sqrt(np.mean(p.residuals(p.x0) ** 2)) < 40.0 < np.sqrt(np.mean(anchorless**2))
+    assert len(p.free) + len(p.fixed) == int(p.robot.default_mask("cable").sum())
+    assert all(reason.startswith(("redundant with", "no effect")) for reason in p.fixed.values())
+
+
+def test_position_start_fits_the_base_frame_and_lm_finishes_the_job():
+    data, truth = simulate("ur10", "position", samples=100, seed=2)
+    p = Problem.build(robocal.robot("ur10"), data)
+    # The start (Kabsch base, tool point unknown) is within the tool offset's size (~85 mm) ...
+    assert np.sqrt(np.mean(p.residuals(p.x0) ** 2)) < 85.0
+    # ... and close enough for LM to reach the noise floor: sigma·sqrt(3) per sample.
+    fit = levenberg_marquardt(p)
+    sigma = truth["noise"]["sigma"]["value"]
+    assert fit.success and fit.metrics["train"]["rmse"] == pytest.approx(sigma * np.sqrt(3), rel=0.25)
+
+
+def test_production_lm_reaches_the_scipy_optimum(cable_data):
+    data, _ = cable_data
+    p = Problem.build(robocal.robot("hsr-jr680"), data)
+    ours = levenberg_marquardt(p)
+    ref = least_squares(p.residuals, p.x0, jac=lambda x: -p.jacobian(x), method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    assert ours.success, ours.message
+    assert ours.cost == pytest.approx(ref.cost, rel=1e-8)
+    assert np.all(np.abs(ours.x - ref.x) < 1e-3 * ours.std)  # same optimum, to a thousandth of the uncertainty
+    assert ours.metrics["train"]["rmse"] == pytest.approx(0.03, rel=0.2)  # the simulated noise floor
+
+
+def test_calibrate_api_result_json(cable_data, tmp_path):
+    data, _ = cable_data
+    result = robocal.calibrate(data, robot="hsr-jr680", method="lm", test_fraction=0.25, seed=1)
+    doc = json.loads(json.dumps(result.to_dict()))
+    assert doc["method"] == "lm" and doc["robot"] == "hsr-jr680" and doc["measurement"] == "cable"
+    by_name = {p["name"]: p for p in doc["parameters"]}
+    assert set(by_name["a2"]) == {"name", "unit", "nominal", "value", "std"} and by_name["a2"]["unit"] == "mm"
+    assert by_name["a2"]["std"] > 0 and by_name["beta1"]["std"] is None
+    assert doc["metrics"]["train"]["n"] == 225 and doc["metrics"]["test"]["n"] == 75
+    assert doc["metrics"]["test"]["rmse"] < 0.06
+    again = robocal.calibrate(data, robot="hsr-jr680", method="lm", test_fraction=0.25, seed=1)
+    np.testing.assert_array_equal(again.x, result.x)
+    assert robocal.calibrate(data, robot="hsr-jr680", test_fraction=0.0).metrics["test"] is None
+
+
+def test_calibrate_bad_use(cable_data):
+    data, _ = cable_data
+    with pytest.raises(InvalidParameterError, match="unknown method 'newton'"):
+        robocal.calibrate(data, robot="hsr-jr680", method="newton")
+    with pytest.raises(InvalidParameterError, match="test_fraction"):
+        robocal.calibrate(data, robot="hsr-jr680", test_fraction=1.0)
+    with pytest.raises(InvalidParameterError, match="joints"):
+        robocal.calibrate(data, robot=robocal.Robot.from_dh("two", [(0, 100, 0, 0), (0, 100, 0, 0)]))
+
+
+def test_cli_calibrate_writes_the_result(cable_data, tmp_path, capsys):
+    from robocal.cli import main
+    from robocal.data import write_canonical
+
+    data, _ = cable_data
+    csv = write_canonical(data, tmp_path / "d.csv")
+    assert main(["calibrate", str(csv), "--robot", "hsr-jr680", "--out", str(tmp_path / "r.json")]) == 0
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["metrics"]["test"]["rmse"] < 0.06
+    assert "test:  RMSE" in capsys.readouterr().out
+    assert main(["calibrate", str(tmp_path / "missing.csv"), "--robot", "hsr-jr680"]) == 2
