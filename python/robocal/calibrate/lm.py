@@ -21,7 +21,7 @@ from .result import CalibrationResult
 def levenberg_marquardt(
     problem: Problem,
     x0=None,
-    max_nfev: int = 500,
+    max_nfev: int = 2000,
     ftol: float = 1e-10,
     xtol: float = 1e-10,
     gtol: float = 1e-10,
