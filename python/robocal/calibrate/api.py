@@ -12,6 +12,7 @@ from ..data.public import load
 from ..data.splits import random_split
 from ..exceptions import InvalidParameterError
 from ..robot import Robot, robot as load_robot
+from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
 from .metrics import metrics
 from .problem import Problem
@@ -20,6 +21,11 @@ from .result import CalibrationResult
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
 METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
     "lm": ("-", "robocal's production Levenberg-Marquardt (adaptive damping)", levenberg_marquardt),
+    **kalman.METHODS,
+    **vslm.METHODS,
+    **cascade.METHODS,
+    **metaheuristics.METHODS,
+    **rbf.METHODS,
 }
 
 
@@ -81,7 +87,9 @@ def calibrate(
     result = METHODS[method][2](problem, **options)
     if test is not None:
         held_out = problem.with_data(test)
-        result.metrics["test"] = metrics(held_out.residuals(result.x), test.measurement)
+        # A corrector (M5) changes the prediction, not the parameters: evaluate it as it predicts.
+        residuals = result.corrected_residuals(held_out) if isinstance(result, rbf.RBFResult) else held_out.residuals(result.x)
+        result.metrics["test"] = metrics(residuals, test.measurement)
     return result
 
 

@@ -52,9 +52,9 @@ def levenberg_marquardt(
         cost_new = 0.5 * float(r_new @ r_new)
         predicted = 0.5 * float(step @ (lam * np.einsum("ij,ij->j", J, J) * step + g))
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
         if rho > 0:
             nit += 1
-            small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
             small_change = cost - cost_new < ftol * cost
             x, r, cost = x_new, r_new, cost_new
             history.append(cost)
@@ -65,6 +65,10 @@ def levenberg_marquardt(
                 message = "`ftol` termination condition is satisfied" if small_change else "`xtol` termination condition is satisfied"
                 break
             J = problem.jacobian(x)
+        elif small_step:
+            # Even tiny steps no longer lower the cost: a minimum to within rounding.
+            success, message = True, "`xtol` termination condition is satisfied"
+            break
         else:
             lam *= nu
             nu *= 2.0

@@ -32,12 +32,13 @@ def _kabsch(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
 
 
 def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
-    """Nominal kinematics plus a closed-form start for the measurement set-up.
+    """Nominal kinematics plus a fitted measurement set-up.
 
-    Cable: the anchor and sensor zero from :func:`robocal.cable_initial_guess`, polished by a
-    few Gauss-Newton steps on the geometric residual (kinematics held nominal). Position and
-    pose: the base frame (measurement frame → robot base) that best maps the nominal tool points
-    onto the measured points (Kabsch). Nothing needs to be supplied by the user.
+    Cable: the anchor and sensor zero in closed form (:func:`robocal.cable_initial_guess`).
+    Position and pose: the base frame (measurement frame → robot base) that best maps the
+    nominal tool points onto the measured points (Kabsch). Then a few Gauss-Newton steps on the
+    set-up and the tool point alone, kinematics held nominal: the closed forms minimise
+    algebraic errors that the unknown tool offset biases. Nothing needs to be supplied.
     """
     p = robot.params.copy() if params is None else np.array(params, dtype=np.float64)
     if data.measurement == "cable":
@@ -45,21 +46,20 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
         anchor, offset = cable_initial_guess(points, data.y[:, 0])
         setup = [robot.index(n) for n in ("anchor_x", "anchor_y", "anchor_z", "cable_offset")]
         p[setup] = (*anchor, offset)
-        # The closed form minimises an algebraic error (squared lengths), which the model error of
-        # nominal kinematics biases; a few geometric Gauss-Newton steps on the set-up alone fix it.
-        for _ in range(10):
-            r = robot.residuals("cable", data.q, data.y, params=p)[:, 0]
-            step, _ = solve_damped(robot.jacobian("cable", data.q, params=p, cols=setup), r, 0.0)
-            p[setup] += step
-            if np.max(np.abs(step)) < 1e-9:
-                break
     else:
-        base_index = robot.index("base_x")
-        # Fit the base to tool points computed without any base transform.
+        base = [robot.index(f"base_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]
         p_no_base = p.copy()
-        p_no_base[base_index : base_index + 6] = 0.0
+        p_no_base[base] = 0.0
         local = robot.fkine(data.q, params=p_no_base, tool=True)[:, :3, 3]
-        p[base_index : base_index + 6] = frame_params(_kabsch(local, data.y[:, :3]))
+        p[base] = frame_params(_kabsch(local, data.y[:, :3]))
+        setup = base
+    cols = setup + [robot.index(n) for n in ("tool_x", "tool_y", "tool_z")]
+    for _ in range(20):
+        r = robot.residuals(data.measurement, data.q, data.y, params=p).ravel()
+        step, _ = solve_damped(robot.jacobian(data.measurement, data.q, y=data.y, params=p, cols=cols), r, 1e-9)
+        p[cols] += step
+        if np.max(np.abs(step)) < 1e-9:
+            break
     return p
 
 
