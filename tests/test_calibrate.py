@@ -9,8 +9,8 @@ import pytest
 from scipy.optimize import least_squares
 
 import robocal
-from robocal.calibrate import Problem, metrics
-from robocal.calibrate.lm import levenberg_marquardt
+from robocal.calibration import Problem, metrics
+from robocal.calibration.lm import levenberg_marquardt
 from robocal.exceptions import InvalidParameterError
 from robocal.simulate import simulate
 

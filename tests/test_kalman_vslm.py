@@ -9,7 +9,7 @@ positions. Budgets and what is asserted:
   5 sweeps + 40 iterations (M9).
 * M1 and M3 alone, 5 sweeps: below 1.5× the noise level, cost falling. They are R-weighted,
   sample-by-sample estimators and land slightly above the least-squares minimum (RMSE ~0.1-1 %
-  higher here). This relies on :func:`~robocal.calibrate.problem.start_parameters` fitting the
+  higher here). This relies on :func:`~robocal.calibration.problem.start_parameters` fitting the
   set-up and tool first (start RMSE ~0.1-0.4 mm); from a start ~17 mm off (closed-form cable
   anchor alone) 5 sweeps left the cable RMSE at ~4σ and ~30 sweeps were needed.
 """
@@ -23,9 +23,9 @@ import pytest
 from filterpy.kalman import ExtendedKalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 import robocal
-from robocal.calibrate import cascade, kalman, vslm
-from robocal.calibrate.lm import levenberg_marquardt
-from robocal.calibrate.problem import Problem
+from robocal.calibration import cascade, kalman, vslm
+from robocal.calibration.lm import levenberg_marquardt
+from robocal.calibration.problem import Problem
 from robocal.simulate import DEFAULT_NOISE, simulate
 
 CASES = {"cable": ("hsr-jr680", "cable"), "position": ("ur10", "position")}

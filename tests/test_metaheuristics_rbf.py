@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import robocal
-from robocal.calibrate import Problem, metrics
-from robocal.calibrate.lm import levenberg_marquardt
-from robocal.calibrate.metaheuristics import bas, de, pso, search_box
-from robocal.calibrate.rbf import rbf
+from robocal.calibration import Problem, metrics
+from robocal.calibration.lm import levenberg_marquardt
+from robocal.calibration.metaheuristics import bas, de, pso, search_box
+from robocal.calibration.rbf import rbf
 from robocal.data.splits import random_split
 from robocal.simulate import simulate
 

@@ -8,7 +8,7 @@ Units: mm and radians everywhere inside.
 from __future__ import annotations
 
 from . import exceptions
-from .calibrate import calibrate
+from .calibration import calibrate
 from ._robocal import __version__
 from .core import cable_initial_guess, covariance, identifiability, merwe_sigma_points, solve_damped, unscented_transform
 from .robot import MEASUREMENTS, Joint, Robot, robot

@@ -14,7 +14,7 @@ from .exceptions import RobocalError
 COMMANDS = {
     "demo": ("robocal.demo", "run the core on a built-in simulated robot (no files needed)"),
     "inspect": ("robocal.data.inspect", "validate a measurement file (canonical CSV or a public dataset)"),
-    "calibrate": ("robocal.calibrate.api", "identify a robot's kinematic parameters from measurements"),
+    "calibrate": ("robocal.calibration.api", "identify a robot's kinematic parameters from measurements"),
     "simulate": ("robocal.simulate", "simulate measurements of a robot with known truth and injectable effects"),
 }
 

@@ -31,8 +31,8 @@ def ukf_vslm(
     ftol: float = 1e-10,
     xtol: float = 1e-10,
 ) -> CalibrationResult:
-    """M9: UKF sweeps (:func:`~robocal.calibrate.kalman.ukf`), then VSLM
-    (:func:`~robocal.calibrate.vslm.vslm`) from the UKF estimate (Algorithm 1).
+    """M9: UKF sweeps (:func:`~robocal.calibration.kalman.ukf`), then VSLM
+    (:func:`~robocal.calibration.vslm.vslm`) from the UKF estimate (Algorithm 1).
 
     Parameters
     ----------
@@ -61,5 +61,5 @@ def ukf_vslm(
     )  # fmt: skip
 
 
-#: Entries for ``robocal.calibrate.api.METHODS``.
+#: Entries for ``robocal.calibration.api.METHODS``.
 METHODS = {"ukf-vslm": ("M9", "UKF-VSLM cascade (Algorithm 1): UKF sweeps, then VSLM from the UKF estimate", ukf_vslm)}

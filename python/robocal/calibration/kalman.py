@@ -234,7 +234,7 @@ def ukf(
     )  # fmt: skip
 
 
-#: Entries for ``robocal.calibrate.api.METHODS``.
+#: Entries for ``robocal.calibration.api.METHODS``.
 METHODS = {
     "ekf": ("M1", "extended Kalman filter over the parameters, samples one by one", ekf),
     "ukf": ("M3", "unscented Kalman filter over the parameters, samples one by one (eq. 8-12)", ukf),

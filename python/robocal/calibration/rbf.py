@@ -3,7 +3,7 @@ nominal model (after Chen et al. 2019, "positional error compensation ... RBF ne
 
 This is a black-box corrector, not a calibration: the kinematic parameters stay at
 ``problem.x0`` (nominal kinematics with the closed-form measurement set-up of
-:func:`~robocal.calibrate.problem.start_parameters`), and the network predicts the residual
+:func:`~robocal.calibration.problem.start_parameters`), and the network predicts the residual
 ``y − h(x0)`` from the joint angles ``q``::
 
     c(q) = Σ_j W_j · exp(−‖q − μ_j‖² / (2σ²)) + b

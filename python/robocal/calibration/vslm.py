@@ -2,7 +2,7 @@
 
 Both iterate ``x ← x + δ_t (JᵀJ + λI)⁻¹ Jᵀ r`` with a FIXED damping ``λ`` and identity damping
 matrix (``solve_damped(J, r, λ, "identity")``); M6 has ``δ_t = 1``, M8 ``δ_{t+1} = μ δ_t``.
-Unlike robocal's production :func:`~robocal.calibrate.lm.levenberg_marquardt` there is no gain
+Unlike robocal's production :func:`~robocal.calibration.lm.levenberg_marquardt` there is no gain
 test: every step is taken, as the paper describes, so the cost may rise on an iteration.
 
 The damping ``λ``: the paper calls it a learning rate and does not give its value. The default
@@ -139,7 +139,7 @@ def vslm(
     return damped_iterations(problem, method, x0=x0, lam=lam, max_iter=max_iter, delta0=delta0, mu=mu, ftol=ftol, xtol=xtol)
 
 
-#: Entries for ``robocal.calibrate.api.METHODS``.
+#: Entries for ``robocal.calibration.api.METHODS``.
 METHODS = {
     "lm-paper": ("M6", "Levenberg-Marquardt of eq. (14): fixed damping, identity damping matrix", lm_paper),
     "vslm": ("M8", "variable step-size Levenberg-Marquardt, eq. (15)", vslm),
