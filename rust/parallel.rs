@@ -20,12 +20,19 @@ where
     if width == 0 {
         return;
     }
-    out.par_chunks_mut(CHUNK * width).enumerate().for_each(|(c, chunk)| {
+    let run = |(c, chunk): (usize, &mut [f64])| {
         let mut scratch = make();
         let samples = chunk.len() / width;
         for g in (0..samples).step_by(LANES) {
             let count = LANES.min(samples - g);
             fill(c * CHUNK + g, count, &mut chunk[g * width..(g + count) * width], &mut scratch);
         }
-    });
+    };
+    // One chunk (a small batch, e.g. one sample of a filter update) runs on the calling thread:
+    // handing it to the pool would cost more than the work.
+    if out.len() <= CHUNK * width {
+        run((0, out));
+    } else {
+        out.par_chunks_mut(CHUNK * width).enumerate().for_each(run);
+    }
 }
