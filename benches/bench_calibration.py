@@ -1,0 +1,387 @@
+"""Side-by-side benchmark of robocal's calibrators against NumPy/scipy implementations.
+
+Everything runs in this one process, on the same inputs, from the same start:
+
+1. robocal's production Levenberg–Marquardt (``robocal.calibration.lm``, Rust core) on simulated
+   cable data (HSR JR680, 20 000 samples, seed 1) against ``scipy.optimize.least_squares``
+   (method ``"lm"`` = MINPACK and ``"trf"``) with the pure-NumPy model
+   (``robocal.reference.residuals`` on the full parameter vector), once with scipy's default
+   finite-difference Jacobian (``jac="2-point"``) and once with the analytic NumPy Jacobian
+   (``robocal.reference.jacobian``).
+2. M9 UKF-VSLM (``robocal.calibration.cascade.ukf_vslm``) on D1 (HSR-RobotCali, 80 % random
+   training split, seed 0) against the SAME cascade written below in NumPy on
+   ``robocal.reference`` (UKF per sample with ``sigma_residuals`` / ``merwe_sigma_points`` /
+   ``unscented_transform``, then VSLM with ``jacobian`` / ``solve_damped``), identical options;
+   plus a cProfile breakdown of robocal's M9.
+
+Prints Markdown tables: machine, load, versions, absolute wall times, ratios, evaluations and
+final RMSE.
+
+    python benches/bench_calibration.py
+    python benches/bench_calibration.py --threads 1          # single rayon thread (NumPy's BLAS: --blas-threads, default 1)
+    python benches/bench_calibration.py --skip-lm            # only part 2 (and vice versa)
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import os
+import platform
+import pstats
+import sys
+import time
+from pathlib import Path
+
+D1_DEFAULT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets")) / "hsr-robotcali" / "HSR-RobotCali.xlsx"
+#: The paper's Table IX wall time of M9 (UKF-VSLM) on D1, seconds.
+PAPER_M9_D1_S = 1471.0
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def load_avg() -> str:
+    try:
+        return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def best_of(fn, repeats: int):
+    """(best wall time, result of that run) of ``fn()`` over ``repeats`` runs."""
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        value = fn()
+        elapsed = time.perf_counter() - t
+        if elapsed < best:
+            best, out = elapsed, value
+    return best, out
+
+
+def rmse(r) -> float:
+    import numpy as np
+
+    return float(np.sqrt(np.mean(np.square(r))))
+
+
+# ---------------------------------------------------------------------------------------------
+# Part 1: production LM vs scipy.optimize.least_squares
+# ---------------------------------------------------------------------------------------------
+def part_lm(args) -> None:
+    import numpy as np
+    import scipy.optimize
+
+    import robocal
+    from robocal import reference as ref
+    from robocal.calibration.lm import levenberg_marquardt
+    from robocal.calibration.problem import Problem
+    from robocal.simulate import simulate
+
+    r = robocal.robot("hsr-jr680")
+    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
+    data, _ = simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
+    problem = Problem.build(r, data)
+    x0, free, start = problem.x0, problem.free, problem.start
+    q, y = data.q, data.y
+    tol = dict(ftol=args.tol, xtol=args.tol, gtol=args.tol)
+
+    class Counting(Problem):
+        """The same problem, counting residual and Jacobian evaluations (for the table only)."""
+
+        nres = njac = 0
+
+        def residuals(self, x):
+            Counting.nres += 1
+            return super().residuals(x)
+
+        def jacobian(self, x):
+            Counting.njac += 1
+            return super().jacobian(x)
+
+    counting = Counting(problem.robot, problem.data, problem.free, problem.start, dict(problem.fixed))
+    res_counted = levenberg_marquardt(counting, **tol)
+    # from_fit evaluates r and J once more at the end for the result's std/metrics
+    lm_nres, lm_njac = Counting.nres, Counting.njac
+
+    t_lm, res = best_of(lambda: levenberg_marquardt(problem, **tol), args.lm_repeats)
+    assert np.array_equal(res.x, res_counted.x)
+
+    nfev = {"n": 0}
+
+    def fun(x):
+        nfev["n"] += 1
+        p = start.copy()
+        p[free] = x
+        return ref.residuals(conv, kinds, "cable", p, q, y).ravel()
+
+    def jac(x):
+        p = start.copy()
+        p[free] = x
+        return -ref.jacobian(conv, kinds, "cable", p, q, y, free)  # d(y - h)/dx
+
+    rows = []
+    x_lm, rmse_lm = res.x, rmse(problem.residuals(res.x))
+    rows.append(("robocal `levenberg_marquardt` (Rust core)", "analytic (Rust)", t_lm, lm_nres, lm_njac, f"nit {res.nit}, nfev {res.nfev}", res.message, rmse_lm, 0.0))
+    for method in ("lm", "trf"):
+        for jac_kind in ("2-point", "analytic"):
+            nfev["n"] = 0
+            kw = dict(method=method, jac=jac if jac_kind == "analytic" else "2-point", **tol)
+            if jac_kind == "2-point" and args.fd_max_nfev:
+                kw["max_nfev"] = args.fd_max_nfev
+            t = time.perf_counter()
+            out = scipy.optimize.least_squares(fun, x0, **kw)
+            elapsed = time.perf_counter() - t
+            njev = 0 if out.njev is None else int(out.njev)
+            label = f"scipy `least_squares(method={method!r})` ({'MINPACK' if method == 'lm' else 'TRF'})"
+            jl = "2-point finite differences of the NumPy residuals" if jac_kind == "2-point" else "analytic NumPy `reference.jacobian`"
+            msg = out.message if out.success else f"NOT CONVERGED: {out.message}"
+            rows.append((label, jl, elapsed, nfev["n"], njev, f"nfev {out.nfev}, njev {out.njev}", msg, rmse(problem.residuals(out.x)), float(np.max(np.abs(out.x - x_lm)))))
+
+    print(f"## 1. Production LM vs scipy.optimize.least_squares — simulated cable, {len(data):,} samples\n")
+    print(f"HSR JR680, `simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)`, `Problem.build` → {len(free)} free parameters; "
+          f"all start at `problem.x0` (RMSE {rmse(problem.residuals(x0)):.4f} mm); "
+          f"ftol = xtol = gtol = {args.tol:g} for every solver{'' if not args.fd_max_nfev else f'; finite-difference runs capped at max_nfev={args.fd_max_nfev}'}. "
+          f"robocal: best of {args.lm_repeats} runs, wall time of the whole `levenberg_marquardt()` call (incl. the result's "
+          f"covariance/metrics); scipy: one run each, wall time of `least_squares()`. Objective / Jacobian calls are counted in the "
+          f"functions themselves (robocal's include the one extra r and J of the result; scipy 'trf' leaves finite-difference calls out of its own nfev).\n")
+    print("| solver | Jacobian | wall time | × robocal | objective calls | Jacobian calls | solver's own counts | final RMSE (mm) | max abs(x − x_robocal) | status |")
+    print("|---|---|---:|---:|---:|---:|---|---:|---:|---|")
+    for label, jl, t, nr, nj, own, msg, e, dx in rows:
+        print(f"| {label} | {jl} | {t:.3f} s | {t / t_lm:.1f}× | {nr} | {nj} | {own} | {e:.6f} | {dx:.2e} | {msg} |")
+    print(f"\nrobocal LM's own `time_s` (the loop only, without the result's covariance/metrics): {res.time_s * 1e3:.1f} ms.")
+    fd = [row for row in rows[1:] if row[1].startswith("2-point")]
+    fastest_fd = min(fd, key=lambda row: row[2])
+    same = all(abs(row[7] - rmse_lm) <= 1e-6 * rmse_lm for row in fd)
+    met = fastest_fd[2] / t_lm >= 30 and same
+    print(f"\n**Target robocal ≥ 30× faster than scipy with finite differences at the same final RMSE: "
+          f"{'MET' if met else 'NOT MET'}** — the faster finite-difference scipy run ({fastest_fd[0]}) takes "
+          f"{fastest_fd[2]:.3f} s = {fastest_fd[2] / t_lm:.1f}× robocal's {t_lm:.3f} s; final RMSE "
+          f"{', '.join(f'{row[7]:.6f}' for row in fd)} (finite differences) vs {rmse_lm:.6f} mm (robocal)"
+          f"{'' if same else ' — NOT the same RMSE to 1e-6 relative'}.\n")
+
+
+# ---------------------------------------------------------------------------------------------
+# Part 2: M9 UKF-VSLM vs the same cascade in NumPy
+# ---------------------------------------------------------------------------------------------
+def numpy_ukf_vslm(conv, kinds, measurement, start, free, q, y, sweeps, P0, Q, R, alpha, beta, kappa, delta0, mu, lam, max_iter, ftol, xtol):
+    """Algorithm 1 (UKF sweeps, then VSLM) on ``robocal.reference`` — step for step the logic of
+    ``robocal.calibration.kalman.ukf`` (reset=True) and ``robocal.calibration.vslm.vslm``.
+
+    Returns (x_ukf, x, history, vslm_iterations, UKF-stage seconds, VSLM-stage seconds).
+    """
+    import numpy as np
+
+    from robocal import reference as ref
+
+    def full(x):
+        p = start.copy()
+        p[free] = x
+        return p
+
+    def residuals(x):
+        return ref.residuals(conv, kinds, measurement, full(x), q, y).ravel()
+
+    def cost(x):
+        r = residuals(x)
+        return 0.5 * float(r @ r)
+
+    t0 = time.perf_counter()
+    x = start[free].copy()
+    history = [cost(x)]
+    m = q.shape[0]
+    for _ in range(sweeps):
+        P = P0.copy()
+        for i in range(m):
+            qi, yi = q[i : i + 1], y[i : i + 1].reshape(1, -1)
+            sigmas, Wm, Wc = ref.merwe_sigma_points(x, P, alpha, beta, kappa)
+            x_prior, P_prior, _ = ref.unscented_transform(sigmas, sigmas, Wm, Wc)
+            P_prior = P_prior + Q
+            z = -ref.sigma_residuals(conv, kinds, measurement, full(x), free, sigmas, qi, yi)
+            z_mean, S, Pxy = ref.unscented_transform(sigmas, z, Wm, Wc)
+            S = S + R
+            K = np.linalg.solve(S, Pxy.T).T
+            x, P = x_prior + K @ (0.0 - z_mean), P_prior - K @ S @ K.T
+            P = 0.5 * (P + P.T)
+        history.append(cost(x))
+    x_ukf = x.copy()
+    t_ukf = time.perf_counter() - t0
+
+    r = residuals(x)
+    c, delta, nit = 0.5 * float(r @ r), float(delta0), 0
+    while nit < max_iter:
+        J = ref.jacobian(conv, kinds, measurement, full(x), q, y, free)
+        step, _ = ref.solve_damped(J, r, lam, "identity")
+        step *= delta
+        x = x + step
+        r = residuals(x)
+        c_new = 0.5 * float(r @ r)
+        nit += 1
+        history.append(c_new)
+        delta *= mu
+        small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
+        small_change = abs(c - c_new) < ftol * c
+        c = c_new
+        if small_step or small_change:
+            break
+    return x_ukf, x, history, nit, t_ukf, time.perf_counter() - t0 - t_ukf
+
+
+def part_m9(args) -> None:
+    import numpy as np
+
+    import robocal
+    from robocal.calibration.cascade import ukf_vslm
+    from robocal.calibration.kalman import Q_FRACTION, prior_covariance, sensor_covariance, ukf
+    from robocal.calibration.problem import Problem
+    from robocal.calibration.vslm import LAMBDA, vslm
+    from robocal.data import random_split
+    from robocal.data.public import load
+
+    r = robocal.robot("hsr-jr680")
+    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
+    d1 = load(args.d1)
+    train, _ = random_split(len(d1), 0.2, seed=0)
+    data = d1.subset(train)
+    problem = Problem.build(r, data)
+    n = len(problem.free)
+    P0 = prior_covariance(problem)
+    opts = dict(
+        sweeps=args.sweeps, P0=P0, Q=Q_FRACTION * P0, R=sensor_covariance("cable"), alpha=0.1, beta=2.0, kappa=0.0,
+        delta0=0.8, mu=0.95, lam=LAMBDA, max_iter=200, ftol=1e-10, xtol=1e-10,
+    )  # fmt: skip
+    ukf_opts = {k: opts[k] for k in ("sweeps", "P0", "Q", "R", "alpha", "beta", "kappa")}
+
+    t_rc, res = best_of(lambda: ukf_vslm(problem, **opts), args.m9_repeats)
+    t_ukf_stage, first = best_of(lambda: ukf(problem, **ukf_opts), args.m9_repeats)
+    vslm_opts = {k: opts[k] for k in ("delta0", "mu", "lam", "max_iter", "ftol", "xtol")}
+    t_vslm_stage, _ = best_of(lambda: vslm(problem, x0=first.x, **vslm_opts), args.m9_repeats)
+
+    t = time.perf_counter()
+    x_ukf_np, x_np, hist_np, nit_np, t_ukf_np, t_vslm_np = numpy_ukf_vslm(conv, kinds, "cable", problem.start, problem.free, data.q, data.y, **opts)
+    t_np = time.perf_counter() - t
+
+    m = len(data)
+    updates = args.sweeps * m
+    rm_rc, rm_np = rmse(problem.residuals(res.x)), rmse(problem.residuals(x_np))
+    rm_ukf_rc, rm_ukf_np = rmse(problem.residuals(first.x)), rmse(problem.residuals(x_ukf_np))
+    hist_rc = np.asarray(res.history)
+    vslm_nit_rc = res.nit - args.sweeps
+
+    print(f"## 2. M9 UKF-VSLM on D1 — robocal vs the same cascade in NumPy\n")
+    print(f"D1 = `{args.d1}` ({len(d1)} samples), training split `random_split({len(d1)}, 0.2, seed=0)` → {m} samples; "
+          f"`Problem.build` → {n} free parameters ({2 * n + 1} sigma points). Options (identical for both): sweeps={args.sweeps}, "
+          f"P0 = `prior_covariance(problem)`, Q = {Q_FRACTION:g}·P0, R = `sensor_covariance('cable')` = {opts['R'][0, 0]:g} mm², "
+          f"alpha=0.1, beta=2, kappa=0, lam={LAMBDA:g}, delta0=0.8, mu=0.95, max_iter=200, ftol=xtol=1e-10. "
+          f"robocal: best of {args.m9_repeats}; NumPy: one run.\n")
+    print("| implementation | wall time | × robocal | UKF updates | VSLM iterations | RMSE after UKF (mm) | final RMSE (mm) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    print(f"| robocal `ukf_vslm` (Python loop over samples → Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |")
+    print(f"| NumPy/scipy twin (`robocal.reference`), this file | {t_np:.3f} s | {t_np / t_rc:.1f}× | {updates:,} | {nit_np} | {rm_ukf_np:.6f} | {rm_np:.6f} |")
+    print(f"| paper, Table IX, M9 on D1 (their machine and protocol) | {PAPER_M9_D1_S:.0f} s | {PAPER_M9_D1_S / t_rc:,.0f}× | | | | |")
+    print()
+    hn = np.asarray(hist_np)
+    k = min(len(hist_rc), len(hn))
+    rel = np.abs(hist_rc[:k] - hn[:k]) / hist_rc[:k]
+    u = args.sweeps + 1  # history entries of the UKF stage (start + one per sweep)
+    apart = np.flatnonzero(rel[u:] > 1e-6)
+    print(f"* UKF stage: max abs(Δx_ukf) = {np.max(np.abs(first.x - x_ukf_np)):.3e} (mm / rad), "
+          f"max relative difference of the per-sweep costs = {np.max(rel[:u]):.3e}.")
+    print(f"* VSLM stage: relative cost difference after VSLM iterations 1, 2, 5, 10: "
+          f"{', '.join(f'{rel[u + i - 1]:.1e}' for i in (1, 2, 5, 10) if u + i - 1 < k)}; first iteration with > 1e-6: "
+          f"{'none' if apart.size == 0 else int(apart[0]) + 1}. Final max abs(Δx) = {np.max(np.abs(res.x - x_np)):.3e}, "
+          f"final RMSE {rm_rc:.6f} vs {rm_np:.6f} mm.")
+    print(f"* robocal stages measured separately: UKF {t_ukf_stage:.3f} s ({t_ukf_stage / updates * 1e6:.1f} µs per sample update), "
+          f"VSLM {t_vslm_stage:.3f} s ({t_vslm_stage / max(vslm_nit_rc, 1) * 1e3:.2f} ms per iteration).")
+    print(f"* NumPy twin stages (inside the same run): UKF {t_ukf_np:.3f} s ({t_ukf_np / updates * 1e6:.1f} µs per sample update, "
+          f"{t_ukf_np / t_ukf_stage:.1f}× robocal's), VSLM {t_vslm_np:.3f} s ({t_vslm_np / max(nit_np, 1) * 1e3:.2f} ms per iteration, "
+          f"{t_vslm_np / t_vslm_stage:.1f}× robocal's).")
+    print(f"* robocal's M9 result: {res.message}")
+    print(f"* Cost → RMSE along the cascade (robocal): start {np.sqrt(2 * hist_rc[0] / m):.4f}, after each UKF sweep "
+          f"{', '.join(f'{v:.4f}' for v in np.sqrt(2 * hist_rc[1 : args.sweeps + 1] / m))}, first VSLM iterations "
+          f"{', '.join(f'{v:.2f}' for v in np.sqrt(2 * hist_rc[args.sweeps + 1 : args.sweeps + 6] / m))}, final {np.sqrt(2 * hist_rc[-1] / m):.4f} mm.")
+    ratio = t_np / t_rc
+    print(f"\n**Target robocal ≥ 20× faster than the NumPy twin: {'MET' if ratio >= 20 else 'NOT MET'}** ({ratio:.1f}×).\n")
+
+    # Where robocal's M9 time goes.
+    prof = cProfile.Profile()
+    prof.enable()
+    ukf_vslm(problem, **opts)
+    prof.disable()
+    st = pstats.Stats(prof)
+    total = st.total_tt
+    entries = sorted(st.stats.items(), key=lambda kv: -kv[1][2])
+    print(f"### Profile of robocal's M9 (cProfile, one run; total {total:.3f} s under the profiler)\n")
+    print("| function | calls | own time | share | per call |")
+    print("|---|---:|---:|---:|---:|")
+    groups = {"Rust kernels (robocal._robocal)": 0.0, "NumPy and other C built-ins": 0.0, "Python code (robocal + NumPy wrappers)": 0.0}
+    shown = 0
+    for (fname, line, func), (cc, nc, tt, ct, _) in entries:
+        if fname == "~":
+            name = func.strip("<>")
+            kind = "Rust kernels (robocal._robocal)" if "robocal._robocal" in func else "NumPy and other C built-ins"
+        else:
+            short = "/".join(Path(fname).parts[-2:])
+            name = f"{short}:{line}({func})"
+            kind = "Python code (robocal + NumPy wrappers)"
+        groups[kind] += tt
+        if shown < args.profile_rows:
+            shown += 1
+            print(f"| `{name}` | {nc:,} | {tt:.3f} s | {tt / total:.0%} | {tt / nc * 1e6:.1f} µs |")
+    print()
+    print("| group (own time) | time | share |")
+    print("|---|---:|---:|")
+    for k, v in groups.items():
+        print(f"| {k} | {v:.3f} s | {v / total:.0%} |")
+    print()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=None, help="rayon threads (default: all cores)")
+    parser.add_argument("--blas-threads", type=int, default=1, help="OpenBLAS/OpenMP/MKL threads of NumPy (default 1: stable on a shared machine)")
+    parser.add_argument("--samples", type=int, default=20_000, help="simulated cable samples for part 1")
+    parser.add_argument("--tol", type=float, default=1e-10, help="ftol = xtol = gtol of every solver in part 1")
+    parser.add_argument("--fd-max-nfev", type=int, default=None, help="cap scipy's max_nfev for the finite-difference runs")
+    parser.add_argument("--lm-repeats", type=int, default=3)
+    parser.add_argument("--m9-repeats", type=int, default=3)
+    parser.add_argument("--sweeps", type=int, default=5)
+    parser.add_argument("--d1", default=str(D1_DEFAULT))
+    parser.add_argument("--profile-rows", type=int, default=12)
+    parser.add_argument("--skip-lm", action="store_true")
+    parser.add_argument("--skip-m9", action="store_true")
+    args = parser.parse_args()
+    if args.threads:
+        os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(args.blas_threads)  # read when NumPy's BLAS loads
+
+    import numpy as np
+    import scipy
+
+    import robocal
+
+    threads = args.threads or os.cpu_count()
+    print("# robocal calibration benchmark\n")
+    print(f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
+    print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
+    print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
+    start = time.perf_counter()
+    if not args.skip_lm:
+        part_lm(args)
+    if not args.skip_m9:
+        part_m9(args)
+    print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}")
+
+
+if __name__ == "__main__":
+    main()
