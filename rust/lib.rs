@@ -16,6 +16,7 @@ pub mod error;
 #[doc(hidden)]
 pub mod fixtures;
 pub mod identify;
+pub mod kalman;
 pub mod kinematics;
 mod linalg;
 pub mod measurement;

@@ -948,3 +948,33 @@ def cable_initial_guess(p, L) -> tuple[np.ndarray, float]:
         )
     sol = np.linalg.lstsq(A, b, rcond=None)[0]
     return sol[:3] + centre, float(sol[3])
+
+
+def ukf_sweep(conventions, kinds, measurement: str, params, cols, q, y, x, P, Q, R, alpha: float, beta: float, kappa: float):
+    """One UKF sweep over the samples, the parameters ``params[cols]`` as the state (twin of the
+    Rust ``Chain.ukf_sweep``; the paper's eq. 8-12 with identity transition).
+
+    Per sample: Merwe sigma points ``χ`` of ``(x, P)``; ``P⁻ = P + Q``; predicted observations in
+    residual form ``z = −r(χ)`` (observation 0); ``ẑ = Σ Wm z``,
+    ``S = Σ Wc (z − ẑ)(z − ẑ)ᵀ + R``, ``P_xz = Σ Wc (χ − x)(z − ẑ)ᵀ``, ``K = P_xz S⁻¹``;
+    ``x ← x − K ẑ``, ``P ← P⁻ − K S Kᵀ`` (symmetrised).
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+    """
+    y = np.asarray(y, dtype=np.float64)
+    x = np.array(x, dtype=np.float64)
+    P = np.array(P, dtype=np.float64)
+    for i in range(len(q)):
+        sigmas, Wm, Wc = merwe_sigma_points(x, P, alpha, beta, kappa)
+        z = -sigma_residuals(conventions, kinds, measurement, params, cols, sigmas, q[i : i + 1], y[i : i + 1])
+        z_mean = Wm @ z
+        dz, dx = z - z_mean, sigmas - x
+        S = (Wc * dz.T) @ dz + R
+        K = np.linalg.solve(S, ((Wc * dx.T) @ dz).T).T
+        x = x - K @ z_mean
+        P = P + Q - K @ S @ K.T
+        P = 0.5 * (P + P.T)
+    return x, P

@@ -86,6 +86,13 @@ pub struct Prepared {
     active: Vec<bool>,
 }
 
+/// Per-op constants of `LANES` parameter vectors (one per lane), for evaluating one joint
+/// vector under several parameter sets at once (the sigma points of a filter update).
+#[derive(Debug, Clone)]
+pub struct PreparedLanes {
+    ops: Vec<[Lane; 3]>,
+}
+
 /// Copies joint vectors `first .. first+count` of `q` ((m, n) row-major) into lanes
 /// `out[j][lane]`, repeating the last one in unused lanes.
 #[inline(always)]
@@ -248,6 +255,39 @@ impl Chain {
         for k in 0..end {
             if pre.active[k] {
                 self.apply_op(k, pre, q, &mut f);
+            }
+        }
+        f
+    }
+
+    /// Per-op constants of `LANES` parameter vectors (see [`PreparedLanes`]).
+    pub fn prepare_lanes(&self, params: [&[f64]; LANES]) -> PreparedLanes {
+        let ops = self
+            .ops
+            .iter()
+            .map(|op| {
+                let v: Lane = std::array::from_fn(|l| params[l][op.param]);
+                let (s, c) = if op.rotation && op.joint.is_none() { sin_cos(&v) } else { (splat(0.0), splat(1.0)) };
+                [v, s, c]
+            })
+            .collect();
+        PreparedLanes { ops }
+    }
+
+    /// Tool (or flange) frames of one joint vector `q` (N) under the `LANES` parameter vectors
+    /// of `pre`. Inputs are assumed validated.
+    #[inline(always)]
+    pub fn forward_param_lanes(&self, pre: &PreparedLanes, q: &[f64], tool: bool) -> Frames {
+        let end = if tool { self.ops.len() } else { self.flange_end };
+        let mut f = Frames::identity();
+        for (op, [v, s, c]) in self.ops[..end].iter().zip(&pre.ops) {
+            match op.joint {
+                None => f.apply(op, v, s, c),
+                Some(j) => {
+                    let vl: Lane = std::array::from_fn(|l| v[l] + q[j]);
+                    let (s, c) = if op.rotation { sin_cos(&vl) } else { (splat(0.0), splat(1.0)) };
+                    f.apply(op, &vl, &s, &c);
+                }
             }
         }
         f

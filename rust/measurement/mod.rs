@@ -142,22 +142,17 @@ impl<'a> Batch<'a> {
         &self.y.unwrap_or_default()[i * w..(i + 1) * w]
     }
 
-    fn cable_terms(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>, f64, f64) {
+    /// The sensor block `anchor_x, anchor_y, anchor_z, cable_offset, cable_scale`.
+    fn sensor(&self) -> &[f64] {
         let s = self.chain.layout().sensor();
-        let anchor = Vector3::new(self.params[s], self.params[s + 1], self.params[s + 2]);
-        let diff = p - anchor;
-        let dist = diff.norm();
-        // A tool point exactly on the anchor has no direction; any unit vector is a valid
-        // subgradient, and returning one keeps the Jacobian finite.
-        let u = if dist > 0.0 { diff / dist } else { Vector3::x() };
-        (dist, u, self.params[s + 3], self.params[s + 4])
+        &self.params[s..s + 5]
     }
 
     /// Model prediction of one sample with tool frame `f` into `out` (obs_width values).
     fn predict_row(&self, f: &Frame, out: &mut [f64]) {
         match self.measurement {
             Measurement::Cable => {
-                let (dist, _, offset, scale) = self.cable_terms(&f.t);
+                let (dist, _, offset, scale) = cable_terms(self.sensor(), &f.t);
                 out[0] = scale * dist - offset;
             }
             Measurement::Position => out.copy_from_slice(f.t.as_slice()),
@@ -170,25 +165,7 @@ impl<'a> Batch<'a> {
 
     /// Residual `y − h` of sample `i` given its tool frame.
     fn residual_row(&self, i: usize, f: &Frame, out: &mut [f64]) {
-        let y = self.y_row(i);
-        match self.measurement {
-            Measurement::Cable => {
-                let (dist, _, offset, scale) = self.cable_terms(&f.t);
-                out[0] = y[0] - (scale * dist - offset);
-            }
-            Measurement::Position => {
-                for c in 0..3 {
-                    out[c] = y[c] - f.t[c];
-                }
-            }
-            Measurement::Pose => {
-                for c in 0..3 {
-                    out[c] = y[c] - f.t[c];
-                }
-                let e = so3::log(&(so3::matrix_from_quaternion(&y[3..7]) * f.rotation().transpose()));
-                out[3..6].copy_from_slice(e.as_slice());
-            }
-        }
+        residual_of(self.measurement, self.sensor(), self.y_row(i), f, out);
     }
 
     /// Model predictions, (m, obs_width) row-major.
@@ -262,7 +239,7 @@ impl<'a> Batch<'a> {
         match self.measurement {
             Measurement::Cable => {
                 let s = self.chain.layout().sensor();
-                let terms: [_; LANES] = std::array::from_fn(|l| self.cable_terms(&lane_vec(&f.t, l)));
+                let terms: [_; LANES] = std::array::from_fn(|l| cable_terms(self.sensor(), &lane_vec(&f.t, l)));
                 let scale = self.params[s + 4];
                 let u: Vec3L = std::array::from_fn(|r| std::array::from_fn(|l| terms[l].1[r]));
                 for (c, &col) in cols.iter().enumerate() {
@@ -303,6 +280,39 @@ impl<'a> Batch<'a> {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Distance, unit direction, offset and scale of the cable model for tool point `p`, with
+/// `sensor` = `anchor_x, anchor_y, anchor_z, cable_offset, cable_scale`.
+pub(crate) fn cable_terms(sensor: &[f64], p: &Vector3<f64>) -> (f64, Vector3<f64>, f64, f64) {
+    let diff = p - Vector3::new(sensor[0], sensor[1], sensor[2]);
+    let dist = diff.norm();
+    // A tool point exactly on the anchor has no direction; any unit vector is a valid
+    // subgradient, and returning one keeps the Jacobian finite.
+    let u = if dist > 0.0 { diff / dist } else { Vector3::x() };
+    (dist, u, sensor[3], sensor[4])
+}
+
+/// Residual `y − h` of one sample with tool frame `f` and observation `y` into `out`.
+pub fn residual_of(measurement: Measurement, sensor: &[f64], y: &[f64], f: &Frame, out: &mut [f64]) {
+    match measurement {
+        Measurement::Cable => {
+            let (dist, _, offset, scale) = cable_terms(sensor, &f.t);
+            out[0] = y[0] - (scale * dist - offset);
+        }
+        Measurement::Position => {
+            for c in 0..3 {
+                out[c] = y[c] - f.t[c];
+            }
+        }
+        Measurement::Pose => {
+            for c in 0..3 {
+                out[c] = y[c] - f.t[c];
+            }
+            let e = so3::log(&(so3::matrix_from_quaternion(&y[3..7]) * f.rotation().transpose()));
+            out[3..6].copy_from_slice(e.as_slice());
         }
     }
 }

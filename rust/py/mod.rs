@@ -8,6 +8,7 @@
 mod convert;
 
 use crate::identify;
+use crate::kalman;
 use crate::kinematics::Chain;
 use crate::measurement::{self, Batch, Measurement};
 use crate::sigma;
@@ -150,6 +151,39 @@ impl PyChain {
             .detach(|| measurement::sigma_residuals(&inp.batch(&self.inner)?, &cols, &sigmas))
             .map_err(core_err)?;
         matrix(py, out, s, inp.m * inp.measurement.res_width())
+    }
+
+    /// One UKF sweep over the samples (see `robocal.reference.ukf_sweep`): the state is
+    /// `params[cols]` starting at `x` (n) with covariance `P` (n, n); `Q` (n, n) process noise per
+    /// sample, `R` (k, k) measurement noise. Returns the new `(x, P)`.
+    #[pyo3(signature = (measurement, params, cols, q, y, x, P, Q, R, alpha, beta, kappa))]
+    #[allow(clippy::too_many_arguments, non_snake_case)]
+    fn ukf_sweep<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        cols: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        x: &Bound<'py, PyAny>,
+        P: &Bound<'py, PyAny>,
+        Q: &Bound<'py, PyAny>,
+        R: &Bound<'py, PyAny>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<(Arr1<'py>, Arr2<'py>)> {
+        let inp = self.owned(measurement, params, q, Some(y))?;
+        let cols = index_list(cols, "cols")?;
+        let x = array1(x, "x", Some(cols.len()))?;
+        let n = cols.len();
+        let (p, _, _) = array2(P, "P", Some(n))?;
+        let (qn, _, _) = array2(Q, "Q", Some(n))?;
+        let (r, _, _) = array2(R, "R", Some(inp.measurement.res_width()))?;
+        let settings = kalman::UkfSettings { alpha, beta, kappa, q: &qn, r: &r };
+        let (x, p) = py.detach(|| kalman::ukf_sweep(&inp.batch(&self.inner)?, &cols, &x, &p, &settings)).map_err(core_err)?;
+        Ok((PyArray1::from_vec(py, x), matrix(py, p, n, n)?))
     }
 
     fn __repr__(&self) -> String {

@@ -32,7 +32,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..core import merwe_sigma_points, unscented_transform
 from ..exceptions import InvalidParameterError
 from ..simulate import DEFAULT_NOISE
 from .problem import Problem
@@ -74,18 +73,14 @@ def _sample(problem: Problem, i: int) -> tuple[np.ndarray, np.ndarray]:
     return problem.data.q[i : i + 1], problem.data.y[i : i + 1].reshape(1, -1)
 
 
-def ekf_update(problem: Problem, i: int, x: np.ndarray, P: np.ndarray, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def ekf_update(problem: Problem, i: int, x: np.ndarray, P: np.ndarray, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One EKF step on sample ``i``: predict with ``Φ = I`` and ``Q``, update with the sample's
     residual and Jacobian ``J_i = ∂h_i/∂x`` (eq. 5).
 
     ``S = J P⁻ Jᵀ + R``, ``K = P⁻ Jᵀ S⁻¹``, ``x ← x + K r_i``, ``P ← P⁻ − K S Kᵀ`` (the
     linearised counterpart of eq. 11-12).
 
-    Returns
-    -------
-    x, P : the updated estimate and covariance
-    cost : float
-        Model evaluations spent, in units of one sample (1).
+    Returns the updated estimate and covariance.
     """
     q, y = _sample(problem, i)
     params, m = problem.full(x), problem.data.measurement
@@ -94,58 +89,52 @@ def ekf_update(problem: Problem, i: int, x: np.ndarray, P: np.ndarray, Q: np.nda
     J = problem.robot.jacobian(m, q, y=y, params=params, cols=problem.free)
     S = J @ P @ J.T + R
     K = np.linalg.solve(S, J @ P).T  # P Jᵀ S⁻¹ (S and P symmetric)
-    return x + K @ r, P - K @ S @ K.T, 1.0
+    return x + K @ r, P - K @ S @ K.T
 
 
-def ukf_update(
-    problem: Problem, i: int, x: np.ndarray, P: np.ndarray, Q: np.ndarray, R: np.ndarray, alpha: float = 0.1, beta: float = 2.0, kappa: float = 0.0
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """One UKF step on sample ``i`` (eq. 8-12), sigma points propagated in the Rust core.
+def ekf_sweep(problem: Problem, x: np.ndarray, P0: np.ndarray, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One EKF pass over the training samples in order (see :func:`ekf_update`)."""
+    P = P0
+    for i in range(len(problem.data)):
+        x, P = ekf_update(problem, i, x, P, Q, R)
+        P = 0.5 * (P + P.T)
+    return x, P
 
-    The Merwe sigma points ``X'`` of ``(x, P)`` pass through ``Φ = I`` (eq. 8) to give
-    ``x̂⁻ = Σ W_i X'_i`` and ``P⁻ = Σ W_i (X'_i − x̂⁻)(X'_i − x̂⁻)ᵀ + Q`` (eq. 9); their predicted
-    observations ``Y'_i`` (eq. 8) give ``ŷ``, ``S`` (+ ``R``) (eq. 10) and ``P_xy`` and the gain
-    ``ρ = P_xy S⁻¹`` (eq. 11); then ``x̂ = x̂⁻ + ρ (Y − ŷ)``, ``P = P⁻ − ρ S ρᵀ`` (eq. 12).
 
-    In residual form ``Y'_i = h(X'_i) − y = −r(X'_i)`` and the observation is 0, which gives the
-    same gain and innovation ``Y − ŷ = Σ W_i r(X'_i)`` while working with mm-size numbers
-    instead of metre-size readings (less cancellation in the weighted sums).
+def ukf_sweep(problem: Problem, x: np.ndarray, P0: np.ndarray, Q: np.ndarray, R: np.ndarray, alpha: float = 0.1, beta: float = 2.0, kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """One UKF pass over the training samples (eq. 8-12), run entirely in the Rust core.
 
-    Returns
-    -------
-    x, P : the updated estimate and covariance
-    cost : float
-        Model evaluations spent, in units of one sample (the number of sigma points).
+    Per sample the Merwe sigma points ``X'`` of ``(x, P)`` pass through ``Φ = I`` (eq. 8), so
+    ``x̂⁻ = x`` and ``P⁻ = P + Q`` (eq. 9); their predicted observations give ``ŷ``, ``S``
+    (+ ``R``), ``P_xy`` and the gain ``ρ = P_xy S⁻¹`` (eq. 10-11); then
+    ``x̂ = x̂⁻ + ρ (Y − ŷ)``, ``P = P⁻ − ρ S ρᵀ`` (eq. 12). In residual form ``Y'_i = −r(X'_i)``
+    and the observation is 0: the same gain and innovation, with mm-size numbers instead of
+    metre-size readings. The NumPy twin is :func:`robocal.reference.ukf_sweep`.
     """
-    q, y = _sample(problem, i)
-    sigmas, Wm, Wc = merwe_sigma_points(x, P, alpha, beta, kappa)
-    x_prior, P_prior, _ = unscented_transform(sigmas, sigmas, Wm, Wc)
-    P_prior = P_prior + Q
-    z = -problem.robot.chain.sigma_residuals(problem.data.measurement, problem.full(x), problem.free.tolist(), sigmas, q, y)
-    z_mean, S, Pxy = unscented_transform(sigmas, z, Wm, Wc)
-    S = S + R
-    K = np.linalg.solve(S, Pxy.T).T  # P_xy S⁻¹ (S symmetric)
-    return x_prior + K @ (0.0 - z_mean), P_prior - K @ S @ K.T, float(len(sigmas))
+    d = problem.data
+    return problem.robot.chain.ukf_sweep(d.measurement, problem.start, problem.free.tolist(), d.q, d.y, x, P0, Q, R, alpha, beta, kappa)
 
 
 def kalman_filter(
     problem: Problem,
-    update: Callable,
+    sweep: Callable,
     method: str,
+    model_evaluations: int,
     x0=None,
     sweeps: int = 5,
     P0=None,
     Q=None,
     R=None,
     reset: bool = True,
-    **update_options,
+    **sweep_options,
 ) -> CalibrationResult:
     """The sweep loop shared by :func:`ekf` and :func:`ukf` (Algorithm 1, lines 3-14).
 
-    Runs ``update(problem, i, x, P, Q, R, **update_options)`` on samples ``i = 0..m−1`` in order,
-    ``sweeps`` times; ``P`` restarts from ``P0`` at every sweep unless ``reset=False``. The
-    history holds the training cost ``½‖r‖²`` at the start and after every sweep; ``nit`` is the
-    number of sweeps and ``nfev`` counts model evaluations in units of the whole training set.
+    Runs ``sweep(problem, x, P, Q, R, **sweep_options)`` over the samples ``sweeps`` times;
+    ``P`` restarts from ``P0`` at every sweep unless ``reset=False``. The history holds the
+    training cost ``½‖r‖²`` at the start and after every sweep; ``nit`` is the number of sweeps
+    and ``nfev`` counts model evaluations in units of the whole training set
+    (``model_evaluations`` per sample and sweep, plus one for each cost).
     """
     if isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 1:
         raise InvalidParameterError(f"`sweeps` must be a positive integer; got {sweeps!r}")
@@ -156,18 +145,13 @@ def kalman_filter(
     R_sensor = sensor_covariance(problem.data.measurement)
     R = R_sensor if R is None else _matrix(R, len(R_sensor), "R")
     x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
-    P, history, evaluations = P0.copy(), [problem.cost(x)], 1.0
+    P, history = P0.copy(), [problem.cost(x)]
     for _ in range(sweeps):
-        if reset:
-            P = P0.copy()
-        for i in range(m):
-            x, P, spent = update(problem, i, x, P, Q, R, **update_options)
-            P = 0.5 * (P + P.T)
-            evaluations += spent / m
+        x, P = sweep(problem, x, P0.copy() if reset else P, Q, R, **sweep_options)
         history.append(problem.cost(x))
-        evaluations += 1.0
     message = f"{sweeps} sweeps of {m} samples completed (cost {history[0]:.6g} -> {history[-1]:.6g})"
-    return CalibrationResult.from_fit(method, problem, x, history, sweeps, int(math.ceil(evaluations)), True, message, time.perf_counter() - start)
+    nfev = 1 + sweeps * (model_evaluations + 1)
+    return CalibrationResult.from_fit(method, problem, x, history, sweeps, nfev, True, message, time.perf_counter() - start)
 
 
 def ekf(problem: Problem, x0=None, sweeps: int = 5, P0=None, Q=None, R=None, reset: bool = True) -> CalibrationResult:
@@ -191,7 +175,7 @@ def ekf(problem: Problem, x0=None, sweeps: int = 5, P0=None, Q=None, R=None, res
     CalibrationResult
         ``method="ekf"``, the cost history per sweep, ``nit = sweeps``.
     """
-    return kalman_filter(problem, ekf_update, "ekf", x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset)
+    return kalman_filter(problem, ekf_sweep, "ekf", 1, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset)
 
 
 def ukf(
@@ -229,8 +213,9 @@ def ukf(
     CalibrationResult
         ``method="ukf"``, the cost history per sweep, ``nit = sweeps``.
     """
+    n_sigma = 2 * len(problem.free) + 1
     return kalman_filter(
-        problem, ukf_update, "ukf", x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset, alpha=alpha, beta=beta, kappa=kappa
+        problem, ukf_sweep, "ukf", n_sigma, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset, alpha=alpha, beta=beta, kappa=kappa
     )  # fmt: skip
 
 
