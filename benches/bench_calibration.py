@@ -285,7 +285,7 @@ def part_m9(args) -> None:
           f"robocal: best of {args.m9_repeats}; NumPy: one run.\n")
     print("| implementation | wall time | × robocal | UKF updates | VSLM iterations | RMSE after UKF (mm) | final RMSE (mm) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
-    print(f"| robocal `ukf_vslm` (Python loop over samples → Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |")
+    print(f"| robocal `ukf_vslm` (UKF sweeps in Rust, VSLM over Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |")
     print(f"| NumPy/scipy twin (`robocal.reference`), this file | {t_np:.3f} s | {t_np / t_rc:.1f}× | {updates:,} | {nit_np} | {rm_ukf_np:.6f} | {rm_np:.6f} |")
     print(f"| paper, Table IX, M9 on D1 (their machine and protocol) | {PAPER_M9_D1_S:.0f} s | {PAPER_M9_D1_S / t_rc:,.0f}× | | | | |")
     print()
