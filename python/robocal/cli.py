@@ -16,6 +16,7 @@ COMMANDS = {
     "inspect": ("robocal.data.inspect", "validate a measurement file (canonical CSV or a public dataset)"),
     "calibrate": ("robocal.calibration.api", "identify a robot's kinematic parameters from measurements"),
     "simulate": ("robocal.simulate", "simulate measurements of a robot with known truth and injectable effects"),
+    "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures"),
 }
 
 

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Callable, Optional, Union
 
+import numpy as np
+
 from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import random_split
@@ -27,6 +29,45 @@ METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
     **metaheuristics.METHODS,
     **rbf.METHODS,
 }
+
+
+def load_inputs(data: Union[str, Path, Dataset], robot: Union[str, Robot, None] = None, measurement: Optional[str] = None) -> tuple[Dataset, Robot]:
+    """The dataset and the robot a calibration runs on.
+
+    Parameters
+    ----------
+    data : path or Dataset
+        A measurement file (see :func:`robocal.data.load`) or a :class:`Dataset`.
+    robot : str or Robot, optional
+        Default: the robot recorded in the data.
+    measurement : {"cable", "position", "pose"}, optional
+        Required of the data; chooses among them for files that provide more than one.
+
+    Returns
+    -------
+    dataset : Dataset
+    robot : Robot
+    """
+    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, robot=robot if isinstance(robot, str) else None)
+    if measurement is not None and dataset.measurement != measurement:
+        raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
+    if robot is None:
+        if dataset.robot is None:
+            raise InvalidParameterError("the data do not name their robot: pass `robot`")
+        robot = dataset.robot
+    return dataset, load_robot(robot) if isinstance(robot, str) else robot
+
+
+def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
+    """Residuals ``y − prediction`` of a fitted ``result`` on held-out samples, flattened.
+
+    A corrector (M5, :class:`~robocal.calibration.rbf.RBFResult`) changes the prediction, not the
+    parameters: it is evaluated as it predicts (its corrected residuals). Every other method is
+    evaluated with its parameters on the training problem's parameterisation.
+    """
+    if isinstance(result, rbf.RBFResult):
+        return result.corrected_residuals(test)
+    return result.problem.with_data(test).residuals(result.x)
 
 
 def calibrate(
@@ -70,14 +111,7 @@ def calibrate(
         raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
     if not 0.0 <= test_fraction < 1.0:
         raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
-    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, robot=robot if isinstance(robot, str) else None)
-    if measurement is not None and dataset.measurement != measurement:
-        raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
-    if robot is None:
-        if dataset.robot is None:
-            raise InvalidParameterError("the data do not name their robot: pass `robot`")
-        robot = dataset.robot
-    r = load_robot(robot) if isinstance(robot, str) else robot
+    dataset, r = load_inputs(data, robot, measurement)
     if test_fraction > 0:
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
@@ -86,10 +120,7 @@ def calibrate(
     problem = Problem.build(r, train, mask=mask)
     result = METHODS[method][2](problem, **options)
     if test is not None:
-        held_out = problem.with_data(test)
-        # A corrector (M5) changes the prediction, not the parameters: evaluate it as it predicts.
-        residuals = result.corrected_residuals(held_out) if isinstance(result, rbf.RBFResult) else held_out.residuals(result.x)
-        result.metrics["test"] = metrics(residuals, test.measurement)
+        result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
     return result
 
 
