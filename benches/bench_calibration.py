@@ -27,26 +27,16 @@ from __future__ import annotations
 import argparse
 import cProfile
 import os
-import platform
 import pstats
 import sys
 import time
+
+from machine import cpu_model
 from pathlib import Path
 
 D1_DEFAULT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets")) / "hsr-robotcali" / "HSR-RobotCali.xlsx"
 #: The paper's Table IX wall time of M9 (UKF-VSLM) on D1, seconds.
 PAPER_M9_D1_S = 1471.0
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def load_avg() -> str:

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import sys
 import time
+
+from machine import cpu_model
 
 
 def best_time(fn, min_total: float = 1.0, max_repeats: int = 100) -> float:
@@ -27,17 +28,6 @@ def best_time(fn, min_total: float = 1.0, max_repeats: int = 100) -> float:
         elapsed = time.perf_counter() - start
         best, spent, n = min(best, elapsed), spent + elapsed, n + 1
     return best
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def main() -> None:
