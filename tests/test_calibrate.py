@@ -97,3 +97,33 @@ def test_cli_calibrate_writes_the_result(cable_data, tmp_path, capsys):
     assert doc["metrics"]["test"]["rmse"] < 0.06
     assert "test:  RMSE" in capsys.readouterr().out
     assert main(["calibrate", str(tmp_path / "missing.csv"), "--robot", "hsr-jr680"]) == 2
+
+
+def test_priors_pull_estimates_and_stay_out_of_the_metrics(cable_data):
+    data, _ = cable_data
+    r = robocal.robot("hsr-jr680")
+    free = Problem.build(r, data)
+    a2 = free.x0[free.names.index("a2")]
+    # A tight prior pins a2 to a value 1 mm off; a loose one leaves the fit as it was.
+    pinned = levenberg_marquardt(Problem.build(r, data, prior={"a2": (a2 + 1.0, 1e-4)}))
+    loose = levenberg_marquardt(Problem.build(r, data, prior={"a2": (a2 + 1.0, 1e4)}))
+    plain = levenberg_marquardt(free)
+    assert pinned.x[free.names.index("a2")] == pytest.approx(a2 + 1.0, abs=1e-3)
+    assert np.all(np.abs(loose.x - plain.x) < 1e-2 * plain.std)
+    assert pinned.metrics["train"]["n"] == len(data)  # metrics are of the samples only
+    assert pinned.metrics["train"]["rmse"] > plain.metrics["train"]["rmse"]
+    # Kalman filters take the prior as their own: the UKF starts there and keeps a2 pinned too.
+    from robocal.calibration.kalman import ukf
+
+    assert ukf(Problem.build(r, data, prior={"a2": (a2 + 1.0, 1e-4)})).x[free.names.index("a2")] == pytest.approx(a2 + 1.0, abs=1e-3)
+
+
+def test_prior_errors_name_the_parameter(cable_data):
+    data, _ = cable_data
+    r = robocal.robot("hsr-jr680")
+    with pytest.raises(InvalidParameterError, match="prior on 'beta1', which is not estimated"):
+        Problem.build(r, data, prior={"beta1": (0.0, 0.01)})
+    with pytest.raises(InvalidParameterError, match="sigma > 0"):
+        Problem.build(r, data, prior={"a2": (900.0, 0.0)})
+    result = robocal.calibrate(data, robot="hsr-jr680", prior={"a2": (900.0, 0.5)}, test_fraction=0.25)
+    assert result.metrics["test"]["n"] == 75

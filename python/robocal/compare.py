@@ -198,7 +198,7 @@ def compare(
         split = {"index": k, "train": train_idx.tolist(), "test": test_idx.tolist(), "test_rows": test.rows.tolist()}
         try:  # the start point and free set, shared by all methods on this split
             problem = Problem.build(robot_model, train)
-            before = problem.with_data(test).residuals(problem.x0)
+            before = problem.with_data(test).data_residuals(problem.x0)
             split.update(error=None, free=problem.names, fixed=problem.fixed,
                          before=metrics(before, test.measurement), before_errors=sample_errors(before, test.measurement).tolist())  # fmt: skip
         except Exception as exc:  # recorded for every method of this split

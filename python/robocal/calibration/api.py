@@ -67,7 +67,7 @@ def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
     """
     if isinstance(result, rbf.RBFResult):
         return result.corrected_residuals(test)
-    return result.problem.with_data(test).residuals(result.x)
+    return result.problem.with_data(test).data_residuals(result.x)
 
 
 def calibrate(
@@ -78,6 +78,7 @@ def calibrate(
     test_fraction: float = 0.2,
     seed: int = 0,
     mask=None,
+    prior=None,
     **options,
 ) -> CalibrationResult:
     """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
@@ -98,6 +99,9 @@ def calibrate(
     seed : int
     mask : optional
         Parameters to consider (default: the robot's default mask for the measurement).
+    prior : dict, optional
+        ``name -> (mean, sigma)`` Gaussian priors (mm / rad) on estimated parameters (see
+        :class:`Problem`); Kalman filters take them as their prior mean and covariance.
     **options
         Passed to the method.
 
@@ -117,7 +121,7 @@ def calibrate(
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
     else:
         train, test = dataset, None
-    problem = Problem.build(r, train, mask=mask)
+    problem = Problem.build(r, train, mask=mask, prior=prior)
     result = METHODS[method][2](problem, **options)
     if test is not None:
         result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)

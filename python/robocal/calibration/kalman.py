@@ -140,11 +140,18 @@ def kalman_filter(
         raise InvalidParameterError(f"`sweeps` must be a positive integer; got {sweeps!r}")
     start = time.perf_counter()
     n, m = len(problem.free), len(problem.data)
-    P0 = prior_covariance(problem) if P0 is None else _matrix(P0, n, "P0")
+    P0 = prior_covariance(problem) if P0 is None else _matrix(P0, n, "P0").copy()
+    x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
+    # Priors given with the problem are the filter's own prior: mean as start, sigma² in P0.
+    for name, (mean, sigma) in problem.prior.items():
+        k = problem.names.index(name)
+        P0[k, :] = P0[:, k] = 0.0
+        P0[k, k] = sigma**2
+        if x0 is None:
+            x[k] = mean
     Q = Q_FRACTION * P0 if Q is None else _matrix(Q, n, "Q")
     R_sensor = sensor_covariance(problem.data.measurement)
     R = R_sensor if R is None else _matrix(R, len(R_sensor), "R")
-    x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
     P, history = P0.copy(), [problem.cost(x)]
     for _ in range(sweeps):
         x, P = sweep(problem, x, P0.copy() if reset else P, Q, R, **sweep_options)

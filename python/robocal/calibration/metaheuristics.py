@@ -76,14 +76,11 @@ class _Objective:
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         """Costs of a population ``U`` (pop, n) of unit-cube points."""
-        problem = self.problem
-        params = np.tile(problem.start, (len(U), 1))
-        params[:, problem.free] = self.to_x(np.atleast_2d(U))
+        X = self.to_x(np.atleast_2d(U))
         # One residual call per candidate; a batched Rust kernel (all candidates in one call,
         # parallel over candidates) would replace this loop.
-        r = [problem.robot.residuals(problem.data.measurement, problem.data.q, problem.data.y, params=p) for p in params]
-        self.nfev += len(params)
-        return np.array([0.5 * float(np.sum(ri * ri)) for ri in r])
+        self.nfev += len(X)
+        return np.array([self.problem.cost(x) for x in X])
 
 
 def _converged(costs: np.ndarray, tol: float) -> bool:

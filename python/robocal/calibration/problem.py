@@ -18,6 +18,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..reference import frame_params
 from ..robot import Robot
+from ..simulate import DEFAULT_NOISE
 
 
 def _kabsch(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -77,6 +78,12 @@ class Problem:
         Full parameter vector at the start; the fixed entries keep these values.
     fixed : dict
         ``name -> reason`` for every masked parameter that is not estimated.
+    prior : dict, optional
+        ``name -> (mean, sigma)`` (mm / rad) Gaussian priors on free parameters. Each adds a
+        residual row ``prior_scale·(mean − x)/sigma``, so least squares on :meth:`residuals`
+        is the maximum a posteriori estimate for measurement noise ``prior_scale``.
+    prior_scale : float
+        The measurement noise (mm) the prior rows are expressed in.
     """
 
     robot: Robot
@@ -84,9 +91,11 @@ class Problem:
     free: np.ndarray
     start: np.ndarray
     fixed: dict = field(default_factory=dict)
+    prior: dict = field(default_factory=dict)
+    prior_scale: float = 1.0
 
     @classmethod
-    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9) -> "Problem":
+    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None) -> "Problem":
         """The identifiable subset of ``mask`` (default: ``robot.default_mask``) at the start point.
 
         Parameters
@@ -100,6 +109,9 @@ class Problem:
             :func:`start_parameters`).
         tol : float
             Rank tolerance of the identifiability analysis.
+        prior : dict, optional
+            ``name -> (mean, sigma)`` priors (mm / rad) on estimated parameters; the rows are
+            scaled by the sensor's default noise (:data:`robocal.simulate.DEFAULT_NOISE`).
         """
         if data.n_joints != robot.n_joints:
             raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
@@ -119,7 +131,24 @@ class Problem:
             strongest = sorted(partners, key=lambda p: -abs(p[1]))[:3]
             fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
         free = cols[np.sort(ident["identifiable"])]
-        return cls(robot=robot, data=data, free=free, start=start, fixed=fixed)
+        problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
+        problem.prior = problem._checked_prior(prior or {})
+        return problem
+
+    def _checked_prior(self, prior: dict) -> dict:
+        checked = {}
+        for name, value in prior.items():
+            if name not in self.names:
+                why = self.fixed.get(name, "not among the parameters considered")
+                raise InvalidParameterError(f"prior on {name!r}, which is not estimated ({why})")
+            try:
+                mean, sigma = (float(v) for v in value)
+            except (TypeError, ValueError):
+                raise InvalidParameterError(f"prior on {name!r} must be (mean, sigma); got {value!r}") from None
+            if not (np.isfinite(mean) and np.isfinite(sigma) and sigma > 0):
+                raise InvalidParameterError(f"prior on {name!r} needs a finite mean and sigma > 0; got ({mean}, {sigma})")
+            checked[name] = (mean, sigma)
+        return checked
 
     # -- the free vector ----------------------------------------------------------------------
     @property
@@ -138,18 +167,40 @@ class Problem:
 
     def with_data(self, data: Dataset) -> "Problem":
         """The same parameterisation on other data (e.g. the held-out samples)."""
-        return Problem(self.robot, data, self.free, self.start, dict(self.fixed))
+        return Problem(self.robot, data, self.free, self.start, dict(self.fixed), dict(self.prior), self.prior_scale)
 
     # -- residuals ----------------------------------------------------------------------------
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """``y − h`` of every sample, flattened to (m·k,)."""
+    def _prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions in ``x``, means and sigmas of the priors."""
+        names = self.names
+        idx = np.array([names.index(n) for n in self.prior], dtype=int)
+        mean = np.array([m for m, _ in self.prior.values()])
+        sigma = np.array([s for _, s in self.prior.values()])
+        return idx, mean, sigma
+
+    def data_residuals(self, x: np.ndarray) -> np.ndarray:
+        """``y − h`` of every sample, flattened to (m·k,): what the metrics are computed on."""
         return self.robot.residuals(self.data.measurement, self.data.q, self.data.y, params=self.full(x)).ravel()
 
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """What the calibrators minimise: :meth:`data_residuals` followed by the prior rows."""
+        r = self.data_residuals(x)
+        if not self.prior:
+            return r
+        idx, mean, sigma = self._prior_rows()
+        return np.concatenate([r, self.prior_scale * (mean - np.asarray(x)[idx]) / sigma])
+
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """``∂h/∂x``, (m·k, n_free)."""
-        return self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=self.full(x), cols=self.free)
+        """``∂h/∂x`` of :meth:`residuals` (data rows, then prior rows), (rows, n_free)."""
+        J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=self.full(x), cols=self.free)
+        if not self.prior:
+            return J
+        idx, _, sigma = self._prior_rows()
+        rows = np.zeros((len(idx), len(self.free)))
+        rows[np.arange(len(idx)), idx] = self.prior_scale / sigma
+        return np.vstack([J, rows])
 
     def cost(self, x: np.ndarray) -> float:
-        """``½‖r‖²`` (scipy's convention)."""
+        """``½‖r‖²`` of :meth:`residuals` (scipy's convention)."""
         r = self.residuals(x)
         return 0.5 * float(r @ r)

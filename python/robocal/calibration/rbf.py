@@ -12,7 +12,7 @@ with centres ``μ_j`` from k-means on the training joint angles, ``σ`` the medi
 between centres, and output weights ``[W; b]`` from ridge regression on the training residuals.
 The corrected prediction is ``h(x0) + c(q)``, so the corrected residual is ``y − h(x0) − c(q)``.
 
-Held-out metrics (the harness's ``held_out.residuals(result.x)`` would give the *uncorrected*
+Held-out metrics (the harness's ``held_out.data_residuals(result.x)`` would give the *uncorrected*
 nominal error)::
 
     result = rbf(problem)

@@ -97,6 +97,7 @@ class CalibrationResult:
         x = np.asarray(x, dtype=np.float64)
         r = problem.residuals(x)
         J = problem.jacobian(x)
+        data_r = problem.data_residuals(x)
         std = None
         if J.shape[0] > J.shape[1]:
             cov, _, _, rank = covariance(J, r)
@@ -104,5 +105,5 @@ class CalibrationResult:
                 std = np.sqrt(np.diag(cov))
         return cls(
             method=method, problem=problem, x=x, std=std, cost=0.5 * float(r @ r), history=list(history), nit=nit, nfev=nfev,
-            success=success, message=message, time_s=time_s, metrics={"train": metrics(r, problem.data.measurement), "test": None},
+            success=success, message=message, time_s=time_s, metrics={"train": metrics(data_r, problem.data.measurement), "test": None},
         )  # fmt: skip
