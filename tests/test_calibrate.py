@@ -127,3 +127,25 @@ def test_prior_errors_name_the_parameter(cable_data):
         Problem.build(r, data, prior={"a2": (900.0, 0.0)})
     result = robocal.calibrate(data, robot="hsr-jr680", prior={"a2": (900.0, 0.5)}, test_fraction=0.25)
     assert result.metrics["test"]["n"] == 75
+
+
+@pytest.mark.parametrize("method", ["lm", "lm-paper", "vslm", "ukf", "ekf", "pso"])
+def test_bounds_hold_for_every_method(cable_data, method):
+    data, _ = cable_data
+    r = robocal.robot("hsr-jr680")
+    plain = levenberg_marquardt(Problem.build(r, data))
+    k = plain.problem.names.index("a2")
+    # A limit that excludes the unconstrained optimum: the estimate must respect it.
+    limit = plain.x[k] - 0.2
+    options = {"max_iter": 20} if method == "pso" else {}
+    fit = robocal.calibrate(data, robot=r, method=method, test_fraction=0.0, bounds={"a2": (limit - 5.0, limit)}, **options)
+    assert fit.x[k] <= limit + 1e-12
+    if method == "lm":
+        assert fit.x[k] == pytest.approx(limit)  # the bound is active at the constrained optimum
+        assert fit.cost > plain.cost
+
+
+def test_bounds_errors(cable_data):
+    data, _ = cable_data
+    with pytest.raises(InvalidParameterError, match="bounds on 'a2' needs lower < upper"):
+        Problem.build(robocal.robot("hsr-jr680"), data, bounds={"a2": (901.0, 899.0)})

@@ -79,6 +79,7 @@ def calibrate(
     seed: int = 0,
     mask=None,
     prior=None,
+    bounds=None,
     **options,
 ) -> CalibrationResult:
     """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
@@ -102,6 +103,10 @@ def calibrate(
     prior : dict, optional
         ``name -> (mean, sigma)`` Gaussian priors (mm / rad) on estimated parameters (see
         :class:`Problem`); Kalman filters take them as their prior mean and covariance.
+    bounds : dict, optional
+        ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters, kept by every
+        method (projected LM steps; Kalman estimates clipped after each sweep; the
+        metaheuristics' search box intersected with them).
     **options
         Passed to the method.
 
@@ -121,7 +126,7 @@ def calibrate(
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
     else:
         train, test = dataset, None
-    problem = Problem.build(r, train, mask=mask, prior=prior)
+    problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds)
     result = METHODS[method][2](problem, **options)
     if test is not None:
         result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)

@@ -155,6 +155,7 @@ def kalman_filter(
     P, history = P0.copy(), [problem.cost(x)]
     for _ in range(sweeps):
         x, P = sweep(problem, x, P0.copy() if reset else P, Q, R, **sweep_options)
+        x = problem.clip(x)  # bounds, if the problem has any, hold after every sweep
         history.append(problem.cost(x))
     message = f"{sweeps} sweeps of {m} samples completed (cost {history[0]:.6g} -> {history[-1]:.6g})"
     nfev = 1 + sweeps * (model_evaluations + 1)

@@ -1,7 +1,7 @@
 """robocal's production Levenberg–Marquardt (Marquardt 1963 with Nielsen's damping update).
 
 Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core (faer Cholesky, SVD
-fallback). The damping adapts to the gain ratio ρ = actual / predicted cost reduction
+fallback), projected onto the problem's bounds if it has any. The damping adapts to the gain ratio ρ = actual / predicted cost reduction
 (Nielsen 1999: λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λ·ν, ν ← 2ν on failure), and the
 iteration stops on any of scipy's tests: relative cost change < ``ftol``, relative step <
 ``xtol``, or ``‖Jᵀr‖∞`` < ``gtol``.
@@ -46,11 +46,14 @@ def levenberg_marquardt(
             success, message = True, "`gtol` termination condition is satisfied"
             break
         step, _ = solve_damped(J, r, lam, "marquardt")
-        x_new = x + step
+        # Projected onto the bounds (if any); the gain ratio uses the step actually taken.
+        x_new = problem.clip(x + step)
+        step = x_new - x
         r_new = problem.residuals(x_new)
         nfev += 1
         cost_new = 0.5 * float(r_new @ r_new)
-        predicted = 0.5 * float(step @ (lam * np.einsum("ij,ij->j", J, J) * step + g))
+        Js = J @ step
+        predicted = float(step @ g) - 0.5 * float(Js @ Js)
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
         small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
         if rho > 0:

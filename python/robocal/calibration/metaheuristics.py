@@ -21,6 +21,7 @@ from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 
+from ..exceptions import InvalidParameterError
 from .problem import Problem
 from .result import CalibrationResult
 
@@ -54,8 +55,10 @@ def search_box(problem: Problem, bounds: Bounds = None) -> tuple[np.ndarray, np.
         lower, upper = x0 - half, x0 + half
     else:
         lower, upper = (np.broadcast_to(np.asarray(b, dtype=np.float64), x0.shape).copy() for b in bounds)
+    # The problem's own hard limits always hold.
+    lower, upper = np.maximum(lower, problem.lower), np.minimum(upper, problem.upper)
     if not np.all(upper > lower):
-        raise ValueError("every bound must satisfy lower < upper")
+        raise InvalidParameterError("every bound must satisfy lower < upper (search box within the problem's bounds)")
     return lower, upper
 
 

@@ -84,6 +84,9 @@ class Problem:
         is the maximum a posteriori estimate for measurement noise ``prior_scale``.
     prior_scale : float
         The measurement noise (mm) the prior rows are expressed in.
+    bounds : dict, optional
+        ``name -> (lower, upper)`` hard limits (mm / rad) on free parameters. Every method keeps
+        its iterates inside them (:meth:`clip`).
     """
 
     robot: Robot
@@ -93,9 +96,10 @@ class Problem:
     fixed: dict = field(default_factory=dict)
     prior: dict = field(default_factory=dict)
     prior_scale: float = 1.0
+    bounds: dict = field(default_factory=dict)
 
     @classmethod
-    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None) -> "Problem":
+    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None, bounds=None) -> "Problem":
         """The identifiable subset of ``mask`` (default: ``robot.default_mask``) at the start point.
 
         Parameters
@@ -112,6 +116,9 @@ class Problem:
         prior : dict, optional
             ``name -> (mean, sigma)`` priors (mm / rad) on estimated parameters; the rows are
             scaled by the sensor's default noise (:data:`robocal.simulate.DEFAULT_NOISE`).
+        bounds : dict, optional
+            ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters; the start
+            is moved inside them.
         """
         if data.n_joints != robot.n_joints:
             raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
@@ -132,23 +139,41 @@ class Problem:
             fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
         free = cols[np.sort(ident["identifiable"])]
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
-        problem.prior = problem._checked_prior(prior or {})
+        problem.prior = problem._checked_pairs(prior or {}, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
+        problem.bounds = problem._checked_pairs(bounds or {}, "bounds", "(lower, upper)", lambda a, b: a < b)
+        problem.start[problem.free] = problem.clip(problem.start[problem.free])
         return problem
 
-    def _checked_prior(self, prior: dict) -> dict:
+    def _checked_pairs(self, pairs: dict, what: str, form: str, valid) -> dict:
+        """``name -> (a, b)`` on estimated parameters, each pair checked with ``valid(a, b)``."""
         checked = {}
-        for name, value in prior.items():
+        for name, value in pairs.items():
             if name not in self.names:
                 why = self.fixed.get(name, "not among the parameters considered")
-                raise InvalidParameterError(f"prior on {name!r}, which is not estimated ({why})")
+                raise InvalidParameterError(f"{what} on {name!r}, which is not estimated ({why})")
             try:
-                mean, sigma = (float(v) for v in value)
+                a, b = (float(v) for v in value)
             except (TypeError, ValueError):
-                raise InvalidParameterError(f"prior on {name!r} must be (mean, sigma); got {value!r}") from None
-            if not (np.isfinite(mean) and np.isfinite(sigma) and sigma > 0):
-                raise InvalidParameterError(f"prior on {name!r} needs a finite mean and sigma > 0; got ({mean}, {sigma})")
-            checked[name] = (mean, sigma)
+                raise InvalidParameterError(f"{what} on {name!r} must be {form}; got {value!r}") from None
+            if not valid(a, b):
+                rule = "a finite mean and sigma > 0" if what == "prior" else "lower < upper"
+                raise InvalidParameterError(f"{what} on {name!r} needs {rule}; got ({a}, {b})")
+            checked[name] = (a, b)
         return checked
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower limits of the free parameters (−inf where none)."""
+        return np.array([self.bounds.get(n, (-np.inf, np.inf))[0] for n in self.names])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper limits of the free parameters (+inf where none)."""
+        return np.array([self.bounds.get(n, (-np.inf, np.inf))[1] for n in self.names])
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        """``x`` moved inside the bounds."""
+        return np.clip(x, self.lower, self.upper) if self.bounds else np.asarray(x, dtype=np.float64)
 
     # -- the free vector ----------------------------------------------------------------------
     @property
@@ -167,7 +192,7 @@ class Problem:
 
     def with_data(self, data: Dataset) -> "Problem":
         """The same parameterisation on other data (e.g. the held-out samples)."""
-        return Problem(self.robot, data, self.free, self.start, dict(self.fixed), dict(self.prior), self.prior_scale)
+        return Problem(self.robot, data, self.free, self.start, dict(self.fixed), dict(self.prior), self.prior_scale, dict(self.bounds))
 
     # -- residuals ----------------------------------------------------------------------------
     def _prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

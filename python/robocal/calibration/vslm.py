@@ -64,7 +64,8 @@ def damped_iterations(
     while nit < max_iter:
         step, _ = solve_damped(problem.jacobian(x), r, lam, "identity")
         step *= delta
-        x = x + step
+        x_new = problem.clip(x + step)  # bounds, if the problem has any
+        step, x = x_new - x, x_new
         r = problem.residuals(x)
         cost_new = 0.5 * float(r @ r)
         nit += 1
