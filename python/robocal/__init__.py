@@ -8,7 +8,6 @@ Units: mm and radians everywhere inside.
 from __future__ import annotations
 
 from . import exceptions
-from .calibration import calibrate
 from ._robocal import __version__
 from .core import cable_initial_guess, covariance, identifiability, merwe_sigma_points, solve_damped, unscented_transform
 from .robot import MEASUREMENTS, Joint, Robot, robot
@@ -28,3 +27,12 @@ __all__ = [
     "solve_damped",
     "unscented_transform",
 ]
+
+
+def __getattr__(name: str):
+    # `robocal.calibrate` loads the calibrators (and scipy) on first use, not at `import robocal`.
+    if name == "calibrate":
+        from .calibration import calibrate
+
+        return calibrate
+    raise AttributeError(f"module 'robocal' has no attribute {name!r}")
