@@ -36,7 +36,7 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, held_out_residuals, load_inputs
+from .calibration.api import METHODS, add_kinematic_prior_argument, held_out_residuals, load_inputs
 from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
@@ -133,6 +133,7 @@ def _run(problem: Problem, test: Dataset, method: str, options: dict) -> dict:
         "identifies_parameters": not isinstance(result, RBFResult),
         "dh_deviations": _dh_deviations(result),
         "dh_estimated": [name for name, _ in _dh_names(problem.robot) if name in estimated],
+        "implausible": [] if isinstance(result, RBFResult) else [flag["name"] for flag in result.implausible()],
     }
 
 
@@ -146,6 +147,7 @@ def compare(
     seed: int = 0,
     subset: Optional[int] = None,
     method_options: Optional[dict] = None,
+    kinematic_prior=None,
 ) -> "ComparisonResult":
     """Runs every method on every split of ``data`` (the same splits for all methods).
 
@@ -169,6 +171,9 @@ def compare(
         acquisition order, then split them (e.g. 200 samples of UR10 Series A, as the paper did).
     method_options : dict, optional
         ``method name -> {option: value}``, passed to that method on every split.
+    kinematic_prior : (float, float), optional
+        ``(mm, deg)`` prior at nominal on the kinematic parameters, for every method (see
+        :meth:`~robocal.calibration.Problem.build`).
 
     Returns
     -------
@@ -197,7 +202,7 @@ def compare(
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
         split = {"index": k, "train": train_idx.tolist(), "test": test_idx.tolist(), "test_rows": test.rows.tolist()}
         try:  # the start point and free set, shared by all methods on this split
-            problem = Problem.build(robot_model, train)
+            problem = Problem.build(robot_model, train, kinematic_prior=kinematic_prior)
             before = problem.with_data(test).data_residuals(problem.x0)
             split.update(error=None, free=problem.names, fixed=problem.fixed,
                          before=metrics(before, test.measurement), before_errors=sample_errors(before, test.measurement).tolist())  # fmt: skip
@@ -219,6 +224,7 @@ def compare(
         "repeats": repeats,
         "seed": seed,
         "subset": subset,
+        "kinematic_prior": list(kinematic_prior) if kinematic_prior is not None else None,
         "method_options": method_options,
         "notes": notes,
     }
@@ -619,12 +625,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", nargs="+", metavar="METHOD", help=f"default: M1..M9 and lm; any of {sorted(METHODS)}")
     parser.add_argument("--subset", type=int, help="first draw this many samples at random (e.g. 200 of UR10 Series A)")
     parser.add_argument("--seed", type=int, default=0)
+    add_kinematic_prior_argument(parser)
     parser.add_argument("--out", required=True, help="output folder for the tables, figures and comparison.json")
 
 
 def run(args: argparse.Namespace) -> int:
     result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
-                     repeats=args.repeats, seed=args.seed, subset=args.subset)  # fmt: skip
+                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior)  # fmt: skip
     paths = result.write(args.out)
     print(result.table_viii().markdown())
     failed = [r for r in result.runs if r["status"] == "failed"]

@@ -235,6 +235,13 @@ class Robot:
         p, qa, ya = self._measurement_inputs(measurement, q, y, params)
         return self.chain.residuals(measurement, p, qa, ya)
 
+    def residuals_at(self, measurement: str, q, y, cols, values, params=None) -> np.ndarray:
+        """Residuals for many parameter sets in one call: ``params[cols] = values[s]`` for each row
+        ``s`` of ``values`` (S, len(cols)); shape (S, m·k). Population methods evaluate with it."""
+        p, qa, ya = self._measurement_inputs(measurement, q, y, params)
+        vals = np.ascontiguousarray(as_float_array(values, "values"))
+        return self.chain.sigma_residuals(measurement, p, [int(c) for c in cols], vals, qa, ya)
+
     def jacobian(self, measurement: str, q, y=None, params=None, cols=None) -> np.ndarray:
         """Identification Jacobian ``∂h/∂params[cols]``, shape (m·k, len(cols)), rows sample-major.
 

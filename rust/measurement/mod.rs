@@ -18,6 +18,7 @@ use crate::error::{check_finite, CoreError, CoreResult};
 use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, LANES};
 use crate::parallel::for_each_group;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// What a sample observes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -339,14 +340,17 @@ pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreRes
     }
     check_finite("sigmas", sigmas)?;
     let width = batch.m * batch.measurement.res_width();
-    let mut out = Vec::with_capacity(sigmas.len() / nc * width);
-    let mut params = batch.params.to_vec();
-    for sigma in sigmas.chunks_exact(nc) {
+    let mut out = vec![0.0; sigmas.len() / nc * width];
+    // Parallel over parameter sets (a population or the sigma points): each writes its own row,
+    // so the result does not depend on the number of threads.
+    out.par_chunks_mut(width.max(1)).zip(sigmas.par_chunks_exact(nc)).try_for_each(|(row, sigma)| {
+        let mut params = batch.params.to_vec();
         for (&col, &v) in cols.iter().zip(sigma) {
             params[col] = v;
         }
         let b = Batch { params: &params, prepared: batch.chain.prepare(&params), ..*batch };
-        out.extend(b.residuals()?);
-    }
+        row.copy_from_slice(&b.residuals()?);
+        Ok(())
+    })?;
     Ok(out)
 }

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import Callable, Optional, Union
 
@@ -80,6 +81,7 @@ def calibrate(
     mask=None,
     prior=None,
     bounds=None,
+    kinematic_prior=None,
     **options,
 ) -> CalibrationResult:
     """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
@@ -107,6 +109,9 @@ def calibrate(
         ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters, kept by every
         method (projected LM steps; Kalman estimates clipped after each sweep; the
         metaheuristics' search box intersected with them).
+    kinematic_prior : (float, float), optional
+        ``(mm, deg)`` Gaussian prior at nominal on every estimated kinematic parameter (see
+        :meth:`Problem.build`).
     **options
         Passed to the method.
 
@@ -126,11 +131,24 @@ def calibrate(
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
     else:
         train, test = dataset, None
-    problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds)
+    problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
     result = METHODS[method][2](problem, **options)
     if test is not None:
         result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
     return result
+
+
+def _mm_deg(text: str) -> tuple[float, float]:
+    try:
+        length, angle = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected MM,DEG (e.g. 10,1); got {text!r}") from None
+    return length, angle
+
+
+def add_kinematic_prior_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--kinematic-prior", type=_mm_deg, metavar="MM,DEG",
+                        help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles")  # fmt: skip
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -140,13 +158,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
+    add_kinematic_prior_argument(parser)
     parser.add_argument("--out", help="write the result JSON here")
     parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
 
 
 def run(args: argparse.Namespace) -> int:
     result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
-                       test_fraction=args.test_fraction, seed=args.seed)  # fmt: skip
+                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior)  # fmt: skip
     doc = result.to_dict()
     if args.out:
         Path(args.out).write_text(json.dumps(doc, indent=2))
@@ -160,6 +179,11 @@ def run(args: argparse.Namespace) -> int:
     if test:
         print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
     print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
+    for flag in doc["implausible"]:
+        shown = flag["deviation"] if flag["unit"] == "mm" else math.degrees(flag["deviation"])
+        unit = "mm" if flag["unit"] == "mm" else "deg"
+        print(f"  warning: {flag['name']} moved {shown:+.3g} {unit} from nominal: implausible for a calibration "
+              f"(the data do not determine it; try --kinematic-prior or more varied poses)")  # fmt: skip
     if args.out:
         print(f"  result written to {args.out}")
     return 0

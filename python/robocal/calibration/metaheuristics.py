@@ -80,10 +80,8 @@ class _Objective:
     def __call__(self, U: np.ndarray) -> np.ndarray:
         """Costs of a population ``U`` (pop, n) of unit-cube points."""
         X = self.to_x(np.atleast_2d(U))
-        # One residual call per candidate; a batched Rust kernel (all candidates in one call,
-        # parallel over candidates) would replace this loop.
         self.nfev += len(X)
-        return np.array([self.problem.cost(x) for x in X])
+        return self.problem.costs(X)
 
 
 def _converged(costs: np.ndarray, tol: float) -> bool:
@@ -293,7 +291,8 @@ def de(
     history, nit, converged = [float(cost.min())], 0, False
     others = np.array([np.delete(np.arange(NP), i) for i in range(NP)])
     for nit in range(1, max_iter + 1):
-        r = np.array([rng.choice(row, 3, replace=False) for row in others])
+        # Three distinct members other than i: the first three of a random permutation of the others.
+        r = np.take_along_axis(others, np.argpartition(rng.random(others.shape), 3, axis=1)[:, :3], axis=1)
         mutant = x[r[:, 0]] + F * (x[r[:, 1]] - x[r[:, 2]])
         low, high = mutant < 0.0, mutant > 1.0
         mutant[low] = rng.random(low.sum()) * x[low]

@@ -21,6 +21,21 @@ from ..robot import Robot
 from ..simulate import DEFAULT_NOISE
 
 
+#: Parameter-name prefixes of the kinematic (joint) parameters, as opposed to the set-up (base,
+#: tool, anchor, sensor) that every calibration fits from scratch.
+KINEMATIC = ("alpha", "a", "d", "theta", "beta")
+
+#: Deviations from nominal beyond which a calibrated kinematic parameter is flagged implausible
+#: (mm, rad): manufacturing and assembly errors of industrial arms are tenths of a mm to a few
+#: mm and hundredths to tenths of a degree; 10 mm or 2 degrees is a curve fit, not a calibration.
+PLAUSIBLE = {"mm": 10.0, "rad": np.radians(2.0)}
+
+
+def is_kinematic(name: str) -> bool:
+    """True for a joint parameter (``alpha3``, ``d6``, ...), False for base, tool and sensor."""
+    return name.rstrip("0123456789") in KINEMATIC
+
+
 def _kabsch(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Rigid transform (4x4) best mapping ``points`` onto ``targets`` (both (m, 3))."""
     pc, tc = points.mean(axis=0), targets.mean(axis=0)
@@ -99,7 +114,9 @@ class Problem:
     bounds: dict = field(default_factory=dict)
 
     @classmethod
-    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None, bounds=None) -> "Problem":
+    def build(
+        cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None, bounds=None, kinematic_prior=None
+    ) -> "Problem":
         """The identifiable subset of ``mask`` (default: ``robot.default_mask``) at the start point.
 
         Parameters
@@ -119,6 +136,11 @@ class Problem:
         bounds : dict, optional
             ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters; the start
             is moved inside them.
+        kinematic_prior : (float, float), optional
+            ``(mm, deg)``: a Gaussian prior at the start value on every estimated kinematic
+            parameter (lengths ``mm``, angles ``deg``), unless ``prior`` names it. It keeps the
+            weakly determined directions of a narrow workspace near nominal instead of letting
+            them absorb what the geometry cannot explain.
         """
         if data.n_joints != robot.n_joints:
             raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
@@ -139,7 +161,20 @@ class Problem:
             fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
         free = cols[np.sort(ident["identifiable"])]
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
-        problem.prior = problem._checked_pairs(prior or {}, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
+        prior = dict(prior or {})
+        if kinematic_prior is not None:
+            try:
+                length, angle = (float(v) for v in kinematic_prior)
+            except (TypeError, ValueError):
+                raise InvalidParameterError(f"`kinematic_prior` must be (mm, deg); got {kinematic_prior!r}") from None
+            if not (length > 0 and angle > 0 and np.isfinite(length) and np.isfinite(angle)):
+                raise InvalidParameterError(f"`kinematic_prior` needs finite sigmas > 0; got ({length}, {angle})")
+            sigma = {"mm": length, "rad": np.radians(angle)}
+            for k in free:
+                name = robot.param_names[k]
+                if is_kinematic(name) and name not in prior and robot.param_units[k] in sigma:
+                    prior[name] = (start[k], sigma[robot.param_units[k]])
+        problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(bounds or {}, "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
         return problem
@@ -214,6 +249,16 @@ class Problem:
             return r
         idx, mean, sigma = self._prior_rows()
         return np.concatenate([r, self.prior_scale * (mean - np.asarray(x)[idx]) / sigma])
+
+    def costs(self, X: np.ndarray) -> np.ndarray:
+        """:meth:`cost` of every row of ``X`` (S, n_free), the data part evaluated in one Rust call."""
+        X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+        R = self.robot.residuals_at(self.data.measurement, self.data.q, self.data.y, self.free, X, params=self.start)
+        c = 0.5 * np.einsum("ij,ij->i", R, R)
+        if self.prior:
+            idx, mean, sigma = self._prior_rows()
+            c += 0.5 * np.sum((self.prior_scale * (mean - X[:, idx]) / sigma) ** 2, axis=1)
+        return c
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """``∂h/∂x`` of :meth:`residuals` (data rows, then prior rows), (rows, n_free)."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core import covariance
 from .metrics import metrics
-from .problem import Problem
+from .problem import PLAUSIBLE, Problem, is_kinematic
 
 
 @dataclass
@@ -69,9 +69,22 @@ class CalibrationResult:
             for k, (n, u, nom, v) in enumerate(zip(robot.param_names, robot.param_units, robot.params, full))
         ]
 
+    def implausible(self) -> list[dict]:
+        """Kinematic parameters that moved further from nominal than :data:`PLAUSIBLE`: the data
+        did not determine them (a narrow workspace lets weak directions absorb other errors);
+        a ``kinematic_prior`` or more varied poses are the remedies."""
+        robot, full, flagged = self.problem.robot, self.params, []
+        for k in self.problem.free:
+            name, unit = robot.param_names[k], robot.param_units[k]
+            deviation = float(full[k] - robot.params[k])
+            if is_kinematic(name) and unit in PLAUSIBLE and abs(deviation) > PLAUSIBLE[unit]:
+                flagged.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
+        return flagged
+
     def to_dict(self) -> dict:
         """The result JSON: ``method``, ``robot``, ``measurement``, ``parameters``, ``free``,
-        ``fixed`` (name -> reason), ``metrics``, ``convergence``."""
+        ``fixed`` (name -> reason), ``implausible`` (see :meth:`implausible`), ``metrics``,
+        ``convergence``."""
         return {
             "method": self.method,
             "robot": self.problem.robot.name,
@@ -79,6 +92,7 @@ class CalibrationResult:
             "parameters": self.parameters(),
             "free": self.problem.names,
             "fixed": self.problem.fixed,
+            "implausible": self.implausible(),
             "metrics": self.metrics,
             "convergence": {
                 "success": bool(self.success),

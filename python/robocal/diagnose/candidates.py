@@ -1,0 +1,190 @@
+"""The library of candidate causes: physical models of what a geometric calibration leaves out.
+
+Every candidate is linear in its coefficients ``c`` and acts at one stage of the measurement:
+
+``joints``
+    the angle the link really takes, ``q_j + B(q, order)·c`` (compliance, periodic gear error,
+    scale, coupling, backlash). Its Jacobian columns are ``∂h/∂q_j · B`` — and ``∂h/∂q_j`` is the
+    ``theta_j`` column of the identification Jacobian, since ``theta_j`` adds to ``q_j``.
+``observations``
+    the reading, ``h + B·c`` (drift, temperature).
+``parameters``
+    parameters of the robot's own vector that the baseline leaves out (``cable_scale``, Hayati
+    ``beta_j`` on a plain-DH baseline, base / tool / anchor terms).
+
+The models are those of the simulator (:mod:`robocal.effects`), so a hidden effect is found as
+the physical quantity it was simulated with. Bases are computed once on the whole dataset in
+acquisition order (backlash needs each sample's predecessor) and sliced for the folds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
+from ..robot import Robot
+
+#: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).
+#: Compliance: joint stiffness above 1e3 N·m/rad; gear errors and misalignments below 0.5 deg;
+#: scale and coupling below 0.5 %; drift below 10 mm/h; expansion coefficients 0-50e-6/K.
+LIMITS = {"compliance": 1e-3, "angle": 0.5 * DEG, "ratio": 5e-3, "drift_mm_per_h": 10.0, "alpha": 50e-6}
+
+
+def _order(data: Dataset) -> tuple[np.ndarray, str]:
+    """Acquisition time in hours (``t`` if the data carry it, else the row order in 1000s of
+    samples), centred, and its unit."""
+    if data.t is not None:
+        return (data.t - data.t.mean()) / 3600.0, "h"
+    i = np.arange(len(data), dtype=np.float64)
+    return (i - i.mean()) / 1000.0, "1000 samples"
+
+
+@dataclass
+class Candidate:
+    """One candidate cause.
+
+    Attributes
+    ----------
+    kind : str
+        One of the names of the report (``joint_compliance``, ``joint_periodic``, ...).
+    joint : int or None
+        0-based joint it acts on.
+    stage : {"joints", "observations", "parameters"}
+    basis : ndarray
+        ``joints``: (M, n_c) over the whole dataset; ``observations``: (M, k, n_c).
+    params : list of str
+        ``parameters``: the parameter names it frees.
+    detail : dict
+        Extra identification (``harmonic``, ``source`` joint, ``unit`` of the order variable).
+    """
+
+    kind: str
+    joint: Optional[int]
+    stage: str
+    basis: Optional[np.ndarray] = None
+    params: list = field(default_factory=list)
+    detail: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        where = f" joint {self.joint + 1}" if self.joint is not None else ""
+        extra = "".join(f" {k}={v}" for k, v in self.detail.items() if k != "unit")
+        return f"{self.kind}{where}{extra}"
+
+    @property
+    def size(self) -> int:
+        return len(self.params) if self.stage == "parameters" else self.basis.shape[-1]
+
+    def physical(self, c: np.ndarray, std: Optional[np.ndarray], robot: Robot, nominal: np.ndarray) -> tuple[dict, Optional[str]]:
+        """The fitted coefficients as physical quantities (``{name: {value, std, unit}}``), and
+        the reason they are implausible (``None`` if they are not)."""
+        s = np.full(len(c), np.nan) if std is None else np.asarray(std)
+
+        def q(value, sd, unit):
+            return {"value": float(value), "std": None if not np.isfinite(sd) else float(sd), "unit": unit}
+
+        kind = self.kind
+        if kind == "joint_compliance":
+            out = {"compliance": q(c[0] / DEG * 1000.0, s[0] / DEG * 1000.0, "deg/(kN·m)")}
+            bad = not 0.0 < c[0] < LIMITS["compliance"]
+            return out, (f"compliance {c[0]:.3g} rad/(N·m) is not within (0, {LIMITS['compliance']:g})" if bad else None)
+        if kind == "joint_periodic":
+            amp, phase = math.hypot(c[0], c[1]), math.atan2(c[1], c[0])
+            sd = math.hypot(s[0], s[1]) / math.sqrt(2.0) if np.all(np.isfinite(s)) else np.nan
+            out = {"amplitude": q(amp / DEG, sd / DEG, "deg"), "phase": q(phase / DEG, np.nan, "deg"), "harmonic": q(self.detail["harmonic"], np.nan, "cycles/rev")}
+            return out, (f"amplitude {amp / DEG:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg" if amp > LIMITS["angle"] else None)
+        if kind in ("joint_scale", "joint_coupling"):
+            name = "scale" if kind == "joint_scale" else "coefficient"
+            out = {name: q(c[0], s[0], "1")}
+            if kind == "joint_coupling":
+                out["source"] = q(self.detail["source"], np.nan, "joint")
+            return out, (f"{name} {c[0]:.3g} exceeds {LIMITS['ratio']:g}" if abs(c[0]) > LIMITS["ratio"] else None)
+        if kind == "backlash":
+            width = -2.0 * c[0]  # Δq = −(b/2)·direction
+            out = {"width": q(width / DEG, 2.0 * s[0] / DEG, "deg")}
+            bad = not 0.0 < width < LIMITS["angle"]
+            return out, (f"width {width / DEG:.3g} deg is not within (0, {LIMITS['angle'] / DEG:g}) deg" if bad else None)
+        if kind == "drift":
+            unit = "mm/" + self.detail["unit"]
+            out = {f"rate_{a}": q(v, sd, unit) for a, v, sd in zip(self.detail["axes"], c, s)}
+            fastest = float(np.max(np.abs(c)))
+            bad = self.detail["unit"] == "h" and fastest > LIMITS["drift_mm_per_h"]
+            return out, (f"drift {fastest:.3g} mm/h exceeds {LIMITS['drift_mm_per_h']:g} mm/h" if bad else None)
+        if kind == "temperature":
+            out = {"alpha": q(c[0] * 1e6, s[0] * 1e6, "1e-6/K"), "target": q(np.nan, np.nan, self.detail["target"])}
+            bad = not 0.0 < c[0] < LIMITS["alpha"]
+            return out, (f"expansion coefficient {c[0] * 1e6:.3g}e-6/K is not within (0, {LIMITS['alpha'] * 1e6:g})" if bad else None)
+        # parameters: deviations from nominal
+        out, why = {}, None
+        for name, v, sd in zip(self.params, c, s):
+            k = robot.index(name)
+            unit = robot.param_units[k]
+            dev = v - nominal[k]
+            if unit == "rad":
+                out[name] = q(dev / DEG, sd / DEG, "deg")
+                if kind == "axis_misalignment" and abs(dev) > LIMITS["angle"]:
+                    why = f"{name} {dev / DEG:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg"
+            else:
+                out[name] = q(dev, sd, unit)
+                if kind == "cable_scale" and abs(dev) > LIMITS["ratio"]:
+                    why = f"scale error {dev:.3g} exceeds {LIMITS['ratio']:g}"
+        return out, why
+
+
+def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = True) -> list[Candidate]:
+    """Every candidate that applies to ``robot`` and ``data`` (see the module notes).
+
+    Joints that do not move in the data get no joint candidates (their effect would be a
+    constant the geometry absorbs); compliance needs a mass model and a joint whose gravity
+    torque varies; temperature needs ``data.temp``. Parameter candidates are the parameters the
+    baseline did not consider at all (``considered``: estimated or fixed by the identifiability
+    analysis).
+    """
+    n, m = robot.n_joints, len(data)
+    q = data.q
+    k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+    moving = [j for j in range(n) if np.ptp(q[:, j]) > 1e-6]
+    out: list[Candidate] = []
+    tau = None
+    if robot.name in MASS_MODELS and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints):
+        tau = gravity_torques(robot, q)
+    for j in moving:
+        if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
+            out.append(Candidate("joint_compliance", j, "joints", tau[:, j : j + 1].copy()))
+        for h in (1, 2, 3):
+            out.append(Candidate("joint_periodic", j, "joints", np.column_stack([np.sin(h * q[:, j]), np.cos(h * q[:, j])]), detail={"harmonic": h}))
+        out.append(Candidate("joint_scale", j, "joints", q[:, j : j + 1].copy()))
+        for s in moving:
+            if s != j:
+                out.append(Candidate("joint_coupling", j, "joints", q[:, s : s + 1].copy(), detail={"source": s + 1}))
+        out.append(Candidate("backlash", j, "joints", Backlash.directions(q[:, j])[:, None]))
+    order, unit = _order(data)
+    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
+    drift = np.zeros((m, k, len(axes)))
+    for a in range(len(axes)):
+        drift[:, a, a] = order
+    out.append(Candidate("drift", None, "observations", drift, detail={"unit": unit, "axes": axes}))
+    if data.temp is not None and np.ptp(data.temp) > 0:
+        dT = data.temp - data.temp[0]
+        out.append(Candidate("temperature", None, "observations", None, detail={"target": "links", "dT": dT}))
+        if data.measurement == "cable":
+            out.append(Candidate("temperature", None, "observations", (data.y[:, 0] * dT)[:, None, None], detail={"target": "cable"}))
+    free = set(considered)
+    if data.measurement == "cable" and "cable_scale" not in free:
+        out.append(Candidate("cable_scale", None, "parameters", params=["cable_scale"]))
+    if not hayati:
+        for j, joint in enumerate(robot.joints):
+            if joint.hayati and f"beta{j + 1}" not in free:
+                out.append(Candidate("axis_misalignment", j, "parameters", params=[f"beta{j + 1}"]))
+    frame = {"cable": ["anchor_x", "anchor_y", "anchor_z", "tool_x", "tool_y", "tool_z"],
+             "position": [f"base_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")] + ["tool_x", "tool_y", "tool_z"],
+             "pose": [f"{f}_{c}" for f in ("base", "tool") for c in ("x", "y", "z", "rx", "ry", "rz")]}[data.measurement]  # fmt: skip
+    missing = [p for p in frame if p not in free]
+    if missing:
+        out.append(Candidate("frame", None, "parameters", params=missing))
+    return out

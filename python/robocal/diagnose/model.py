@@ -1,0 +1,122 @@
+"""The extended model: the geometric calibration problem plus the coefficients of named causes.
+
+:class:`ExtendedProblem` has the interface the production LM works on (``x0``, ``residuals``,
+``jacobian``, ``data_residuals``, ``clip``, ``data``), so the same solver fits it; every residual
+and Jacobian is evaluated by the Rust core (at the effect-corrected joint angles), only the
+cause columns are assembled here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..calibration.problem import Problem
+from ..data.dataset import Dataset
+from .candidates import Candidate
+
+
+class ExtendedProblem:
+    """Geometric free parameters and cause coefficients, on the samples ``idx`` of ``data``.
+
+    ``x`` is ``[θ[free], c_1, c_2, ...]``: ``free`` is the baseline's free set plus the
+    parameters of ``parameters``-stage causes, and each ``joints``/``observations`` cause
+    appends its coefficients in order.
+    """
+
+    def __init__(self, base: Problem, causes: list[Candidate], data: Dataset, idx: np.ndarray):
+        self.base, self.robot, self.causes = base, base.robot, list(causes)
+        self.full_data, self.idx = data, np.asarray(idx)
+        self.data = data.subset(self.idx)
+        self.k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+        extra = [self.robot.index(n) for c in self.causes if c.stage == "parameters" for n in c.params]
+        self.free = np.concatenate([base.free, np.array(extra, dtype=int)]).astype(int)
+        self.start = base.start
+        self.slices, at = [], len(self.free)
+        for c in self.causes:
+            n = 0 if c.stage == "parameters" else c.size
+            self.slices.append(slice(at, at + n))
+            at += n
+        self.n = at
+        theta = {self.robot.index(f"theta{j + 1}") for j in range(self.robot.n_joints)}
+        self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
+        self._theta = sorted(theta)
+
+    # -- the vector ---------------------------------------------------------------------------
+    @property
+    def x0(self) -> np.ndarray:
+        return np.concatenate([self.start[self.free], np.zeros(self.n - len(self.free))])
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        p = self.start.copy()
+        p[self.free] = x[: len(self.free)]
+        return p
+
+    def coefficients(self, x: np.ndarray, cause: Candidate) -> np.ndarray:
+        """The coefficients of ``cause`` in ``x`` (parameter values for ``parameters`` causes)."""
+        i = self.causes.index(cause)
+        if cause.stage == "parameters":
+            return np.array([x[list(self.free).index(self.robot.index(n))] for n in cause.params])
+        return np.asarray(x[self.slices[i]])
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=np.float64)
+
+    def with_samples(self, idx: np.ndarray) -> "ExtendedProblem":
+        """The same model on other samples of the same dataset."""
+        return ExtendedProblem(self.base, self.causes, self.full_data, idx)
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def joints(self, x: np.ndarray) -> np.ndarray:
+        """Joint angles the links take: recorded plus every joint cause's ``B·c``."""
+        q = self.data.q.copy()
+        for c, s in zip(self.causes, self.slices):
+            if c.stage == "joints":
+                q[:, c.joint] += c.basis[self.idx] @ x[s]
+        return q
+
+    def _jacobian_columns(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``."""
+        p, q = self.full(x), self.joints(x)
+        cols = list(self.free) + self._theta + self._lengths + list(extra)
+        J = self.robot.jacobian(self.data.measurement, q, y=self.data.y, params=p, cols=cols)
+        at = len(self.free)
+        parts = {"theta": J[:, at : at + len(self._theta)], "lengths": J[:, at + len(self._theta) : at + len(self._theta) + len(self._lengths)],
+                 "extra": J[:, at + len(self._theta) + len(self._lengths) :]}  # fmt: skip
+        return J[:, :at], p, parts
+
+    def columns(self, x: np.ndarray, cause: Candidate, parts: dict = None, p: np.ndarray = None) -> np.ndarray:
+        """``∂h/∂c`` of ``cause`` at ``x``, shape (m·k, n_c)."""
+        if parts is None:
+            extra = [self.robot.index(n) for n in cause.params]
+            _, p, parts = self._jacobian_columns(x, extra)
+            if cause.stage == "parameters":
+                return parts["extra"]
+        if cause.stage == "joints":
+            return parts["theta"][:, cause.joint][:, None] * np.repeat(cause.basis[self.idx], self.k, axis=0)
+        if cause.stage == "observations":
+            if cause.basis is None:  # thermal expansion of the links: Σ ∂h/∂ℓ · ℓ · ΔT
+                stretch = parts["lengths"] @ p[self._lengths]
+                return (stretch * np.repeat(cause.detail["dT"][self.idx], self.k))[:, None]
+            return cause.basis[self.idx].reshape(len(self.idx) * self.k, -1)
+        raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        p, q = self.full(x), self.joints(x)
+        r = self.robot.residuals(self.data.measurement, q, self.data.y, params=p).ravel()
+        observed = [(c, s) for c, s in zip(self.causes, self.slices) if c.stage == "observations"]
+        if observed:
+            parts = self._jacobian_columns(x, [])[2] if any(c.basis is None for c, _ in observed) else {}
+            for c, s in observed:
+                r = r - self.columns(x, c, parts, p) @ x[s]
+        return r
+
+    data_residuals = residuals
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        J, p, parts = self._jacobian_columns(x, [])
+        blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
+        return np.hstack(blocks)
+
+    def cost(self, x: np.ndarray) -> float:
+        r = self.residuals(x)
+        return 0.5 * float(r @ r)

@@ -1,0 +1,318 @@
+"""Choosing causes by held-out gain: ``robocal.diagnose``.
+
+1. Fit the geometric baseline (the identifiable subset; Hayati ``beta`` on nominally parallel
+   axes unless ``hayati=False``). Gross outliers are named first: samples whose residual lies
+   beyond the Bonferroni bound of a robust (MAD) noise scale, re-decided after refitting without
+   them until the set is stable.
+2. Screen every candidate by cross-validation of the model linearised at the current fit:
+   per fold, least squares of the residuals on ``[J_model, C_candidate]`` over the training
+   samples (the geometric columns refit with it, so what the geometry can absorb is projected
+   off), errors on the held-out samples. Two fold schemes: random k-fold and contiguous blocks
+   in acquisition order (a cause must also help on a block of the session it was not fitted
+   on), plus leave-one-group-out when ``groups`` are given.
+3. A candidate is significant if its held-out squared errors are smaller than the model's by a
+   one-sided Wilcoxon signed-rank test at ``alpha`` / (number of candidates) (Bonferroni), and
+   its gain is positive on every fold scheme. The one with the largest gain is fitted (nonlinear,
+   all parameters re-fitted) and kept if its physical parameters are plausible
+   (:data:`~robocal.diagnose.candidates.LIMITS`); otherwise the next one is tried.
+4. Repeat from 2 with the extended model until nothing is significant. The held-out RMSE of
+   every model along the way is then measured honestly: nonlinear re-fits per fold.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+from scipy.stats import chi2, wilcoxon
+
+from ..calibration.api import load_inputs
+from ..calibration.lm import levenberg_marquardt
+from ..calibration.problem import Problem
+from ..data.dataset import Dataset
+from ..data.splits import kfold
+from ..exceptions import InvalidParameterError
+from ..robot import Robot
+from .candidates import Candidate, library
+from .model import ExtendedProblem
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose` found; :meth:`to_dict` is the JSON report."""
+
+    robot: Robot
+    data: Dataset
+    baseline: dict
+    effects: list
+    rejected: list
+    final: dict
+    model: ExtendedProblem
+    x: np.ndarray
+    outliers: list = field(default_factory=list)
+    time_s: float = 0.0
+    plots: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "robot": self.robot.name,
+            "measurement": self.data.measurement,
+            "samples": len(self.data),
+            "source": self.data.source,
+            "baseline": self.baseline,
+            "effects": self.effects,
+            "rejected": self.rejected,
+            "final": self.final,
+            "model": {
+                "free": [self.robot.param_names[k] for k in self.model.free],
+                "parameters": {n: float(v) for n, v in zip(self.robot.param_names, self.model.full(self.x))},
+                "causes": [c.label for c in self.model.causes],
+            },
+            "time_s": self.time_s,
+        }
+
+
+def _folds(m: int, k: int, seed: int, order: np.ndarray, groups) -> dict:
+    """Fold schemes over ``m`` samples: random, blocks in acquisition ``order``, groups."""
+    schemes = {"random": kfold(m, k, seed)}
+    blocks = np.array_split(order, k)
+    schemes["blocked"] = [(np.sort(np.concatenate([b for j, b in enumerate(blocks) if j != i])), np.sort(blocks[i])) for i in range(k)]
+    if groups is not None:
+        g = np.asarray(groups)
+        labels = np.unique(g)
+        if len(labels) > 1:
+            schemes["group"] = [(np.flatnonzero(g != v), np.flatnonzero(g == v)) for v in labels]
+    return schemes
+
+
+def _cv_errors(A: np.ndarray, r: np.ndarray, folds: list, k: int) -> np.ndarray:
+    """Held-out squared error per sample of the linear model ``r ≈ A·δ`` fitted per fold."""
+    m = len(r) // k
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    As = A / scale
+    err = np.zeros(m)
+    for train, test in folds:
+        rows_tr = (train[:, None] * k + np.arange(k)).ravel()
+        rows_te = (test[:, None] * k + np.arange(k)).ravel()
+        delta = np.linalg.lstsq(As[rows_tr], r[rows_tr], rcond=1e-10)[0]
+        e = r[rows_te] - As[rows_te] @ delta
+        err[test] = (e * e).reshape(-1, k).sum(axis=1)
+    return err
+
+
+def _rmse(sq: np.ndarray, k: int) -> float:
+    return float(np.sqrt(np.mean(sq) / k))
+
+
+def _fit(problem: ExtendedProblem, x0=None):
+    return levenberg_marquardt(problem, x0=x0, method="diagnose")
+
+
+def _nonlinear_cv(ext: ExtendedProblem, x_all: np.ndarray, folds: list) -> np.ndarray:
+    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold."""
+    err = np.zeros(len(ext.idx))
+    for train, test in folds:
+        fit = _fit(ext.with_samples(ext.idx[train]), x0=x_all)
+        r = ext.with_samples(ext.idx[test]).residuals(fit.x)
+        err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
+    return err
+
+
+def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.ndarray, float]:
+    """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale."""
+    m = len(data)
+    k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+    bound = float(chi2.ppf(1.0 - level / m, k))
+    flagged = np.zeros(m, dtype=bool)
+    for _ in range(5):
+        ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
+        fit = _fit(ext)
+        r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
+        sigma = 1.4826 * np.median(np.abs(r[~flagged] - np.median(r[~flagged], axis=0)))
+        now = np.sum(r * r, axis=1) / max(sigma, 1e-12) ** 2 > bound
+        if np.array_equal(now, flagged):
+            break
+        flagged = now
+    return np.flatnonzero(flagged), float(np.sqrt(bound))
+
+
+def _baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
+    mask = robot.default_mask(measurement)
+    if not hayati:
+        for j, joint in enumerate(robot.joints, start=1):
+            if joint.hayati:
+                mask[robot.index(f"beta{j}")], mask[robot.index(f"d{j}")] = False, True
+    return mask
+
+
+def diagnose(
+    data: Union[str, Path, Dataset],
+    robot: Union[str, Robot, None] = None,
+    measurement: Optional[str] = None,
+    folds: int = 5,
+    alpha: float = 0.05,
+    max_effects: int = 4,
+    hayati: bool = True,
+    groups=None,
+    seed: int = 0,
+) -> Diagnosis:
+    """Shows what the geometric model gets wrong on ``data``, names the causes, measures the gain.
+
+    Parameters
+    ----------
+    data : path or Dataset
+    robot : str or Robot, optional
+        Default: the robot recorded in the data.
+    measurement : {"cable", "position", "pose"}, optional
+    folds : int
+        Folds of the random and the blocked cross-validation.
+    alpha : float
+        Family-wise significance level of each selection round (Bonferroni over the candidates).
+    max_effects : int
+        Most causes accepted.
+    hayati : bool
+        Baseline with Hayati ``beta`` on nominally parallel axes (default); ``False`` makes the
+        baseline plain DH and ``axis_misalignment`` a candidate.
+    groups : array_like, optional
+        A label per sample (session, series): adds leave-one-group-out folds.
+    seed : int
+        Seeds the random folds.
+
+    Returns
+    -------
+    Diagnosis
+        ``to_dict()`` is the JSON report (``baseline``, ``effects``, ``rejected``, ``final``).
+
+    Examples
+    --------
+    >>> from robocal import simulate
+    >>> data, _ = simulate("abb-irb120", "position", samples=300, seed=3, effects=["joint_scale:joint=2,scale=3e-4"])
+    >>> [e["kind"] for e in diagnose(data).effects]
+    ['joint_scale']
+    """
+    t0 = time.perf_counter()
+    if not (isinstance(folds, int) and folds >= 2):
+        raise InvalidParameterError(f"`folds` must be an integer >= 2; got {folds!r}")
+    if not 0.0 < alpha < 1.0:
+        raise InvalidParameterError(f"`alpha` must lie in (0, 1); got {alpha!r}")
+    dataset, rob = load_inputs(data, robot, measurement)
+    if groups is not None and len(groups) != len(dataset):
+        raise InvalidParameterError(f"`groups` needs one label per sample ({len(dataset)}); got {len(groups)}")
+    if len(dataset) < 4 * folds:
+        raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
+    base = Problem.build(rob, dataset, mask=_baseline_mask(rob, dataset.measurement, hayati))
+    k = {"cable": 1, "position": 3, "pose": 6}[dataset.measurement]
+
+    effects, rejected = [], []
+    outliers, z_bound = _outliers(base, dataset)
+    keep = np.setdiff1d(np.arange(len(dataset)), outliers)
+    order = np.argsort(dataset.t, kind="stable") if dataset.t is not None else np.arange(len(dataset))
+    kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
+    schemes = _folds(len(keep), folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
+
+    causes: list[Candidate] = []
+    ext = ExtendedProblem(base, causes, dataset, keep)
+    base_fit = _fit(ext)
+    x = base_fit.x
+    baseline_cv = {name: _nonlinear_cv(ext, x, f) for name, f in schemes.items()}
+    if len(outliers):
+        everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
+        before = _nonlinear_cv(everyone, _fit(everyone).x, kfold(len(dataset), folds, seed))
+        effects.append({
+            "kind": "outliers", "joint": None,
+            "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound},
+            "rmse_heldout_before": _rmse(before, k), "rmse_heldout_after": _rmse(baseline_cv["random"], k),
+            "significance": {"test": "residual beyond the Bonferroni bound of a MAD noise scale (family-wise 0.01)", "bound_sigma": z_bound},
+        })  # fmt: skip
+
+    pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
+    current_cv = baseline_cv
+    while len(causes) < max_effects:
+        ext = ExtendedProblem(base, causes, dataset, keep)
+        J = ext.jacobian(x)
+        r = ext.residuals(x)
+        params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
+        _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
+        model_err = {name: _cv_errors(J, r, f, k) for name, f in schemes.items()}
+        scored = []
+        for c in pool:
+            if c.stage == "parameters":
+                C = parts["extra"][:, [params.index(n) for n in c.params]]
+            else:
+                C = ext.columns(x, c, parts, p)
+            A = np.hstack([J, C])
+            errs = {name: _cv_errors(A, r, f, k) for name, f in schemes.items()}
+            d = model_err["random"] - errs["random"]
+            p_value = float(wilcoxon(d, alternative="greater").pvalue) if np.any(d != 0) else 1.0
+            gains = {name: _rmse(model_err[name], k) - _rmse(errs[name], k) for name in schemes}
+            scored.append((gains["random"], c, p_value, gains))
+        scored.sort(key=lambda s: -s[0])
+        n_tests = len(scored)
+        accepted = None
+        for gain, c, p_value, gains in scored:
+            significant = p_value * n_tests < alpha and all(g > 0 for g in gains.values())
+            if not significant:
+                break
+            trial = ExtendedProblem(base, causes + [c], dataset, keep)
+            fit = _fit(trial, x0=_extended_start(x, ext, trial))
+            physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
+            if why is not None:
+                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"implausible: {why}"))
+                continue
+            accepted = (c, fit, p_value, gains, physical, trial)
+            break
+        if accepted is None:
+            for gain, c, p_value, gains in scored[:5]:
+                if not any(r["label"] == c.label for r in rejected):
+                    rejected.append(_record(c, gain, gains, p_value, n_tests, None, "not significant" if p_value * n_tests >= alpha else "no gain on every fold scheme"))
+            break
+        c, fit, p_value, gains, physical, trial = accepted
+        causes.append(c)
+        pool = [o for o in pool if o is not c]
+        x = fit.x
+        new_cv = {name: _nonlinear_cv(trial, x, f) for name, f in schemes.items()}
+        effects.append({
+            "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
+            "rmse_heldout_before": _rmse(current_cv["random"], k), "rmse_heldout_after": _rmse(new_cv["random"], k),
+            "significance": {"test": "one-sided Wilcoxon signed-rank on held-out squared errors (random k-fold), Bonferroni",
+                             "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests), "candidates": n_tests,
+                             "screening_gain_mm": gains,
+                             "rmse_heldout_blocked_before": _rmse(current_cv["blocked"], k), "rmse_heldout_blocked_after": _rmse(new_cv["blocked"], k)},
+        })  # fmt: skip
+        current_cv = new_cv
+
+    model = ExtendedProblem(base, causes, dataset, keep)
+    return Diagnosis(
+        robot=rob, data=dataset,
+        baseline={"rmse_heldout": _rmse(baseline_cv["random"], k), "rmse_heldout_blocked": _rmse(baseline_cv["blocked"], k),
+                  "rmse_train": base_fit.metrics["train"]["rmse"] if k == 1 else float(np.sqrt(2.0 * base_fit.cost / (len(keep) * k))),
+                  "n_params": int(len(base.free)), "hayati": hayati, "folds": folds},
+        effects=effects, rejected=rejected,
+        final={"rmse_heldout": _rmse(current_cv["random"], k), "rmse_heldout_blocked": _rmse(current_cv["blocked"], k), "n_params": int(model.n)},
+        model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0,
+    )  # fmt: skip
+
+
+def _extended_start(x: np.ndarray, ext: ExtendedProblem, trial: ExtendedProblem) -> np.ndarray:
+    """``x`` of ``ext`` laid out for ``trial`` (one more cause): the new cause's parameters at
+    their start values, its coefficients at zero."""
+    f = len(ext.free)
+    new_params = trial.x0[f : len(trial.free)]
+    new_coefs = np.zeros(trial.n - len(trial.free) - (ext.n - f))
+    return np.concatenate([x[:f], new_params, x[f:], new_coefs])
+
+
+def _std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional[np.ndarray]:
+    """Standard deviations of ``cause``'s coefficients from the fit's covariance."""
+    if fit.std is None:
+        return None
+    return problem.coefficients(fit.std, cause)
+
+
+def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int, physical, reason: str) -> dict:
+    return {"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "gain_mm": gain, "gains_mm": gains,
+            "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests), "params": physical, "reason": reason}  # fmt: skip
