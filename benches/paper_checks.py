@@ -3,7 +3,7 @@
     python benches/paper_checks.py [--datasets ../shared/datasets]
 
 Prints: the joint ranges of the public D1 file; the column-scaled condition number of D1's
-identification Jacobian at the production LM's optimum; a sweep of the fixed damping λ of the
+identification Jacobian at the production LM's optimum and its implausible parameters; a sweep of the fixed damping λ of the
 paper's eq. (14) on the first paper split of D1; the production LM on the five paper splits of D2
 (iterations, stop reason, condition number); the UR10 "Goal" columns against nominal forward
 kinematics.
@@ -41,6 +41,9 @@ def main() -> None:
     p = Problem.build(hsr, d1.subset(train))
     fit = levenberg_marquardt(p)
     print(f"D1 80 % training: {len(p.free)} free parameters, scaled condition number at the LM optimum {scaled_condition(p.jacobian(fit.x)):.2g}")
+    flags = sorted(fit.implausible(), key=lambda f: -abs(f["deviation"]) / f["limit"])
+    shown = [f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.0f} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in flags[:6]]
+    print(f"  {len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal; largest: " + ", ".join(shown))
 
     tr, te = paper_split(len(d1), seed=0)
     p = Problem.build(hsr, d1.subset(tr))
