@@ -20,6 +20,7 @@ __all__ = [
     "cable_initial_guess",
     "calibrate",
     "covariance",
+    "diagnose",
     "exceptions",
     "identifiability",
     "merwe_sigma_points",
@@ -30,9 +31,13 @@ __all__ = [
 
 
 def __getattr__(name: str):
-    # `robocal.calibrate` loads the calibrators (and scipy) on first use, not at `import robocal`.
+    # `robocal.calibrate` and `robocal.diagnose` load (with scipy) on first use, not at `import robocal`.
     if name == "calibrate":
         from .calibration import calibrate
 
         return calibrate
+    if name == "diagnose":
+        from .diagnose import diagnose
+
+        return diagnose
     raise AttributeError(f"module 'robocal' has no attribute {name!r}")

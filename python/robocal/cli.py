@@ -17,6 +17,7 @@ COMMANDS = {
     "calibrate": ("robocal.calibration.api", "identify a robot's kinematic parameters from measurements"),
     "simulate": ("robocal.simulate", "simulate measurements of a robot with known truth and injectable effects"),
     "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures"),
+    "diagnose": ("robocal.diagnose.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain"),
 }
 
 

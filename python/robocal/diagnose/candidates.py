@@ -30,9 +30,10 @@ from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
 from ..robot import Robot
 
 #: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).
-#: Compliance: joint stiffness above 1e3 N·m/rad; gear errors and misalignments below 0.5 deg;
-#: scale and coupling below 0.5 %; drift below 10 mm/h; expansion coefficients 0-50e-6/K.
-LIMITS = {"compliance": 1e-3, "angle": 0.5 * DEG, "ratio": 5e-3, "drift_mm_per_h": 10.0, "alpha": 50e-6}
+#: Compliance: joint stiffness above 1e3 N·m/rad; gear errors, backlash and misalignments below
+#: 1 deg; scale and coupling below 1 %; drift below 10 mm/h; expansion coefficients
+#: 0-100e-6/K (steel 12, aluminium 23, plastics up to ~100).
+LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h": 10.0, "alpha": 100e-6}
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -44,7 +45,7 @@ def _order(data: Dataset) -> tuple[np.ndarray, str]:
     return (i - i.mean()) / 1000.0, "1000 samples"
 
 
-@dataclass
+@dataclass(eq=False)  # compared by identity: a candidate is one object of one library
 class Candidate:
     """One candidate cause.
 
@@ -60,7 +61,11 @@ class Candidate:
     params : list of str
         ``parameters``: the parameter names it frees.
     detail : dict
-        Extra identification (``harmonic``, ``source`` joint, ``unit`` of the order variable).
+        Extra identification (``harmonic``, ``source`` joint, ``target``; ``unit`` and ``axes``
+        of a drift, not shown in the label).
+    signal : ndarray, optional
+        A per-sample signal the columns are built from at fit time (the temperature rise of
+        ``temperature`` on the links, whose columns depend on the current parameters).
     """
 
     kind: str
@@ -69,16 +74,19 @@ class Candidate:
     basis: Optional[np.ndarray] = None
     params: list = field(default_factory=list)
     detail: dict = field(default_factory=dict)
+    signal: Optional[np.ndarray] = None
 
     @property
     def label(self) -> str:
         where = f" joint {self.joint + 1}" if self.joint is not None else ""
-        extra = "".join(f" {k}={v}" for k, v in self.detail.items() if k != "unit")
+        extra = "".join(f" {k}={v}" for k, v in self.detail.items() if k not in ("unit", "axes"))
         return f"{self.kind}{where}{extra}"
 
     @property
     def size(self) -> int:
-        return len(self.params) if self.stage == "parameters" else self.basis.shape[-1]
+        if self.stage == "parameters":
+            return len(self.params)
+        return 1 if self.basis is None else self.basis.shape[-1]
 
     def physical(self, c: np.ndarray, std: Optional[np.ndarray], robot: Robot, nominal: np.ndarray) -> tuple[dict, Optional[str]]:
         """The fitted coefficients as physical quantities (``{name: {value, std, unit}}``), and
@@ -171,7 +179,7 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     out.append(Candidate("drift", None, "observations", drift, detail={"unit": unit, "axes": axes}))
     if data.temp is not None and np.ptp(data.temp) > 0:
         dT = data.temp - data.temp[0]
-        out.append(Candidate("temperature", None, "observations", None, detail={"target": "links", "dT": dT}))
+        out.append(Candidate("temperature", None, "observations", None, detail={"target": "links"}, signal=dT))
         if data.measurement == "cable":
             out.append(Candidate("temperature", None, "observations", (data.y[:, 0] * dT)[:, None, None], detail={"target": "cable"}))
     free = set(considered)

@@ -96,7 +96,7 @@ class ExtendedProblem:
         if cause.stage == "observations":
             if cause.basis is None:  # thermal expansion of the links: Σ ∂h/∂ℓ · ℓ · ΔT
                 stretch = parts["lengths"] @ p[self._lengths]
-                return (stretch * np.repeat(cause.detail["dT"][self.idx], self.k))[:, None]
+                return (stretch * np.repeat(cause.signal[self.idx], self.k))[:, None]
             return cause.basis[self.idx].reshape(len(self.idx) * self.k, -1)
         raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
 

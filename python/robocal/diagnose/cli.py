@@ -1,0 +1,108 @@
+"""``robocal diagnose``: the report (JSON, text summary, figures) of :func:`robocal.diagnose`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .select import Diagnosis, diagnose
+
+
+def _quantities(params: dict) -> str:
+    shown = []
+    for name, q in params.items():
+        if isinstance(q, dict) and q.get("value") is not None and np.isfinite(q["value"]):
+            sd = f" ± {q['std']:.2g}" if q.get("std") is not None else ""
+            shown.append(f"{name} {q['value']:.4g}{sd} {q['unit']}")
+        elif isinstance(q, list):
+            shown.append(f"{name} {q[:8]}{' ...' if len(q) > 8 else ''}")
+    return ", ".join(shown)
+
+
+def summary(report: dict) -> str:
+    """A few lines for the terminal."""
+    b, f = report["baseline"], report["final"]
+    lines = [f"{report['robot']}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
+             f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"]  # fmt: skip
+    if not report["effects"]:
+        lines.append("  no cause beyond the geometric model is significant: the residuals look like noise")
+    for e in report["effects"]:
+        where = f" joint {e['joint']}" if e["joint"] is not None else ""
+        lines.append(f"  + {e['kind']}{where}: {_quantities(e['params'])}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm")
+    lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
+    for r in report["rejected"][:3]:
+        lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
+    return "\n".join(lines)
+
+
+def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
+    """One PNG per accepted cause (residual against the cause's fitted signature) and one of the
+    held-out RMSE along the selection."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, (label, d) in enumerate(diagnosis.plots.items(), start=1):
+        fig, ax = plt.subplots(figsize=(5.5, 4.5))
+        sig, res = d["signature"], d["residual"]
+        ax.scatter(sig, res, s=6, alpha=0.5, label="samples")
+        lim = np.max(np.abs(np.concatenate([sig, res]))) * 1.05
+        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="residual = signature")
+        ax.set(xlabel="fitted signature of the cause (mm)", ylabel="residual of the model before it (mm)", title=label)
+        ax.legend(loc="upper left")
+        fig.tight_layout()
+        path = out / f"cause_{i}.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        paths.append(path)
+    report = diagnosis.to_dict()
+    steps = ["geometric"] + [f"+ {e['kind']}" + (f" j{e['joint']}" if e["joint"] else "") for e in report["effects"] if e["kind"] != "outliers"]
+    rmse = [report["baseline"]["rmse_heldout"]] + [e["rmse_heldout_after"] for e in report["effects"] if e["kind"] != "outliers"]
+    fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(steps)), 3.8))
+    ax.bar(range(len(steps)), rmse, color="tab:blue")
+    ax.set_xticks(range(len(steps)), steps, rotation=20, ha="right")
+    ax.set(ylabel="held-out RMSE (mm), 5-fold", title="held-out error as causes are added")
+    fig.tight_layout()
+    path = out / "heldout_rmse.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return paths + [path]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
+    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
+    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    parser.add_argument("--folds", type=int, default=5, help="folds of the random and the blocked cross-validation (default 5)")
+    parser.add_argument("--alpha", type=float, default=0.05, help="family-wise significance level per selection round (default 0.05)")
+    parser.add_argument("--plain-dh", action="store_true", help="baseline without Hayati beta (makes axis_misalignment a candidate)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", metavar="FILE", help="write the JSON report here ('-' for standard output)")
+    parser.add_argument("--out", metavar="DIR", help="write report.json and the figures to this folder")
+
+
+def run(args: argparse.Namespace) -> int:
+    d = diagnose(args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
+                 hayati=not args.plain_dh, seed=args.seed)  # fmt: skip
+    report = d.to_dict()
+    text = json.dumps(report, indent=2)
+    if args.json == "-":
+        print(text)
+    else:
+        print(summary(report))
+        if args.json:
+            Path(args.json).write_text(text)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.json").write_text(text)
+        paths = write_figures(d, out)
+        if args.json != "-":
+            print(f"  wrote report.json and {len(paths)} figures to {out}")
+    return 0

@@ -1,0 +1,218 @@
+"""robocal.diagnose: hide an effect in simulated data and require finding it.
+
+Effect size: each effect is scaled so that the RMS of the change it makes to the (noiseless)
+observations is ``TIMES_NOISE`` × the sensor's noise sigma (the simulator's default noise) —
+the raw size, before the geometric model absorbs part of it (often most of it: 0.3-4 sigma
+remain, see docs/diagnose.md). Joints are drawn at random per case from a seeded generator
+(compliance: the joints that carry gravity torque, 2 and 3; axis misalignment: the robot's
+nominally parallel joints), and redrawn while the magnitude this takes would be physically
+implausible. 1000 samples per case. At 4x the noise 33 of 34 cases pass (the IRB 120's joint-2
+axis misalignment seen by a cable is 87 % absorbed by plain DH); the suite runs at 5x, the top
+of the range the issue sets.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal.calibration import Problem
+from robocal.diagnose import LIMITS, diagnose
+from robocal.effects import DEG
+from robocal.exceptions import InvalidParameterError
+from robocal.simulate import DEFAULT_NOISE, simulate
+
+TIMES_NOISE = 5.0
+SAMPLES = 1000
+
+#: kind -> (key scaled, a reference magnitude in the spec's units)
+KEYS = {
+    "joint_compliance": ("compliance", 1.0),
+    "joint_periodic": ("amplitude", 0.01),
+    "joint_scale": ("scale", 1e-4),
+    "joint_coupling": ("coefficient", 1e-4),
+    "backlash": ("width", 0.01),
+    "drift": ("rate", 0.1),
+    "temperature": ("alpha", 10.0),
+    "cable_scale": ("scale", 1e-4),
+    "axis_misalignment": ("beta", 0.02),
+}
+ROBOTS = ("abb-irb120", "hsr-jr680")
+
+
+def draw_case(robot: str, measurement: str, kind: str, attempt: int = 0) -> tuple[str, int | None, int]:
+    """The effect spec (without magnitude), its joint (1-based) and the simulation seed."""
+    rng = np.random.default_rng([ROBOTS.index(robot), ("cable", "position").index(measurement), list(KEYS).index(kind), attempt])
+    r = robocal.robot(robot)
+    seed = int(rng.integers(1000))
+    if kind == "joint_compliance":
+        j = int(rng.choice([2, 3]))
+        return f"joint_compliance:joint={j}", j, seed
+    if kind == "axis_misalignment":
+        j = int(rng.choice([i + 1 for i, joint in enumerate(r.joints) if joint.hayati]))
+        return f"axis_misalignment:joint={j}", j, seed
+    if kind == "joint_coupling":
+        j, s = (int(v) for v in rng.choice(np.arange(1, 7), 2, replace=False))
+        return f"joint_coupling:joint={j},source={s}", j, seed
+    if kind == "joint_periodic":
+        j = int(rng.integers(1, 7))
+        return f"joint_periodic:joint={j},harmonic={int(rng.integers(1, 4))},phase={rng.uniform(0, 360):.0f}", j, seed
+    if kind == "drift":
+        return "drift", None, seed
+    if kind == "cable_scale":
+        return "cable_scale", None, seed
+    if kind == "temperature":
+        return "temperature:target=links", None, seed
+    j = int(rng.integers(1, 7))
+    return f"{kind}:joint={j}", j, seed
+
+
+def scaled_spec(robot: str, measurement: str, spec: str, kind: str, seed: int, samples: int = SAMPLES) -> str:
+    """``spec`` with its magnitude set so that its raw RMS is TIMES_NOISE × the sensor noise."""
+    key, m0 = KEYS[kind]
+    join = "," if ":" in spec else ":"
+    clean, _ = simulate(robot, measurement, samples=samples, seed=seed, noise=0)
+    with_effect, _ = simulate(robot, measurement, samples=samples, seed=seed, noise=0, effects=[f"{spec}{join}{key}={m0}"])
+    rms = float(np.sqrt(np.mean((with_effect.y[:, :3] - clean.y[:, :3]) ** 2)))
+    return f"{spec}{join}{key}={m0 * TIMES_NOISE * DEFAULT_NOISE[measurement].sigma / rms:.6g}"
+
+
+CASES = [(r, m, k) for r in ROBOTS for m in ("cable", "position") for k in KEYS if k != "cable_scale"]
+
+
+def plausible(kind: str, spec: str) -> bool:
+    """Whether the magnitude in ``spec`` lies inside diagnose's plausibility limits."""
+    key = KEYS[kind][0]
+    value = abs(float(spec.rsplit(f"{key}=", 1)[1]))
+    in_si = {"compliance": value * DEG / 1000.0, "amplitude": value * DEG, "width": value * DEG, "beta": value * DEG,
+             "scale": value, "coefficient": value, "rate": value, "alpha": value * 1e-6}[key]  # fmt: skip
+    limit = {"compliance": LIMITS["compliance"], "amplitude": LIMITS["angle"], "width": LIMITS["angle"], "beta": LIMITS["angle"],
+             "scale": LIMITS["ratio"], "coefficient": LIMITS["ratio"], "rate": LIMITS["drift_mm_per_h"], "alpha": LIMITS["alpha"]}[key]  # fmt: skip
+    return in_si < 0.8 * limit
+
+
+def hidden_case(robot: str, measurement: str, kind: str) -> tuple[str, int | None, int]:
+    """A drawn case at TIMES_NOISE × the noise, redrawn (joint and seed) while that magnitude
+    would be physically implausible (e.g. backlash on a wrist joint with a short lever arm)."""
+    for attempt in range(10):
+        spec, joint, seed = draw_case(robot, measurement, kind, attempt)
+        full = scaled_spec(robot, measurement, spec, kind, seed)
+        if plausible(kind, full):
+            return full, joint, seed
+    raise AssertionError(f"no plausible {kind} at {TIMES_NOISE}x the noise on {robot} ({measurement})")
+
+
+@pytest.mark.parametrize("robot,measurement,kind", CASES, ids=["-".join(c) for c in CASES])
+def test_hidden_effect_is_named_first(robot, measurement, kind):
+    full, joint, seed = hidden_case(robot, measurement, kind)
+    data, _ = simulate(robot, measurement, samples=SAMPLES, seed=seed, effects=[full])
+    report = diagnose(data, hayati=kind != "axis_misalignment").to_dict()
+    found = [(e["kind"], e["joint"]) for e in report["effects"]]
+    assert found, f"{full}: nothing found; strongest rejected: {[(r['label'], r['reason']) for r in report['rejected'][:3]]}"
+    assert found[0] == (kind, joint), f"{full}: found {found}"
+    first = report["effects"][0]
+    assert first["rmse_heldout_after"] < first["rmse_heldout_before"]
+    assert first["significance"]["p_adjusted"] < 0.05
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_cable_scale_is_absorbed_by_the_link_lengths(robot):
+    """A cable scale error is not identifiable from cable data when every link length is
+    estimated: scaling all lengths and the anchor by (1 + ε) scales every cable length by
+    (1 + ε). Diagnose must find nothing, and the geometric fit must reach the noise floor."""
+    spec, _, seed = draw_case(robot, "cable", "cable_scale")
+    data, _ = simulate(robot, "cable", samples=SAMPLES, seed=seed, effects=[scaled_spec(robot, "cable", spec, "cable_scale", seed)])
+    report = diagnose(data).to_dict()
+    assert [e["kind"] for e in report["effects"] if e["kind"] != "outliers"] == []
+    assert report["baseline"]["rmse_heldout"] < 1.2 * DEFAULT_NOISE["cable"].sigma
+
+
+def test_false_positive_rate_on_clean_data():
+    """No cause on clean data: ≤ 5 % of 50 seeds (two robots, cable and position, 300 samples)."""
+    hits = []
+    for seed in range(50):
+        robot, measurement = ROBOTS[seed % 2], ("cable", "position")[(seed // 2) % 2]
+        data, _ = simulate(robot, measurement, samples=300, seed=500 + seed)
+        report = diagnose(data).to_dict()
+        if report["effects"]:
+            hits.append((seed, [(e["kind"], e["joint"]) for e in report["effects"]]))
+    assert len(hits) <= 2, f"false positives on {len(hits)} of 50 clean datasets: {hits}"
+
+
+def test_two_simultaneous_effects_are_both_found():
+    robot, measurement, seed = "abb-irb120", "position", 11
+    a = scaled_spec(robot, measurement, "backlash:joint=2", "backlash", seed)
+    b = scaled_spec(robot, measurement, "joint_periodic:joint=3,harmonic=2,phase=40", "joint_periodic", seed)
+    data, _ = simulate(robot, measurement, samples=SAMPLES, seed=seed, effects=[a, b])
+    found = {(e["kind"], e["joint"]) for e in diagnose(data).effects}
+    assert {("backlash", 2), ("joint_periodic", 3)} <= found, found
+
+
+def test_outlier_rows_are_named():
+    data, truth = simulate("hsr-jr680", "cable", samples=400, seed=5, outliers=0.02)
+    hidden = {s for e in truth["effects"] if e["kind"] == "outliers" for s in e["samples"]}
+    report = diagnose(data).to_dict()
+    assert report["effects"][0]["kind"] == "outliers"
+    named = set(report["effects"][0]["params"]["samples"])
+    assert named == hidden
+    assert report["effects"][0]["params"]["rows"] == [int(data.rows[i]) for i in sorted(hidden)]
+
+
+def test_physical_parameter_is_recovered_within_its_uncertainty():
+    data, _ = simulate("abb-irb120", "position", samples=SAMPLES, seed=3, effects=["joint_scale:joint=2,scale=3e-4"])
+    effect = diagnose(data).effects[0]
+    scale = effect["params"]["scale"]
+    assert effect["kind"] == "joint_scale" and effect["joint"] == 2
+    assert abs(scale["value"] - 3e-4) < 4 * scale["std"]
+
+
+def test_report_keys_and_cli(tmp_path, capsys):
+    from robocal.cli import main
+    from robocal.data import write_canonical
+
+    data, _ = simulate("abb-irb120", "position", samples=300, seed=2, effects=["backlash:joint=2,width=0.03"])
+    csv = write_canonical(data, tmp_path / "d.csv")
+    assert main(["diagnose", str(csv), "--robot", "abb-irb120", "--json", str(tmp_path / "r.json"), "--out", str(tmp_path / "rep")]) == 0
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert isinstance(report["baseline"]["rmse_heldout"], float) and isinstance(report["baseline"]["n_params"], int)
+    assert isinstance(report["final"]["rmse_heldout"], float)
+    effect = report["effects"][0]
+    assert {"kind", "joint", "params", "rmse_heldout_before", "rmse_heldout_after", "significance"} <= set(effect)
+    assert effect["kind"] == "backlash" and effect["joint"] == 2
+    assert isinstance(report["rejected"], list)
+    assert (tmp_path / "rep" / "report.json").exists() and (tmp_path / "rep" / "cause_1.png").exists()
+    assert "backlash joint 2" in capsys.readouterr().out
+    assert main(["diagnose", str(tmp_path / "missing.csv"), "--robot", "abb-irb120"]) == 2
+
+
+def test_bad_arguments_are_named():
+    data, _ = simulate("abb-irb120", "position", samples=60, seed=1)
+    with pytest.raises(InvalidParameterError, match="folds"):
+        diagnose(data, folds=1)
+    with pytest.raises(InvalidParameterError, match="groups"):
+        diagnose(data, groups=[0, 1])
+    with pytest.raises(InvalidParameterError, match="at least"):
+        diagnose(data.subset(np.arange(10)))
+
+
+def test_extended_model_residuals_match_its_jacobian():
+    """The cause columns are the derivatives of the extended residuals (finite differences)."""
+    from robocal.diagnose import ExtendedProblem, library
+
+    data, _ = simulate("hsr-jr680", "position", samples=40, seed=4)
+    robot = robocal.robot("hsr-jr680")
+    base = Problem.build(robot, data)
+    pool = library(robot, data, list(base.names) + list(base.fixed))
+    picks = [next(c for c in pool if c.kind == k) for k in ("joint_periodic", "backlash", "drift", "joint_compliance")]
+    ext = ExtendedProblem(base, picks, data, np.arange(len(data)))
+    x = ext.x0
+    J = ext.jacobian(x)
+    h = 1e-7
+    for col in range(len(ext.free), ext.n):
+        e = np.zeros(ext.n)
+        e[col] = h
+        fd = -(ext.residuals(x + e) - ext.residuals(x - e)) / (2 * h)
+        np.testing.assert_allclose(J[:, col], fd, rtol=1e-5, atol=1e-7 * np.max(np.abs(fd)))
