@@ -27,6 +27,11 @@ def summary(report: dict) -> str:
     b, f = report["baseline"], report["final"]
     lines = [f"{report['robot']}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
              f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"]  # fmt: skip
+    if b["implausible"]:
+        worst = sorted(b["implausible"], key=lambda f: -abs(f["deviation"]) / f["limit"])[:3]
+        shown = ", ".join(f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.4g} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in worst)
+        lines.append(f"  warning: the geometric fit moves {len(b['implausible'])} kinematic parameters beyond 10 mm / 2 deg from nominal "
+                     f"({shown}, ...): the geometry fits these data only with parameters no robot has")  # fmt: skip
     if not report["effects"]:
         lines.append("  no cause beyond the geometric model is significant: the residuals look like noise")
     for e in report["effects"]:
@@ -51,11 +56,21 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
     for i, (label, d) in enumerate(diagnosis.plots.items(), start=1):
         fig, ax = plt.subplots(figsize=(5.5, 4.5))
         sig, res = d["signature"], d["residual"]
-        ax.scatter(sig, res, s=6, alpha=0.5, label="samples")
-        lim = np.max(np.abs(np.concatenate([sig, res]))) * 1.05
-        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="residual = signature")
-        ax.set(xlabel="fitted signature of the cause (mm)", ylabel="residual of the model before it (mm)", title=label)
-        ax.legend(loc="upper left")
+        ax.scatter(sig, res, s=4, alpha=0.25, color="0.6", label="residual components")
+        # Binned means show the cause through the noise: on the diagonal if it explains them.
+        edges = np.unique(np.quantile(sig, np.linspace(0.0, 1.0, 16)))
+        which = np.clip(np.digitize(sig, edges[1:-1]), 0, len(edges) - 2)
+        bins = [b for b in range(len(edges) - 1) if np.sum(which == b) > 1]
+        centre = [sig[which == b].mean() for b in bins]
+        mean = [res[which == b].mean() for b in bins]
+        err = [res[which == b].std(ddof=1) / np.sqrt(np.sum(which == b)) for b in bins]
+        ax.errorbar(centre, mean, yerr=err, fmt="o", color="tab:red", ms=4, label="binned mean ± s.e.")
+        lo, hi = float(sig.min()), float(sig.max())
+        ax.plot([lo, hi], [lo, hi], "k--", lw=1, label="residual = signature")
+        spread = np.quantile(np.abs(res), 0.99)
+        ax.set_ylim(-1.1 * spread, 1.1 * spread)
+        ax.set(xlabel="fitted signature of the cause (mm)", ylabel="residual before the cause (mm)", title=label)
+        ax.legend(loc="upper left", fontsize=8)
         fig.tight_layout()
         path = out / f"cause_{i}.png"
         fig.savefig(path, dpi=120)

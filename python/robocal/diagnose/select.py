@@ -271,10 +271,17 @@ def diagnose(
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
             fit = _fit(trial, x0=_extended_start(x, ext, trial))
             physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
+            why = f"implausible: {why}" if why else _undetermined(trial.coefficients(fit.x, c) - _reference(c, rob), _std(trial, fit, c))
             if why is not None:
-                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"implausible: {why}"))
+                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, why))
                 continue
-            accepted = (c, fit, p_value, gains, physical, trial)
+            # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
+            new_cv = {name: _nonlinear_cv(trial, fit.x, f) for name, f in schemes.items()}
+            lost = [name for name in schemes if _rmse(new_cv[name], k) >= _rmse(current_cv[name], k)]
+            if lost:
+                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
+                continue
+            accepted = (c, fit, p_value, gains, physical, trial, new_cv)
             break
         if accepted is None:
             for gain, c, p_value, gains in scored[:5]:
@@ -283,15 +290,13 @@ def diagnose(
                            f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * _rmse(model_err["random"], k) else "no gain on every fold scheme")  # fmt: skip
                     rejected.append(_record(c, gain, gains, p_value, n_tests, None, why))
             break
-        c, fit, p_value, gains, physical, trial = accepted
+        c, fit, p_value, gains, physical, trial, new_cv = accepted
         # For the report's plot: the residual the cause was found in, against its fitted signature.
-        signature = trial.columns(fit.x, c) @ trial.coefficients(fit.x, c) if c.stage != "parameters" else \
-            trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - rob.params[[rob.index(n) for n in c.params]])
+        signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - _reference(c, rob))
         plots[c.label] = {"residual": r, "signature": signature, "k": k}
         causes.append(c)
         pool = [o for o in pool if o is not c]
         x = fit.x
-        new_cv = {name: _nonlinear_cv(trial, x, f) for name, f in schemes.items()}
         effects.append({
             "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
             "rmse_heldout_before": _rmse(current_cv["random"], k), "rmse_heldout_after": _rmse(new_cv["random"], k),
@@ -320,7 +325,10 @@ def diagnose(
         robot=rob, data=dataset,
         baseline={"rmse_heldout": _rmse(baseline_cv["random"], k), "rmse_heldout_blocked": _rmse(baseline_cv["blocked"], k),
                   "rmse_train": base_fit.metrics["train"]["rmse"] if k == 1 else float(np.sqrt(2.0 * base_fit.cost / (len(keep) * k))),
-                  "n_params": int(len(base.free)), "hayati": hayati, "folds": folds},
+                  "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
+                  # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
+                  # geometry fits the data only with parameters no robot has.
+                  "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
         final={"rmse_heldout": _rmse(current_cv["random"], k), "rmse_heldout_blocked": _rmse(current_cv["blocked"], k), "n_params": int(model.n)},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
@@ -352,6 +360,23 @@ def _extended_start(x: np.ndarray, ext: ExtendedProblem, trial: ExtendedProblem)
     new_params = trial.x0[f : len(trial.free)]
     new_coefs = np.zeros(trial.n - len(trial.free) - (ext.n - f))
     return np.concatenate([x[:f], new_params, x[f:], new_coefs])
+
+
+def _reference(cause: Candidate, robot: Robot) -> np.ndarray:
+    """What a cause's coefficients are measured from: zero, or nominal for parameters."""
+    if cause.stage == "parameters":
+        return robot.params[[robot.index(n) for n in cause.params]]
+    return np.zeros(cause.size)
+
+
+def _undetermined(values: np.ndarray, std: Optional[np.ndarray]) -> Optional[str]:
+    """A reason if the fitted values are not distinguishable from zero (|value| < 2 std): the
+    data then cannot say how large the cause is, whatever the fit gained."""
+    if std is None:
+        return "undetermined: singular covariance"
+    if np.all(np.abs(values) < 2.0 * std):
+        return f"undetermined: {values[0]:.3g} ± {std[0]:.2g} (less than 2 standard deviations)"
+    return None
 
 
 def _std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional[np.ndarray]:
