@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 from typing import Callable, Optional, Union
 
@@ -19,7 +18,7 @@ from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
 from .metrics import metrics
 from .problem import Problem
-from .result import CalibrationResult
+from .result import CalibrationResult, describe_implausible
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
 METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
@@ -179,11 +178,8 @@ def run(args: argparse.Namespace) -> int:
     if test:
         print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
     print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
-    for flag in doc["implausible"]:
-        shown = flag["deviation"] if flag["unit"] == "mm" else math.degrees(flag["deviation"])
-        unit = "mm" if flag["unit"] == "mm" else "deg"
-        print(f"  warning: {flag['name']} moved {shown:+.3g} {unit} from nominal: implausible for a calibration "
-              f"(the data do not determine it; try --kinematic-prior or more varied poses)")  # fmt: skip
+    if doc["implausible"]:
+        print("  warning: " + describe_implausible(doc["implausible"]))
     if args.out:
         print(f"  result written to {args.out}")
     return 0

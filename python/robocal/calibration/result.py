@@ -13,6 +13,15 @@ from .metrics import metrics
 from .problem import PLAUSIBLE, Problem, is_kinematic
 
 
+def describe_implausible(flags: list[dict], shown: int = 3) -> str:
+    """One line on :meth:`CalibrationResult.implausible` flags: how many, and the worst ones."""
+    worst = sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"])[:shown]
+    parts = [f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.4g} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in worst]
+    more = ", ..." if len(flags) > shown else ""
+    return (f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): "
+            "the data do not determine them; a kinematic prior or more varied poses are needed")  # fmt: skip
+
+
 @dataclass
 class CalibrationResult:
     """What a calibration found.

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration.result import describe_implausible
 from .select import Diagnosis, diagnose
 
 
@@ -28,10 +29,7 @@ def summary(report: dict) -> str:
     lines = [f"{report['robot']}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
              f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"]  # fmt: skip
     if b["implausible"]:
-        worst = sorted(b["implausible"], key=lambda f: -abs(f["deviation"]) / f["limit"])[:3]
-        shown = ", ".join(f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.4g} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in worst)
-        lines.append(f"  warning: the geometric fit moves {len(b['implausible'])} kinematic parameters beyond 10 mm / 2 deg from nominal "
-                     f"({shown}, ...): the geometry fits these data only with parameters no robot has")  # fmt: skip
+        lines.append("  warning: geometric baseline: " + describe_implausible(b["implausible"]))
     if not report["effects"]:
         lines.append("  no cause beyond the geometric model is significant: the residuals look like noise")
     for e in report["effects"]:

@@ -316,7 +316,7 @@ def diagnose(
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
         before = _nonlinear_cv(everyone, _fit(everyone).x, kfold(len(dataset), folds, seed))
         effects.insert(0, {
-            "kind": "outliers", "joint": None,
+            "kind": "outliers", "joint": None, "label": "outliers",
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound},
             "rmse_heldout_before": _rmse(before, k), "rmse_heldout_after": _rmse(baseline_cv["random"], k),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
