@@ -216,3 +216,28 @@ def test_extended_model_residuals_match_its_jacobian():
         e[col] = h
         fd = -(ext.residuals(x + e) - ext.residuals(x - e)) / (2 * h)
         np.testing.assert_allclose(J[:, col], fd, rtol=1e-5, atol=1e-7 * np.max(np.abs(fd)))
+
+
+def test_calibrate_fits_the_extended_model_from_a_diagnose_report(tmp_path):
+    """The diagnosed model is a first-class model: calibrate fits it (API and CLI) and its
+    result JSON carries the causes; held out it beats the geometric calibration."""
+    from robocal.cli import main
+    from robocal.data import write_canonical
+
+    data, _ = simulate("abb-irb120", "position", samples=500, seed=3, effects=["joint_periodic:joint=3,amplitude=0.02,harmonic=2"])
+    report = diagnose(data).to_dict()
+    assert report["model"]["causes"] == ["joint_periodic joint 3 harmonic=2"]
+    geometric = robocal.calibrate(data).to_dict()
+    extended = robocal.calibrate(data, causes=report).to_dict()
+    assert extended["metrics"]["test"]["rmse"] < 0.7 * geometric["metrics"]["test"]["rmse"]
+    (cause,) = extended["causes"]
+    assert cause["kind"] == "joint_periodic" and abs(cause["params"]["amplitude"]["value"] - 0.02) < 4 * cause["params"]["amplitude"]["std"]
+
+    csv = write_canonical(data, tmp_path / "d.csv")
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    assert main(["calibrate", str(csv), "--robot", "abb-irb120", "--causes", str(tmp_path / "report.json"), "--out", str(tmp_path / "r.json")]) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["causes"][0]["label"] == "joint_periodic joint 3 harmonic=2"
+    with pytest.raises(InvalidParameterError, match="unknown causes"):
+        robocal.calibrate(data, causes=["joint_periodic joint 9 harmonic=1"])
+    with pytest.raises(InvalidParameterError, match="'lm' only"):
+        robocal.calibrate(data, method="ukf", causes=report)

@@ -81,6 +81,7 @@ def calibrate(
     prior=None,
     bounds=None,
     kinematic_prior=None,
+    causes=None,
     **options,
 ) -> CalibrationResult:
     """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
@@ -111,6 +112,11 @@ def calibrate(
     kinematic_prior : (float, float), optional
         ``(mm, deg)`` Gaussian prior at nominal on every estimated kinematic parameter (see
         :meth:`Problem.build`).
+    causes : list of str, dict or path, optional
+        An extended model: cause labels as ``robocal diagnose`` reports them (e.g.
+        ``"joint_periodic joint 2 harmonic=3"``), or a diagnose report (dict or JSON file) whose
+        causes are taken. Fitted with the geometric parameters by ``method="lm"``; the result
+        JSON then has ``causes`` with their physical parameters.
     **options
         Passed to the method.
 
@@ -125,16 +131,49 @@ def calibrate(
     if not 0.0 <= test_fraction < 1.0:
         raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
     dataset, r = load_inputs(data, robot, measurement)
+    train_idx, test_idx = None, None
     if test_fraction > 0:
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
     else:
         train, test = dataset, None
     problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
-    result = METHODS[method][2](problem, **options)
+    if causes is None:
+        result = METHODS[method][2](problem, **options)
+        if test is not None:
+            result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
+        return result
+    if method != "lm":
+        raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
+    model = extended_problem(problem, dataset, train_idx if test is not None else np.arange(len(dataset)), causes)
+    result = levenberg_marquardt(model, **options)
     if test is not None:
-        result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
+        result.metrics["test"] = metrics(model.with_samples(test_idx).residuals(result.x), test.measurement)
     return result
+
+
+def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes):
+    """``problem`` extended by ``causes`` (labels, or a diagnose report as dict or path) on the
+    samples ``idx`` of ``dataset`` (bases such as backlash and drift need the whole sequence)."""
+    from ..diagnose import ExtendedProblem, library  # the diagnose package imports this module
+
+    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
+        try:
+            causes = json.loads(Path(causes).read_text())
+        except (OSError, ValueError) as exc:
+            raise InvalidParameterError(f"cannot read the diagnose report {causes}: {exc}") from None
+    if isinstance(causes, dict):
+        try:
+            causes = causes["model"]["causes"]
+        except (KeyError, TypeError):
+            raise InvalidParameterError("a diagnose report needs model.causes (the JSON of `robocal diagnose --json`)") from None
+    if isinstance(causes, str):
+        causes = [causes]
+    pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
+    unknown = [c for c in causes if c not in pool]
+    if unknown:
+        raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")
+    return ExtendedProblem(problem, [pool[c] for c in causes], dataset, idx)
 
 
 def _mm_deg(text: str) -> tuple[float, float]:
@@ -158,13 +197,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
     add_kinematic_prior_argument(parser)
+    parser.add_argument("--causes", nargs="+", metavar="CAUSE",
+                        help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them")  # fmt: skip
     parser.add_argument("--out", help="write the result JSON here")
     parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
 
 
 def run(args: argparse.Namespace) -> int:
     result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
-                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior)  # fmt: skip
+                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior,
+                       causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None)  # fmt: skip
     doc = result.to_dict()
     if args.out:
         Path(args.out).write_text(json.dumps(doc, indent=2))
@@ -178,6 +220,10 @@ def run(args: argparse.Namespace) -> int:
     if test:
         print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
     print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
+    for cause in doc.get("causes", []):
+        shown = ", ".join(f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"
+                          for k, v in cause["params"].items() if v["value"] == v["value"])  # fmt: skip
+        print(f"  cause {cause['label']}: {shown}")
     if doc["implausible"]:
         print("  warning: " + describe_implausible(doc["implausible"]))
     if args.out:

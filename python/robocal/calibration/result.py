@@ -93,8 +93,8 @@ class CalibrationResult:
     def to_dict(self) -> dict:
         """The result JSON: ``method``, ``robot``, ``measurement``, ``parameters``, ``free``,
         ``fixed`` (name -> reason), ``implausible`` (see :meth:`implausible`), ``metrics``,
-        ``convergence``."""
-        return {
+        ``convergence``, and ``causes`` for an extended model."""
+        return self._with_causes({
             "method": self.method,
             "robot": self.problem.robot.name,
             "measurement": self.problem.data.measurement,
@@ -112,7 +112,13 @@ class CalibrationResult:
                 "history": [float(c) for c in self.history],
                 "time_s": float(self.time_s),
             },
-        }
+        })
+
+    def _with_causes(self, doc: dict) -> dict:
+        """An extended model (:class:`robocal.diagnose.ExtendedProblem`) adds its causes."""
+        if hasattr(self.problem, "describe_causes"):
+            doc["causes"] = self.problem.describe_causes(self.x, self.std)
+        return doc
 
     @classmethod
     def from_fit(cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float) -> "CalibrationResult":

@@ -58,6 +58,25 @@ class ExtendedProblem:
             return np.array([x[list(self.free).index(self.robot.index(n))] for n in cause.params])
         return np.asarray(x[self.slices[i]])
 
+    @property
+    def names(self) -> list[str]:
+        """Names of the entries of ``x``: parameters, then ``"<cause label> c<i>"``."""
+        coefs = [f"{c.label} c{i}" for c in self.causes if c.stage != "parameters" for i in range(c.size)]
+        return [self.robot.param_names[k] for k in self.free] + coefs
+
+    @property
+    def fixed(self) -> dict:
+        return self.base.fixed
+
+    def describe_causes(self, x: np.ndarray, std=None) -> list[dict]:
+        """Each cause with its physical parameters (± std where ``std`` is given) and, if they
+        are implausible, why."""
+        out = []
+        for c in self.causes:
+            physical, why = c.physical(self.coefficients(x, c), None if std is None else self.coefficients(std, c), self.robot, self.robot.params)
+            out.append({"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical, "implausible": why})
+        return out
+
     def clip(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(x, dtype=np.float64)
 
