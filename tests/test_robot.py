@@ -98,19 +98,23 @@ def test_unknown_robot_names_the_choices():
         robocal.robot("kuka-kr16")
 
 
-def test_demo_runs_end_to_end(capsys):
+def test_demo_runs_end_to_end(capsys, tmp_path):
+    """The README's main job: simulate with a hidden backlash, calibrate with UKF-VSLM,
+    diagnose, write the report folder."""
     from robocal.cli import main
 
-    assert main(["demo", "--samples", "200", "--seed", "4"]) == 0
+    assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "identified" in out and "rank" in out
-    identified = float(out.split("identified ")[1].split(" mm")[0])
-    assert identified < 0.03  # the simulated noise is 0.02 mm
+    nominal, calibrated = (float(v) for v in out.split("held-out cable RMSE ")[1].split(" mm (calibrated)")[0].replace(" mm (nominal) ->", "").split())
+    assert calibrated < 0.2 * nominal
+    assert "found backlash joint 2" in out
+    for name in ("data.csv", "truth.json", "result.json", "diagnosis.json", "cause_1.png"):
+        assert (tmp_path / name).stat().st_size > 0
 
 
 def test_cli_bad_use_is_one_line_and_exit_code_2(capsys):
     from robocal.cli import main
 
-    assert main(["demo", "--samples", "3"]) == 2
+    assert main(["calibrate", "no-such-file.csv", "--robot", "hsr-jr680"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("robocal: error:") and "at least 5 samples" in err[0]
+    assert len(err) == 1 and err[0].startswith("robocal: error:") and "no-such-file.csv" in err[0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from . import __version__
@@ -18,6 +19,8 @@ COMMANDS = {
     "simulate": ("robocal.simulate", "simulate measurements of a robot with known truth and injectable effects"),
     "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures"),
     "diagnose": ("robocal.diagnose.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain"),
+    "compensate": ("robocal.compensate", "joint commands that make the calibrated robot reach desired tool positions"),
+    "export": ("robocal.export", "write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip"),
 }
 
 
@@ -32,6 +35,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return importlib.import_module(COMMANDS[args.command][0]).run(args)
+    except BrokenPipeError:
+        # The reader went away (`robocal ... | head`): stop quietly, as Unix tools do.
+        sys.stdout = open(os.devnull, "w")
+        return 0
     except RobocalError as exc:
         if args.debug:
             raise

@@ -142,6 +142,7 @@ def calibrate(
         result = METHODS[method][2](problem, **options)
         if test is not None:
             result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
+            result.held_out = test
         return result
     if method != "lm":
         raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
@@ -149,6 +150,7 @@ def calibrate(
     result = levenberg_marquardt(model, **options)
     if test is not None:
         result.metrics["test"] = metrics(model.with_samples(test_idx).residuals(result.x), test.measurement)
+        result.held_out = test
     return result
 
 

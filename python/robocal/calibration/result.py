@@ -10,6 +10,8 @@ import numpy as np
 
 from ..core import covariance
 from .metrics import metrics
+from ..data.dataset import Dataset
+from ..results import result_document
 from .problem import PLAUSIBLE, Problem, is_kinematic
 
 
@@ -48,6 +50,8 @@ class CalibrationResult:
         Wall time of the fit.
     metrics : dict
         ``{"train": {...}, "test": {...} or None}`` per eq. (28).
+    held_out : Dataset, optional
+        The held-out samples the test metrics were computed on (for the provenance).
     """
 
     method: str
@@ -62,6 +66,7 @@ class CalibrationResult:
     message: str
     time_s: float
     metrics: dict = field(default_factory=dict)
+    held_out: Optional[Dataset] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -91,9 +96,13 @@ class CalibrationResult:
         return flagged
 
     def to_dict(self) -> dict:
-        """The result JSON: ``method``, ``robot``, ``measurement``, ``parameters``, ``free``,
-        ``fixed`` (name -> reason), ``implausible`` (see :meth:`implausible`), ``metrics``,
-        ``convergence``, and ``causes`` for an extended model."""
+        """The result file (:mod:`robocal.results`, schema ``robocal.result/1``): ``method``,
+        ``robot``, ``measurement``, ``parameters``, ``free``, ``fixed`` (name -> reason),
+        ``implausible`` (see :meth:`implausible`), ``metrics``, ``convergence``, ``causes`` for
+        an extended model, the robot's definition and the dataset's provenance."""
+        return result_document(self._core(), self.problem.robot, self.problem.data, self.held_out)
+
+    def _core(self) -> dict:
         return self._with_causes({
             "method": self.method,
             "robot": self.problem.robot.name,

@@ -1,0 +1,593 @@
+"""Export a calibrated robot: a DH / MDH parameter table (CSV or JSON) or a URDF for ROS.
+
+``robocal export RESULT --format {dh,mdh,urdf} [--table-format {csv,json}] --out FILE`` reads a
+calibration result file (schema ``robocal.result/1``, see :mod:`robocal.results`), writes the
+calibrated kinematics in the asked form and then *checks* what it wrote: it reads the file back,
+rebuilds the tool-frame kinematics from it alone and compares them with the calibrated model on
+random joint vectors within the joint limits (:func:`roundtrip_check`). The command fails (exit
+code 1) when the round trip is off by more than :data:`POSITION_TOL` (mm) or
+:data:`ROTATION_TOL` (rad) — an export that does not reproduce the calibration is not written
+off as done.
+
+Parameter table (``--format dh`` or ``mdh``)
+--------------------------------------------
+One row per joint, then one row ``base`` and one row ``tool``; the columns (:data:`TABLE_COLUMNS`):
+
+``frame``
+    ``joint1`` … ``jointN``, ``base``, ``tool``.
+``kind``, ``convention``, ``hayati``
+    Joint rows only: ``revolute``/``prismatic``, ``dh``/``mdh``, ``true``/``false`` (the joint
+    is flagged for Hayati's ``beta``).
+``alpha_deg, a_mm, d_mm, theta_deg, beta_deg``
+    Joint rows only. ``theta_deg`` is the joint's zero offset (the joint variable adds to it;
+    to ``d_mm`` on a prismatic joint). ``beta_deg`` is Hayati's rotation about y; it is 0
+    unless the calibration estimated it.
+``lower, upper``
+    Joint rows only: the joint range, deg (mm for a prismatic joint).
+``x_mm, y_mm, z_mm, rx_deg, ry_deg, rz_deg``
+    ``base`` and ``tool`` rows only, in robocal's frame convention
+    ``Tx(x)·Ty(y)·Tz(z)·Rz(rz)·Ry(ry)·Rx(rx)``: a translation, then roll ``rx``, pitch ``ry``,
+    yaw ``rz`` about the *fixed* axes — the same convention as URDF's ``rpy``. ``base`` places
+    the chain in the measurement (world) frame, ``tool`` the tool frame on the flange.
+
+Standard DH is ``Rz(theta+q)·Tz(d)·Tx(a)·Rx(alpha)·Ry(beta)`` per joint, modified DH (Craig)
+``Rx(alpha)·Tx(a)·Ry(beta)·Rz(theta+q)·Tz(d)``; the tool pose is
+``Base · Link_1(q_1) ⋯ Link_N(q_N) · Tool``. ``--format mdh`` converts with
+:meth:`robocal.Robot.to_mdh`, which is exact for the tool frame (the last DH link's
+``Tx(a_N)·Rx(alpha_N)·Ry(beta_N)`` moves into ``tool``, so the MDH *flange* frame differs).
+Cells that do not apply are empty in CSV and ``null`` in JSON. Numbers are written with
+Python's shortest round-trip representation (``repr``), so nothing is lost to formatting.
+
+Load the CSV with pandas::
+
+    df = pd.read_csv("robot_dh.csv", index_col="frame")
+    joints = df.loc[df.index.str.startswith("joint"), ["alpha_deg", "a_mm", "d_mm", "theta_deg", "beta_deg"]]
+    base = df.loc["base", ["x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg"]]
+
+The JSON form is ``{"schema": "robocal.export.table/1", "robot": ..., "convention": ...,
+"units": {...}, "frame_convention": ..., "rows": [...]}`` with the same rows
+(``pd.DataFrame(doc["rows"])``). :func:`read_table` and :func:`robot_from_table` read either
+back into a :class:`robocal.Robot`.
+
+URDF (``--format urdf``)
+------------------------
+Links ``[world,] base_link, link1 … linkN, flange, tool0``; joints ``joint1 … jointN``
+(``revolute``, or ``prismatic`` on a prismatic joint) about / along their local z axis, whose
+``<origin xyz rpy>`` is the constant transform from the previous joint's moving frame to this
+joint's axis frame: everything of the chain between the two joint variables, including this
+joint's ``theta`` (``d`` when prismatic) offset, because URDF has no joint offset. So URDF
+joint position = robocal joint value = the controller's reading, and the calibrated zero
+offsets live in the origins. For standard DH, ``origin_j = Tz(d_{j-1})·Tx(a_{j-1})·
+Rx(alpha_{j-1})·Ry(beta_{j-1})·Rz(theta_j)`` (``Base·Rz(theta_1)`` for joint 1 when there is
+no ``world`` link). Fixed joints: ``world → base_link`` carries the base frame (only when it is
+not the identity), ``link_N → flange`` the rest of the last link, ``flange → tool0`` the tool
+frame. URDF units are metres and radians (robocal's are mm): positions are divided by 1000 and
+written with ``repr``; ``rpy`` is the fixed-axis roll-pitch-yaw (``R = Rz(yaw)·Ry(pitch)·
+Rx(roll)``). Links carry no inertia or geometry, and a joint's ``effort`` and ``velocity``
+limits are not known from a calibration: they are written as 0 (override them, e.g. in
+MoveIt's ``joint_limits.yaml``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from .exceptions import InvalidParameterError
+from .robot import Joint, Robot
+
+FORMATS = ("dh", "mdh", "urdf")
+TABLE_FORMATS = ("csv", "json")
+TABLE_SCHEMA = "robocal.export.table/1"
+
+JOINT_COLUMNS = ("alpha_deg", "a_mm", "d_mm", "theta_deg", "beta_deg")
+FRAME_COLUMNS = ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
+#: Columns of the parameter table, in file order.
+TABLE_COLUMNS = ("frame", "kind", "convention", "hayati") + JOINT_COLUMNS + ("lower", "upper") + FRAME_COLUMNS
+
+#: Largest tool-position difference (mm) the round trip of an export may show.
+POSITION_TOL = 1e-6
+#: Largest tool-rotation difference (rad) the round trip of an export may show.
+ROTATION_TOL = 1e-9
+
+_ANGLE_JOINT = {"alpha_deg", "theta_deg", "beta_deg"}
+
+
+# ---------------------------------------------------------------------------------------------
+# Parameter table
+# ---------------------------------------------------------------------------------------------
+def _frame_slice(robot: Robot, prefix: str) -> slice:
+    start = robot.index(f"{prefix}_x")
+    return slice(start, start + 6)
+
+
+def _table_robot(robot: Robot, convention: str) -> Robot:
+    """``robot`` in ``convention`` (``dh`` or ``mdh``), converting DH → MDH when asked."""
+    if convention not in ("dh", "mdh"):
+        raise InvalidParameterError(f"`convention` must be 'dh' or 'mdh'; got {convention!r}")
+    have = {j.convention for j in robot.joints}
+    if have == {convention}:
+        return robot
+    if convention == "mdh" and have == {"dh"}:
+        return robot.to_mdh()
+    raise InvalidParameterError(
+        f"cannot export robot {robot.name!r} (joint conventions {sorted(have)}) as {convention!r}: "
+        f"robocal converts standard DH to modified DH only; export it as 'urdf' or in its own convention"
+    )
+
+
+def export_table(robot: Robot, convention: str = "dh") -> list[dict]:
+    """The robot's kinematic parameter table, one dict per row (see the module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+        Typically the calibrated robot of :func:`robocal.results.load_result`.
+    convention : {"dh", "mdh"}
+        ``mdh`` converts a standard-DH robot with :meth:`Robot.to_mdh` (exact for the tool frame).
+
+    Returns
+    -------
+    list of dict
+        ``N`` joint rows, then ``base`` and ``tool``; keys :data:`TABLE_COLUMNS`, ``None`` where
+        a column does not apply. Angles in degrees, lengths in mm.
+
+    Raises
+    ------
+    InvalidParameterError
+        Unknown ``convention``, or a conversion robocal does not do (MDH → DH).
+    """
+    r = _table_robot(robot, convention)
+    empty = dict.fromkeys(TABLE_COLUMNS)
+    rows = []
+    for j, joint in enumerate(r.joints, start=1):
+        values = r.params[5 * (j - 1) : 5 * j]  # alpha, a, d, theta, beta
+        row = dict(empty, frame=f"joint{j}", kind=joint.kind, convention=joint.convention, hayati=bool(joint.hayati))
+        for col, v in zip(JOINT_COLUMNS, values):
+            row[col] = math.degrees(v) if col in _ANGLE_JOINT else float(v)
+        to_unit = math.degrees if joint.kind == "revolute" else float
+        row["lower"], row["upper"] = (to_unit(float(v)) for v in joint.limits)
+        rows.append(row)
+    for prefix in ("base", "tool"):
+        values = r.params[_frame_slice(r, prefix)]
+        row = dict(empty, frame=prefix)
+        for k, (col, v) in enumerate(zip(FRAME_COLUMNS, values)):
+            row[col] = math.degrees(v) if k >= 3 else float(v)
+        rows.append(row)
+    return rows
+
+
+def _table_format(path: Path, table_format: Optional[str]) -> str:
+    if table_format is None:
+        return "json" if path.suffix.lower() == ".json" else "csv"
+    if table_format not in TABLE_FORMATS:
+        raise InvalidParameterError(f"`table_format` must be one of {TABLE_FORMATS}; got {table_format!r}")
+    return table_format
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:
+    """Writes the rows of :func:`export_table` as CSV or JSON.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+    path : str or Path
+    table_format : {"csv", "json"}, optional
+        By default from the suffix of ``path`` (``.json`` → JSON, anything else CSV).
+    name : str, optional
+        The robot's name, recorded in the JSON form.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    fmt = _table_format(path, table_format)
+    if fmt == "csv":
+        with path.open("w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(TABLE_COLUMNS)
+            for row in rows:
+                writer.writerow([_cell(row.get(c)) for c in TABLE_COLUMNS])
+    else:
+        conventions = sorted({r["convention"] for r in rows if r.get("convention")})
+        doc = {
+            "schema": TABLE_SCHEMA,
+            "robot": name,
+            "convention": conventions[0] if len(conventions) == 1 else conventions,
+            "units": {"length": "mm", "angle": "deg", "limits": "deg (revolute), mm (prismatic)"},
+            "frame_convention": "Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)",
+            "rows": [{c: row.get(c) for c in TABLE_COLUMNS} for row in rows],
+        }
+        path.write_text(json.dumps(doc, indent=2))
+    return path
+
+
+def read_table(path) -> list[dict]:
+    """Rows of a table written by :func:`write_table` (CSV or JSON, told apart by content).
+
+    Numbers come back as float, ``hayati`` as bool, empty cells as ``None``.
+    """
+    path = Path(path)
+    text = path.read_text()
+    if text.lstrip().startswith("{"):
+        doc = json.loads(text)
+        if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:
+            raise InvalidParameterError(f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r})")
+        return [dict(r) for r in doc["rows"]]
+    rows = []
+    for i, raw in enumerate(csv.DictReader(text.splitlines()), start=2):
+        row = {}
+        for col in TABLE_COLUMNS:
+            cell = (raw.get(col) or "").strip()
+            if cell == "":
+                row[col] = None
+            elif col in ("frame", "kind", "convention"):
+                row[col] = cell
+            elif col == "hayati":
+                row[col] = cell.lower() in ("true", "1", "yes")
+            else:
+                try:
+                    row[col] = float(cell)
+                except ValueError:
+                    raise InvalidParameterError(f"{path}, row {i}, column {col!r}: not a number: {cell!r}") from None
+        rows.append(row)
+    return rows
+
+
+def robot_from_table(rows: Sequence[dict], name: str = "exported") -> Robot:
+    """A :class:`Robot` rebuilt from table rows alone (sensor parameters at their neutral values:
+    anchor 0, ``cable_offset`` 0, ``cable_scale`` 1).
+
+    Raises
+    ------
+    InvalidParameterError
+        A row lacks a value it needs, or the base / tool row is missing.
+    """
+    joint_rows = [r for r in rows if str(r.get("frame", "")).startswith("joint")]
+    frames = {r.get("frame"): r for r in rows if r.get("frame") in ("base", "tool")}
+    if not joint_rows or set(frames) != {"base", "tool"}:
+        raise InvalidParameterError("a parameter table needs joint rows and one 'base' and one 'tool' row")
+
+    def need(row, col):
+        value = row.get(col)
+        if value is None:
+            raise InvalidParameterError(f"table row {row.get('frame')!r} lacks {col!r}")
+        return float(value)
+
+    joints, values = [], []
+    for row in joint_rows:
+        kind = row.get("kind") or "revolute"
+        to_internal = math.radians if kind == "revolute" else float
+        limits = (to_internal(need(row, "lower")), to_internal(need(row, "upper")))
+        joints.append(Joint(row.get("convention") or "dh", kind, bool(row.get("hayati")), limits))
+        values += [math.radians(need(row, c)) if c in _ANGLE_JOINT else need(row, c) for c in JOINT_COLUMNS]
+    for prefix in ("base", "tool"):
+        values += [math.radians(need(frames[prefix], c)) if k >= 3 else need(frames[prefix], c) for k, c in enumerate(FRAME_COLUMNS)]
+    values += [0.0, 0.0, 0.0, 0.0, 1.0]  # anchor, cable_offset, cable_scale
+    return Robot(name, joints, np.array(values))
+
+
+# ---------------------------------------------------------------------------------------------
+# URDF
+# ---------------------------------------------------------------------------------------------
+def _elementary(rotation_op: bool, axis: int, value: float) -> np.ndarray:
+    from .reference import rotation
+
+    T = np.eye(4)
+    if rotation_op:
+        T[:3, :3] = rotation(axis, value)
+    else:
+        T[axis, 3] = value
+    return T
+
+
+def urdf_segments(robot: Robot) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
+    """The chain regrouped around the joint variables, in mm and rad.
+
+    ``Base · Link_1(q_1) ⋯ Link_N(q_N) · Tool = base · Π_j (origins[j] · Z_j(q_j)) · flange · tool``
+    exactly, where ``Z_j`` is ``Rz(q_j)`` (``Tz(q_j)`` for a prismatic joint) and each origin
+    holds everything of the chain between two joint variables, joint ``j``'s own offset
+    (``Rz(theta_j)`` or ``Tz(d_j)``) last — ``Rz(theta+q) = Rz(theta)·Rz(q)``.
+
+    Returns
+    -------
+    base : ndarray, shape (4, 4)
+    origins : list of ndarray, shape (4, 4), one per joint
+    flange : ndarray, shape (4, 4)
+        What follows the last joint variable up to the flange.
+    tool : ndarray, shape (4, 4)
+    """
+    from .reference import chain_ops, frame_transform
+
+    ops, flange_end = chain_ops([j.convention for j in robot.joints], [j.kind for j in robot.joints])
+    p = robot.params
+    base = frame_transform(p[_frame_slice(robot, "base")])
+    tool = frame_transform(p[_frame_slice(robot, "tool")])
+    origins, pending = [], np.eye(4)
+    for op in ops[6:flange_end]:  # the base's six ops come first
+        pending = pending @ _elementary(op.rotation, op.axis, float(p[op.param]))
+        if op.joint is not None:
+            if op.axis != 2:  # every joint variable acts about / along local z in chain_ops
+                raise InvalidParameterError(f"joint {op.joint + 1}: its variable does not act along z; URDF export needs it to")
+            origins.append(pending)
+            pending = np.eye(4)
+    return base, origins, pending, tool
+
+
+def _rpy(R: np.ndarray) -> np.ndarray:
+    """Fixed-axis roll, pitch, yaw with ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``."""
+    from scipy.spatial.transform import Rotation
+
+    with warnings.catch_warnings():  # gimbal lock: scipy sets roll 0, still exact
+        warnings.simplefilter("ignore", UserWarning)
+        return Rotation.from_matrix(R).as_euler("xyz")
+
+
+def _origin(parent: ET.Element, T: Optional[np.ndarray] = None, xyz_mm=None, rpy=None) -> None:
+    xyz_mm = T[:3, 3] if xyz_mm is None else xyz_mm
+    rpy = _rpy(T[:3, :3]) if rpy is None else rpy
+    ET.SubElement(parent, "origin", xyz=" ".join(repr(float(v) / 1000.0) for v in xyz_mm), rpy=" ".join(repr(float(v)) for v in rpy))
+
+
+def _fixed_joint(root: ET.Element, name: str, parent: str, child: str, **origin) -> None:
+    joint = ET.SubElement(root, "joint", name=name, type="fixed")
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+    _origin(joint, **origin)
+
+
+def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, velocity: float = 0.0) -> str:
+    """A URDF of the robot whose chain ``base_link → tool0`` reproduces its tool frame exactly.
+
+    See the module docstring for the layout. Revolute joints become ``revolute`` URDF joints
+    about z, prismatic joints ``prismatic`` joints along z (limits in metres).
+
+    Parameters
+    ----------
+    robot : Robot
+        DH, MDH or mixed; the calibrated robot of :func:`robocal.results.load_result`.
+    name : str, optional
+        The URDF robot name (default ``robot.name``).
+    effort, velocity : float
+        The ``<limit>`` attributes URDF requires; a calibration does not know them.
+
+    Returns
+    -------
+    str
+        The URDF document (XML, UTF-8 declaration).
+    """
+    base, origins, flange, tool = urdf_segments(robot)
+    p = robot.params
+    root = ET.Element("robot", name=name or robot.name)
+    root.append(ET.Comment(
+        " written by robocal export: calibrated kinematics. Lengths in m, angles in rad. Joint zero offsets are folded "
+        "into the joint origins (joint position = robocal joint value). Links carry no inertia or geometry; effort and "
+        "velocity limits are not known from a calibration. "
+    ))  # fmt: skip
+    base_values = p[_frame_slice(robot, "base")]
+    links = (["world"] if np.any(base_values != 0.0) else []) + ["base_link"] + [f"link{j}" for j in range(1, robot.n_joints + 1)] + ["flange", "tool0"]
+    for link in links:
+        ET.SubElement(root, "link", name=link)
+    if links[0] == "world":
+        # robocal's base frame Tx Ty Tz Rz Ry Rx is URDF's xyz + rpy as it stands.
+        _fixed_joint(root, "world-base_link", "world", "base_link", xyz_mm=base_values[:3], rpy=base_values[3:])
+    parent = "base_link"
+    for j, (joint, origin) in enumerate(zip(robot.joints, origins), start=1):
+        el = ET.SubElement(root, "joint", name=f"joint{j}", type=joint.kind)
+        ET.SubElement(el, "parent", link=parent)
+        ET.SubElement(el, "child", link=f"link{j}")
+        _origin(el, origin)
+        ET.SubElement(el, "axis", xyz="0 0 1")
+        scale = 1.0 if joint.kind == "revolute" else 1e-3
+        lower, upper = (float(v) * scale for v in joint.limits)
+        ET.SubElement(el, "limit", lower=repr(lower), upper=repr(upper), effort=repr(float(effort)), velocity=repr(float(velocity)))
+        parent = f"link{j}"
+    _fixed_joint(root, f"link{robot.n_joints}-flange", parent, "flange", T=flange)
+    tool_values = p[_frame_slice(robot, "tool")]
+    _fixed_joint(root, "flange-tool0", "flange", "tool0", xyz_mm=tool_values[:3], rpy=tool_values[3:])
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return Rz @ Ry @ Rx
+
+
+def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
+    """Forward kinematics read from a URDF text alone (an independent check of the export).
+
+    Walks the joints from the root link to ``tip``, chaining ``origin · Rot(axis, q)`` for
+    revolute / continuous joints, ``origin · Trans(axis, q)`` for prismatic ones and ``origin``
+    for fixed ones; the movable joints take the columns of ``q`` in chain order.
+
+    Parameters
+    ----------
+    urdf : str
+        URDF XML.
+    q : array_like, shape (m, N)
+        Joint values, rad (mm for prismatic joints).
+    tip : str
+        The link whose pose is returned.
+
+    Returns
+    -------
+    ndarray, shape (m, 4, 4)
+        Poses of ``tip`` in the root link's frame, translations in mm.
+    """
+    root = ET.fromstring(urdf)
+    by_child = {}
+    for joint in root.iter("joint"):
+        by_child[joint.find("child").get("link")] = joint
+    chain, link = [], tip
+    while link in by_child:
+        chain.append(by_child[link])
+        link = by_child[link].find("parent").get("link")
+    chain.reverse()
+    if not chain:
+        raise InvalidParameterError(f"URDF: no joint leads to link {tip!r}")
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    movable = [j for j in chain if j.get("type") != "fixed"]
+    if q.shape[1] != len(movable):
+        raise InvalidParameterError(f"`q` must have shape (m, {len(movable)}) for this URDF; got {q.shape}")
+    T = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
+    k = 0
+    for joint in chain:
+        origin = joint.find("origin")
+        xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+        rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+        O = np.eye(4)
+        O[:3, :3] = _rpy_matrix(*rpy)
+        O[:3, 3] = np.array(xyz) * 1000.0  # m -> mm
+        T = T @ O
+        kind = joint.get("type")
+        if kind == "fixed":
+            continue
+        axis_el = joint.find("axis")
+        axis = np.array([float(v) for v in (axis_el.get("xyz") if axis_el is not None else "1 0 0").split()])
+        axis = axis / np.linalg.norm(axis)
+        value = q[:, k]
+        k += 1
+        M = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
+        if kind in ("revolute", "continuous"):
+            K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+            s, c = np.sin(value)[:, None, None], np.cos(value)[:, None, None]
+            M[:, :3, :3] = np.eye(3) + s * K + (1.0 - c) * (K @ K)  # Rodrigues
+        elif kind == "prismatic":
+            M[:, :3, 3] = value[:, None] * axis
+        else:
+            raise InvalidParameterError(f"URDF joint {joint.get('name')!r}: type {kind!r} is not supported here")
+        T = T @ M
+    return T
+
+
+# ---------------------------------------------------------------------------------------------
+# Round trip
+# ---------------------------------------------------------------------------------------------
+def _exported_fkine(exported, q: np.ndarray) -> tuple[np.ndarray, str]:
+    if isinstance(exported, (list, tuple)):
+        return robot_from_table(exported).fkine(q, tool=True), "table"
+    if isinstance(exported, str) and exported.lstrip().startswith("<"):
+        return urdf_fkine(exported, q), "urdf"
+    path = Path(exported)
+    text = path.read_text()
+    if text.lstrip().startswith("<"):
+        return urdf_fkine(text, q), "urdf"
+    return robot_from_table(read_table(path)).fkine(q, tool=True), "table"
+
+
+def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -> dict:
+    """How closely an export reproduces ``robot``'s tool frame.
+
+    Draws ``samples`` joint vectors uniformly within the joint limits (seeded), computes the
+    tool pose from the export alone and from ``robot.fkine(q, tool=True)``, and returns the
+    largest differences.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated robot.
+    exported : list of dict, str or Path
+        Table rows (:func:`export_table`), URDF text, or the path of a written table (CSV /
+        JSON) or URDF file. A URDF is evaluated by its own small forward kinematics
+        (:func:`urdf_fkine`); a table is rebuilt into a :class:`Robot` (:func:`robot_from_table`).
+    samples : int
+    seed : int
+
+    Returns
+    -------
+    dict
+        ``max_position_error_mm``, ``max_rotation_error_rad`` (angle of ``R_robot^T R_export``),
+        ``samples`` and ``representation`` (``table`` / ``urdf``).
+    """
+    from .reference import so3_log
+
+    if samples < 1:
+        raise InvalidParameterError(f"`samples` must be >= 1; got {samples}")
+    rng = np.random.default_rng(seed)
+    lo = np.array([j.limits[0] for j in robot.joints])
+    hi = np.array([j.limits[1] for j in robot.joints])
+    q = lo + (hi - lo) * rng.random((samples, robot.n_joints))
+    want = robot.fkine(q, tool=True)
+    got, representation = _exported_fkine(exported, q)
+    pos = np.linalg.norm(got[:, :3, 3] - want[:, :3, 3], axis=1)
+    rot = np.linalg.norm(so3_log(np.swapaxes(want[:, :3, :3], -1, -2) @ got[:, :3, :3]), axis=1)
+    return {
+        "max_position_error_mm": float(pos.max()),
+        "max_rotation_error_rad": float(rot.max()),
+        "samples": int(samples),
+        "representation": representation,
+    }
+
+
+def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:
+    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh`` or ``urdf``) to ``out``."""
+    if fmt not in FORMATS:
+        raise InvalidParameterError(f"`format` must be one of {FORMATS}; got {fmt!r}")
+    out = Path(out)
+    if fmt == "urdf":
+        if table_format is not None:
+            raise InvalidParameterError("--table-format applies to --format dh and mdh, not urdf")
+        out.write_text(export_urdf(robot, name=name))
+        return out
+    return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: robocal export
+# ---------------------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``robocal export``."""
+    parser.add_argument("result", help="calibration result JSON (robocal calibrate --out)")
+    parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, or urdf")
+    parser.add_argument("--table-format", choices=TABLE_FORMATS, default=None,
+                        help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)")  # fmt: skip
+    parser.add_argument("--out", required=True, help="file to write")
+    parser.add_argument("--name", default=None, help="robot name in the export (default: the result's robot)")
+    parser.add_argument("--samples", type=int, default=200, help="joint vectors of the round-trip check (default 200)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the round-trip check (default 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs ``robocal export``: writes the file, then checks its round trip; returns the exit code."""
+    from .results import load_result
+
+    robot, _ = load_result(args.result)
+    path = export(robot, args.format, args.out, table_format=args.table_format, name=args.name)
+    check = roundtrip_check(robot, path, samples=args.samples, seed=args.seed)
+    kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
+    article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
+    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {path}")
+    print(f"round trip over {check['samples']} joint vectors within limits: max tool position error "
+          f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad")  # fmt: skip
+    failed = []
+    if not check["max_position_error_mm"] <= POSITION_TOL:
+        failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
+    if not check["max_rotation_error_rad"] <= ROTATION_TOL:
+        failed.append(f"rotation error {check['max_rotation_error_rad']:.3g} rad > {ROTATION_TOL:g} rad")
+    if failed:
+        print(f"robocal export: the written {kind} does not reproduce the calibrated kinematics: " + "; ".join(failed))
+        return 1
+    return 0

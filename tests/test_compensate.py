@@ -1,0 +1,81 @@
+"""robocal compensate: joint commands for desired tool positions on the calibrated model."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal.compensate import compensate, read_targets
+from robocal.exceptions import DataError, InvalidParameterError
+from robocal.simulate import simulate, true_params
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    """A UR10 calibrated on simulated tracker positions, and the truth of the simulation."""
+    folder = tmp_path_factory.mktemp("comp")
+    data, truth = simulate("ur10", "position", samples=300, seed=8)
+    result = robocal.calibrate(data, robot="ur10", test_fraction=0.0)
+    path = folder / "result.json"
+    path.write_text(json.dumps(result.to_dict()))
+    return path, truth, result
+
+
+def test_compensated_joints_reach_the_targets_on_the_true_robot(calibrated, tmp_path):
+    """The point of compensation: commands from the calibrated model land on the target on the
+    TRUE robot far closer than the nominal model's commands do."""
+    path, truth, result = calibrated
+    ur10 = robocal.robot("ur10")
+    true = ur10.with_params(**dict(zip(ur10.param_names, true_params(truth, ur10))))
+    rng = np.random.default_rng(0)
+    q_nominal = np.radians(rng.uniform(-120, 120, (20, 6)))
+    nominal = robocal.Robot(ur10.name, ur10.joints, result.params.copy())
+    nominal.params[: 5 * 6] = ur10.params[: 5 * 6]  # nominal kinematics, calibrated set-up
+    targets = nominal.predict("position", q_nominal)  # where the nominal model thinks it goes
+    csv = tmp_path / "targets.csv"
+    csv.write_text("x,y,z," + ",".join(f"q{j}" for j in range(1, 7)) + "\n" +
+                   "\n".join(",".join(f"{v:.9f}" for v in [*t, *np.degrees(q)]) for t, q in zip(targets, q_nominal)) + "\n")  # fmt: skip
+    rows = compensate(path, csv)
+    assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows if r["status"] != "ok"]
+    q = np.radians([r["q"] for r in rows])
+    err_comp = np.linalg.norm(true.predict("position", q) - targets, axis=1)
+    err_nominal = np.linalg.norm(true.predict("position", q_nominal) - targets, axis=1)
+    assert np.max([r["residual_mm"] for r in rows]) < 1e-3
+    assert np.median(err_comp) < 0.1 * np.median(err_nominal) and np.max(err_comp) < 0.2
+
+
+def test_unreachable_targets_are_reported_not_dropped(calibrated, tmp_path):
+    path, _, _ = calibrated
+    csv = tmp_path / "targets.csv"
+    csv.write_text("x,y,z\n400,300,500\n5000,0,0\n")
+    rows = compensate(path, csv)
+    assert [r["row"] for r in rows] == [2, 3]
+    assert rows[1]["status"].startswith("unreachable")
+
+
+def test_cli_writes_one_row_per_target(calibrated, tmp_path, capsys):
+    from robocal.cli import main
+
+    path, _, _ = calibrated
+    csv = tmp_path / "targets.csv"
+    csv.write_text("x,y,z\n400,300,500\n5000,0,0\n")
+    out = tmp_path / "joints.csv"
+    assert main(["compensate", str(path), str(csv), "--out", str(out)]) == 1  # one unreachable
+    lines = out.read_text().splitlines()
+    assert len(lines) == 3 and lines[0].startswith("row,q1") and "unreachable" in lines[2]
+    assert "1 of 2 targets reached" in capsys.readouterr().out
+
+
+def test_bad_inputs_name_the_problem(calibrated, tmp_path):
+    path, _, _ = calibrated
+    bad = tmp_path / "t.csv"
+    bad.write_text("x,y\n1,2\n")
+    with pytest.raises(DataError, match="z"):
+        read_targets(bad, 6)
+    corrupt = tmp_path / "r.json"
+    corrupt.write_text("{not json")
+    with pytest.raises(InvalidParameterError, match="not a robocal result file"):
+        compensate(corrupt, bad)

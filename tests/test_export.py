@@ -1,0 +1,232 @@
+"""``robocal export``: DH / MDH tables and URDF of a calibrated robot that reproduce its tool
+frame (checked by an independent forward kinematics of what was written), the files load back,
+bad input fails clearly, and the round-trip check catches an export that is wrong."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal import export as ex
+from robocal.exceptions import InvalidParameterError
+from robocal.results import load_result
+from robocal.robot import Joint, Robot
+from robocal.simulate import simulate
+
+POS_TOL, ROT_TOL = 1e-6, 1e-9  # mm, rad
+
+
+def _result_file(tmp_path_factory, robot: str, measurement: str) -> str:
+    data, _ = simulate(robot, measurement, samples=150, seed=2)
+    res = robocal.calibrate(data, robot=robot)
+    path = tmp_path_factory.mktemp("export") / f"{robot}-{measurement}.json"
+    path.write_text(json.dumps(res.to_dict()))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def ur10_file(tmp_path_factory):
+    """UR10 calibrated from tracker positions: a non-zero base frame."""
+    return _result_file(tmp_path_factory, "ur10", "position")
+
+
+@pytest.fixture(scope="module")
+def hsr_file(tmp_path_factory):
+    """HSR JR680 calibrated from cable lengths: a Hayati joint (joint 2), base frame zero."""
+    return _result_file(tmp_path_factory, "hsr-jr680", "cable")
+
+
+@pytest.fixture(params=["ur10", "hsr"])
+def calibrated(request, ur10_file, hsr_file):
+    path = {"ur10": ur10_file, "hsr": hsr_file}[request.param]
+    robot, _ = load_result(path)
+    return path, robot
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="robocal export")
+    ex.add_arguments(parser)
+    return parser
+
+
+def _assert_exact(check: dict) -> None:
+    assert check["samples"] == 200
+    assert check["max_position_error_mm"] < POS_TOL, check
+    assert check["max_rotation_error_rad"] < ROT_TOL, check
+
+
+# --------------------------------------------------------------------------------------------
+# Round trips
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("convention", ["dh", "mdh"])
+@pytest.mark.parametrize("table_format", ["csv", "json"])
+def test_table_round_trip_is_exact(calibrated, convention, table_format, tmp_path):
+    _, robot = calibrated
+    rows = ex.export_table(robot, convention)
+    _assert_exact(ex.roundtrip_check(robot, rows))
+    path = ex.write_table(rows, tmp_path / f"table.{table_format}", name=robot.name)
+    _assert_exact(ex.roundtrip_check(robot, path))
+    back = ex.read_table(path)
+    assert [r["frame"] for r in back] == [f"joint{j}" for j in range(1, 7)] + ["base", "tool"]
+    assert all(r["convention"] == convention for r in back[:6])
+
+
+def test_dh_table_holds_the_calibrated_values(calibrated):
+    _, robot = calibrated
+    rows = ex.export_table(robot, "dh")
+    for j, row in enumerate(rows[:6], start=1):
+        assert row["a_mm"] == robot.params[robot.index(f"a{j}")]
+        assert math.radians(row["theta_deg"]) == pytest.approx(robot.params[robot.index(f"theta{j}")], abs=1e-15)
+        assert math.radians(row["beta_deg"]) == pytest.approx(robot.params[robot.index(f"beta{j}")], abs=1e-15)
+        assert row["hayati"] == robot.joints[j - 1].hayati
+        assert math.radians(row["lower"]) == pytest.approx(robot.joints[j - 1].limits[0])
+    assert rows[-2]["x_mm"] == robot.params[robot.index("base_x")]
+    assert math.radians(rows[-1]["rz_deg"]) == pytest.approx(robot.params[robot.index("tool_rz")], abs=1e-15)
+
+
+def test_hayati_beta_is_exported(hsr_file):
+    robot, _ = load_result(hsr_file)
+    assert robot.joints[1].hayati
+    row = ex.export_table(robot, "dh")[1]
+    assert row["hayati"] is True and row["beta_deg"] != 0.0  # estimated by the cable calibration
+
+
+def test_urdf_round_trip_and_structure(calibrated):
+    _, robot = calibrated
+    urdf = ex.export_urdf(robot)
+    _assert_exact(ex.roundtrip_check(robot, urdf))
+    root = ET.fromstring(urdf)
+    assert root.tag == "robot" and root.get("name") == robot.name
+    revolute = [j for j in root.iter("joint") if j.get("type") == "revolute"]
+    assert [j.get("name") for j in revolute] == [f"joint{k}" for k in range(1, 7)]
+    for joint, el in zip(robot.joints, revolute):
+        limit = el.find("limit")
+        assert float(limit.get("lower")) == joint.limits[0] and float(limit.get("upper")) == joint.limits[1]
+        assert el.find("axis").get("xyz") == "0 0 1"
+    links = {link.get("name") for link in root.iter("link")}
+    assert {"base_link", "flange", "tool0"} | {f"link{k}" for k in range(1, 7)} <= links
+    base_nonzero = np.any(robot.params[robot.index("base_x") : robot.index("base_x") + 6] != 0)
+    assert ("world" in links) == bool(base_nonzero)
+    # The flange link is robocal's flange frame too.
+    q = np.random.default_rng(3).uniform(-1, 1, (20, 6))
+    assert np.abs(ex.urdf_fkine(urdf, q, tip="flange") - robot.fkine(q)).max() < POS_TOL
+
+
+def test_ur10_has_a_world_link(ur10_file):
+    robot, _ = load_result(ur10_file)
+    root = ET.fromstring(ex.export_urdf(robot))
+    world = [j for j in root.iter("joint") if j.find("parent").get("link") == "world"]
+    assert len(world) == 1 and world[0].get("type") == "fixed"
+
+
+def test_urdf_of_an_mdh_robot(calibrated):
+    _, robot = calibrated
+    _assert_exact(ex.roundtrip_check(robot, ex.export_urdf(robot.to_mdh())))
+
+
+def _robot(conventions, kinds) -> Robot:
+    limits = {"revolute": (-3.0, 3.0), "prismatic": (0.0, 400.0)}
+    joints = [Joint(c, k, False, limits[k]) for c, k in zip(conventions, kinds)]
+    params = np.zeros(5 * 3 + 17)
+    params[:15] = [0.3, 120.0, 400.0, 0.2, 0.0, -1.2, 35.0, 80.0, 0.1, 0.01, 0.4, 20.0, 60.0, -0.3, 0.02]
+    params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
+    params[-1] = 1.0
+    return Robot("custom", joints, params)
+
+
+def test_prismatic_joint():
+    robot = _robot(["dh"] * 3, ["revolute", "prismatic", "revolute"])
+    urdf = ex.export_urdf(robot)
+    _assert_exact(ex.roundtrip_check(robot, urdf))
+    prismatic = [j for j in ET.fromstring(urdf).iter("joint") if j.get("type") == "prismatic"]
+    assert len(prismatic) == 1 and float(prismatic[0].find("limit").get("upper")) == pytest.approx(0.4)  # m
+    for convention in ("dh", "mdh"):
+        rows = ex.export_table(robot, convention)
+        assert rows[1]["kind"] == "prismatic" and rows[1]["upper"] == 400.0  # mm
+        _assert_exact(ex.roundtrip_check(robot, rows))
+
+
+def test_mixed_convention_chain():
+    robot = _robot(["dh", "mdh", "mdh"], ["revolute", "revolute", "prismatic"])
+    _assert_exact(ex.roundtrip_check(robot, ex.export_urdf(robot)))
+    for convention in ("dh", "mdh"):
+        with pytest.raises(InvalidParameterError, match="modified DH only"):
+            ex.export_table(robot, convention)
+
+
+# --------------------------------------------------------------------------------------------
+# The check has teeth
+# --------------------------------------------------------------------------------------------
+def test_round_trip_catches_a_dropped_theta_offset(hsr_file):
+    robot, _ = load_result(hsr_file)
+    naive = robot.with_params(theta3=0.0)  # "URDF has no joint offset": forgetting theta is wrong
+    check = ex.roundtrip_check(robot, ex.export_urdf(naive))
+    assert check["max_position_error_mm"] > 1.0
+
+
+def test_run_fails_when_the_export_is_wrong(hsr_file, tmp_path, monkeypatch, capsys):
+    good = ex.export_urdf
+    monkeypatch.setattr(ex, "export_urdf", lambda robot, name=None: good(robot.with_params(a2=robot.params[robot.index("a2")] + 1e-3), name))
+    code = ex.run(_parser().parse_args([hsr_file, "--format", "urdf", "--out", str(tmp_path / "r.urdf")]))
+    assert code == 1
+    assert "does not reproduce" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("fmt", ["dh", "mdh"])
+def test_cli_writes_a_csv_table(calibrated, fmt, tmp_path, capsys):
+    path, robot = calibrated
+    out = tmp_path / f"robot_{fmt}.csv"
+    assert ex.run(_parser().parse_args([path, "--format", fmt, "--out", str(out)])) == 0
+    printed = capsys.readouterr().out
+    assert str(out) in printed and "round trip over 200 joint vectors" in printed
+    with out.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == list(ex.TABLE_COLUMNS)
+    joint_rows = [r for r in rows if r["frame"].startswith("joint")]
+    assert len(joint_rows) == robot.n_joints and all(r["convention"] == fmt for r in joint_rows)
+    assert [r["frame"] for r in rows[-2:]] == ["base", "tool"]
+    assert all(r["x_mm"] == "" for r in joint_rows) and all(r["alpha_deg"] == "" for r in rows[-2:])
+    float(rows[-1]["z_mm"])
+
+
+def test_cli_json_table_and_urdf(ur10_file, tmp_path, capsys):
+    out = tmp_path / "robot.json"
+    assert ex.run(_parser().parse_args([ur10_file, "--format", "mdh", "--out", str(out)])) == 0
+    doc = json.loads(out.read_text())
+    assert doc["schema"] == ex.TABLE_SCHEMA and doc["convention"] == "mdh" and len(doc["rows"]) == 8
+    out = tmp_path / "robot.txt"
+    assert ex.run(_parser().parse_args([ur10_file, "--format", "dh", "--table-format", "json", "--out", str(out)])) == 0
+    assert json.loads(out.read_text())["convention"] == "dh"
+    out = tmp_path / "ur10.urdf"
+    assert ex.run(_parser().parse_args([ur10_file, "--format", "urdf", "--name", "my_ur10", "--out", str(out)])) == 0
+    assert ET.parse(out).getroot().get("name") == "my_ur10"
+    assert "URDF" in capsys.readouterr().out
+
+
+def test_cli_bad_input(ur10_file, tmp_path):
+    parser = _parser()
+    with pytest.raises(SystemExit):
+        parser.parse_args([ur10_file, "--format", "sdf", "--out", str(tmp_path / "x")])
+    with pytest.raises(SystemExit):
+        parser.parse_args([ur10_file, "--format", "dh", "--table-format", "xlsx", "--out", str(tmp_path / "x")])
+    with pytest.raises(InvalidParameterError, match="table-format"):
+        ex.run(parser.parse_args([ur10_file, "--format", "urdf", "--table-format", "csv", "--out", str(tmp_path / "x.urdf")]))
+    not_a_result = tmp_path / "other.json"
+    not_a_result.write_text("{}")
+    with pytest.raises(InvalidParameterError, match="not a robocal result file"):
+        ex.run(parser.parse_args([str(not_a_result), "--format", "dh", "--out", str(tmp_path / "x.csv")]))
+    mdh = robocal.robot("ur10").to_mdh()
+    with pytest.raises(InvalidParameterError, match="modified DH only"):
+        ex.export_table(mdh, "dh")
+    with pytest.raises(InvalidParameterError, match="convention"):
+        ex.export_table(mdh, "xyz")
