@@ -75,7 +75,7 @@ def part_lm(args) -> None:
     from robocal import reference as ref
     from robocal.calibration.lm import levenberg_marquardt
     from robocal.calibration.problem import Problem
-    from robocal.simulate import simulate
+    from robocal.simulation import simulate
 
     r = robocal.robot("hsr-jr680")
     conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]

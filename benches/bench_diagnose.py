@@ -19,8 +19,8 @@ import time
 from machine import cpu_model
 
 import robocal
-from robocal.diagnose import diagnose
-from robocal.simulate import simulate
+from robocal.diagnosis import diagnose
+from robocal.simulation import simulate
 
 CASES = [
     ("position", ["joint_periodic:joint=2,amplitude=0.01", "backlash:joint=3,width=0.02"]),

@@ -14,8 +14,8 @@ import argparse
 
 from scipy.stats import beta
 
-from robocal.diagnose import diagnose
-from robocal.simulate import simulate
+from robocal.diagnosis import diagnose
+from robocal.simulation import simulate
 
 
 def main() -> None:

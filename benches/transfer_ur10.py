@@ -20,7 +20,7 @@ import robocal
 from robocal.calibration import Problem
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.data import load
-from robocal.diagnose import ExtendedProblem, diagnose, library
+from robocal.diagnosis import ExtendedProblem, diagnose, library
 
 SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv", "C": "Series_C/measurements_random_poses.csv"}
 SETUP = [f"base_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")] + ["tool_x", "tool_y", "tool_z"]

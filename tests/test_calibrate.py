@@ -12,7 +12,7 @@ import robocal
 from robocal.calibration import Problem, metrics
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.exceptions import InvalidParameterError
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_calibrate_api_result_json(cable_data, tmp_path):
     doc = json.loads(json.dumps(result.to_dict()))
     assert doc["method"] == "lm" and doc["robot"] == "hsr-jr680" and doc["measurement"] == "cable"
     by_name = {p["name"]: p for p in doc["parameters"]}
-    assert set(by_name["a2"]) == {"name", "unit", "nominal", "value", "std"} and by_name["a2"]["unit"] == "mm"
+    assert set(by_name["a2"]) == {"name", "unit", "nominal", "value", "deviation", "std"} and by_name["a2"]["unit"] == "mm"
     assert by_name["a2"]["std"] > 0 and by_name["beta1"]["std"] is None
     assert doc["metrics"]["train"]["n"] == 225 and doc["metrics"]["test"]["n"] == 75
     assert doc["metrics"]["test"]["rmse"] < 0.06

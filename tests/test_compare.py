@@ -13,7 +13,7 @@ from robocal.calibration import api
 from robocal.cli import main
 from robocal.compare import compare, default_methods, method_label, wilcoxon_row
 from robocal.data import write_canonical
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 FAST = ["lm", "lm-paper", "vslm", "ukf", "ukf-vslm", "rbf"]
 FILES = [f"table_{n}.{ext}" for n in ("VIII", "IX", "X", "XI", "XII", "XIII") for ext in ("md", "csv")]

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import robocal
-from robocal.compensate import compensate, read_targets
+from robocal.compensation import compensate, read_targets
 from robocal.exceptions import DataError, InvalidParameterError
-from robocal.simulate import simulate, true_params
+from robocal.simulation import simulate, true_params
 
 
 @pytest.fixture(scope="module")

@@ -20,10 +20,10 @@ import pytest
 
 import robocal
 from robocal.calibration import Problem
-from robocal.diagnose import LIMITS, diagnose
+from robocal.diagnosis import LIMITS, diagnose
 from robocal.effects import DEG
 from robocal.exceptions import InvalidParameterError
-from robocal.simulate import DEFAULT_NOISE, simulate
+from robocal.simulation import DEFAULT_NOISE, simulate
 
 TIMES_NOISE = 5.0
 SAMPLES = 1000
@@ -200,7 +200,7 @@ def test_bad_arguments_are_named():
 
 def test_extended_model_residuals_match_its_jacobian():
     """The cause columns are the derivatives of the extended residuals (finite differences)."""
-    from robocal.diagnose import ExtendedProblem, library
+    from robocal.diagnosis import ExtendedProblem, library
 
     data, _ = simulate("hsr-jr680", "position", samples=40, seed=4)
     robot = robocal.robot("hsr-jr680")

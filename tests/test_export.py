@@ -18,7 +18,7 @@ from robocal import export as ex
 from robocal.exceptions import InvalidParameterError
 from robocal.results import load_result
 from robocal.robot import Joint, Robot
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 POS_TOL, ROT_TOL = 1e-6, 1e-9  # mm, rad
 

@@ -26,7 +26,7 @@ import robocal
 from robocal.calibration import cascade, kalman, vslm
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.calibration.problem import Problem
-from robocal.simulate import DEFAULT_NOISE, simulate
+from robocal.simulation import DEFAULT_NOISE, simulate
 
 CASES = {"cable": ("hsr-jr680", "cable"), "position": ("ur10", "position")}
 #: Expected RMSE (eq. 28) of pure sensor noise: |e| of one length, or the norm of a 3-D error.

@@ -11,7 +11,7 @@ from robocal.calibration.lm import levenberg_marquardt
 from robocal.calibration.metaheuristics import bas, de, pso, search_box
 from robocal.calibration.rbf import rbf
 from robocal.data.splits import random_split
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 # The simulator's tool point is (30, -10, 80) mm; with it known, the start (nominal kinematics +
 # closed-form anchor) lies within the default ±2 mm / ±0.2° box of the optimum.

@@ -12,7 +12,7 @@ import robocal
 from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.results import SCHEMA, load_result
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import robocal
-from robocal import simulate as sim
+from robocal import simulation as sim
 from robocal.data.canonical import read_canonical
 from robocal.effects import GRAVITY, MASS_MODELS, gravity_torques, parse_effect
 from robocal.exceptions import InvalidParameterError

@@ -9,7 +9,7 @@ import robocal
 from robocal import reference as ref
 from robocal.calibration import Problem
 from robocal.exceptions import NotPositiveDefiniteError, ShapeError
-from robocal.simulate import simulate
+from robocal.simulation import simulate
 
 
 @pytest.mark.parametrize("robot, measurement", [("hsr-jr680", "cable"), ("ur10", "position"), ("abb-irb120", "pose")])

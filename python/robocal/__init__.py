@@ -19,25 +19,37 @@ __all__ = [
     "__version__",
     "cable_initial_guess",
     "calibrate",
+    "compensate",
     "covariance",
     "diagnose",
     "exceptions",
     "identifiability",
+    "load",
+    "load_result",
     "merwe_sigma_points",
     "robot",
+    "simulate",
     "solve_damped",
     "unscented_transform",
 ]
 
 
+#: The API that mirrors the command line, loaded on first use (with scipy) rather than at
+#: ``import robocal``: name -> (module, attribute).
+_LAZY = {
+    "load": ("robocal.data", "load"),
+    "simulate": ("robocal.simulation", "simulate"),
+    "calibrate": ("robocal.calibration", "calibrate"),
+    "diagnose": ("robocal.diagnosis", "diagnose"),
+    "compensate": ("robocal.compensation", "compensate"),
+    "load_result": ("robocal.results", "load_result"),
+}
+
+
 def __getattr__(name: str):
-    # `robocal.calibrate` and `robocal.diagnose` load (with scipy) on first use, not at `import robocal`.
-    if name == "calibrate":
-        from .calibration import calibrate
+    if name in _LAZY:
+        import importlib
 
-        return calibrate
-    if name == "diagnose":
-        from .diagnose import diagnose
-
-        return diagnose
+        module, attribute = _LAZY[name]
+        return getattr(importlib.import_module(module), attribute)
     raise AttributeError(f"module 'robocal' has no attribute {name!r}")

@@ -16,10 +16,10 @@ COMMANDS = {
     "demo": ("robocal.demo", "run the core on a built-in simulated robot (no files needed)"),
     "inspect": ("robocal.data.inspect", "validate a measurement file (canonical CSV or a public dataset)"),
     "calibrate": ("robocal.calibration.api", "identify a robot's kinematic parameters from measurements"),
-    "simulate": ("robocal.simulate", "simulate measurements of a robot with known truth and injectable effects"),
+    "simulate": ("robocal.simulation", "simulate measurements of a robot with known truth and injectable effects"),
     "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures"),
-    "diagnose": ("robocal.diagnose.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain"),
-    "compensate": ("robocal.compensate", "joint commands that make the calibrated robot reach desired tool positions"),
+    "diagnose": ("robocal.diagnosis.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain"),
+    "compensate": ("robocal.compensation", "joint commands that make the calibrated robot reach desired tool positions"),
     "export": ("robocal.export", "write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip"),
 }
 

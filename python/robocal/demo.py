@@ -26,9 +26,9 @@ EFFECT = "backlash:joint=2,width=0.03"
 def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
     from .calibration import calibrate
     from .calibration.problem import is_kinematic
-    from .diagnose import diagnose
-    from .diagnose.cli import write_figures
-    from .simulate import simulate, write_simulation
+    from .diagnosis import diagnose
+    from .diagnosis.cli import write_figures
+    from .simulation import simulate, write_simulation
 
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)

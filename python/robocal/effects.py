@@ -18,7 +18,7 @@ Every key has a default taken from the typical magnitude stated in its class doc
 ``joint`` where the effect acts on one joint. :func:`parse_effect` reads a spec; each applied
 effect reports what it did (:meth:`Effect.record`) for the simulation's ground truth.
 
-The simulator (:mod:`robocal.simulate`) applies the stages in the order parameters, joints,
+The simulator (:mod:`robocal.simulation`) applies the stages in the order parameters, joints,
 prediction, sensor noise, observations, quantisation.
 """
 

@@ -157,7 +157,7 @@ def calibrate(
 def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes):
     """``problem`` extended by ``causes`` (labels, or a diagnose report as dict or path) on the
     samples ``idx`` of ``dataset`` (bases such as backlash and drift need the whole sequence)."""
-    from ..diagnose import ExtendedProblem, library  # the diagnose package imports this module
+    from ..diagnosis import ExtendedProblem, library  # the diagnose package imports this module
 
     if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
         try:

@@ -18,7 +18,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..reference import frame_params
 from ..robot import Robot
-from ..simulate import DEFAULT_NOISE
+from ..simulation import DEFAULT_NOISE
 
 
 #: Parameter-name prefixes of the kinematic (joint) parameters, as opposed to the set-up (base,
@@ -132,7 +132,7 @@ class Problem:
             Rank tolerance of the identifiability analysis.
         prior : dict, optional
             ``name -> (mean, sigma)`` priors (mm / rad) on estimated parameters; the rows are
-            scaled by the sensor's default noise (:data:`robocal.simulate.DEFAULT_NOISE`).
+            scaled by the sensor's default noise (:data:`robocal.simulation.DEFAULT_NOISE`).
         bounds : dict, optional
             ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters; the start
             is moved inside them.

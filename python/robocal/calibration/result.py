@@ -124,7 +124,7 @@ class CalibrationResult:
         })
 
     def _with_causes(self, doc: dict) -> dict:
-        """An extended model (:class:`robocal.diagnose.ExtendedProblem`) adds its causes."""
+        """An extended model (:class:`robocal.diagnosis.ExtendedProblem`) adds its causes."""
         if hasattr(self.problem, "describe_causes"):
             doc["causes"] = self.problem.describe_causes(self.x, self.std)
         return doc

@@ -15,7 +15,7 @@
    ``alpha`` / (number of candidates) (Bonferroni), its held-out gain is positive on every
    fold scheme and at least ``min_gain`` of the held-out RMSE. The one with the largest gain is fitted (nonlinear,
    all parameters re-fitted) and kept if its physical parameters are plausible
-   (:data:`~robocal.diagnose.candidates.LIMITS`); otherwise the next one is tried.
+   (:data:`~robocal.diagnosis.candidates.LIMITS`); otherwise the next one is tried.
 4. Repeat from 2 with the extended model until nothing is significant. The held-out RMSE of
    every model along the way is then measured honestly: nonlinear re-fits per fold.
 """
@@ -210,7 +210,7 @@ def diagnose(
 
     Examples
     --------
-    >>> from robocal.simulate import simulate
+    >>> from robocal.simulation import simulate
     >>> data, _ = simulate("abb-irb120", "position", samples=300, seed=3, effects=["joint_scale:joint=2,scale=3e-4"])
     >>> [e["kind"] for e in diagnose(data).effects]
     ['joint_scale']

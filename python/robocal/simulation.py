@@ -329,7 +329,7 @@ def simulate(
             )
 
     dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp,
-                      notes=[f"simulated by robocal.simulate (seed {seeds.entropy})"])  # fmt: skip
+                      notes=[f"simulated by robocal.simulation (seed {seeds.entropy})"])  # fmt: skip
     records = [effect.record(magnitude) for effect, magnitude in zip(chosen, magnitudes)]
     outlier_samples = sorted({i for rec in records for i in rec.get("samples", [])})
     truth = {

@@ -1,0 +1,610 @@
+"""The calibration report: one self-contained HTML page with figures, from a result file.
+
+``robocal report RESULT --out DIR`` reads a result file (:mod:`robocal.results`, written by
+``robocal calibrate --out``) and writes ``DIR/index.html`` with PNG figures beside it:
+
+1. the per-sample error before calibration (nominal kinematics, measurement set-up refitted by
+   :func:`~robocal.calibration.problem.start_parameters`) and after it, as histograms and along
+   the samples, held-out samples marked;
+2. the estimated parameters' deviations from nominal with ±2 std error bars (mm, deg);
+3. the solver's cost per iteration;
+4. the singular values of the column-scaled identification Jacobian at the calibrated
+   parameters, with its condition number;
+5. with ``--diagnosis REPORT.json`` (``robocal diagnose --json``): the held-out RMSE as the
+   diagnosed causes are added, and a table of the causes.
+
+Figures 1 and 4 need the measurements: the file the result names (``dataset.source``) or
+``--data FILE``. Without them the page says so and shows the rest. The page has no scripts and
+loads nothing from elsewhere; the PNGs are referenced by relative path, so the folder can be
+moved or archived as a whole.
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+
+from ._robocal import __version__
+from .calibration.metrics import sample_errors
+from .calibration.problem import start_parameters
+from .data.dataset import Dataset
+from .exceptions import InvalidParameterError, RobocalError
+from .results import file_sha256, load_result
+from .robot import Robot
+
+#: deviation display: unit in the file -> (unit shown, factor)
+_SHOWN = {"mm": ("mm", 1.0), "rad": ("deg", float(np.degrees(1.0))), "1": ("ppm", 1e6)}
+_DPI = 120
+
+
+def _esc(value) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _num(value, digits: int = 4) -> str:
+    if value is None:
+        return "–"
+    value = float(value)
+    if not np.isfinite(value):
+        return str(value)
+    return f"{value:.{digits}g}"
+
+
+def _fixed(value, decimals: int) -> str:
+    return "–" if value is None else f"{float(value):.{decimals}f}"
+
+
+# -- inputs -----------------------------------------------------------------------------------
+@dataclass
+class _Data:
+    """The measurements a report evaluates on, or why there are none."""
+
+    dataset: Optional[Dataset] = None
+    path: Optional[str] = None
+    notes: list = field(default_factory=list)
+    same_file: bool = False
+
+
+def _load_data(doc: dict, data) -> _Data:
+    from .data import load
+
+    recorded = (doc.get("dataset") or {}).get("source")
+    if isinstance(data, Dataset):
+        if data.measurement != doc["measurement"]:
+            raise InvalidParameterError(f"`data` hold {data.measurement} measurements; the result is of {doc['measurement']} data")
+        return _Data(data, data.source, ["measurements passed as a Dataset"], same_file=data.source is not None and data.source == recorded)
+    if data is not None:
+        # An explicit file must load: its errors are the caller's to see.
+        dataset = load(data, measurement=doc["measurement"])
+        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)"], same_file=_same_file(doc, data))
+    if not recorded:
+        return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
+    if not Path(recorded).is_file():
+        return _Data(path=recorded, notes=[f"the measurement file {recorded} is not on this machine: the figures that need the data are left out (pass --data FILE)"])
+    try:
+        dataset = load(recorded, measurement=doc["measurement"])
+    except RobocalError as exc:
+        return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read ({exc}): the figures that need the data are left out"])
+    return _Data(dataset, recorded, [], same_file=_same_file(doc, recorded))
+
+
+def _same_file(doc: dict, path) -> bool:
+    recorded = (doc.get("dataset") or {}).get("sha256")
+    return recorded is not None and file_sha256(path) == recorded
+
+
+def _load_diagnosis(diagnosis) -> Optional[dict]:
+    if diagnosis is None or isinstance(diagnosis, dict):
+        report = diagnosis
+    else:
+        try:
+            report = json.loads(Path(diagnosis).read_text())
+        except OSError as exc:
+            raise InvalidParameterError(f"{diagnosis}: cannot read the diagnose report ({exc.strerror or exc})") from None
+        except ValueError as exc:
+            raise InvalidParameterError(f"{diagnosis}: the diagnose report is not valid JSON ({exc})") from None
+    if report is not None:
+        ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and "rmse_heldout" in report["baseline"] and isinstance(report.get("effects"), list)
+        if not ok:
+            raise InvalidParameterError(f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report (needs baseline.rmse_heldout and effects)")
+    return report
+
+
+def nominal_robot(robot: Robot, doc: dict) -> Robot:
+    """The robot with the nominal parameters the calibration started from."""
+    return Robot(robot.name, robot.joints, np.array([float(p["nominal"]) for p in doc["parameters"]]))
+
+
+# -- evaluation -------------------------------------------------------------------------------
+@dataclass
+class _Evaluation:
+    before: np.ndarray
+    after: np.ndarray
+    held_out: Optional[np.ndarray]
+    singular: Optional[np.ndarray]
+    n_cols: int
+
+
+def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Evaluation:
+    meas = dataset.measurement
+    nominal = nominal_robot(robot, doc)
+    p0 = start_parameters(nominal, dataset)
+    before = sample_errors(nominal.residuals(meas, dataset.q, dataset.y, params=p0), meas)
+    after = sample_errors(robot.residuals(meas, dataset.q, dataset.y), meas)
+    held_out = None
+    if same_file:
+        held_out = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_held_out") or [], dtype=np.int64))
+    names = set(robot.param_names)
+    cols = [robot.index(n) for n in doc.get("free", []) if n in names]
+    singular = None
+    if cols:
+        J = robot.jacobian(meas, dataset.q, y=dataset.y, cols=cols)
+        norm = np.linalg.norm(J, axis=0)
+        J = J / np.where(norm > 0, norm, 1.0)
+        singular = np.linalg.svd(J, compute_uv=False)
+    return _Evaluation(before, after, held_out, singular, len(cols))
+
+
+def _condition(s: np.ndarray) -> float:
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+# -- figures ----------------------------------------------------------------------------------
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=_DPI)
+    _pyplot().close(fig)
+    return path
+
+
+def _rms(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(e**2)))
+
+
+def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
+    plt = _pyplot()
+    what = "|cable length residual|" if meas == "cable" else "position error"
+    colours = {"before": "tab:orange", "after": "tab:blue"}
+    errors = {"before": ev.before, "after": ev.after}
+    labels = {"before": "before: nominal kinematics", "after": "after: calibrated"}
+
+    # (a) Histograms on log-spaced bins: before and after often differ by orders of magnitude.
+    positive = np.concatenate([e[e > 0] for e in errors.values()])
+    lo = float(positive.min()) if positive.size else 1e-6
+    hi = float(max(e.max() for e in errors.values()))
+    hi = max(hi, lo * 10)
+    bins = np.geomspace(lo, hi * 1.0001, 45)
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    for key in ("before", "after"):
+        e = np.clip(errors[key], lo, None)
+        ax.hist(e, bins=bins, color=colours[key], alpha=0.55, label=f"{labels[key]} (RMSE {_rms(errors[key]):.4g} mm)")
+        ax.axvline(_rms(errors[key]), color=colours[key], lw=1.5, ls="--")
+    ax.set_xscale("log")
+    ax.set(xlabel=f"per-sample {what} (mm, log scale)", ylabel="samples", title=f"Per-sample error before and after calibration ({len(ev.after)} samples)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2, fontsize=8, frameon=False, title="dashed lines: RMSE", title_fontsize=8)
+    fig.tight_layout()
+    paths = [_save(fig, out / "residuals_histogram.png")]
+
+    # (b) Along the samples (file order), held-out samples marked.
+    idx = np.arange(len(ev.after))
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    small = 6 if len(idx) <= 500 else 3
+    held = ev.held_out if ev.held_out is not None else np.zeros(len(idx), dtype=bool)
+    for key in ("before", "after"):
+        e = np.clip(errors[key], lo, None)
+        name = key
+        ax.scatter(idx[~held], e[~held], s=small, color=colours[key], alpha=0.6, lw=0, label=f"{name}, training" if held.any() else name)
+        if held.any():
+            ax.scatter(idx[held], e[held], s=22, marker="x", color=colours[key], lw=1.0, label=f"{name}, held out")
+    ax.set_yscale("log")
+    ax.set_xlim(-0.01 * len(idx), 1.01 * len(idx))
+    ax.set(xlabel="sample (order in the measurement file)", ylabel=f"{what} (mm, log scale)", title="Per-sample error along the acquisition")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=4, fontsize=8, frameon=False, markerscale=1.5)
+    fig.tight_layout()
+    paths.append(_save(fig, out / "residuals_samples.png"))
+    return paths
+
+
+def _estimated(doc: dict) -> list[dict]:
+    return [p for p in doc["parameters"] if p.get("std") is not None]
+
+
+def _fig_parameters(doc: dict, out: Path) -> Optional[Path]:
+    groups = []
+    for unit, title in (("mm", "lengths"), ("rad", "angles"), ("1", "scale")):
+        ps = [p for p in _estimated(doc) if p["unit"] == unit]
+        if ps:
+            shown, factor = _SHOWN[unit]
+            dev = np.array([(p["value"] - p["nominal"]) * factor for p in ps])
+            err = np.array([2.0 * p["std"] * factor for p in ps])
+            groups.append((title, shown, [p["name"] for p in ps], dev, err))
+    if not groups:
+        return None
+    plt = _pyplot()
+    heights = [max(len(g[2]), 2) + 1.6 for g in groups]
+    fig, axes = plt.subplots(len(groups), 1, figsize=(7.0, 0.22 * sum(heights) + 0.6), gridspec_kw={"height_ratios": heights}, squeeze=False)
+    for ax, (title, unit, names, dev, err) in zip(axes[:, 0], groups):
+        y = np.arange(len(names))[::-1]
+        colour = np.where(np.abs(dev) > err, "tab:red", "tab:blue")
+        ax.barh(y, dev, color=colour, alpha=0.7, height=0.7)
+        ax.errorbar(dev, y, xerr=err, fmt="none", ecolor="k", elinewidth=0.9, capsize=2.5)
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.set_yticks(y, names, fontsize=9)
+        ax.set_ylim(-0.7, len(names) - 0.3)
+        size = np.abs(dev)
+        scale = ""
+        typical = float(np.median(size))
+        if size.max() > 50 * max(typical, 1e-12):
+            # Deviations spanning decades (one parameter 1000 mm off beside 0.1 mm ones): a
+            # linear axis would show one bar.
+            linthresh = 10.0 ** np.floor(np.log10(max(typical, 1e-12)))
+            ax.set_xscale("symlog", linthresh=linthresh, linscale=0.5)
+            scale = f"; symmetric log scale, linear within ±{linthresh:g}"
+            limit = 10.0 ** np.ceil(np.log10(max(size.max(), linthresh) * 1.05))
+        else:
+            # Deviations set the scale; an error bar that is much longer runs off it, labelled.
+            limit = 1.15 * max(size.max(), float(np.median(err)), 1e-12)
+        ax.set_xlim(-limit, limit)
+        for yi, d, e in zip(y, dev, err):
+            if abs(d) + e > limit:
+                right = d < 0  # on the side the bar leaves free
+                ax.text(0.99 if right else 0.01, yi, f"±{e:.3g} {unit}, off scale", transform=ax.get_yaxis_transform(), ha="right" if right else "left",
+                        va="center", fontsize=7, color="0.25", bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.85})  # fmt: skip
+        ax.grid(axis="x", alpha=0.3)
+        ax.set_xlabel(f"calibrated − nominal ({unit}{scale})", fontsize=9)
+        ax.set_title(f"{title} ({len(names)} estimated): deviation ± 2 std (red: beyond 2 std)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out / "parameters.png")
+
+
+def _fig_convergence(doc: dict, out: Path) -> Optional[Path]:
+    conv = doc.get("convergence") or {}
+    history = np.asarray([c for c in conv.get("history") or [] if c is not None], dtype=np.float64)
+    history = history[np.isfinite(history)]
+    if history.size == 0:
+        return None
+    plt = _pyplot()
+    positive = history[history > 0]
+    floor = positive.min() * 1e-3 if positive.size else 1e-300
+    fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    ax.plot(np.arange(history.size), np.maximum(history, floor), "o-", color="tab:blue", ms=4 if history.size < 60 else 0, lw=1.3)
+    ax.set_yscale("log")
+    ax.grid(alpha=0.3, which="both")
+    ax.set_xlim(-0.5, max(history.size - 0.5, 1.5))
+    if history.size < 15:
+        ax.set_xticks(np.arange(history.size))
+    status = "converged" if conv.get("success") else "did not converge"
+    ax.set(xlabel="iteration (0: start)", ylabel="cost ½‖r‖² (mm², log scale)",
+           title=f"{doc.get('method', '')}: {status} after {conv.get('nit', history.size - 1)} iterations, final cost {history[-1]:.4g}")  # fmt: skip
+    fig.tight_layout()
+    return _save(fig, out / "convergence.png")
+
+
+def _fig_identifiability(ev: _Evaluation, out: Path) -> Optional[Path]:
+    s = ev.singular
+    if s is None or s.size == 0:
+        return None
+    plt = _pyplot()
+    floor = s[0] * 1e-16
+    fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    k = np.arange(1, s.size + 1)
+    ax.semilogy(k, np.maximum(s, floor), "o-", color="tab:purple", ms=4, lw=1.0)
+    ax.axhline(s[0] * 1e-3, color="0.5", ls=":", lw=1, label="σ₁ / 1000")
+    ax.grid(alpha=0.3, which="both")
+    ax.set_xticks(k if s.size <= 40 else k[::5])
+    ax.tick_params(axis="x", labelsize=8)
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set(xlabel="singular value index", ylabel="singular value (log scale)",
+           title=f"Column-scaled identification Jacobian ({ev.n_cols} parameters): condition number {_condition(s):.4g}")  # fmt: skip
+    ax.title.set_fontsize(10)
+    fig.tight_layout()
+    return _save(fig, out / "identifiability.png")
+
+
+def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
+    effects = report["effects"]
+    steps = []
+    outliers = [e for e in effects if e.get("kind") == "outliers"]
+    if outliers and outliers[0].get("rmse_heldout_before") is not None:
+        steps.append(("with outliers", float(outliers[0]["rmse_heldout_before"])))
+    steps.append(("geometric baseline", float(report["baseline"]["rmse_heldout"])))
+    for e in effects:
+        if e.get("kind") != "outliers":
+            steps.append((f"+ {e.get('label') or e.get('kind')}", float(e["rmse_heldout_after"])))
+    return steps
+
+
+def _fig_diagnosis(report: dict, out: Path) -> Path:
+    plt = _pyplot()
+    steps = _diagnosis_steps(report)
+    names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
+    fig, ax = plt.subplots(figsize=(7.0, 0.45 * len(steps) + 1.5))
+    y = np.arange(len(steps))[::-1]
+    ax.barh(y, rmse, color=["0.6" if n == "with outliers" else "tab:blue" for n in names], height=0.6)
+    for i, (yi, v) in enumerate(zip(y, rmse)):
+        change = f" ({(v - rmse[i - 1]) / rmse[i - 1]:+.1%})" if i > 0 and rmse[i - 1] > 0 else ""
+        ax.text(v, yi, f" {v:.4g} mm{change}", va="center", fontsize=8)
+    ax.set_yticks(y, names, fontsize=9)
+    ax.set_xlim(0, rmse.max() * 1.3)
+    folds = report["baseline"].get("folds")
+    ax.set(xlabel=f"held-out RMSE (mm){f', {folds}-fold cross-validation' if folds else ''}", title="Held-out error as the diagnosed causes are added")
+    fig.tight_layout()
+    return _save(fig, out / "diagnosis.png")
+
+
+# -- the page ---------------------------------------------------------------------------------
+_CSS = """
+body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; max-width: 980px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.45; }
+h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.8em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
+table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
+th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f4f4f4; } td.n { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+table.meta th { width: 11em; } tr.flag td { background: #fff1f0; } tr.off td { color: #777; }
+.note { background: #f5f8ff; border-left: 4px solid #6b8bd6; padding: 0.5em 0.8em; margin: 0.8em 0; }
+.warn { background: #fff6e5; border-left: 4px solid #e0a030; padding: 0.5em 0.8em; margin: 0.8em 0; }
+figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+figcaption { font-size: 0.9em; color: #444; margin-top: 0.3em; }
+code { font-size: 0.95em; } .small { font-size: 0.85em; color: #555; }
+"""
+
+
+def _table(header: list[str], rows: list[list[str]], numeric: set = frozenset(), cls: str = "", row_classes: Optional[list[str]] = None) -> str:
+    head = "".join(f"<th>{_esc(h)}</th>" for h in header)
+    body = []
+    for i, row in enumerate(rows):
+        rc = row_classes[i] if row_classes else ""
+        cells = "".join(f'<td class="n">{c}</td>' if j in numeric else f"<td>{c}</td>" for j, c in enumerate(row))
+        body.append(f'<tr class="{rc}">{cells}</tr>' if rc else f"<tr>{cells}</tr>")
+    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>' if cls else f'<table><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>'
+
+
+def _header(doc: dict, data: _Data) -> str:
+    ds = doc.get("dataset") or {}
+    conv = doc.get("convergence") or {}
+    rows = [
+        ("robot", doc.get("robot")),
+        ("method", doc.get("method")),
+        ("measurement", doc.get("measurement")),
+        ("written by", f"robocal {doc.get('robocal_version')} (this report: robocal {__version__})"),
+        ("source file", ds.get("source") or "not recorded"),
+        ("sha256", ds.get("sha256") or "not recorded"),
+        ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
+        ("figures computed on", _data_row(data)),
+        ("solver", f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} ({conv.get('nit', '?')} iterations, {conv.get('nfev', '?')} evaluations, {_num(conv.get('time_s'), 3)} s)"),
+    ]
+    body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
+    return f'<table class="meta"><tbody>{body}</tbody></table>'
+
+
+def _data_row(data: _Data) -> str:
+    if data.dataset is None:
+        return "no measurements (see the note under Figures)"
+    where = data.path or "a Dataset"
+    same = "the file calibrated on (sha256 matches)" if data.same_file else "not verified to be the file calibrated on"
+    return f"{where}, {len(data.dataset)} samples; {same}"
+
+
+def _metrics(doc: dict) -> str:
+    m = doc.get("metrics") or {}
+    rows = []
+    for key, label in (("train", "training"), ("test", "held out")):
+        v = m.get(key)
+        if v is None:
+            rows.append([_esc(label), "–", "–", "–", "–"])
+        else:
+            rows.append([_esc(label), _fixed(v.get("rmse"), 4), _fixed(v.get("mae"), 4), _fixed(v.get("max"), 4), _esc(v.get("n", "–"))])
+    per = "|cable residual|" if doc.get("measurement") == "cable" else "Euclidean position error"
+    return (_table(["samples", "RMSE (mm)", "MAE (mm)", "max (mm)", "n"], rows, numeric={1, 2, 3, 4})
+            + f'<p class="small">Per-sample error: {_esc(per)}; eq. (28) of the paper (its "STD" is the MAE).</p>')  # fmt: skip
+
+
+def _implausible(doc: dict) -> str:
+    flags = doc.get("implausible") or []
+    if not flags:
+        return '<p class="note">No kinematic parameter moved beyond 10 mm / 2 deg from nominal.</p>'
+    items = []
+    for f in sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"]):
+        unit, factor = _SHOWN.get(f["unit"], (f["unit"], 1.0))
+        items.append(f"<li><code>{_esc(f['name'])}</code>: {f['deviation'] * factor:+.4g} {_esc(unit)} (limit ±{f['limit'] * factor:.3g} {_esc(unit)})</li>")
+    return (f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
+            "the data do not determine them (the fit bends weakly determined directions to absorb other errors); "
+            f"a kinematic prior (<code>--kinematic-prior</code>) or more varied poses are needed.<ul>{''.join(items)}</ul></div>")  # fmt: skip
+
+
+def _fixed_params(doc: dict) -> str:
+    fixed = doc.get("fixed") or {}
+    if not fixed:
+        return "<p>None: every parameter considered was estimated.</p>"
+    rows = [[f"<code>{_esc(n)}</code>", _esc(why)] for n, why in fixed.items()]
+    return _table(["parameter", "why it was not estimated"], rows)
+
+
+def _parameters(doc: dict) -> str:
+    flagged = {f["name"] for f in doc.get("implausible") or []}
+    fixed = doc.get("fixed") or {}
+    rows, classes = [], []
+    for p in doc["parameters"]:
+        unit, factor = _SHOWN.get(p["unit"], (p["unit"], 1.0))
+        value_unit, value_factor = ("deg", factor) if p["unit"] == "rad" else (p["unit"], 1.0)
+        decimals = 6 if p["unit"] == "1" else 4
+        dev = (p["value"] - p["nominal"]) * factor
+        std = None if p.get("std") is None else p["std"] * factor
+        status = "estimated" if std is not None else ("fixed" if p["name"] in fixed else "not considered")
+        rows.append([f"<code>{_esc(p['name'])}</code>", _esc(value_unit), _fixed(p["nominal"] * value_factor, decimals), _fixed(p["value"] * value_factor, decimals),
+                     "–" if std is None and dev == 0 else f"{dev:+.4g} {_esc(unit) if unit != value_unit else ''}".strip(),
+                     "–" if std is None else f"{std:.2g}", _esc(status)])  # fmt: skip
+        classes.append("flag" if p["name"] in flagged else ("" if std is not None else "off"))
+    return (_table(["parameter", "unit", "nominal", "calibrated", "deviation", "std", "status"], rows, numeric={2, 3, 4, 5}, row_classes=classes)
+            + '<p class="small">Angles in degrees (stored in radians); a dimensionless scale\'s deviation in ppm. '
+            "Highlighted: implausible deviations; grey: not estimated (kept at their start value).</p>")  # fmt: skip
+
+
+def _quantities(params) -> str:
+    if not isinstance(params, dict):
+        return _esc(params)
+    shown = []
+    for name, q in params.items():
+        if isinstance(q, dict) and q.get("value") is not None:
+            sd = f" ± {q['std']:.2g}" if q.get("std") is not None else ""
+            shown.append(f"{_esc(name)} {q['value']:.4g}{sd} {_esc(q.get('unit', ''))}")
+        elif isinstance(q, list):
+            shown.append(f"{_esc(name)} {_esc(q[:8])}{' …' if len(q) > 8 else ''} ({len(q)})")
+        else:
+            shown.append(f"{_esc(name)} {_esc(q)}")
+    return "; ".join(shown)
+
+
+def _causes(doc: dict) -> str:
+    causes = doc.get("causes")
+    if not causes:
+        return ""
+    rows = [[_esc(c.get("label") or c.get("kind")), _quantities(c.get("params")), _esc(c.get("implausible") or "")] for c in causes]
+    return ("<h2>Causes in the model</h2><p>The calibration fitted an extended model: the geometric parameters and these causes.</p>"
+            + _table(["cause", "parameters", "implausible"], rows))  # fmt: skip
+
+
+def _diagnosis_table(report: dict) -> str:
+    rows = []
+    for e in report["effects"]:
+        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")),
+                     _fixed(e.get("rmse_heldout_before"), 4), _fixed(e.get("rmse_heldout_after"), 4)])  # fmt: skip
+    b, f = report["baseline"], report.get("final") or {}
+    intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
+             f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b['rmse_heldout'], 4)} mm"
+             f"{', final ' + _fixed(f['rmse_heldout'], 4) + ' mm' if f.get('rmse_heldout') is not None else ''}.</p>")  # fmt: skip
+    if not rows:
+        return intro + "<p>No cause beyond the geometric model is significant: the residuals look like noise.</p>"
+    return intro + _table(["effect", "parameters", "held-out RMSE before (mm)", "after (mm)"], rows, numeric={2, 3})
+
+
+def _figure(path: Path, caption: str) -> str:
+    return f'<figure><img src="{_esc(path.name)}" alt="{_esc(caption)}"><figcaption>{_esc(caption)}</figcaption></figure>'
+
+
+# -- entry points -----------------------------------------------------------------------------
+def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None) -> Path:
+    """Writes the HTML report of a calibration result and its figures; returns the page's path.
+
+    Parameters
+    ----------
+    result : str, Path or dict
+        A result file (schema ``robocal.result/1``) or its document.
+    out : str or Path
+        Folder for ``index.html`` and the PNG figures (created if needed).
+    data : str, Path or Dataset, optional
+        The measurements (default: the file the result names, if it is on this machine).
+    diagnosis : str, Path or dict, optional
+        A ``robocal diagnose --json`` report to add (held-out RMSE per cause, table of causes).
+
+    Returns
+    -------
+    Path
+        ``out/index.html``.
+
+    Raises
+    ------
+    InvalidParameterError
+        The result or diagnose file is unreadable or malformed.
+    DataError
+        An explicitly given ``data`` file cannot be read.
+    """
+    robot, doc = load_result(result)
+    diag = _load_diagnosis(diagnosis)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    d = _load_data(doc, data)
+    meas = doc["measurement"]
+    notes = list(d.notes)
+    figures: list[str] = []
+
+    ev = None
+    if d.dataset is not None:
+        ev = _evaluate(robot, doc, d.dataset, d.same_file)
+        recorded = (doc.get("dataset") or {}).get("sha256")
+        if d.path is not None and not d.same_file:
+            notes.append("the measurement file is not the one calibrated on (its sha256 differs or was not recorded): held-out samples are not marked"
+                         if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
+        if doc.get("causes"):
+            notes.append("the figures use the calibrated geometric parameters only: the fitted causes' contribution is not in the result file, so the errors may exceed the metrics above")
+        if doc.get("method") == "rbf":
+            notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
+    paths_residuals = _fig_residuals(ev, meas, out) if ev is not None else []
+    if paths_residuals:
+        before_rms, after_rms = _rms(ev.before), _rms(ev.after)
+        figures.append(_figure(paths_residuals[0], f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated."))
+        figures.append(_figure(paths_residuals[1], "The same errors in the order of the measurement file" + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else ".")))
+    p = _fig_parameters(doc, out)
+    if p is not None:
+        figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated parameters with ±2 std error bars (red: beyond 2 std)."))
+    p = _fig_convergence(doc, out)
+    if p is not None:
+        figures.append(_figure(p, "Cost ½‖r‖² of the training residuals after each iteration of the solver."))
+    p = _fig_identifiability(ev, out) if ev is not None else None
+    if p is not None:
+        kappa = _condition(ev.singular)
+        figures.append(_figure(p, f"Singular values of the identification Jacobian at the calibrated parameters, columns scaled to unit norm: condition number {kappa:.4g} (large values mean weakly determined parameter combinations)."))
+    diag_html = ""
+    if diag is not None:
+        p = _fig_diagnosis(diag, out)
+        diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
+                     + _diagnosis_table(diag))  # fmt: skip
+
+    title = f"robocal calibration report: {doc.get('robot', '')}"
+    note_html = "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in notes)
+    page = f"""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{_esc(title)}</title>
+<style>{_CSS}</style>
+</head>
+<body>
+<h1>{_esc(title)}</h1>
+{_header(doc, d)}
+<h2>Accuracy</h2>
+{_metrics(doc)}
+<h2>Plausibility</h2>
+{_implausible(doc)}
+<h2>Figures</h2>
+{note_html}
+{"".join(figures)}
+{diag_html}
+{_causes(doc)}
+<h2>Parameters not estimated</h2>
+{_fixed_params(doc)}
+<h2>Parameters</h2>
+{_parameters(doc)}
+</body>
+</html>
+"""
+    path = out / "index.html"
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("result", help="calibration result file (JSON of `robocal calibrate --out`)")
+    parser.add_argument("--out", metavar="DIR", required=True, help="folder for index.html and its figures")
+    parser.add_argument("--data", metavar="FILE", help="measurement file (default: the one the result names)")
+    parser.add_argument("--diagnosis", metavar="REPORT.json", help="a `robocal diagnose --json` report to include")
+
+
+def run(args: argparse.Namespace) -> int:
+    path = report(args.result, args.out, data=args.data, diagnosis=args.diagnosis)
+    print(f"wrote {path}")
+    return 0

@@ -1,0 +1,155 @@
+"""robocal report: the HTML page and its figures from a result file, with and without the data."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal import report as report_module
+from robocal.data import write_canonical
+from robocal.exceptions import InvalidParameterError
+from robocal.report import report
+from robocal.results import load_result
+from robocal.simulation import simulate
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    """A position calibration of a simulated IRB 120: (result file, document, data file)."""
+    where = tmp_path_factory.mktemp("report")
+    data, _ = simulate("abb-irb120", "position", samples=200, seed=1)
+    csv_path = write_canonical(data, where / "d.csv")
+    result = robocal.calibrate(str(csv_path), robot="abb-irb120")
+    doc = result.to_dict()
+    assert doc["dataset"]["source"] == str(csv_path)
+    path = where / "result.json"
+    path.write_text(json.dumps(doc))
+    return path, doc, csv_path
+
+
+def images(page: Path) -> list[Path]:
+    """The figures a page references, each checked to be a non-empty PNG beside it."""
+    names = re.findall(r'<img src="([^"]+)"', page.read_text())
+    paths = [page.parent / n for n in names]
+    for p in paths:
+        assert p.is_file(), p
+        assert p.stat().st_size > 1000 and p.read_bytes()[:8] == PNG, p
+    return paths
+
+
+def test_report_has_header_metrics_tables_and_all_figures(calibrated, tmp_path):
+    path, doc, csv_path = calibrated
+    page = report(path, tmp_path / "out")
+    assert page == tmp_path / "out" / "index.html"
+    text = page.read_text()
+    assert "abb-irb120" in text and doc["method"] in text and doc["dataset"]["sha256"] in text
+    for split in ("train", "test"):
+        for key in ("rmse", "mae", "max"):
+            assert f"{doc['metrics'][split][key]:.4f}" in text, (split, key)
+    # Every fixed parameter with its reason; every parameter in the table.
+    for name, why in doc["fixed"].items():
+        assert f"<code>{name}</code>" in text and why.replace("'", "&#x27;") in text
+    assert all(f"<code>{p['name']}</code>" in text for p in doc["parameters"])
+    # Angles are shown in degrees: alpha1 of the IRB 120 is nominally -90 deg.
+    assert "-90.0000" in text
+    names = {p.name for p in images(page)}
+    assert names == {"residuals_histogram.png", "residuals_samples.png", "parameters.png", "convergence.png", "identifiability.png"}
+    # Self-contained: no scripts, no external resources.
+    assert "<script" not in text and "http://" not in text and "https://" not in text
+
+
+def test_evaluation_reproduces_the_recorded_metrics(calibrated):
+    """The calibrated robot on the named file's training rows gives the recorded training RMSE,
+    the held-out rows are the recorded ones, and the nominal model is worse."""
+    path, doc, csv_path = calibrated
+    robot, doc = load_result(path)
+    d = report_module._load_data(doc, None)
+    assert d.same_file and len(d.dataset) == 200
+    ev = report_module._evaluate(robot, doc, d.dataset, d.same_file)
+    assert ev.held_out.sum() == len(doc["dataset"]["rows_held_out"]) == doc["metrics"]["test"]["n"]
+    train = ev.after[~ev.held_out]
+    assert np.sqrt(np.mean(train**2)) == pytest.approx(doc["metrics"]["train"]["rmse"], rel=1e-6)
+    assert np.sqrt(np.mean(ev.after[ev.held_out] ** 2)) == pytest.approx(doc["metrics"]["test"]["rmse"], rel=1e-6)
+    assert np.sqrt(np.mean(ev.before**2)) > 5 * np.sqrt(np.mean(ev.after**2))
+    # One singular value per estimated parameter, all positive: the free set is identifiable.
+    assert ev.n_cols == len(doc["free"]) and ev.singular.shape == (len(doc["free"]),) and ev.singular.min() > 0
+
+
+def test_cli_with_a_diagnosis(calibrated, tmp_path, capsys):
+    path, doc, _ = calibrated
+    diagnosis = {
+        "robot": "abb-irb120", "measurement": "position", "samples": 200, "source": None,
+        "baseline": {"rmse_heldout": 0.05, "rmse_heldout_blocked": 0.06, "n_params": 27, "folds": 5, "implausible": []},
+        "effects": [
+            {"kind": "outliers", "joint": None, "label": "outliers", "params": {"rows": [7, 9], "samples": [5, 7], "threshold_sigma": 5.0},
+             "rmse_heldout_before": 0.09, "rmse_heldout_after": 0.05},
+            {"kind": "joint_periodic", "joint": 2, "label": "joint_periodic joint 2 <harmonic=1>",
+             "params": {"amplitude": {"value": 0.01, "std": 0.001, "unit": "deg"}}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03},
+        ],
+        "rejected": [], "final": {"rmse_heldout": 0.03, "rmse_heldout_blocked": 0.035, "n_params": 29},
+    }  # fmt: skip
+    diag_path = tmp_path / "diag.json"
+    diag_path.write_text(json.dumps(diagnosis))
+    parser = argparse.ArgumentParser()
+    report_module.add_arguments(parser)
+    args = parser.parse_args([str(path), "--out", str(tmp_path / "html"), "--diagnosis", str(diag_path)])
+    assert report_module.run(args) == 0
+    page = tmp_path / "html" / "index.html"
+    assert capsys.readouterr().out.strip() == f"wrote {page}"
+    text = page.read_text()
+    assert "diagnosis.png" in {p.name for p in images(page)}
+    # Labels are escaped, the cause's parameters shown.
+    assert "joint_periodic joint 2 &lt;harmonic=1&gt;" in text and "<harmonic=1>" not in text
+    assert "amplitude 0.01 ± 0.001 deg" in text
+    assert [s[0] for s in report_module._diagnosis_steps(diagnosis)] == ["with outliers", "geometric baseline", "+ joint_periodic joint 2 <harmonic=1>"]
+    with pytest.raises(SystemExit):
+        parser.parse_args([str(path)])  # --out is required
+
+
+def test_missing_source_gives_a_page_without_the_data_figures(calibrated, tmp_path):
+    path, doc, csv_path = calibrated
+    moved = json.loads(path.read_text())
+    moved["dataset"]["source"] = str(tmp_path / "gone.csv")
+    moved_path = tmp_path / "moved.json"
+    moved_path.write_text(json.dumps(moved))
+    page = report(moved_path, tmp_path / "nodata")
+    text = page.read_text()
+    assert "is not on this machine" in text and "--data FILE" in text
+    assert {p.name for p in images(page)} == {"parameters.png", "convergence.png"}
+    assert f"{doc['metrics']['train']['rmse']:.4f}" in text
+    # --data brings the data figures back; the same content is recognised by its sha256.
+    page = report(moved_path, tmp_path / "withdata", data=csv_path)
+    names = {p.name for p in images(page)}
+    assert {"residuals_histogram.png", "identifiability.png"} <= names
+    assert "sha256 matches" in page.read_text()
+    # No source recorded at all: said so.
+    moved["dataset"]["source"] = None
+    page = report(moved, tmp_path / "nosource")
+    assert "names no measurement file" in page.read_text()
+
+
+def test_bad_result_files_raise(calibrated, tmp_path):
+    path, doc, _ = calibrated
+    corrupt = tmp_path / "corrupt.json"
+    corrupt.write_text(path.read_text()[: len(path.read_text()) // 2])
+    with pytest.raises(InvalidParameterError, match="not a robocal result file"):
+        report(corrupt, tmp_path / "a")
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({**doc, "schema": "something/2"}))
+    with pytest.raises(InvalidParameterError, match="schema"):
+        report(other, tmp_path / "b")
+    with pytest.raises(InvalidParameterError, match="cannot read"):
+        report(tmp_path / "missing.json", tmp_path / "c")
+    assert not (tmp_path / "a").exists()  # nothing written for a bad input
+    bad_diag = tmp_path / "diag.json"
+    bad_diag.write_text("{}")
+    with pytest.raises(InvalidParameterError, match="diagnose"):
+        report(path, tmp_path / "d", diagnosis=bad_diag)
