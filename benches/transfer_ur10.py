@@ -30,8 +30,7 @@ def rmse_on(robot, data, params) -> float:
     """RMSE after re-fitting only the session set-up (base frame, tool point) on ``data``."""
     free = np.array([robot.index(n) for n in SETUP])
     fit = levenberg_marquardt(Problem(robot, data, free, np.asarray(params, dtype=float).copy()))
-    r = fit.problem.data_residuals(fit.x)
-    return float(np.sqrt(np.mean(r * r)))
+    return fit.metrics["train"]["rmse"]  # eq. (28): per-sample Euclidean errors
 
 
 def main() -> None:

@@ -8,7 +8,7 @@ import importlib
 import os
 import sys
 
-from . import __version__
+from . import __version__, progress
 from .exceptions import RobocalError
 
 #: subcommand -> (module, help)
@@ -28,11 +28,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="robocal", description="Fast, honest kinematic calibration of industrial robots.")
     parser.add_argument("--version", action="version", version=f"robocal {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (module_name, help_text) in COMMANDS.items():
         module = importlib.import_module(module_name)
         module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
     args = parser.parse_args(argv)
+    progress.QUIET = args.quiet
     try:
         return importlib.import_module(COMMANDS[args.command][0]).run(args)
     except BrokenPipeError:

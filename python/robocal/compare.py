@@ -43,6 +43,7 @@ from .calibration.rbf import RBFResult
 from .data.dataset import Dataset
 from .data.splits import chronological, kfold, paper_split, random_split
 from .exceptions import InvalidParameterError
+from .progress import progress
 from .robot import Robot
 
 PROTOCOLS = ("paper", "kfold", "80-20", "chronological")
@@ -198,7 +199,7 @@ def compare(
     if protocol == "chronological" and repeats > 1:
         notes.append(f"the chronological split is deterministic: one split, not {repeats}")
     splits, runs = [], []
-    for k, (train_idx, test_idx) in enumerate(make_splits(dataset, protocol, repeats, seed)):
+    for k, (train_idx, test_idx) in enumerate(progress(make_splits(dataset, protocol, repeats, seed), desc="compare: splits", unit="split")):
         train, test = dataset.subset(train_idx), dataset.subset(test_idx)
         split = {"index": k, "train": train_idx.tolist(), "test": test_idx.tolist(), "test_rows": test.rows.tolist()}
         try:  # the start point and free set, shared by all methods on this split

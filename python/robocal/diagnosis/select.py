@@ -36,6 +36,7 @@ from ..calibration.problem import Problem
 from ..data.dataset import Dataset
 from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
+from ..progress import progress
 from ..robot import Robot
 from .candidates import Candidate, library
 from .model import ExtendedProblem
@@ -105,8 +106,10 @@ def _cv_errors(A: np.ndarray, r: np.ndarray, folds: list, k: int) -> np.ndarray:
     return err
 
 
-def _rmse(sq: np.ndarray, k: int) -> float:
-    return float(np.sqrt(np.mean(sq) / k))
+def _rmse(sq: np.ndarray) -> float:
+    """RMSE of eq. (28) from per-sample squared errors: the per-sample error is the cable
+    residual, or the Euclidean norm of the position (and rotation) residual."""
+    return float(np.sqrt(np.mean(sq)))
 
 
 def _fit(problem: ExtendedProblem, x0=None):
@@ -250,7 +253,7 @@ def diagnose(
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
         model_err = {name: _cv_errors(J, r, f, k) for name, f in schemes.items()}
         scored = []
-        for c in pool:
+        for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
             if c.stage == "parameters":
                 C = parts["extra"][:, [params.index(n) for n in c.params]]
             else:
@@ -258,13 +261,13 @@ def diagnose(
             A = np.hstack([J, C])
             errs = {name: _cv_errors(A, r, f, k) for name, f in schemes.items()}
             p_value = _f_test(J, C, r)
-            gains = {name: _rmse(model_err[name], k) - _rmse(errs[name], k) for name in schemes}
+            gains = {name: _rmse(model_err[name]) - _rmse(errs[name]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
         n_tests = len(scored)
         accepted = None
         for gain, c, p_value, gains in scored:
-            relevant = gain >= min_gain * _rmse(model_err["random"], k)
+            relevant = gain >= min_gain * _rmse(model_err["random"])
             significant = p_value * n_tests < alpha and relevant and all(g > 0 for g in gains.values())
             if not significant:
                 break
@@ -277,7 +280,7 @@ def diagnose(
                 continue
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
             new_cv = {name: _nonlinear_cv(trial, fit.x, f) for name, f in schemes.items()}
-            lost = [name for name in schemes if _rmse(new_cv[name], k) >= _rmse(current_cv[name], k)]
+            lost = [name for name in schemes if _rmse(new_cv[name]) >= _rmse(current_cv[name])]
             if lost:
                 rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
                 continue
@@ -287,7 +290,7 @@ def diagnose(
             for gain, c, p_value, gains in scored[:5]:
                 if not any(r["label"] == c.label for r in rejected):
                     why = ("not significant" if p_value * n_tests >= alpha else
-                           f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * _rmse(model_err["random"], k) else "no gain on every fold scheme")  # fmt: skip
+                           f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * _rmse(model_err["random"]) else "no gain on every fold scheme")  # fmt: skip
                     rejected.append(_record(c, gain, gains, p_value, n_tests, None, why))
             break
         c, fit, p_value, gains, physical, trial, new_cv = accepted
@@ -299,11 +302,11 @@ def diagnose(
         x = fit.x
         effects.append({
             "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
-            "rmse_heldout_before": _rmse(current_cv["random"], k), "rmse_heldout_after": _rmse(new_cv["random"], k),
+            "rmse_heldout_before": _rmse(current_cv["random"]), "rmse_heldout_after": _rmse(new_cv["random"]),
             "significance": {"test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
                              "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests), "candidates": n_tests,
                              "screening_gain_mm": gains,
-                             "rmse_heldout_blocked_before": _rmse(current_cv["blocked"], k), "rmse_heldout_blocked_after": _rmse(new_cv["blocked"], k)},
+                             "rmse_heldout_blocked_before": _rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": _rmse(new_cv["blocked"])},
         })  # fmt: skip
         current_cv = new_cv
 
@@ -318,19 +321,19 @@ def diagnose(
         effects.insert(0, {
             "kind": "outliers", "joint": None, "label": "outliers",
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound},
-            "rmse_heldout_before": _rmse(before, k), "rmse_heldout_after": _rmse(baseline_cv["random"], k),
+            "rmse_heldout_before": _rmse(before), "rmse_heldout_after": _rmse(baseline_cv["random"]),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
         })  # fmt: skip
     return Diagnosis(
         robot=rob, data=dataset,
-        baseline={"rmse_heldout": _rmse(baseline_cv["random"], k), "rmse_heldout_blocked": _rmse(baseline_cv["blocked"], k),
-                  "rmse_train": base_fit.metrics["train"]["rmse"] if k == 1 else float(np.sqrt(2.0 * base_fit.cost / (len(keep) * k))),
+        baseline={"rmse_heldout": _rmse(baseline_cv["random"]), "rmse_heldout_blocked": _rmse(baseline_cv["blocked"]),
+                  "rmse_train": base_fit.metrics["train"]["rmse"],
                   "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
                   # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
                   # geometry fits the data only with parameters no robot has.
                   "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
-        final={"rmse_heldout": _rmse(current_cv["random"], k), "rmse_heldout_blocked": _rmse(current_cv["blocked"], k), "n_params": int(model.n)},
+        final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n)},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
 
