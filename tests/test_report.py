@@ -16,7 +16,6 @@ from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.report import report
 from robocal.results import load_result
-from robocal.simulation import simulate
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -25,7 +24,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 def calibrated(tmp_path_factory):
     """A position calibration of a simulated IRB 120: (result file, document, data file)."""
     where = tmp_path_factory.mktemp("report")
-    data, _ = simulate("abb-irb120", "position", samples=200, seed=1)
+    data, _ = robocal.simulate("abb-irb120", "position", samples=200, seed=1)
     csv_path = write_canonical(data, where / "d.csv")
     result = robocal.calibrate(str(csv_path), robot="abb-irb120")
     doc = result.to_dict()

@@ -177,7 +177,7 @@ def _rms(e: np.ndarray) -> float:
 
 def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
     plt = _pyplot()
-    what = "|cable length residual|" if meas == "cable" else "position error"
+    what = {"cable": "|cable length residual|", "position": "position error", "pose": "position error (of the pose)"}[meas]
     colours = {"before": "tab:orange", "after": "tab:blue"}
     errors = {"before": ev.before, "after": ev.after}
     labels = {"before": "before: nominal kinematics", "after": "after: calibrated"}
@@ -550,6 +550,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     p = _fig_parameters(doc, out)
     if p is not None:
         figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated parameters with ±2 std error bars (red: beyond 2 std)."))
+    else:
+        figures.append('<p class="note">No parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>')
     p = _fig_convergence(doc, out)
     if p is not None:
         figures.append(_figure(p, "Cost ½‖r‖² of the training residuals after each iteration of the solver."))
