@@ -20,6 +20,7 @@ COMMANDS = {
     "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures"),
     "diagnose": ("robocal.diagnosis.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain"),
     "compensate": ("robocal.compensation", "joint commands that make the calibrated robot reach desired tool positions"),
+    "report": ("robocal.report", "an HTML page with figures of a calibration result (and its diagnosis)"),
     "export": ("robocal.export", "write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip"),
 }
 

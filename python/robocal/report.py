@@ -32,7 +32,7 @@ import numpy as np
 
 from ._robocal import __version__
 from .calibration.metrics import sample_errors
-from .calibration.problem import start_parameters
+from .calibration.problem import is_kinematic, start_parameters
 from .data.dataset import Dataset
 from .exceptions import InvalidParameterError, RobocalError
 from .results import file_sha256, load_result
@@ -220,12 +220,15 @@ def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
 
 
 def _estimated(doc: dict) -> list[dict]:
-    return [p for p in doc["parameters"] if p.get("std") is not None]
+    """The estimated joint parameters. Base, tool and sensor parameters are fitted from scratch
+    (their nominal values are placeholders), so their "deviation" means nothing and would set the
+    scale: they are in the table only."""
+    return [p for p in doc["parameters"] if p.get("std") is not None and is_kinematic(p["name"])]
 
 
 def _fig_parameters(doc: dict, out: Path) -> Optional[Path]:
     groups = []
-    for unit, title in (("mm", "lengths"), ("rad", "angles"), ("1", "scale")):
+    for unit, title in (("mm", "joint lengths"), ("rad", "joint angles")):
         ps = [p for p in _estimated(doc) if p["unit"] == unit]
         if ps:
             shown, factor = _SHOWN[unit]
@@ -252,15 +255,18 @@ def _fig_parameters(doc: dict, out: Path) -> Optional[Path]:
             # Deviations spanning decades (one parameter 1000 mm off beside 0.1 mm ones): a
             # linear axis would show one bar.
             linthresh = 10.0 ** np.floor(np.log10(max(typical, 1e-12)))
-            ax.set_xscale("symlog", linthresh=linthresh, linscale=0.5)
+            ax.set_xscale("symlog", linthresh=linthresh, linscale=1.0)
             scale = f"; symmetric log scale, linear within ±{linthresh:g}"
-            limit = 10.0 ** np.ceil(np.log10(max(size.max(), linthresh) * 1.05))
+            # Each side to the decade above its largest deviation: no empty decades.
+            lo = -(10.0 ** np.ceil(np.log10(max(-dev.min(), linthresh) * 1.05)))
+            hi = 10.0 ** np.ceil(np.log10(max(dev.max(), linthresh) * 1.05))
         else:
             # Deviations set the scale; an error bar that is much longer runs off it, labelled.
-            limit = 1.15 * max(size.max(), float(np.median(err)), 1e-12)
-        ax.set_xlim(-limit, limit)
+            hi = 1.15 * max(size.max(), float(np.median(err)), 1e-12)
+            lo = -hi
+        ax.set_xlim(lo, hi)
         for yi, d, e in zip(y, dev, err):
-            if abs(d) + e > limit:
+            if d - e < lo or d + e > hi:
                 right = d < 0  # on the side the bar leaves free
                 ax.text(0.99 if right else 0.01, yi, f"±{e:.3g} {unit}, off scale", transform=ax.get_yaxis_transform(), ha="right" if right else "left",
                         va="center", fontsize=7, color="0.25", bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.85})  # fmt: skip
@@ -524,9 +530,9 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     """
     robot, doc = load_result(result)
     diag = _load_diagnosis(diagnosis)
+    d = _load_data(doc, data)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    d = _load_data(doc, data)
     meas = doc["measurement"]
     notes = list(d.notes)
     figures: list[str] = []
@@ -549,9 +555,10 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         figures.append(_figure(paths_residuals[1], "The same errors in the order of the measurement file" + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else ".")))
     p = _fig_parameters(doc, out)
     if p is not None:
-        figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated parameters with ±2 std error bars (red: beyond 2 std)."))
+        figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
+                                  "base, tool and sensor parameters, fitted from scratch, are in the table below."))  # fmt: skip
     else:
-        figures.append('<p class="note">No parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>')
+        figures.append('<p class="note">No joint parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>')
     p = _fig_convergence(doc, out)
     if p is not None:
         figures.append(_figure(p, "Cost ½‖r‖² of the training residuals after each iteration of the solver."))
