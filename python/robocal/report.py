@@ -118,7 +118,8 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
 
 def nominal_robot(robot: Robot, doc: dict) -> Robot:
     """The robot with the nominal parameters the calibration started from."""
-    return Robot(robot.name, robot.joints, np.array([float(p["nominal"]) for p in doc["parameters"]]))
+    nominal = {p["name"]: float(p["nominal"]) for p in doc["parameters"]}
+    return Robot(robot.name, robot.joints, np.array([nominal[n] for n in robot.param_names]))
 
 
 # -- evaluation -------------------------------------------------------------------------------
@@ -202,14 +203,14 @@ def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
     # (b) Along the samples (file order), held-out samples marked.
     idx = np.arange(len(ev.after))
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
-    small = 6 if len(idx) <= 500 else 3
+    small, cross = (6, 22) if len(idx) <= 500 else (4, 12)
     held = ev.held_out if ev.held_out is not None else np.zeros(len(idx), dtype=bool)
     for key in ("before", "after"):
         e = np.clip(errors[key], lo, None)
         name = key
         ax.scatter(idx[~held], e[~held], s=small, color=colours[key], alpha=0.6, lw=0, label=f"{name}, training" if held.any() else name)
         if held.any():
-            ax.scatter(idx[held], e[held], s=22, marker="x", color=colours[key], lw=1.0, label=f"{name}, held out")
+            ax.scatter(idx[held], e[held], s=cross, marker="x", color=colours[key], lw=1.0, label=f"{name}, held out")
     ax.set_yscale("log")
     ax.set_xlim(-0.01 * len(idx), 1.01 * len(idx))
     ax.set(xlabel="sample (order in the measurement file)", ylabel=f"{what} (mm, log scale)", title="Per-sample error along the acquisition")
@@ -261,8 +262,10 @@ def _fig_parameters(doc: dict, out: Path) -> Optional[Path]:
             lo = -(10.0 ** np.ceil(np.log10(max(-dev.min(), linthresh) * 1.05)))
             hi = 10.0 ** np.ceil(np.log10(max(dev.max(), linthresh) * 1.05))
         else:
-            # Deviations set the scale; an error bar that is much longer runs off it, labelled.
-            hi = 1.15 * max(size.max(), float(np.median(err)), 1e-12)
+            # Deviations set the scale; an error bar much longer than the largest deviation
+            # runs off it, labelled.
+            reach = np.minimum(size + err, 1.5 * size.max())
+            hi = 1.08 * max(size.max(), float(reach.max()), float(np.median(err)), 1e-12)
             lo = -hi
         ax.set_xlim(lo, hi)
         for yi, d, e in zip(y, dev, err):
@@ -326,8 +329,8 @@ def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
     steps = []
     outliers = [e for e in effects if e.get("kind") == "outliers"]
     if outliers and outliers[0].get("rmse_heldout_before") is not None:
-        steps.append(("with outliers", float(outliers[0]["rmse_heldout_before"])))
-    steps.append(("geometric baseline", float(report["baseline"]["rmse_heldout"])))
+        steps.append(("geometric, outliers kept", float(outliers[0]["rmse_heldout_before"])))
+    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), float(report["baseline"]["rmse_heldout"])))
     for e in effects:
         if e.get("kind") != "outliers":
             steps.append((f"+ {e.get('label') or e.get('kind')}", float(e["rmse_heldout_after"])))
@@ -340,7 +343,7 @@ def _fig_diagnosis(report: dict, out: Path) -> Path:
     names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
     fig, ax = plt.subplots(figsize=(7.0, 0.45 * len(steps) + 1.5))
     y = np.arange(len(steps))[::-1]
-    ax.barh(y, rmse, color=["0.6" if n == "with outliers" else "tab:blue" for n in names], height=0.6)
+    ax.barh(y, rmse, color=["0.6" if n.endswith("outliers kept") else "tab:blue" for n in names], height=0.6)
     for i, (yi, v) in enumerate(zip(y, rmse)):
         change = f" ({(v - rmse[i - 1]) / rmse[i - 1]:+.1%})" if i > 0 and rmse[i - 1] > 0 else ""
         ax.text(v, yi, f" {v:.4g} mm{change}", va="center", fontsize=8)
@@ -542,7 +545,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         ev = _evaluate(robot, doc, d.dataset, d.same_file)
         recorded = (doc.get("dataset") or {}).get("sha256")
         if d.path is not None and not d.same_file:
-            notes.append("the measurement file is not the one calibrated on (its sha256 differs or was not recorded): held-out samples are not marked"
+            notes.append("the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
                          if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
         if doc.get("causes"):
             notes.append("the figures use the calibrated geometric parameters only: the fitted causes' contribution is not in the result file, so the errors may exceed the metrics above")

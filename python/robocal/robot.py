@@ -21,6 +21,9 @@ from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 
 MEASUREMENTS = ("cable", "position", "pose")
 
+#: Residual rows per sample: the cable length; x, y, z; x, y, z and the rotation vector.
+RESIDUAL_WIDTH = {"cable": 1, "position": 3, "pose": 6}
+
 
 @dataclass(frozen=True)
 class Joint:

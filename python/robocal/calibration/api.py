@@ -199,6 +199,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
     add_kinematic_prior_argument(parser)
+    parser.add_argument("--loss", choices=["linear", "huber", "cauchy"], default="linear",
+                        help="robust loss of method lm; outlying rows are reported (default linear)")  # fmt: skip
     parser.add_argument("--causes", nargs="+", metavar="CAUSE",
                         help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them")  # fmt: skip
     parser.add_argument("--out", help="write the result JSON here")
@@ -208,7 +210,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
                        test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior,
-                       causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None)  # fmt: skip
+                       causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None,
+                       **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
     doc = result.to_dict()
     if args.out:
         Path(args.out).write_text(json.dumps(doc, indent=2))
@@ -226,6 +229,9 @@ def run(args: argparse.Namespace) -> int:
         shown = ", ".join(f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"
                           for k, v in cause["params"].items() if v["value"] == v["value"])  # fmt: skip
         print(f"  cause {cause['label']}: {shown}")
+    if "robust" in doc:
+        rows = doc["robust"]["outlying_rows"]
+        print(f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows" + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else ""))
     if doc["implausible"]:
         print("  warning: " + describe_implausible(doc["implausible"]))
     if args.out:

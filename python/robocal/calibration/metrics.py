@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..robot import RESIDUAL_WIDTH
+
 
 def sample_errors(residuals: np.ndarray, measurement: str) -> np.ndarray:
     """Per-sample error (mm) from residuals of shape (m, k) or flattened (m·k,)."""
-    width = {"cable": 1, "position": 3, "pose": 6}[measurement]
+    width = RESIDUAL_WIDTH[measurement]
     r = np.asarray(residuals, dtype=np.float64).reshape(-1, width)
     return np.abs(r[:, 0]) if width == 1 else np.linalg.norm(r[:, :3], axis=1)
 

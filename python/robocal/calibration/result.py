@@ -52,6 +52,8 @@ class CalibrationResult:
         ``{"train": {...}, "test": {...} or None}`` per eq. (28).
     held_out : Dataset, optional
         The held-out samples the test metrics were computed on (for the provenance).
+    robust : dict, optional
+        A robust fit's ``loss``, ``f_scale`` (mm) and ``outlying_rows``.
     """
 
     method: str
@@ -67,6 +69,7 @@ class CalibrationResult:
     time_s: float
     metrics: dict = field(default_factory=dict)
     held_out: Optional[Dataset] = None
+    robust: Optional[dict] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -127,6 +130,8 @@ class CalibrationResult:
         """An extended model (:class:`robocal.diagnosis.ExtendedProblem`) adds its causes."""
         if hasattr(self.problem, "describe_causes"):
             doc["causes"] = self.problem.describe_causes(self.x, self.std)
+        if self.robust is not None:
+            doc["robust"] = self.robust
         return doc
 
     @classmethod

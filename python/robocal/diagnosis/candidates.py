@@ -27,7 +27,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
-from ..robot import Robot
+from ..robot import RESIDUAL_WIDTH, Robot
 
 #: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).
 #: Compliance: joint stiffness above 1e3 N·m/rad; gear errors, backlash and misalignments below
@@ -155,7 +155,7 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     """
     n, m = robot.n_joints, len(data)
     q = data.q
-    k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+    k = RESIDUAL_WIDTH[data.measurement]
     moving = [j for j in range(n) if np.ptp(q[:, j]) > 1e-6]
     out: list[Candidate] = []
     tau = None

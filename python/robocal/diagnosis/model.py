@@ -12,6 +12,7 @@ import numpy as np
 
 from ..calibration.problem import Problem
 from ..data.dataset import Dataset
+from ..robot import RESIDUAL_WIDTH
 from .candidates import Candidate
 
 
@@ -27,7 +28,7 @@ class ExtendedProblem:
         self.base, self.robot, self.causes = base, base.robot, list(causes)
         self.full_data, self.idx = data, np.asarray(idx)
         self.data = data.subset(self.idx)
-        self.k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+        self.k = RESIDUAL_WIDTH[data.measurement]
         extra = [self.robot.index(n) for c in self.causes if c.stage == "parameters" for n in c.params]
         self.free = np.concatenate([base.free, np.array(extra, dtype=int)]).astype(int)
         self.start = base.start

@@ -37,7 +37,7 @@ from ..data.dataset import Dataset
 from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
-from ..robot import Robot
+from ..robot import RESIDUAL_WIDTH, Robot
 from .candidates import Candidate, library
 from .model import ExtendedProblem
 
@@ -135,7 +135,7 @@ def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.nda
     """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale, and
     beyond :data:`GROSS_SIGMAS`."""
     m = len(data)
-    k = {"cable": 1, "position": 3, "pose": 6}[data.measurement]
+    k = RESIDUAL_WIDTH[data.measurement]
     bound = max(float(chi2.ppf(1.0 - level / m, k)), GROSS_SIGMAS**2)
     flagged = np.zeros(m, dtype=bool)
     for _ in range(5):
@@ -229,7 +229,7 @@ def diagnose(
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
     base = Problem.build(rob, dataset, mask=_baseline_mask(rob, dataset.measurement, hayati))
-    k = {"cable": 1, "position": 3, "pose": 6}[dataset.measurement]
+    k = RESIDUAL_WIDTH[dataset.measurement]
 
     effects, rejected, plots = [], [], {}
     outliers, z_bound = _outliers(base, dataset)
