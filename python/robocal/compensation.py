@@ -9,7 +9,9 @@ cable data).
 
 For each target: a seed (the given joints, else the nominal model's inverse kinematics from the
 middle of the joint ranges), then damped Gauss–Newton on the joint angles of the *calibrated*
-model (Jacobian from the Rust core: ``∂h/∂q_j`` is the ``theta_j`` column). Position targets
+model — with the joint causes of an extended model (``calibrate --causes``: compliance,
+periodic gear errors, scale, coupling) applied to the commanded angles; backlash and sensor
+causes are named in the status as not compensated — (Jacobian from the Rust core: ``∂h/∂q_j`` is the ``theta_j`` column). Position targets
 leave three degrees of freedom of a 6-axis arm free: the damped steps take the smallest change
 from the seed, so the tool keeps the seed's orientation as far as possible. A target is
 reported unreachable — a row with its reason, never dropped — when the iteration does not get
@@ -27,6 +29,7 @@ from typing import Optional
 import numpy as np
 
 from .core import solve_damped
+from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
 from .exceptions import InvalidParameterError
 from .results import load_result
@@ -63,9 +66,11 @@ def _joint_columns(robot: Robot) -> list[int]:
     return [robot.index(f"theta{j}") for j in range(1, robot.n_joints + 1)]
 
 
-def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100) -> tuple[np.ndarray, float, str]:
-    """Joint angles (rad) with which ``robot`` reaches ``target`` (xyz, or xyz + quaternion).
+def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None) -> tuple[np.ndarray, float, str]:
+    """Joint commands (rad) with which ``robot`` reaches ``target`` (xyz, or xyz + quaternion).
 
+    ``offsets(q) -> Δq`` are joint causes of an extended model: the links take ``q + Δq(q)``
+    (the Jacobian neglects ``∂Δq/∂q``, a relative change of order 1e-4).
     Returns ``(q, residual_mm, status)``; ``status`` is ``"ok"`` or the reason it is not.
     """
     measurement = "pose" if target.size == 7 else "position"
@@ -73,16 +78,20 @@ def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float 
     q = np.array(seed, dtype=np.float64)[None, :]
     y = target[None, :]
     lam = 1e-6
+
+    def actual(q):
+        return q if offsets is None else q + offsets(q)
+
     for _ in range(max_iter):
-        r = robot.residuals(measurement, q, y).ravel()
+        r = robot.residuals(measurement, actual(q), y).ravel()
         error = float(np.linalg.norm(r[:3]))
         if error < tol and (measurement == "position" or np.linalg.norm(r[3:]) < tol * 1e-3):
             break
-        J = robot.jacobian(measurement, q, y=y, cols=cols)
+        J = robot.jacobian(measurement, actual(q), y=y, cols=cols)
         step, _ = solve_damped(J, r, lam, "identity")
         q = q + step[None, :]
     else:
-        r = robot.residuals(measurement, q, y).ravel()
+        r = robot.residuals(measurement, actual(q), y).ravel()
     error = float(np.linalg.norm(r[:3]))
     lower = np.array([j.limits[0] for j in robot.joints])
     upper = np.array([j.limits[1] for j in robot.joints])
@@ -128,10 +137,15 @@ def compensate(result, targets) -> list[dict]:
     nominal.params[setup] = calibrated.params[setup]
     if not isinstance(targets, Targets):
         targets = read_targets(targets, calibrated.n_joints)
+    causes = doc.get("causes", [])
+    offsets = joint_offsets(calibrated, causes)
+    skipped = sorted({c["label"] for c in causes if c["kind"] not in COMPENSABLE})
+    note = f" (not compensated: {', '.join(skipped)})" if skipped else ""
     out = []
     for i, target in enumerate(targets.y):
         seed = targets.seeds[i] if targets.seeds is not None else nominal_seed(nominal, target)
-        q, error, status = solve_joints(calibrated, target, seed)
+        q, error, status = solve_joints(calibrated, target, seed, offsets=offsets)
+        status += note if status == "ok" else ""
         out.append({"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status})
     return out
 
@@ -156,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
     rows = compensate(args.result, args.targets)
     n_joints = len(rows[0]["q"]) if rows else 0
     write_joints(rows, args.out, n_joints)
-    bad = [r for r in rows if r["status"] != "ok"]
+    bad = [r for r in rows if not r["status"].startswith("ok")]
     print(f"{len(rows) - len(bad)} of {len(rows)} targets reached (largest residual "
           f"{max((r['residual_mm'] for r in rows if r['status'] == 'ok'), default=float('nan')):.2g} mm); written to {args.out}")  # fmt: skip
     for r in bad[:10]:

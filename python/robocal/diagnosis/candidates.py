@@ -27,6 +27,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
+from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
 
 #: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).
@@ -144,6 +145,30 @@ class Candidate:
         return out, why
 
 
+def has_mass_model(robot: Robot) -> bool:
+    """Gravity torques are available (a mass model and a revolute standard-DH chain)."""
+    return robot.name in MASS_MODELS and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints)
+
+
+def joint_basis(robot: Robot, q: np.ndarray, kind: str, joint: int, detail: dict, tau: Optional[np.ndarray] = None) -> np.ndarray:
+    """The basis ``B`` (m, n_c) of a joint cause at joint angles ``q`` (m, N), rows in
+    acquisition order (backlash needs it): ``Δq_joint = B·c``."""
+    qj = q[:, joint]
+    if kind == "joint_compliance":
+        torques = gravity_torques(robot, q) if tau is None else tau
+        return torques[:, joint : joint + 1].copy()
+    if kind == "joint_periodic":
+        h = detail["harmonic"]
+        return np.column_stack([np.sin(h * qj), np.cos(h * qj)])
+    if kind == "joint_scale":
+        return qj[:, None].copy()
+    if kind == "joint_coupling":
+        return q[:, detail["source"] - 1 : detail["source"]].copy()
+    if kind == "backlash":
+        return Backlash.directions(qj)[:, None]
+    raise InvalidParameterError(f"{kind!r} is not a joint cause")
+
+
 def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = True) -> list[Candidate]:
     """Every candidate that applies to ``robot`` and ``data`` (see the module notes).
 
@@ -158,19 +183,18 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     k = RESIDUAL_WIDTH[data.measurement]
     moving = [j for j in range(n) if np.ptp(q[:, j]) > 1e-6]
     out: list[Candidate] = []
-    tau = None
-    if robot.name in MASS_MODELS and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints):
-        tau = gravity_torques(robot, q)
+    tau = gravity_torques(robot, q) if has_mass_model(robot) else None
+
+    def joint_candidate(kind, j, **detail):
+        return Candidate(kind, j, "joints", joint_basis(robot, q, kind, j, detail, tau), detail=detail)
+
     for j in moving:
         if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
-            out.append(Candidate("joint_compliance", j, "joints", tau[:, j : j + 1].copy()))
-        for h in (1, 2, 3):
-            out.append(Candidate("joint_periodic", j, "joints", np.column_stack([np.sin(h * q[:, j]), np.cos(h * q[:, j])]), detail={"harmonic": h}))
-        out.append(Candidate("joint_scale", j, "joints", q[:, j : j + 1].copy()))
-        for s in moving:
-            if s != j:
-                out.append(Candidate("joint_coupling", j, "joints", q[:, s : s + 1].copy(), detail={"source": s + 1}))
-        out.append(Candidate("backlash", j, "joints", Backlash.directions(q[:, j])[:, None]))
+            out.append(joint_candidate("joint_compliance", j))
+        out += [joint_candidate("joint_periodic", j, harmonic=h) for h in (1, 2, 3)]
+        out.append(joint_candidate("joint_scale", j))
+        out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j]
+        out.append(joint_candidate("backlash", j))
     order, unit = _order(data)
     axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
     drift = np.zeros((m, k, len(axes)))
@@ -196,3 +220,26 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     if missing:
         out.append(Candidate("frame", None, "parameters", params=missing))
     return out
+
+
+#: Joint causes a compensation can apply from the joint angles alone (backlash needs the
+#: approach direction, observation causes belong to the sensor, not the robot).
+COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling")
+
+
+def joint_offsets(robot: Robot, causes: list[dict]):
+    """``Δq(q)`` (m, N) of the compensable joint causes of a result file's ``causes`` entries
+    (``kind``, 1-based ``joint``, ``detail``, ``coefficients``), or None if there are none."""
+    usable = [c for c in causes if c["kind"] in COMPENSABLE]
+    if not usable:
+        return None
+
+    def offsets(q: np.ndarray) -> np.ndarray:
+        dq = np.zeros_like(q)
+        for c in usable:
+            j = c["joint"] - 1
+            dq[:, j] += joint_basis(robot, q, c["kind"], j, c.get("detail", {})) @ np.asarray(c["coefficients"])
+        return dq
+
+    return offsets
+

@@ -16,6 +16,11 @@ from ..robot import RESIDUAL_WIDTH
 from .candidates import Candidate
 
 
+def _plain(detail: dict) -> dict:
+    """A cause's detail as JSON values."""
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in detail.items()}
+
+
 class ExtendedProblem:
     """Geometric free parameters and cause coefficients, on the samples ``idx`` of ``data``.
 
@@ -75,7 +80,8 @@ class ExtendedProblem:
         out = []
         for c in self.causes:
             physical, why = c.physical(self.coefficients(x, c), None if std is None else self.coefficients(std, c), self.robot, self.robot.params)
-            out.append({"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical, "implausible": why})
+            out.append({"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "detail": _plain(c.detail),
+                        "coefficients": [float(v) for v in self.coefficients(x, c)], "params": physical, "implausible": why})  # fmt: skip
         return out
 
     def clip(self, x: np.ndarray) -> np.ndarray:
