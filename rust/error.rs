@@ -20,6 +20,14 @@ pub enum CoreError {
         index: usize,
         value: f64,
     },
+    /// An input value is finite but beyond what any robot measures (see [`MAX_ABS_INPUT`]).
+    #[error("`{arg}` must lie within ±{limit:e} (mm, rad); got {value:e} at index {index}")]
+    OutOfRange {
+        arg: &'static str,
+        index: usize,
+        value: f64,
+        limit: f64,
+    },
     /// A parameter or option is outside its domain.
     #[error("`{arg}`: {reason}")]
     InvalidParameter { arg: &'static str, reason: String },
@@ -44,6 +52,26 @@ pub fn check_finite(arg: &'static str, values: &[f64]) -> CoreResult<()> {
             arg,
             index,
             value: values[index],
+        }),
+    }
+}
+
+/// Largest magnitude accepted in kinematic inputs (parameters, joint values, observations), in
+/// mm or rad. No robot comes near it, and below it the kernels' products and squares cannot
+/// overflow, so a finite input always gives a finite result.
+pub const MAX_ABS_INPUT: f64 = 1e12;
+
+/// Fails with `NonFinite` at the first NaN/inf of `values`, `OutOfRange` at the first value
+/// beyond ±[`MAX_ABS_INPUT`].
+pub fn check_kinematic_input(arg: &'static str, values: &[f64]) -> CoreResult<()> {
+    check_finite(arg, values)?;
+    match values.iter().position(|v| v.abs() > MAX_ABS_INPUT) {
+        None => Ok(()),
+        Some(index) => Err(CoreError::OutOfRange {
+            arg,
+            index,
+            value: values[index],
+            limit: MAX_ABS_INPUT,
         }),
     }
 }

@@ -20,7 +20,7 @@ pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, LANES};
 use lanes::sin_cos;
 pub use layout::Layout;
 
-use crate::error::{check_finite, check_len, CoreError, CoreResult};
+use crate::error::{check_kinematic_input, check_len, CoreError, CoreResult};
 use crate::parallel::for_each_group;
 
 /// Link convention of one joint.
@@ -197,10 +197,10 @@ impl Chain {
 
     /// Validates a parameter vector and a batch of joint vectors; returns the sample count.
     ///
-    /// Errors: `Shape` (lengths), `NonFinite`.
+    /// Errors: `Shape` (lengths), `NonFinite`, `OutOfRange`.
     pub fn check_inputs(&self, params: &[f64], q: &[f64]) -> CoreResult<usize> {
         check_len("params", params.len(), self.layout.n_params())?;
-        check_finite("params", params)?;
+        check_kinematic_input("params", params)?;
         let n = self.n_joints();
         if q.len() % n != 0 {
             return Err(CoreError::Shape {
@@ -209,7 +209,7 @@ impl Chain {
                 got: format!("{} values, not a multiple of {n}", q.len()),
             });
         }
-        check_finite("q", q)?;
+        check_kinematic_input("q", q)?;
         Ok(q.len() / n)
     }
 

@@ -4,13 +4,13 @@
 //! `c = L0² − ‖P0‖²` — linear in `(P0, L0, c)`. Solved by least squares (SVD, so a degenerate
 //! set of positions is reported instead of returning garbage). Exact on noiseless data.
 
-use crate::error::{check_finite, CoreError, CoreResult};
+use crate::error::{check_kinematic_input, CoreError, CoreResult};
 use nalgebra::{DMatrix, DVector};
 
 /// Anchor `P0` (mm, base frame) and `cable_offset` `L0` (mm) from tool points `p` (m, 3)
 /// row-major and cable lengths `l` (m).
 ///
-/// Errors: `Shape` (lengths, fewer than 5 samples), `NonFinite`, `Singular` (positions that do
+/// Errors: `Shape` (lengths, fewer than 5 samples), `NonFinite`, `OutOfRange`, `Singular` (positions that do
 /// not determine the anchor, e.g. all on one plane through a line of symmetry).
 pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> {
     let m = l.len();
@@ -21,8 +21,8 @@ pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> 
             got: format!("{} values for {m} lengths", p.len()),
         });
     }
-    check_finite("p", p)?;
-    check_finite("L", l)?;
+    check_kinematic_input("p", p)?;
+    check_kinematic_input("L", l)?;
     // Centre the positions so the linear system is well scaled (|p|² would be ~1e6 otherwise).
     let mut centre = [0.0; 3];
     for row in p.chunks_exact(3) {
@@ -41,7 +41,10 @@ pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> 
         a[(i, 4)] = 1.0;
         b[i] = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - l[i] * l[i];
     }
-    let svd = a.svd(true, true);
+    // A bounded iteration count: an SVD that does not converge is an error, never a hang.
+    let svd = a.try_svd(true, true, f64::EPSILON, 10_000).ok_or_else(|| {
+        CoreError::Singular(format!("the SVD of the {m}-sample cable anchor system did not converge"))
+    })?;
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
     if !(smin > 1e-10 * smax) {

@@ -10,11 +10,12 @@
 //! right Jacobian of SO(3) and are the exact derivative of the residual.
 
 mod cable_init;
+#[cfg(test)] mod proptests;
 pub mod so3;
 
 pub use cable_init::cable_initial_guess;
 
-use crate::error::{check_finite, CoreError, CoreResult};
+use crate::error::{check_kinematic_input, CoreError, CoreResult};
 use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, LANES};
 use crate::parallel::for_each_group;
 use nalgebra::Vector3;
@@ -75,7 +76,7 @@ impl<'a> Batch<'a> {
     /// Checks lengths and finiteness; for `pose`, that every observed quaternion has unit norm
     /// (to 1e-3). `y` may be omitted where it is not needed (prediction, cable/position Jacobian).
     ///
-    /// Errors: `Shape`, `NonFinite`, `InvalidParameter`.
+    /// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter`.
     pub fn new(
         chain: &'a Chain,
         measurement: Measurement,
@@ -100,7 +101,7 @@ impl<'a> Batch<'a> {
                     got: format!("{} values", y.len()),
                 });
             }
-            check_finite("y", y)?;
+            check_kinematic_input("y", y)?;
             if measurement == Measurement::Pose {
                 for (i, row) in y.chunks_exact(7).enumerate() {
                     let n = (row[3] * row[3] + row[4] * row[4] + row[5] * row[5] + row[6] * row[6]).sqrt();
@@ -321,7 +322,7 @@ pub fn residual_of(measurement: Measurement, sensor: &[f64], y: &[f64], f: &Fram
 /// Residuals of every sigma point: row `s` holds `r(θ_s)` (m·res_width values) where `θ_s` is
 /// `params` with `params[cols] = sigmas[s]`. `sigmas` is (S, cols.len()) row-major.
 ///
-/// Errors: `Shape`, `NonFinite`, `InvalidParameter`.
+/// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter`.
 pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreResult<Vec<f64>> {
     let n_params = batch.chain.layout().n_params();
     if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
@@ -338,7 +339,7 @@ pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreRes
             got: format!("{} values", sigmas.len()),
         });
     }
-    check_finite("sigmas", sigmas)?;
+    check_kinematic_input("sigmas", sigmas)?;
     let width = batch.m * batch.measurement.res_width();
     let mut out = vec![0.0; sigmas.len() / nc * width];
     // Parallel over parameter sets (a population or the sigma points): each writes its own row,

@@ -24,7 +24,7 @@ pub fn core_err(e: CoreError) -> PyErr {
     let class = match &e {
         CoreError::Shape { .. } => "ShapeError",
         CoreError::NonFinite { .. } => "NonFiniteError",
-        CoreError::InvalidParameter { .. } => "InvalidParameterError",
+        CoreError::InvalidParameter { .. } | CoreError::OutOfRange { .. } => "InvalidParameterError",
         CoreError::Singular(_) => "SingularError",
         CoreError::NotPositiveDefinite(_) => "NotPositiveDefiniteError",
         CoreError::NoConvergence(_) => "NoConvergenceError",
