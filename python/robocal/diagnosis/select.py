@@ -29,6 +29,7 @@ from typing import Optional, Union
 
 import numpy as np
 from scipy.stats import chi2, f as f_dist
+from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
@@ -169,6 +170,9 @@ def _baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
     return mask
 
 
+# Diagnosis solves thousands of small least-squares problems: a multi-threaded BLAS only adds
+# hand-over cost there, and on a loaded machine its spinning threads made it 20x slower.
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def diagnose(
     data: Union[str, Path, Dataset],
     robot: Union[str, Robot, None] = None,
