@@ -42,6 +42,7 @@ from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
 from .data.dataset import Dataset
 from .data.splits import chronological, kfold, paper_split, random_split
+from .core import seeded_rng
 from .exceptions import InvalidParameterError
 from .progress import progress
 from .robot import Robot
@@ -194,7 +195,7 @@ def compare(
     if subset is not None:
         if not 2 <= subset <= len(dataset):
             raise InvalidParameterError(f"`subset` must lie in [2, {len(dataset)}]; got {subset}")
-        dataset = dataset.subset(np.sort(np.random.default_rng(seed).choice(len(dataset), size=subset, replace=False)))
+        dataset = dataset.subset(np.sort(seeded_rng(seed).choice(len(dataset), size=subset, replace=False)))
         notes.append(f"a random subset of {subset} samples (seed {seed}) was drawn before splitting")
     if protocol == "chronological" and repeats > 1:
         notes.append(f"the chronological split is deterministic: one split, not {repeats}")

@@ -28,10 +28,10 @@ from typing import Optional
 
 import numpy as np
 
-from .core import solve_damped
+from .core import as_float_array, solve_damped
 from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
-from .exceptions import InvalidParameterError
+from .exceptions import InvalidParameterError, ShapeError
 from .results import load_result
 from .robot import Robot
 
@@ -43,6 +43,19 @@ class Targets:
     y: np.ndarray
     seeds: Optional[np.ndarray]
     rows: np.ndarray
+
+    def __post_init__(self):
+        self.y = as_float_array(self.y, "targets y")
+        if self.y.ndim != 2 or self.y.shape[1] not in (3, 7):
+            raise ShapeError(f"`targets y` must have shape (m, 3) or (m, 7); got {self.y.shape}")
+        m = len(self.y)
+        self.rows = np.asarray(self.rows)
+        if self.rows.shape != (m,) or self.rows.dtype.kind not in "iu":
+            raise ShapeError(f"`targets rows` must be {m} integers; got {self.rows!r}")
+        if self.seeds is not None:
+            self.seeds = as_float_array(self.seeds, "targets seeds")
+            if self.seeds.ndim != 2 or len(self.seeds) != m:
+                raise ShapeError(f"`targets seeds` must have shape ({m}, N); got {self.seeds.shape}")
 
 
 def read_targets(path, n_joints: int) -> Targets:
@@ -129,7 +142,7 @@ def compensate(result, targets) -> list[dict]:
         ``residual_mm`` (the calibrated model's distance to the target), ``status``.
     """
     calibrated, doc = load_result(result)
-    nominal = Robot(calibrated.name, calibrated.joints, np.array([p["nominal"] for p in doc["parameters"]]))
+    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])  # checked by load_result
     # The nominal model in the calibration's measurement frame: nominal kinematics, the
     # calibrated set-up (base frame, tool), as a user's controller would have it after a
     # base/tool calibration.
@@ -139,7 +152,7 @@ def compensate(result, targets) -> list[dict]:
         targets = read_targets(targets, calibrated.n_joints)
     causes = doc.get("causes", [])
     offsets = joint_offsets(calibrated, causes)
-    skipped = sorted({c["label"] for c in causes if c["kind"] not in COMPENSABLE})
+    skipped = sorted({str(c.get("label", c.get("kind"))) for c in causes if c.get("kind") not in COMPENSABLE})
     note = f" (not compensated: {', '.join(skipped)})" if skipped else ""
     out = []
     for i, target in enumerate(targets.y):

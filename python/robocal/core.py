@@ -13,12 +13,52 @@ from . import _robocal
 from .exceptions import InvalidParameterError
 
 
-def as_float_array(value, name: str) -> np.ndarray:
-    """``value`` as a C-contiguous float64 array, or an error naming ``name``."""
+def _real_array(value, name: str) -> np.ndarray:
+    """``value`` as a float64 array of any shape. Complex values are refused rather than cast
+    (the cast would silently drop the imaginary part)."""
     try:
-        return np.ascontiguousarray(value, dtype=np.float64)
+        array = np.asarray(value)
+        if array.dtype.kind == "c":
+            raise TypeError(f"complex dtype {array.dtype}")
+        return array.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
         raise InvalidParameterError(f"`{name}` must be numeric array-like; got {type(value).__name__} ({exc})") from None
+
+
+def as_float_array(value, name: str) -> np.ndarray:
+    """``value`` as a C-contiguous float64 array, or an error naming ``name``."""
+    return np.ascontiguousarray(_real_array(value, name))
+
+
+#: Largest magnitude of a matrix or vector entry the linear-algebra kernels take: beyond it the
+#: squares in column norms and normal equations overflow (the compiled identifiability then
+#: reports columns of overflowing norm as having no effect).
+MAX_ABS_MATRIX = 1e150
+
+
+def as_bounded_array(value, name: str) -> np.ndarray:
+    """:func:`as_float_array` with every finite entry within ±:data:`MAX_ABS_MATRIX` (NaN and
+    infinity are left to the core, which names their position)."""
+    array = as_float_array(value, name)
+    big = np.flatnonzero(np.isfinite(array) & (np.abs(array) > MAX_ABS_MATRIX))
+    if big.size:
+        raise InvalidParameterError(f"`{name}` must lie within ±{MAX_ABS_MATRIX:g}; got {array.flat[big[0]]} at index {big[0]}")
+    return array
+
+
+def as_float(value, name: str) -> float:
+    """``value`` as a real scalar (float), or an error naming ``name``."""
+    array = _real_array(value, name)
+    if array.ndim != 0:
+        raise InvalidParameterError(f"`{name}` must be a real number; got {value!r}")
+    return float(array)
+
+
+def as_str(value, name: str) -> str:
+    """``value`` if it is a string, else an error naming ``name``."""
+    if not isinstance(value, str):
+        raise InvalidParameterError(f"`{name}` must be a string; got {type(value).__name__} {value!r}")
+    return value
 
 
 def merwe_sigma_points(x, P, alpha: float = 1e-3, beta: float = 2.0, kappa: float = 0.0):
@@ -36,7 +76,9 @@ def merwe_sigma_points(x, P, alpha: float = 1e-3, beta: float = 2.0, kappa: floa
     sigmas : ndarray, shape (2n+1, n)
     Wm, Wc : ndarray, shape (2n+1,)
     """
-    return _robocal.merwe_sigma_points(as_float_array(x, "x"), as_float_array(P, "P"), float(alpha), float(beta), float(kappa))
+    return _robocal.merwe_sigma_points(
+        as_float_array(x, "x"), as_float_array(P, "P"), as_float(alpha, "alpha"), as_float(beta, "beta"), as_float(kappa, "kappa")
+    )
 
 
 def unscented_transform(sigmas_x, sigmas_y, Wm, Wc):
@@ -56,7 +98,7 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt"):
     Returns ``(delta (n,), method)`` with method ``"cholesky"`` or ``"svd"`` (the rank-revealing
     fallback for a matrix that is not positive definite).
     """
-    return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), float(lam), damping)
+    return _robocal.solve_damped(as_bounded_array(J, "J"), as_bounded_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"))
 
 
 def identifiability(J, tol: float = 1e-9) -> dict:
@@ -65,7 +107,7 @@ def identifiability(J, tol: float = 1e-9) -> dict:
     Computed on unit-norm columns. ``redundant`` lists, for each parameter outside the subset,
     ``(j, [(k, c_k), ...])`` with scaled column ``j ≈ Σ c_k · column k``.
     """
-    return _robocal.identifiability(as_float_array(J, "J"), float(tol))
+    return _robocal.identifiability(as_bounded_array(J, "J"), as_float(tol, "tol"))
 
 
 def covariance(J, r, tol: float = 1e-9):
@@ -73,10 +115,38 @@ def covariance(J, r, tol: float = 1e-9):
 
     Returns ``(cov (n, n), sigma2, dof, rank)``.
     """
-    return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), float(tol))
+    return _robocal.covariance(as_bounded_array(J, "J"), as_bounded_array(r, "r"), as_float(tol, "tol"))
 
 
 def cable_initial_guess(p, L):
     """Closed-form cable anchor ``P0`` (mm) and sensor zero ``L0`` (mm) from tool points ``p``
     (m, 3) and cable lengths ``L`` (m,). Exact on noiseless data."""
     return _robocal.cable_initial_guess(as_float_array(p, "p"), as_float_array(L, "L"))
+
+
+def check_seed(seed, name: str = "seed"):
+    """``seed`` if it is None (fresh entropy) or an integer >= 0 (what NumPy's generators take),
+    else an error naming ``name``."""
+    if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        return seed
+    raise InvalidParameterError(f"`{name}` must be None or an integer >= 0; got {seed!r}")
+
+
+def seeded_rng(seed, name: str = "seed") -> np.random.Generator:
+    """``numpy.random.default_rng(seed)`` after :func:`check_seed`."""
+    return np.random.default_rng(check_seed(seed, name))
+
+
+def as_count(value, name: str, least: int = 1) -> int:
+    """``value`` as an int if it is an integer >= ``least`` (not a bool), else an error naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise InvalidParameterError(f"`{name}` must be an integer >= {least}; got {value!r}")
+    return int(value)
+
+
+def as_tolerance(value, name: str) -> float:
+    """``value`` as a float if it is finite and >= 0, else an error naming ``name``."""
+    number = as_float(value, name)
+    if not (np.isfinite(number) and number >= 0):
+        raise InvalidParameterError(f"`{name}` must be finite and >= 0; got {value!r}")
+    return number

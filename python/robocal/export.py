@@ -81,6 +81,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .core import seeded_rng
 from .exceptions import InvalidParameterError
 from .robot import Joint, Robot
 
@@ -526,7 +527,7 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
 
     if samples < 1:
         raise InvalidParameterError(f"`samples` must be >= 1; got {samples}")
-    rng = np.random.default_rng(seed)
+    rng = seeded_rng(seed)
     lo = np.array([j.limits[0] for j in robot.joints])
     hi = np.array([j.limits[1] for j in robot.joints])
     q = lo + (hi - lo) * rng.random((samples, robot.n_joints))

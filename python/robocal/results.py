@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 from typing import Optional
 
@@ -100,6 +101,8 @@ def load_result(source) -> tuple[Robot, dict]:
         Naming the file and what is wrong with it (unreadable, not JSON, another schema,
         missing or malformed keys).
     """
+    if not isinstance(source, (dict, str, os.PathLike)):
+        raise InvalidParameterError(f"a result must be a result file path or its document (dict); got {type(source).__name__} {source!r}")
     where = str(source) if not isinstance(source, dict) else "result"
     if isinstance(source, dict):
         doc = source
@@ -116,16 +119,20 @@ def load_result(source) -> tuple[Robot, dict]:
         _fail(where, f"schema {doc.get('schema')!r}, expected {SCHEMA!r}")
     try:
         model = doc["robot_model"]
+        name = str(model["name"])
         joints = [Joint(j["convention"], j["kind"], bool(j["hayati"]), tuple(float(v) for v in j["limits"])) for j in model["joints"]]
         nominal = np.array(model["nominal"], dtype=np.float64)
         calibrated = {p["name"]: float(p["value"]) for p in doc["parameters"]}
     except (KeyError, TypeError, ValueError) as exc:
         _fail(where, f"robot_model or parameters malformed: {type(exc).__name__} {exc}")
-    robot = Robot(model["name"], joints, nominal)
+    robot = Robot(name, joints, nominal)
     missing = [n for n in robot.param_names if n not in calibrated]
     if missing:
         _fail(where, f"parameters lack {missing[:5]}")
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         _fail(where, "a parameter value is not finite")
-    return Robot(model["name"], joints, values), doc
+    causes = doc.get("causes", [])
+    if not isinstance(causes, list) or not all(isinstance(c, dict) for c in causes):
+        _fail(where, f"causes must be a list of objects; got {causes!r}")
+    return Robot(name, joints, values), doc

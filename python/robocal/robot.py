@@ -16,7 +16,7 @@ import numpy as np
 
 from . import _robocal
 from .catalog import BUILTIN
-from .core import as_float_array
+from .core import as_float, as_float_array
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 
 MEASUREMENTS = ("cable", "position", "pose")
@@ -70,6 +70,12 @@ class Robot:
     def __init__(self, name: str, joints: Sequence[Joint], params: np.ndarray):
         self.name = name
         self.joints = tuple(joints)
+        if not self.joints:
+            raise ShapeError(f"robot {name!r} needs at least one joint; got none")
+        for i, joint in enumerate(self.joints, start=1):
+            limits = as_float_array(joint.limits, f"joint {i} limits")
+            if limits.shape != (2,) or not (np.all(np.isfinite(limits)) and limits[0] < limits[1]):
+                raise InvalidParameterError(f"joint {i} limits must be finite (lower, upper) with lower < upper; got {joint.limits!r}")
         self.chain = _robocal.Chain([j.convention for j in self.joints], [j.kind for j in self.joints])
         self.param_names: list[str] = self.chain.param_names()
         self.param_units: list[str] = self.chain.param_units()
@@ -91,10 +97,10 @@ class Robot:
         to_rad = math.radians if degrees else float
         joints, values = [], []
         for i, row in enumerate(rows, start=1):
-            if len(row) < 4:
-                raise ShapeError(f"DH row {i} must hold at least (alpha, a, d, theta); got {tuple(row)!r}")
-            alpha, a, d, theta = (float(v) for v in row[:4])
-            limits = tuple(to_rad(float(v)) for v in row[4]) if len(row) > 4 else (-math.pi, math.pi)
+            if isinstance(row, (str, bytes)) or not isinstance(row, Sequence) or len(row) < 4:
+                raise ShapeError(f"DH row {i} must hold at least (alpha, a, d, theta); got {row!r}")
+            alpha, a, d, theta = (as_float(v, f"DH row {i} {key}") for key, v in zip(("alpha", "a", "d", "theta"), row))
+            limits = tuple(to_rad(v) for v in as_float_array(row[4], f"DH row {i} limits")) if len(row) > 4 else (-math.pi, math.pi)
             hayati = bool(row[5]) if len(row) > 5 else False
             joints.append(Joint(convention=convention, limits=limits, hayati=hayati))
             values.append((to_rad(alpha), a, d, to_rad(theta), 0.0))
@@ -112,17 +118,24 @@ class Robot:
         and optional ``limits`` ``[lower, upper]`` (deg) and ``hayati`` (bool).
         """
         path = Path(path)
-        text = path.read_text()
         if path.suffix.lower() in (".yaml", ".yml"):
             import yaml
 
-            spec = yaml.safe_load(text)
+            parse, malformed = yaml.safe_load, yaml.YAMLError
         else:
-            spec = json.loads(text)
-        if not isinstance(spec, Mapping) or "joints" not in spec:
+            parse, malformed = json.loads, ValueError
+        try:
+            spec = parse(path.read_text())
+        except OSError as exc:
+            raise InvalidParameterError(f"{path}: cannot read the robot file ({exc.strerror or exc})") from None
+        except (UnicodeDecodeError, malformed) as exc:
+            raise InvalidParameterError(f"{path}: not a robot file ({type(exc).__name__}: {exc})") from None
+        if not isinstance(spec, Mapping) or not isinstance(spec.get("joints"), list):
             raise InvalidParameterError(f"{path}: expected a mapping with a 'joints' list")
         rows = []
         for i, joint in enumerate(spec["joints"], start=1):
+            if not isinstance(joint, Mapping):
+                raise InvalidParameterError(f"{path}: joint {i} must be a mapping with alpha, a, d, theta; got {joint!r}")
             missing = [k for k in ("alpha", "a", "d", "theta") if k not in joint]
             if missing:
                 raise InvalidParameterError(f"{path}: joint {i} lacks {', '.join(missing)}")
@@ -150,17 +163,33 @@ class Robot:
         """A copy with some parameters replaced (by name, in mm / rad)."""
         params = self.params.copy()
         for name, value in values.items():
-            params[self.index(name)] = value
+            params[self.index(name)] = as_float(value, name)
         return Robot(self.name, self.joints, params)
 
     def _check_params(self, params, arg: str) -> np.ndarray:
-        p = np.ascontiguousarray(params, dtype=np.float64)
+        p = as_float_array(params, arg)
         if p.shape != (self.n_params,):
             raise ShapeError(f"`{arg}` must have shape ({self.n_params},); got {p.shape}")
         bad = np.flatnonzero(~np.isfinite(p))
         if bad.size:
             raise NonFiniteError(f"`{arg}` must be finite; got {p[bad[0]]} at index {bad[0]} ({self.param_names[bad[0]]})")
         return p
+
+    def columns(self, selection, arg: str = "mask") -> np.ndarray:
+        """Parameter indices of ``selection``: a boolean mask of length :attr:`n_params`, integer
+        indices or parameter names; an error naming ``arg`` otherwise."""
+        c = np.asarray(selection)
+        if c.ndim != 1:
+            raise ShapeError(f"`{arg}` must be a 1-D mask, index list or list of names; got shape {c.shape}")
+        if c.dtype.kind == "b":
+            if c.shape != (self.n_params,):
+                raise ShapeError(f"`{arg}` as a boolean mask must have shape ({self.n_params},); got {c.shape}")
+            return np.flatnonzero(c)
+        if c.dtype.kind in "US":
+            return np.array([self.index(str(name)) for name in c], dtype=np.int64)
+        if c.size and c.dtype.kind not in "iu":
+            raise InvalidParameterError(f"`{arg}` must hold booleans, integer indices or parameter names; got dtype {c.dtype}")
+        return c.astype(np.int64)  # the range is checked by the core
 
     def default_mask(self, measurement: str) -> np.ndarray:
         """Parameters a calibration with ``measurement`` data estimates by default.
@@ -252,10 +281,7 @@ class Robot:
         ``y`` is needed for ``pose`` only.
         """
         p, qa, ya = self._measurement_inputs(measurement, q, y, params)
-        if cols is not None:
-            c = np.asarray(cols)
-            cols = np.flatnonzero(c).tolist() if c.dtype == bool else [int(v) for v in c]
-        return self.chain.jacobian(measurement, p, qa, ya, cols)
+        return self.chain.jacobian(measurement, p, qa, ya, None if cols is None else self.columns(cols, "cols").tolist())
 
     def to_mdh(self) -> "Robot":
         """The same robot in modified DH, with identical tool-frame kinematics.
@@ -291,6 +317,8 @@ class Robot:
 
 def robot(name: str) -> Robot:
     """A built-in robot by name (``hsr-jr680``, ``abb-irb120``, ``ur10``) or a JSON/YAML file."""
+    if not isinstance(name, (str, Path)):
+        raise InvalidParameterError(f"`robot` must be a robot name or a .json/.yaml file; got {type(name).__name__} {name!r}")
     if name in BUILTIN:
         return Robot.from_dh(name, BUILTIN[name]["dh"])
     if Path(name).suffix.lower() in (".json", ".yaml", ".yml"):

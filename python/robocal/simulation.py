@@ -15,11 +15,11 @@ import json
 import math
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Mapping, Optional, Sequence, Union
+from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .core import identifiability
+from .core import as_count, as_float, as_float_array, check_seed, identifiability
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
@@ -87,7 +87,7 @@ def sensor_noise(measurement: str, noise=None) -> SensorNoise:
         unknown = sorted(set(noise) - {f.name for f in fields(SensorNoise)})
         if unknown:
             raise InvalidParameterError(f"`noise` has unknown key {unknown[0]!r}; keys are {[f.name for f in fields(SensorNoise)]}")
-        chosen = replace(default, **{k: float(v) for k, v in noise.items()})
+        chosen = replace(default, **{k: as_float(v, f"noise {k}") for k, v in noise.items()})
     elif isinstance(noise, (int, float)) and not isinstance(noise, bool):
         chosen = SensorNoise() if noise == 0 else replace(default, sigma=float(noise))
     else:
@@ -107,7 +107,7 @@ def setup(r: Robot, measurement: str, tool=None, anchor=None) -> Robot:
     ``reach`` the sum of the link lengths beyond the base column plus the tool (an upper bound
     of the horizontal reach); the sensor zero (``cable_offset``) is 0.
     """
-    tool = DEFAULT_TOOL if tool is None else tuple(float(v) for v in tool)
+    tool = DEFAULT_TOOL if tool is None else tuple(as_float_array(tool, "tool").ravel())
     if len(tool) != 3:
         raise InvalidParameterError(f"`tool` must be (x, y, z) in mm; got {tool!r}")
     values = dict(zip(("tool_x", "tool_y", "tool_z"), tool))
@@ -116,7 +116,7 @@ def setup(r: Robot, measurement: str, tool=None, anchor=None) -> Robot:
             n = r.n_joints
             lengths = [abs(r.params[r.index(f"a{j}")]) for j in range(1, n + 1)] + [abs(r.params[r.index(f"d{j}")]) for j in range(2, n + 1)]
             anchor = (0.5 * (sum(lengths) + math.hypot(*tool)), 0.0, 0.0)
-        anchor = tuple(float(v) for v in anchor)
+        anchor = tuple(as_float_array(anchor, "anchor").ravel())
         if len(anchor) != 3:
             raise InvalidParameterError(f"`anchor` must be (x, y, z) in mm; got {anchor!r}")
         values.update(zip(("anchor_x", "anchor_y", "anchor_z"), anchor), cable_offset=0.0)
@@ -285,12 +285,13 @@ def simulate(
     """
     if measurement not in MEASUREMENTS:
         raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-        raise InvalidParameterError(f"`samples` must be a positive integer; got {samples!r}")
-    if not (math.isfinite(dt) and dt > 0):
+    samples = as_count(samples, "samples")
+    if not (math.isfinite(as_float(dt, "dt")) and dt > 0):
         raise InvalidParameterError(f"`dt` must be > 0 s; got {dt!r}")
-    if not 0.0 <= outliers <= 1.0:
+    if not 0.0 <= as_float(outliers, "outliers") <= 1.0:
         raise InvalidParameterError(f"`outliers` must be a fraction within 0..1; got {outliers!r}")
+    if isinstance(effects, (str, Effect)) or not isinstance(effects, Iterable):
+        raise InvalidParameterError(f"`effects` must be a list of effect specs or Effects; got {effects!r}")
     base = robot if isinstance(robot, Robot) else load_robot(robot)
     nominal = setup(base, measurement, tool, anchor)
     chosen = [e if isinstance(e, Effect) else parse_effect(e) for e in effects]
@@ -301,7 +302,7 @@ def simulate(
     if sum(e.kind == "temperature" for e in chosen) > 1:
         raise InvalidParameterError("at most one temperature effect: the dataset has one temperature column")
     noise = sensor_noise(measurement, noise)
-    seeds = np.random.SeedSequence(seed)  # seed=None draws fresh entropy, recorded in the truth
+    seeds = np.random.SeedSequence(check_seed(seed))  # seed=None draws fresh entropy, recorded in the truth
     rng_path, rng_errors, rng_noise, rng_effects = (np.random.default_rng(s) for s in seeds.spawn(4))
 
     q = acquisition_path(nominal, measurement, int(samples), rng_path)

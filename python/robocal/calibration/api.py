@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 from pathlib import Path
 from typing import Callable, Optional, Union
 
 import numpy as np
 
+from ..core import as_float
 from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import random_split
@@ -55,7 +57,7 @@ def load_inputs(data: Union[str, Path, Dataset], robot: Union[str, Robot, None] 
         if dataset.robot is None:
             raise InvalidParameterError("the data do not name their robot: pass `robot`")
         robot = dataset.robot
-    return dataset, load_robot(robot) if isinstance(robot, str) else robot
+    return dataset, robot if isinstance(robot, Robot) else load_robot(robot)
 
 
 def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
@@ -100,6 +102,8 @@ def calibrate(
     test_fraction : float
         Share of samples held out (seeded random split); 0 fits on everything.
     seed : int
+        Seeds the held-out split and the draws of the stochastic methods (``pso``, ``de``,
+        ``bas``, ``rbf``): equal seeds give bit-identical results.
     mask : optional
         Parameters to consider (default: the robot's default mask for the measurement).
     prior : dict, optional
@@ -126,9 +130,9 @@ def calibrate(
         ``to_dict()`` is the result JSON (``method``, ``parameters``, ``metrics`` with ``train``
         and ``test``, ...).
     """
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    if not 0.0 <= test_fraction < 1.0:
+    if not 0.0 <= as_float(test_fraction, "test_fraction") < 1.0:
         raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
     dataset, r = load_inputs(data, robot, measurement)
     train_idx, test_idx = None, None
@@ -139,7 +143,10 @@ def calibrate(
         train, test = dataset, None
     problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
     if causes is None:
-        result = METHODS[method][2](problem, **options)
+        fit = METHODS[method][2]
+        if "seed" in inspect.signature(fit).parameters:
+            options = {**options, "seed": seed}
+        result = fit(problem, **_checked_options(fit, method, options))
         if test is not None:
             result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
             result.held_out = test
@@ -147,11 +154,20 @@ def calibrate(
     if method != "lm":
         raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
     model = extended_problem(problem, dataset, train_idx if test is not None else np.arange(len(dataset)), causes)
-    result = levenberg_marquardt(model, **options)
+    result = levenberg_marquardt(model, **_checked_options(levenberg_marquardt, method, options))
     if test is not None:
         result.metrics["test"] = metrics(model.with_samples(test_idx).residuals(result.x), test.measurement)
         result.held_out = test
     return result
+
+
+def _checked_options(function: Callable, method: str, options: dict) -> dict:
+    """``options`` if ``function(problem, **options)`` accepts them, else an error naming them."""
+    try:
+        inspect.signature(function).bind(None, **options)
+    except TypeError as exc:
+        raise InvalidParameterError(f"method {method!r} does not take these options: {exc}") from None
+    return options
 
 
 def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes):
@@ -171,6 +187,8 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
             raise InvalidParameterError("a diagnose report needs model.causes (the JSON of `robocal diagnose --json`)") from None
     if isinstance(causes, str):
         causes = [causes]
+    if not isinstance(causes, (list, tuple)) or not all(isinstance(c, str) for c in causes):
+        raise InvalidParameterError(f"`causes` must be cause labels, a diagnose report or its JSON file; got {causes!r}")
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
     unknown = [c for c in causes if c not in pool]
     if unknown:

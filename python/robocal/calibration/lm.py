@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from ..core import solve_damped
+from ..core import as_count, as_float, as_tolerance, solve_damped
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from .problem import Problem
@@ -76,10 +76,12 @@ def levenberg_marquardt(
     the loss, the scale and the rows of the samples beyond :data:`OUTLYING` scales. Without
     ``f_scale`` the scale is estimated from a plain fit, then once more from the robust fit.
     """
-    if loss not in LOSSES:
+    if not isinstance(loss, str) or loss not in LOSSES:
         raise InvalidParameterError(f"`loss` must be one of {sorted(LOSSES)}; got {loss!r}")
-    if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
+    if f_scale is not None and not (np.isfinite(as_float(f_scale, "f_scale")) and f_scale > 0):
         raise InvalidParameterError(f"`f_scale` must be finite and > 0; got {f_scale!r}")
+    max_nfev = as_count(max_nfev, "max_nfev")
+    ftol, xtol, gtol, lam0 = (as_tolerance(v, n) for v, n in ((ftol, "ftol"), (xtol, "xtol"), (gtol, "gtol"), (lam0, "lam0")))
     start = time.perf_counter()
     options = dict(max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=gtol, lam0=lam0, method=method)
     fit = _minimise(problem, x0, _Cost(problem, "linear", 1.0), **options)

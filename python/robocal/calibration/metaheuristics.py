@@ -21,6 +21,7 @@ from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 
+from ..core import seeded_rng
 from ..exceptions import InvalidParameterError
 from .problem import Problem
 from .result import CalibrationResult
@@ -138,7 +139,7 @@ def bas(
         ``history`` holds the best cost after each iteration (index 0: the start).
     """
     t0 = time.perf_counter()
-    rng = np.random.default_rng(seed)
+    rng = seeded_rng(seed)
     f = _Objective(problem, bounds)
     u = f.start()
     best_u, best = u.copy(), float(f(u[None])[0])
@@ -210,7 +211,7 @@ def pso(
         ``history`` holds the global-best cost after each iteration (index 0: the initial swarm).
     """
     t0 = time.perf_counter()
-    rng = np.random.default_rng(seed)
+    rng = seeded_rng(seed)
     f = _Objective(problem, bounds)
     n = f.lower.size
     x = rng.random((population, n))
@@ -279,7 +280,7 @@ def de(
         ``history`` holds the best cost after each generation (index 0: the initial population).
     """
     t0 = time.perf_counter()
-    rng = np.random.default_rng(seed)
+    rng = seeded_rng(seed)
     f = _Objective(problem, bounds)
     n = f.lower.size
     NP = max(8, 10 * n) if population is None else int(population)

@@ -9,13 +9,13 @@ decided from the data at the start point; every parameter left out says why.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Mapping, Optional
 
 import numpy as np
 
 from ..core import cable_initial_guess, identifiability, solve_damped
 from ..data.dataset import Dataset
-from ..exceptions import InvalidParameterError
+from ..exceptions import InvalidParameterError, NonFiniteError
 from ..reference import frame_params
 from ..robot import Robot
 from ..simulation import DEFAULT_NOISE
@@ -77,6 +77,15 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
         if np.max(np.abs(step)) < 1e-9:
             break
     return p
+
+
+def _pairs(value, what: str) -> Mapping:
+    """A ``name -> pair`` mapping (None: empty), or an error naming ``what``."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise InvalidParameterError(f"`{what}` must be a mapping of parameter name -> pair; got {type(value).__name__} {value!r}")
+    return value
 
 
 @dataclass
@@ -144,13 +153,15 @@ class Problem:
         """
         if data.n_joints != robot.n_joints:
             raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
-        if mask is None:
-            mask = robot.default_mask(data.measurement)
-        elif len(mask) and isinstance(mask[0], str):
-            names = list(mask)
-            mask = np.zeros(robot.n_params, dtype=bool)
-            mask[[robot.index(n) for n in names]] = True
-        cols = np.flatnonzero(np.asarray(mask, dtype=bool))
+        for name, values in (("q", data.q), ("y", data.y)):
+            bad = np.argwhere(~np.isfinite(values))
+            if bad.size:
+                i = bad[0][0]
+                raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
+        cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
+        if cols.size == 0:
+            raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
+        cols = np.unique(cols)  # the core checks the range
         start = start_parameters(robot, data, params)
         J = robot.jacobian(data.measurement, data.q, y=data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
@@ -161,7 +172,7 @@ class Problem:
             fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
         free = cols[np.sort(ident["identifiable"])]
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
-        prior = dict(prior or {})
+        prior = dict(_pairs(prior, "prior"))
         if kinematic_prior is not None:
             try:
                 length, angle = (float(v) for v in kinematic_prior)
@@ -175,7 +186,7 @@ class Problem:
                 if is_kinematic(name) and name not in prior and robot.param_units[k] in sigma:
                     prior[name] = (start[k], sigma[robot.param_units[k]])
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
-        problem.bounds = problem._checked_pairs(bounds or {}, "bounds", "(lower, upper)", lambda a, b: a < b)
+        problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
         return problem
 

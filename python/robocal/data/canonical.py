@@ -64,7 +64,7 @@ def read_canonical(
     if not joints or joints != expected:
         raise DataError(f"joint columns must be q1..qN without gaps; got {joints or 'none'}", path, 1)
     measurement = measurement or _measurement_from_header(header, path)
-    if measurement not in OBSERVATION_COLUMNS:
+    if not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS:
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     obs = OBSERVATION_COLUMNS[measurement]
     require_columns(header, obs, path, f"a {measurement} file")

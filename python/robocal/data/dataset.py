@@ -7,6 +7,7 @@ from typing import Optional
 
 import numpy as np
 
+from ..core import as_float_array
 from ..exceptions import ShapeError
 
 #: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).
@@ -62,10 +63,10 @@ class Dataset:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.measurement not in OBSERVATION_COLUMNS:
+        if not isinstance(self.measurement, str) or self.measurement not in OBSERVATION_COLUMNS:
             raise ShapeError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {self.measurement!r}")
-        self.q = np.ascontiguousarray(self.q, dtype=np.float64)
-        self.y = np.ascontiguousarray(self.y, dtype=np.float64)
+        self.q = as_float_array(self.q, "q")
+        self.y = as_float_array(self.y, "y")
         if self.y.ndim == 1:
             self.y = self.y[:, None]
         m, width = len(self.q), len(OBSERVATION_COLUMNS[self.measurement])

@@ -20,6 +20,7 @@ it in ``Dataset.excluded``.
 from __future__ import annotations
 
 import io
+import os
 import re
 from datetime import datetime
 from pathlib import Path
@@ -363,7 +364,7 @@ def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Data
     from ..robot import robot as load_robot
 
     native = FORMAT_ROBOT.get(fmt)
-    if native and robot in BUILTIN and robot != native:
+    if native and isinstance(robot, str) and robot in BUILTIN and robot != native:
         raise DataError(f"this is {fmt} data of the {native}; got robot={robot!r}", path)
     n = load_robot(robot).n_joints
     if n != dataset.n_joints:
@@ -407,12 +408,14 @@ def load(
     DataError
         On an unknown format, a mismatching robot, measurement or unit, or any bad content.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"`path` must be a file path (str or Path); got {type(path).__name__} {path!r}")
     path = Path(path)
     if format is not None and format not in FORMATS:
         raise DataError(f"`format` must be one of {FORMATS}; got {format!r}", path)
     if angle_unit is not None and angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
-    if measurement is not None and measurement not in OBSERVATION_COLUMNS:
+    if measurement is not None and (not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS):
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     fmt = format or detect_format(path)
     native_unit = {"hsr": "deg", "robotcali": "deg", "ipa": "rad"}.get(fmt)

@@ -11,13 +11,12 @@ from typing import Optional
 
 import numpy as np
 
+from ..core import as_count, seeded_rng
 from ..exceptions import InvalidParameterError
 
 
 def _check_m(m: int, least: int) -> int:
-    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < least:
-        raise InvalidParameterError(f"`m` must be an integer >= {least}; got {m!r}")
-    return int(m)
+    return as_count(m, "m", least)
 
 
 def _test_count(m: int, test_fraction: float) -> int:
@@ -38,14 +37,14 @@ def paper_split(m: int, seed: int = 0, n_train: int = 100, n_test: int = 20) -> 
     m = _check_m(m, n_train + n_test)
     if n_train < 1 or n_test < 1:
         raise InvalidParameterError(f"`n_train` and `n_test` must be >= 1; got {n_train}, {n_test}")
-    pick = np.random.default_rng(seed).choice(m, size=n_train + n_test, replace=False)
+    pick = seeded_rng(seed).choice(m, size=n_train + n_test, replace=False)
     return np.sort(pick[:n_train]), np.sort(pick[n_train:])
 
 
 def random_split(m: int, test_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A random ``1 - test_fraction`` / ``test_fraction`` split of all samples (each side >= 1)."""
     m = _check_m(m, 2)
-    order = np.random.default_rng(seed).permutation(m)
+    order = seeded_rng(seed).permutation(m)
     n_test = _test_count(m, test_fraction)
     return np.sort(order[n_test:]), np.sort(order[:n_test])
 
@@ -61,7 +60,7 @@ def kfold(m: int, k: int = 5, seed: int = 0) -> list[tuple[np.ndarray, np.ndarra
     m = _check_m(m, 2)
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 2 <= k <= m:
         raise InvalidParameterError(f"`k` must be an integer in [2, m={m}]; got {k!r}")
-    folds = np.array_split(np.random.default_rng(seed).permutation(m), k)
+    folds = np.array_split(seeded_rng(seed).permutation(m), k)
     return [(np.sort(np.concatenate(folds[:i] + folds[i + 1 :])), np.sort(test)) for i, test in enumerate(folds)]
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
+from ..core import as_float_array
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
 
@@ -227,12 +228,29 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
 COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling")
 
 
+def _check_joint_cause(robot: Robot, cause: dict) -> None:
+    """A result file's joint cause as :func:`joint_offsets` needs it, or an error naming it."""
+    where = f"cause {cause.get('label', cause['kind'])!r}"
+    joint, detail = cause.get("joint"), cause.get("detail", {})
+    if isinstance(joint, bool) or not isinstance(joint, int) or not 1 <= joint <= robot.n_joints or not isinstance(detail, dict):
+        raise InvalidParameterError(f"{where}: needs `joint` 1..{robot.n_joints} and a `detail` object; got {joint!r}, {detail!r}")
+    try:
+        basis = joint_basis(robot, np.zeros((1, robot.n_joints)), cause["kind"], joint - 1, detail)
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InvalidParameterError(f"{where}: malformed `detail` {detail!r} ({type(exc).__name__}: {exc})") from None
+    coefficients = as_float_array(cause.get("coefficients"), f"{where} coefficients")
+    if coefficients.shape != (basis.shape[1],) or not (np.all(np.isfinite(coefficients)) and np.all(np.isfinite(basis))):
+        raise InvalidParameterError(f"{where}: needs {basis.shape[1]} finite coefficients for a finite basis; got {cause.get('coefficients')!r}")
+
+
 def joint_offsets(robot: Robot, causes: list[dict]):
     """``Δq(q)`` (m, N) of the compensable joint causes of a result file's ``causes`` entries
     (``kind``, 1-based ``joint``, ``detail``, ``coefficients``), or None if there are none."""
-    usable = [c for c in causes if c["kind"] in COMPENSABLE]
+    usable = [c for c in causes if c.get("kind") in COMPENSABLE]
     if not usable:
         return None
+    for cause in usable:
+        _check_joint_cause(robot, cause)
 
     def offsets(q: np.ndarray) -> np.ndarray:
         dq = np.zeros_like(q)

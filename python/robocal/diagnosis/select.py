@@ -34,6 +34,7 @@ from threadpoolctl import threadpool_limits
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import Problem
+from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
@@ -223,13 +224,12 @@ def diagnose(
     ['joint_scale']
     """
     t0 = time.perf_counter()
-    if not (isinstance(folds, int) and folds >= 2):
-        raise InvalidParameterError(f"`folds` must be an integer >= 2; got {folds!r}")
-    if not 0.0 < alpha < 1.0:
+    folds, max_effects, min_gain = as_count(folds, "folds", 2), as_count(max_effects, "max_effects", 0), as_tolerance(min_gain, "min_gain")
+    if not 0.0 < as_float(alpha, "alpha") < 1.0:
         raise InvalidParameterError(f"`alpha` must lie in (0, 1); got {alpha!r}")
     dataset, rob = load_inputs(data, robot, measurement)
-    if groups is not None and len(groups) != len(dataset):
-        raise InvalidParameterError(f"`groups` needs one label per sample ({len(dataset)}); got {len(groups)}")
+    if groups is not None and np.shape(groups) != (len(dataset),):
+        raise InvalidParameterError(f"`groups` needs one label per sample, shape ({len(dataset)},); got {groups!r}")
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
     base = Problem.build(rob, dataset, mask=_baseline_mask(rob, dataset.measurement, hayati))
