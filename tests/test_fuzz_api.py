@@ -28,10 +28,11 @@ from robocal.compensation import Targets
 from robocal.data import Dataset, write_canonical
 from robocal.exceptions import InvalidParameterError, RobocalError, ShapeError
 
-FAST = settings(max_examples=100, deadline=None)
-SLOW = settings(max_examples=50, deadline=None)
+FAST = settings(max_examples=200, deadline=None)
+SLOW = settings(max_examples=80, deadline=None)
 
 R = robocal.robot("abb-irb120")
+FLAT = robocal.Robot.from_dh("flat", [(0, 0, 0, 0)] * 6)  # singular geometry: the tool point never moves
 Q = np.random.default_rng(0).uniform(-1.0, 1.0, (8, 6))
 DATA, _ = robocal.simulate("abb-irb120", "position", samples=24, seed=5)
 
@@ -223,9 +224,8 @@ def test_option_type_errors_name_the_argument():
 
 def test_singular_geometry_and_degenerate_configurations():
     """A robot with every length zero (the tool point never moves) and samples all at one pose."""
-    flat = robocal.Robot.from_dh("flat", [(0, 0, 0, 0)] * 6)
     q = np.tile(Q[:1], (10, 1))
-    for r, qq in ((flat, Q), (R, q)):
+    for r, qq in ((FLAT, Q), (R, q)):
         J = outcome(r.jacobian, "position", qq, cols=np.flatnonzero(r.default_mask("position")))
         ident = outcome(identifiability, J)
         assert ident["rank"] < J.shape[1]
@@ -359,7 +359,7 @@ def test_calibrate_dataset(case, options, method):
 
 
 @SLOW
-@given(q=nearly_valid(DATA.q), y=nearly_valid(DATA.y), robot=st.one_of(st.sampled_from(["abb-irb120", "ur10"]), JUNK, st.just(robocal.Robot.from_dh("three", [(0, 100, 0, 0)] * 3))))
+@given(q=nearly_valid(DATA.q), y=nearly_valid(DATA.y), robot=st.one_of(st.sampled_from(["abb-irb120", "ur10"]), JUNK, st.just(robocal.Robot.from_dh("three", [(0, 100, 0, 0)] * 3)), st.just(FLAT)))
 def test_calibrate_special_values(q, y, robot):
     try:
         dataset = _dataset(q, y)  # a container: it may hold NaN, the calibration may not
@@ -433,12 +433,16 @@ def mangled(draw, doc):
     return doc
 
 
+def calibrated_params(source) -> np.ndarray:
+    """The calibrated parameters of a result (the document itself comes back as it was given)."""
+    return robocal.load_result(source)[0].params
+
+
 @FAST
 @given(doc=mangled(RESULT))
 def test_load_result_wrong_schema(doc):
-    loaded = outcome(robocal.load_result, doc)
-    if loaded is not None:
-        outcome(loaded[0].fkine, Q)
+    if outcome(calibrated_params, doc) is not None:
+        outcome(robocal.load_result(doc)[0].fkine, Q)
 
 
 @FAST
@@ -446,7 +450,7 @@ def test_load_result_wrong_schema(doc):
 def test_load_result_corrupt_files(tmp_path_factory, text):
     path = tmp_path_factory.mktemp("res") / "result.json"
     path.write_bytes(text)
-    outcome(robocal.load_result, path)
+    outcome(calibrated_params, path)
 
 
 @FAST
@@ -493,3 +497,10 @@ def test_calibrate_many(items, workers, backend):
         assert len(results) == len(datasets)
         for doc in results:
             assert "error" in doc or doc["schema"] == "robocal.result/1"
+
+
+@pytest.mark.xfail(strict=True, reason="calibrate_many (calibration/fleet.py, not edited here) takes int(workers) and list(datasets) unchecked")  # fmt: skip
+@pytest.mark.parametrize("kwargs", [{"datasets": 5}, {"datasets": None}, {"datasets": "abc"}, {"datasets": [DATA], "workers": "x"}, {"datasets": [DATA], "workers": 2.5}])
+def test_calibrate_many_arguments_name_the_problem(kwargs):
+    with pytest.raises(InvalidParameterError):
+        robocal.calibrate_many(backend="serial", max_nfev=5, **kwargs)

@@ -86,9 +86,13 @@ def unscented_transform(sigmas_x, sigmas_y, Wm, Wc):
 
     Returns ``(mean_y (k,), cov_y (k, k), cross (n, k))`` — the paper's eq. (10)-(11).
     """
-    return _robocal.unscented_transform(
+    out = _robocal.unscented_transform(
         as_float_array(sigmas_x, "sigmas_x"), as_float_array(sigmas_y, "sigmas_y"), as_float_array(Wm, "Wm"), as_float_array(Wc, "Wc")
     )
+    # The core takes any finite values; weighted products of large ones overflow.
+    if not all(np.all(np.isfinite(a)) for a in out):
+        raise InvalidParameterError("`sigmas_x`, `sigmas_y` and the weights are too large: their weighted products overflow float64")
+    return out
 
 
 def solve_damped(J, r, lam: float, damping: str = "marquardt"):

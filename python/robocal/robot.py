@@ -16,7 +16,7 @@ import numpy as np
 
 from . import _robocal
 from .catalog import BUILTIN
-from .core import as_float, as_float_array
+from .core import as_float, as_float_array, as_str
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 
 MEASUREMENTS = ("cable", "position", "pose")
@@ -73,6 +73,7 @@ class Robot:
         if not self.joints:
             raise ShapeError(f"robot {name!r} needs at least one joint; got none")
         for i, joint in enumerate(self.joints, start=1):
+            as_str(joint.convention, f"joint {i} convention"), as_str(joint.kind, f"joint {i} kind")  # their values: checked by the core
             limits = as_float_array(joint.limits, f"joint {i} limits")
             if limits.shape != (2,) or not (np.all(np.isfinite(limits)) and limits[0] < limits[1]):
                 raise InvalidParameterError(f"joint {i} limits must be finite (lower, upper) with lower < upper; got {joint.limits!r}")
@@ -100,7 +101,8 @@ class Robot:
             if isinstance(row, (str, bytes)) or not isinstance(row, Sequence) or len(row) < 4:
                 raise ShapeError(f"DH row {i} must hold at least (alpha, a, d, theta); got {row!r}")
             alpha, a, d, theta = (as_float(v, f"DH row {i} {key}") for key, v in zip(("alpha", "a", "d", "theta"), row))
-            limits = tuple(to_rad(v) for v in as_float_array(row[4], f"DH row {i} limits")) if len(row) > 4 else (-math.pi, math.pi)
+            limits = as_float_array(row[4], f"DH row {i} limits") if len(row) > 4 else np.array([-180.0, 180.0] if degrees else [-math.pi, math.pi])
+            limits = tuple((np.radians(limits) if degrees else limits).tolist())  # its shape is checked by Robot()
             hayati = bool(row[5]) if len(row) > 5 else False
             joints.append(Joint(convention=convention, limits=limits, hayati=hayati))
             values.append((to_rad(alpha), a, d, to_rad(theta), 0.0))
@@ -178,9 +180,12 @@ class Robot:
     def columns(self, selection, arg: str = "mask") -> np.ndarray:
         """Parameter indices of ``selection``: a boolean mask of length :attr:`n_params`, integer
         indices or parameter names; an error naming ``arg`` otherwise."""
-        c = np.asarray(selection)
+        try:
+            c = np.asarray(selection)
+        except ValueError:  # ragged nesting
+            c = np.asarray(selection, dtype=object)
         if c.ndim != 1:
-            raise ShapeError(f"`{arg}` must be a 1-D mask, index list or list of names; got shape {c.shape}")
+            raise ShapeError(f"`{arg}` must be a 1-D mask, index list or list of names; got {selection!r}")
         if c.dtype.kind == "b":
             if c.shape != (self.n_params,):
                 raise ShapeError(f"`{arg}` as a boolean mask must have shape ({self.n_params},); got {c.shape}")
