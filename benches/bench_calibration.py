@@ -72,7 +72,6 @@ def part_lm(args) -> None:
     import scipy.optimize
 
     import robocal
-    from robocal import reference as ref
     from robocal.calibration.lm import levenberg_marquardt
     from robocal.calibration.problem import Problem
     from robocal.simulation import simulate
@@ -107,17 +106,11 @@ def part_lm(args) -> None:
     assert np.array_equal(res.x, res_counted.x)
 
     nfev = {"n": 0}
+    _, twin_residuals, jac = numpy_twin(conv, kinds, "cable", start, free, q, y)
 
     def fun(x):
         nfev["n"] += 1
-        p = start.copy()
-        p[free] = x
-        return ref.residuals(conv, kinds, "cable", p, q, y).ravel()
-
-    def jac(x):
-        p = start.copy()
-        p[free] = x
-        return -ref.jacobian(conv, kinds, "cable", p, q, y, free)  # d(y - h)/dx
+        return twin_residuals(x)
 
     rows = []
     x_lm, rmse_lm = res.x, rmse(problem.residuals(res.x))
@@ -163,6 +156,25 @@ def part_lm(args) -> None:
 # ---------------------------------------------------------------------------------------------
 # Part 2: M9 UKF-VSLM vs the same cascade in NumPy
 # ---------------------------------------------------------------------------------------------
+def numpy_twin(conv, kinds, measurement, start, free, q, y):
+    """The NumPy twin (``robocal.reference``) of a problem over its free parameters:
+    ``(full(x) -> parameter vector, residuals(x) -> y - h flattened, jacobian(x) -> d(y - h)/dx)``."""
+    from robocal import reference as ref
+
+    def full(x):
+        p = start.copy()
+        p[free] = x
+        return p
+
+    def residuals(x):
+        return ref.residuals(conv, kinds, measurement, full(x), q, y).ravel()
+
+    def jacobian(x):
+        return -ref.jacobian(conv, kinds, measurement, full(x), q, y, free)
+
+    return full, residuals, jacobian
+
+
 def numpy_ukf_vslm(conv, kinds, measurement, start, free, q, y, sweeps, P0, Q, R, alpha, beta, kappa, delta0, mu, lam, max_iter, ftol, xtol):
     """Algorithm 1 (UKF sweeps, then VSLM) on ``robocal.reference`` — step for step the logic of
     ``robocal.calibration.kalman.ukf`` (reset=True) and ``robocal.calibration.vslm.vslm``.
@@ -173,13 +185,7 @@ def numpy_ukf_vslm(conv, kinds, measurement, start, free, q, y, sweeps, P0, Q, R
 
     from robocal import reference as ref
 
-    def full(x):
-        p = start.copy()
-        p[free] = x
-        return p
-
-    def residuals(x):
-        return ref.residuals(conv, kinds, measurement, full(x), q, y).ravel()
+    full, residuals, _ = numpy_twin(conv, kinds, measurement, start, free, q, y)
 
     def cost(x):
         r = residuals(x)
@@ -226,34 +232,52 @@ def numpy_ukf_vslm(conv, kinds, measurement, start, free, q, y, sweeps, P0, Q, R
     return x_ukf, x, history, nit, t_ukf, time.perf_counter() - t0 - t_ukf
 
 
-def part_m9(args) -> None:
-    import numpy as np
+def m9_setup(d1_path, sweeps: int):
+    """The M9 benchmark problem: D1's training split (``random_split(len, 0.2, seed=0)``), the
+    HSR JR680 problem on it and the cascade's options (UKF then VSLM, Algorithm 1).
 
+    Returns (robot, full D1 dataset, training dataset, problem, options of ``ukf_vslm``).
+    """
     import robocal
-    from robocal.calibration.cascade import ukf_vslm
-    from robocal.calibration.kalman import Q_FRACTION, prior_covariance, sensor_covariance, ukf
+    from robocal.calibration.kalman import Q_FRACTION, prior_covariance, sensor_covariance
     from robocal.calibration.problem import Problem
-    from robocal.calibration.vslm import LAMBDA, vslm
+    from robocal.calibration.vslm import LAMBDA
     from robocal.data import random_split
     from robocal.data.public import load
 
     r = robocal.robot("hsr-jr680")
-    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
-    d1 = load(args.d1)
+    d1 = load(d1_path)
     train, _ = random_split(len(d1), 0.2, seed=0)
     data = d1.subset(train)
     problem = Problem.build(r, data)
-    n = len(problem.free)
     P0 = prior_covariance(problem)
     opts = dict(
-        sweeps=args.sweeps, P0=P0, Q=Q_FRACTION * P0, R=sensor_covariance("cable"), alpha=0.1, beta=2.0, kappa=0.0,
+        sweeps=sweeps, P0=P0, Q=Q_FRACTION * P0, R=sensor_covariance("cable"), alpha=0.1, beta=2.0, kappa=0.0,
         delta0=0.8, mu=0.95, lam=LAMBDA, max_iter=200, ftol=1e-10, xtol=1e-10,
     )  # fmt: skip
-    ukf_opts = {k: opts[k] for k in ("sweeps", "P0", "Q", "R", "alpha", "beta", "kappa")}
+    return r, d1, data, problem, opts
+
+
+#: Option names of each M9 stage.
+UKF_OPTIONS = ("sweeps", "P0", "Q", "R", "alpha", "beta", "kappa")
+VSLM_OPTIONS = ("delta0", "mu", "lam", "max_iter", "ftol", "xtol")
+
+
+def part_m9(args) -> None:
+    import numpy as np
+
+    from robocal.calibration.cascade import ukf_vslm
+    from robocal.calibration.kalman import Q_FRACTION, ukf
+    from robocal.calibration.vslm import LAMBDA, vslm
+
+    r, d1, data, problem, opts = m9_setup(args.d1, args.sweeps)
+    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
+    n = len(problem.free)
+    ukf_opts = {k: opts[k] for k in UKF_OPTIONS}
 
     t_rc, res = best_of(lambda: ukf_vslm(problem, **opts), args.m9_repeats)
     t_ukf_stage, first = best_of(lambda: ukf(problem, **ukf_opts), args.m9_repeats)
-    vslm_opts = {k: opts[k] for k in ("delta0", "mu", "lam", "max_iter", "ftol", "xtol")}
+    vslm_opts = {k: opts[k] for k in VSLM_OPTIONS}
     t_vslm_stage, _ = best_of(lambda: vslm(problem, x0=first.x, **vslm_opts), args.m9_repeats)
 
     t = time.perf_counter()

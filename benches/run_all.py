@@ -1,0 +1,38 @@
+"""Runs every calibration benchmark of the "prove it" issue in sequence and writes each one's
+Markdown to stdout (and, with ``--out``, to a file): robocal vs the alternatives
+(``bench_alternatives.py``), scaling (``bench_scaling.py``) and robocal vs its NumPy twin
+(``bench_calibration.py --threads 1``).
+
+    python benches/run_all.py --out /tmp/benchmarks.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SCRIPTS = [["bench_alternatives.py"], ["bench_scaling.py"], ["bench_calibration.py", "--threads", "1"]]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", help="also write the Markdown here")
+    parser.add_argument("--quick", action="store_true", help="development sizes (bench_calibration.py is skipped)")
+    args = parser.parse_args()
+    chunks = []
+    for script in SCRIPTS:
+        if args.quick and script[0] == "bench_calibration.py":
+            continue
+        cmd = [sys.executable, str(HERE / script[0]), *script[1:], *(["--quick"] if args.quick else [])]
+        out = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=True).stdout
+        print(out, flush=True)
+        chunks.append(out)
+    if args.out:
+        Path(args.out).write_text("\n".join(chunks))
+
+
+if __name__ == "__main__":
+    main()
