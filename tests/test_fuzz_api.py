@@ -376,6 +376,33 @@ def test_calibrate_path(tmp_path_factory, case, measurement):
     outcome(robocal.calibrate, Path(path), robot="abb-irb120", test_fraction=0.0, max_nfev=20)
 
 
+COUNT = st.one_of(st.integers(-2, 0), JUNK)
+COVARIANCE = st.one_of(SCALARS, malformed((3,)))
+#: Per method: cheap valid options, and malformed ones.
+METHOD_OPTIONS = {
+    "ekf": ({"sweeps": st.just(1), "R": st.none()}, {"sweeps": COUNT, "R": COVARIANCE}),
+    "ukf": ({"sweeps": st.just(1), "P0": st.none(), "Q": st.none(), "alpha": st.just(0.1), "x0": st.none()},
+            {"sweeps": COUNT, "P0": COVARIANCE, "Q": COVARIANCE, "alpha": SCALARS, "x0": malformed((27,))}),
+    "ukf-vslm": ({"sweeps": st.just(1), "max_iter": st.just(3), "mu": st.just(0.95)}, {"sweeps": COUNT, "max_iter": COUNT, "mu": SCALARS}),
+    "vslm": ({"max_iter": st.just(3), "delta0": st.just(0.8), "lam": st.just(1e-6), "ftol": st.just(1e-10)},
+             {"max_iter": COUNT, "delta0": SCALARS, "lam": SCALARS, "ftol": SCALARS}),
+    "lm-paper": ({"max_iter": st.just(3), "lam": st.just(1e-6)}, {"max_iter": COUNT, "lam": SCALARS}),
+    "pso": ({"population": st.just(6), "max_iter": st.just(3), "w": st.just((0.9, 0.4)), "c1": st.just(2.0), "vmax": st.just(0.2)},
+            {"population": COUNT, "max_iter": st.one_of(st.just(-1), JUNK), "w": st.one_of(SCALARS, malformed((2,))), "c1": SCALARS, "vmax": SCALARS}),
+    "de": ({"population": st.just(6), "max_iter": st.just(3), "F": st.just(0.5), "CR": st.just(0.9)},
+           {"population": st.one_of(st.integers(0, 3), JUNK), "max_iter": st.one_of(st.just(-1), JUNK), "F": SCALARS, "CR": SCALARS}),
+    "bas": ({"max_iter": st.just(5), "step": st.just(0.5), "antenna_ratio": st.just(0.5)}, {"max_iter": st.one_of(st.just(-1), JUNK), "step": SCALARS, "antenna_ratio": SCALARS}),
+    "rbf": ({"n_centers": st.just(3), "ridge": st.just(1e-6)}, {"n_centers": COUNT, "ridge": SCALARS}),
+}
+
+
+@SLOW
+@given(case=st.sampled_from(sorted(METHOD_OPTIONS)).flatmap(lambda m: st.tuples(st.just(m), arguments(*METHOD_OPTIONS[m]))))
+def test_method_options(case):
+    method, options = case
+    outcome(robocal.calibrate, DATA, method=method, **options)
+
+
 @pytest.mark.parametrize("method", ["ukf", "ukf-vslm", "pso", "de", "rbf", "ekf", "vslm", "lm-paper", "bas"])
 def test_every_method_on_degenerate_data(method):
     """All samples at one pose: every method ends finite or says why it cannot."""
@@ -499,7 +526,6 @@ def test_calibrate_many(items, workers, backend):
             assert "error" in doc or doc["schema"] == "robocal.result/1"
 
 
-@pytest.mark.xfail(strict=True, reason="calibrate_many (calibration/fleet.py, not edited here) takes int(workers) and list(datasets) unchecked")  # fmt: skip
 @pytest.mark.parametrize("kwargs", [{"datasets": 5}, {"datasets": None}, {"datasets": "abc"}, {"datasets": [DATA], "workers": "x"}, {"datasets": [DATA], "workers": 2.5}])
 def test_calibrate_many_arguments_name_the_problem(kwargs):
     with pytest.raises(InvalidParameterError):

@@ -32,9 +32,10 @@ from typing import Callable
 
 import numpy as np
 
+from ..core import as_count, as_float, as_float_array
 from ..exceptions import InvalidParameterError
 from ..simulation import DEFAULT_NOISE
-from .problem import Problem
+from .problem import Problem, initial_x
 from .result import CalibrationResult
 
 #: Prior standard deviation of a parameter by unit (mm, rad, unitless), see the module notes.
@@ -58,7 +59,7 @@ def sensor_covariance(measurement: str) -> np.ndarray:
 
 def _matrix(value, size: int, name: str) -> np.ndarray:
     """A covariance option as a (size, size) matrix: a scalar variance, a diagonal or a matrix."""
-    a = np.asarray(value, dtype=np.float64)
+    a = as_float_array(value, name)
     if a.ndim == 0:
         a = np.full(size, float(a))
     if a.ndim == 1 and a.shape == (size,):
@@ -136,12 +137,11 @@ def kalman_filter(
     and ``nfev`` counts model evaluations in units of the whole training set
     (``model_evaluations`` per sample and sweep, plus one for each cost).
     """
-    if isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 1:
-        raise InvalidParameterError(f"`sweeps` must be a positive integer; got {sweeps!r}")
+    sweeps = as_count(sweeps, "sweeps")
     start = time.perf_counter()
     n, m = len(problem.free), len(problem.data)
     P0 = prior_covariance(problem) if P0 is None else _matrix(P0, n, "P0").copy()
-    x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
+    x = initial_x(problem, x0)
     # Priors given with the problem are the filter's own prior: mean as start, sigma² in P0.
     for name, (mean, sigma) in problem.prior.items():
         k = problem.names.index(name)
@@ -223,7 +223,8 @@ def ukf(
     """
     n_sigma = 2 * len(problem.free) + 1
     return kalman_filter(
-        problem, ukf_sweep, "ukf", n_sigma, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset, alpha=alpha, beta=beta, kappa=kappa
+        problem, ukf_sweep, "ukf", n_sigma, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset,
+        alpha=as_float(alpha, "alpha"), beta=as_float(beta, "beta"), kappa=as_float(kappa, "kappa"),
     )  # fmt: skip
 
 

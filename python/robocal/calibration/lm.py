@@ -23,7 +23,7 @@ import numpy as np
 from ..core import as_count, as_float, as_tolerance, solve_damped
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
-from .problem import Problem
+from .problem import Problem, initial_x
 from .result import CalibrationResult
 
 #: ``loss -> (ρ(z), ρ′(z))`` for ``z = (error / f_scale)²``.
@@ -105,7 +105,7 @@ def _sample_errors(problem: Problem, x: np.ndarray) -> np.ndarray:
 def _minimise(problem: Problem, x0, objective: _Cost, max_nfev: int, ftol: float, xtol: float, gtol: float, lam0: float, method: str) -> CalibrationResult:
     """The damped iteration on ``objective`` (see the module notes)."""
     start = time.perf_counter()
-    x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
+    x = initial_x(problem, x0)
     r = problem.residuals(x)
     cost, w = objective(r)
     history, nfev, nit, lam, nu = [cost], 1, 0, lam0, 2.0

@@ -13,7 +13,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from ..core import cable_initial_guess, identifiability, solve_damped
+from ..core import as_float_array, cable_initial_guess, identifiability, solve_damped
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError, NonFiniteError
 from ..reference import frame_params
@@ -86,6 +86,18 @@ def _pairs(value, what: str) -> Mapping:
     if not isinstance(value, Mapping):
         raise InvalidParameterError(f"`{what}` must be a mapping of parameter name -> pair; got {type(value).__name__} {value!r}")
     return value
+
+
+def initial_x(problem, x0=None) -> np.ndarray:
+    """A calibrator's start on ``problem`` (a :class:`Problem` or an extended one): its ``x0``,
+    or ``x0`` checked to hold one finite value per free parameter."""
+    start = problem.x0
+    if x0 is None:
+        return start
+    x = as_float_array(x0, "x0")
+    if x.shape != start.shape or not np.all(np.isfinite(x)):
+        raise InvalidParameterError(f"`x0` must hold {start.size} finite values (the free parameters {problem.names[:3]} ...); got {x0!r}")
+    return x
 
 
 @dataclass

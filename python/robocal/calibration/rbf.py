@@ -29,7 +29,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.spatial.distance import cdist, pdist
 
-from ..core import seeded_rng
+from ..core import as_count, as_tolerance, seeded_rng
 from ..data.dataset import Dataset
 from .metrics import metrics
 from .problem import Problem
@@ -116,7 +116,8 @@ def rbf(problem: Problem, n_centers: Optional[int] = None, ridge: float = 1e-6, 
     q = np.asarray(data.q, dtype=np.float64)
     m = len(q)
     r0 = problem.robot.residuals(data.measurement, q, data.y, params=problem.start)
-    k = min(m, n_centers if n_centers is not None else max(1, min(50, m // 4)))
+    k = min(m, as_count(n_centers, "n_centers") if n_centers is not None else max(1, min(50, m // 4)))
+    ridge = as_tolerance(ridge, "ridge")
     centers, _ = kmeans2(q, k, minit="++", seed=seeded_rng(seed))
     distances = pdist(centers)
     width = float(np.median(distances)) if distances.size and np.median(distances) > 0 else 1.0

@@ -23,9 +23,9 @@ import time
 
 import numpy as np
 
-from ..core import solve_damped
+from ..core import as_count, as_float, as_tolerance, solve_damped
 from ..exceptions import InvalidParameterError
-from .problem import Problem
+from .problem import Problem, initial_x
 from .result import CalibrationResult
 
 #: Default fixed damping of eq. (14)-(15); see the module notes.
@@ -49,14 +49,12 @@ def damped_iterations(
     ``‖Δx‖ < xtol (xtol + ‖x‖)``, or the cost changes by less than ``ftol · cost``
     (``success=True``). The history holds the cost at the start and after every iteration.
     """
-    if not (np.isfinite(lam) and lam >= 0):
-        raise InvalidParameterError(f"`lam` must be finite and >= 0; got {lam!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise InvalidParameterError(f"`max_iter` must be a positive integer; got {max_iter!r}")
-    if not (np.isfinite(delta0) and delta0 > 0 and 0 < mu <= 1):
+    lam, ftol, xtol = as_tolerance(lam, "lam"), as_tolerance(ftol, "ftol"), as_tolerance(xtol, "xtol")
+    max_iter = as_count(max_iter, "max_iter")
+    if not (np.isfinite(as_float(delta0, "delta0")) and delta0 > 0 and 0 < as_float(mu, "mu") <= 1):
         raise InvalidParameterError(f"need `delta0` > 0 and 0 < `mu` <= 1; got delta0={delta0!r}, mu={mu!r}")
     start = time.perf_counter()
-    x = problem.x0 if x0 is None else np.array(x0, dtype=np.float64)
+    x = initial_x(problem, x0)
     r = problem.residuals(x)
     cost, delta = 0.5 * float(r @ r), float(delta0)
     history, nit = [cost], 0
