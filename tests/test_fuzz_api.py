@@ -438,6 +438,8 @@ def test_diagnose(case, args):
 
 # -- results, compensation, loading ----------------------------------------------------------
 RESULT = robocal.calibrate(DATA, method="lm").to_dict()
+#: An extended model: its joint causes are applied by compensate.
+EXTENDED = robocal.calibrate(DATA, causes=["joint_scale joint 2", "joint_periodic joint 3 harmonic=2"]).to_dict()
 
 
 @st.composite
@@ -481,7 +483,7 @@ def test_load_result_corrupt_files(tmp_path_factory, text):
 
 
 @FAST
-@given(result=st.one_of(mangled(RESULT), JUNK), y=st.one_of(malformed((2, 3)), nearly_valid(R.fkine(Q[:2], tool=True)[:, :3, 3])), seeds=st.one_of(st.none(), malformed((2, 6))))
+@given(result=st.one_of(mangled(RESULT), mangled(EXTENDED["causes"]).map(lambda causes: {**EXTENDED, "causes": causes}), JUNK), y=st.one_of(malformed((2, 3)), nearly_valid(R.fkine(Q[:2], tool=True)[:, :3, 3])), seeds=st.one_of(st.none(), malformed((2, 6))))
 def test_compensate(result, y, seeds):
     try:
         targets = Targets(y, seeds, np.arange(2, 4))
