@@ -57,10 +57,12 @@ def calibrate_many(datasets: Iterable[Union[str, Path, Dataset]], workers: Optio
     **options
         Passed to :func:`robocal.calibrate` (``robot``, ``method``, ``test_fraction``, ...).
     """
+    if isinstance(datasets, (str, bytes, Path, Dataset)) or not isinstance(datasets, Iterable):
+        raise InvalidParameterError(f"`datasets` must be a list of paths or Datasets; got {type(datasets).__name__} {datasets!r:.80}")
     items = list(datasets)
-    workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    if workers < 1:
-        raise InvalidParameterError(f"`workers` must be >= 1; got {workers}")
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InvalidParameterError(f"`workers` must be an integer >= 1; got {workers!r}")
     if backend == "serial" or len(items) <= 1:
         return [calibrate_one(d, **options) for d in items]
     if backend == "thread":
