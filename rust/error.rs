@@ -20,8 +20,9 @@ pub enum CoreError {
         index: usize,
         value: f64,
     },
-    /// An input value is finite but beyond what any robot measures (see [`MAX_ABS_INPUT`]).
-    #[error("`{arg}` must lie within ±{limit:e} (mm, rad); got {value:e} at index {index}")]
+    /// An input value is finite but beyond what the kernel takes ([`MAX_ABS_INPUT`],
+    /// [`MAX_ABS_MATRIX`]).
+    #[error("`{arg}` must lie within ±{limit:e}; got {value:e} at index {index}")]
     OutOfRange {
         arg: &'static str,
         index: usize,
@@ -61,19 +62,28 @@ pub fn check_finite(arg: &'static str, values: &[f64]) -> CoreResult<()> {
 /// overflow, so a finite input always gives a finite result.
 pub const MAX_ABS_INPUT: f64 = 1e12;
 
+/// Largest magnitude accepted in a matrix or vector of the linear-algebra kernels (Jacobians,
+/// residuals, covariances): beyond it squares in column norms and normal equations overflow.
+pub const MAX_ABS_MATRIX: f64 = 1e150;
+
 /// Fails with `NonFinite` at the first NaN/inf of `values`, `OutOfRange` at the first value
-/// beyond ±[`MAX_ABS_INPUT`].
-pub fn check_kinematic_input(arg: &'static str, values: &[f64]) -> CoreResult<()> {
+/// beyond ±`limit`.
+pub fn check_within(arg: &'static str, values: &[f64], limit: f64) -> CoreResult<()> {
     check_finite(arg, values)?;
-    match values.iter().position(|v| v.abs() > MAX_ABS_INPUT) {
+    match values.iter().position(|v| v.abs() > limit) {
         None => Ok(()),
         Some(index) => Err(CoreError::OutOfRange {
             arg,
             index,
             value: values[index],
-            limit: MAX_ABS_INPUT,
+            limit,
         }),
     }
+}
+
+/// [`check_within`] ±[`MAX_ABS_INPUT`].
+pub fn check_kinematic_input(arg: &'static str, values: &[f64]) -> CoreResult<()> {
+    check_within(arg, values, MAX_ABS_INPUT)
 }
 
 /// Fails with `Shape` unless `len == expected`.

@@ -1,9 +1,10 @@
 //! Small shared helpers for viewing row-major buffers as faer matrices.
 
-use crate::error::{check_finite, CoreError, CoreResult};
+use crate::error::{check_within, CoreError, CoreResult, MAX_ABS_MATRIX};
 use faer::MatRef;
 
-/// Views `data` as an (m, n) row-major matrix after checking its length and finiteness.
+/// Views `data` as an (m, n) row-major matrix after checking its length and that its entries are
+/// finite and within ±[`MAX_ABS_MATRIX`].
 pub fn row_major<'a>(arg: &'static str, data: &'a [f64], m: usize, n: usize) -> CoreResult<MatRef<'a, f64>> {
     if data.len() != m * n {
         return Err(CoreError::Shape {
@@ -12,7 +13,7 @@ pub fn row_major<'a>(arg: &'static str, data: &'a [f64], m: usize, n: usize) -> 
             got: format!("{} values", data.len()),
         });
     }
-    check_finite(arg, data)?;
+    check_within(arg, data, MAX_ABS_MATRIX)?;
     Ok(MatRef::from_row_major_slice(data, m, n))
 }
 

@@ -30,22 +30,6 @@ def as_float_array(value, name: str) -> np.ndarray:
     return np.ascontiguousarray(_real_array(value, name))
 
 
-#: Largest magnitude of a matrix or vector entry the linear-algebra kernels take: beyond it the
-#: squares in column norms and normal equations overflow (the compiled identifiability then
-#: reports columns of overflowing norm as having no effect).
-MAX_ABS_MATRIX = 1e150
-
-
-def as_bounded_array(value, name: str) -> np.ndarray:
-    """:func:`as_float_array` with every finite entry within ±:data:`MAX_ABS_MATRIX` (NaN and
-    infinity are left to the core, which names their position)."""
-    array = as_float_array(value, name)
-    big = np.flatnonzero(np.isfinite(array) & (np.abs(array) > MAX_ABS_MATRIX))
-    if big.size:
-        raise InvalidParameterError(f"`{name}` must lie within ±{MAX_ABS_MATRIX:g}; got {array.flat[big[0]]} at index {big[0]}")
-    return array
-
-
 def as_float(value, name: str) -> float:
     """``value`` as a real scalar (float), or an error naming ``name``."""
     array = _real_array(value, name)
@@ -102,7 +86,7 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt"):
     Returns ``(delta (n,), method)`` with method ``"cholesky"`` or ``"svd"`` (the rank-revealing
     fallback for a matrix that is not positive definite).
     """
-    return _robocal.solve_damped(as_bounded_array(J, "J"), as_bounded_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"))
+    return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"))
 
 
 def identifiability(J, tol: float = 1e-9) -> dict:
@@ -111,7 +95,7 @@ def identifiability(J, tol: float = 1e-9) -> dict:
     Computed on unit-norm columns. ``redundant`` lists, for each parameter outside the subset,
     ``(j, [(k, c_k), ...])`` with scaled column ``j ≈ Σ c_k · column k``.
     """
-    return _robocal.identifiability(as_bounded_array(J, "J"), as_float(tol, "tol"))
+    return _robocal.identifiability(as_float_array(J, "J"), as_float(tol, "tol"))
 
 
 def covariance(J, r, tol: float = 1e-9):
@@ -119,7 +103,7 @@ def covariance(J, r, tol: float = 1e-9):
 
     Returns ``(cov (n, n), sigma2, dof, rank)``.
     """
-    return _robocal.covariance(as_bounded_array(J, "J"), as_bounded_array(r, "r"), as_float(tol, "tol"))
+    return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), as_float(tol, "tol"))
 
 
 def cable_initial_guess(p, L):

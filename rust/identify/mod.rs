@@ -140,6 +140,15 @@ pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreRes
 mod tests {
     use super::*;
 
+    /// Entries whose squares overflow made every column "no effect" and the rank 0; they are an
+    /// `OutOfRange` error now.
+    #[test]
+    fn overflowing_entries_are_an_error_not_a_wrong_rank() {
+        let j = [1e300, 1.0, 1e300, 2.0, 0.0, 1.0];
+        assert!(matches!(identifiability(&j, 3, 2, 1e-9), Err(CoreError::OutOfRange { arg: "J", index: 0, .. })));
+        assert!(matches!(covariance(&j, &[1.0, 2.0, 3.0], 3, 2, 1e-9), Err(CoreError::OutOfRange { arg: "J", .. })));
+    }
+
     #[test]
     fn finds_duplicate_and_dead_columns() {
         // Columns: c0, c1, c2 = 2·c0 (redundant with c0), c3 = 0 (no effect).
