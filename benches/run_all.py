@@ -1,6 +1,6 @@
 """Runs every calibration benchmark of the "prove it" issue in sequence and writes each one's
 Markdown to stdout (and, with ``--out``, to a file): robocal vs the alternatives
-(``bench_alternatives.py``), scaling (``bench_scaling.py``) and robocal vs its NumPy twin
+(``bench_alternatives.py``), scaling (``bench_scaling.py``), fleets (``bench_fleet.py``) and robocal vs its NumPy twin
 (``bench_calibration.py --threads 1``).
 
     python benches/run_all.py --out /tmp/benchmarks.md
@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = [["bench_alternatives.py"], ["bench_scaling.py"], ["bench_calibration.py", "--threads", "1"]]
+SCRIPTS = [["bench_alternatives.py"], ["bench_scaling.py"], ["bench_fleet.py"], ["bench_calibration.py", "--threads", "1"]]
 
 
 def main() -> None:
