@@ -116,7 +116,9 @@ def rbf(problem: Problem, n_centers: Optional[int] = None, ridge: float = 1e-6, 
     q = np.asarray(data.q, dtype=np.float64)
     m = len(q)
     r0 = problem.robot.residuals(data.measurement, q, data.y, params=problem.start)
-    k = min(m, as_count(n_centers, "n_centers") if n_centers is not None else max(1, min(50, m // 4)))
+    # No more centres than distinct poses: k-means++ cannot place two centres on one point.
+    distinct = len(np.unique(q, axis=0))
+    k = min(distinct, as_count(n_centers, "n_centers") if n_centers is not None else max(1, min(50, m // 4)))
     ridge = as_tolerance(ridge, "ridge")
     centers, _ = kmeans2(q, k, minit="++", seed=seeded_rng(seed))
     distances = pdist(centers)
