@@ -179,22 +179,36 @@ def random_jacobian(rng, m, n, rank_deficient: bool, dead: bool) -> np.ndarray:
 jacobian_settings = st.tuples(seeds, st.integers(1, 30), st.integers(1, 12), st.booleans(), st.booleans())
 
 
-@given(jacobian_settings, st.sampled_from([0.0, 1e-6, 1e-3, 1.0, 100.0]), st.sampled_from(["marquardt", "identity"]))
-def test_solve_damped(setting, lam, damping):
+@given(jacobian_settings, st.sampled_from([0.0, 1e-6, 1e-3, 1.0, 100.0]), st.sampled_from(["marquardt", "identity"]), st.sampled_from(["normal", "lstsq"]))
+def test_solve_damped(setting, lam, damping, factor):
     seed, m, n, deficient, dead = setting
     rng = np.random.default_rng(seed)
     J = random_jacobian(rng, m, n, deficient, dead)
     r = rng.normal(size=m)
-    got, got_method = core.solve_damped(J, r, lam, damping)
-    want, want_method = ref.solve_damped(J, r, lam, damping)
-    A = J.T @ J + lam * (np.diag(np.diag(J.T @ J)) if damping == "marquardt" else np.eye(n))
+    got, got_method = core.solve_damped(J, r, lam, damping, factor)
+    want, want_method = ref.solve_damped(J, r, lam, damping, factor)
+    if factor == "normal" or want_method == "cholesky":
+        A = J.T @ J + lam * (np.diag(np.diag(J.T @ J)) if damping == "marquardt" else np.eye(n))
+        cut = ref.RANK_TOL * n
+    else:  # the scaled augmented matrix
+        norms = np.linalg.norm(J, axis=0)
+        scale = np.where(norms > 0, norms, 1.0)
+        A = np.vstack([J / scale, np.diag(np.sqrt(lam) * (norms if damping == "marquardt" else 1.0) / scale)])
+        cut = np.finfo(float).eps * (m + n)
     s = np.linalg.svd(A, compute_uv=False)
     assert got_method == want_method, f"method {got_method!r} != {want_method!r} (singular values of the damped matrix {s})"
     # The step is as accurate as the damped matrix is conditioned (on the singular values the
     # SVD fallback keeps): eps · cond.
-    kept = s[s > (ref.RANK_TOL * n * s[0] if want_method == "svd" else 0.0)]
+    kept = s[s > (cut * s[0] if want_method == "svd" else 0.0)]
     cond = kept[0] / kept[-1] if kept.size else 1.0
-    assert_close(got, want, rtol=RTOL + 1e-15 * cond, what=f"delta ({want_method}, cond {cond:.2e})")
+    sensitivity = cond
+    if factor == "lstsq" and want_method != "cholesky" and kept.size:
+        # A least-squares solution with a residual is sensitive to cond² (Golub & Van Loan 5.3):
+        # eps · (cond + cond² · ‖b − A·y‖ / (‖A‖ ‖y‖)), y the solution in scaled columns.
+        y = want * scale
+        b = np.concatenate([r, np.zeros(n)])
+        sensitivity += cond**2 * np.linalg.norm(b - A @ y) / (s[0] * max(np.linalg.norm(y), 1e-300))
+    assert_close(got, want, rtol=RTOL + 1e-15 * sensitivity, what=f"delta ({want_method}, cond {cond:.2e})")
 
 
 def scaled(J):

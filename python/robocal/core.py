@@ -79,14 +79,17 @@ def unscented_transform(sigmas_x, sigmas_y, Wm, Wc):
     return out
 
 
-def solve_damped(J, r, lam: float, damping: str = "marquardt"):
-    """Damped normal-equation step ``(JᵀJ + λD) δ = Jᵀr``.
+def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "normal"):
+    """Damped step ``(JᵀJ + λD) δ = Jᵀr``.
 
     ``damping="marquardt"`` uses ``D = diag(JᵀJ)``, ``"identity"`` the paper's ``D = I`` (eq. 14).
-    Returns ``(delta (n,), method)`` with method ``"cholesky"`` or ``"svd"`` (the rank-revealing
-    fallback for a matrix that is not positive definite).
+    ``factor="normal"`` solves the normal equations as the paper writes them (Cholesky, or an SVD
+    for a matrix that is not positive definite); ``"lstsq"`` solves the same step as the least
+    squares of ``[J; √λ·D^½] δ ≈ [r; 0]`` by QR of ``J`` itself (an SVD if rank-deficient), which
+    keeps directions the normal equations lose to their squared condition number.
+    Returns ``(delta (n,), method)`` with method ``"cholesky"``, ``"qr"`` or ``"svd"``.
     """
-    return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"))
+    return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"), as_str(factor, "factor"))
 
 
 def identifiability(J, tol: float = 1e-9) -> dict:

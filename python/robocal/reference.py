@@ -75,6 +75,9 @@ REDUNDANCY_COEF_MIN = 1e-6
 #: ``solve_damped``: a Cholesky factor whose smallest squared pivot is <= this times the largest
 #: counts as failed; the SVD fallback drops singular values <= this * n * the largest.
 RANK_TOL = 1e-13
+#: ``solve_damped(factor="lstsq")``: the normal equations are used when every squared Cholesky
+#: pivot exceeds this times the largest (condition below ~1e8), else QR of the augmented system.
+WELL_CONDITIONED = 1e-8
 #: ``cable_initial_guess``: the centred design matrix must have ``s_min > this * s_max``.
 CABLE_CONDITION_MIN = 1e-10
 #: ``merwe_sigma_points``: ``P`` must be symmetric to ``max|P - P^T| <= this * max|P|``.
@@ -737,12 +740,16 @@ def unscented_transform(sigmas_x, sigmas_y, Wm, Wc) -> tuple[np.ndarray, np.ndar
 # --------------------------------------------------------------------------------------------
 # Damped solve, identifiability, covariance
 # --------------------------------------------------------------------------------------------
-def solve_damped(J, r, lam: float, damping: str = "marquardt") -> tuple[np.ndarray, str]:
-    """Damped normal-equation step ``(J^T J + lam D) delta = J^T r``.
+def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "normal") -> tuple[np.ndarray, str]:
+    """Damped step ``(J^T J + lam D) delta = J^T r``.
 
-    Cholesky first; if the damped matrix is not positive definite (or its factor has a squared
-    pivot <= :data:`RANK_TOL` times the largest), the minimum-norm solution through the SVD
-    (singular values <= ``RANK_TOL * n`` times the largest dropped).
+    ``factor="normal"``: Cholesky of the normal matrix first; if it is not positive definite
+    (or its factor has a squared pivot <= :data:`RANK_TOL` times the largest), the minimum-norm
+    solution through the SVD (singular values <= ``RANK_TOL * n`` times the largest dropped).
+    ``factor="lstsq"``: the same Cholesky if every squared pivot exceeds :data:`WELL_CONDITIONED`
+    times the largest; else the least squares of ``[J; sqrt(lam) D^1/2] delta ~ [r; 0]`` in
+    columns scaled to unit norm, by column-pivoted QR; if its smallest pivot is <= ``eps (m + n)``
+    times the largest, the minimum-norm solution through the SVD with that cut-off.
 
     Parameters
     ----------
@@ -753,11 +760,12 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt") -> tuple[np.ndarr
     damping : {"marquardt", "identity"}
         ``D = diag(J^T J)`` (Marquardt) or ``D = I`` (Levenberg, the paper's eq. 14;
         ``"levenberg"`` is an alias).
+    factor : {"normal", "lstsq"}
 
     Returns
     -------
     delta : ndarray, shape (n,)
-    method : {"cholesky", "svd"}
+    method : {"cholesky", "qr", "svd"}
     """
     if damping not in ("marquardt", "identity", "levenberg"):
         raise ValueError(f"`damping` must be 'marquardt' or 'identity'; got {damping!r}")
@@ -766,20 +774,59 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt") -> tuple[np.ndarr
     lam = _float(lam, "lam")
     if lam < 0:
         raise ValueError(f"`lam` must be finite and >= 0; got {lam}")
-    A, g = J.T @ J, J.T @ r
-    n = A.shape[0]
-    D = np.diag(np.diag(A)) if damping == "marquardt" else np.eye(n)
-    M = A + lam * D
+    if factor not in ("normal", "lstsq"):
+        raise ValueError(f"`factor` must be 'normal' or 'lstsq'; got {factor!r}")
+    if factor == "lstsq":
+        return _solve_damped_lstsq(J, r, lam, damping)
+    M, g = _damped_normal(J, r, lam, damping)
+    n = len(g)
     if n == 0:
         return np.zeros(0), "cholesky"
+    step = _cholesky_step(M, g, RANK_TOL)
+    if step is not None:
+        return step, "cholesky"
+    return np.linalg.lstsq(M, g, rcond=RANK_TOL * n)[0], "svd"
+
+
+def _damped_normal(J: np.ndarray, r: np.ndarray, lam: float, damping: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(J^T J + lam D, J^T r)``."""
+    A = J.T @ J
+    D = np.diag(np.diag(A)) if damping == "marquardt" else np.eye(A.shape[0])
+    return A + lam * D, J.T @ r
+
+
+def _cholesky_step(M: np.ndarray, g: np.ndarray, min_ratio: float):
+    """The Cholesky solution of ``M x = g`` if every squared pivot exceeds ``min_ratio`` times the
+    largest, else None."""
     try:
         factor = scipy.linalg.cho_factor(M, lower=True)
-        pivots = np.diag(factor[0]) ** 2
-        if pivots.min() > RANK_TOL * pivots.max():
-            return scipy.linalg.cho_solve(factor, g), "cholesky"
     except np.linalg.LinAlgError:
-        pass
-    return np.linalg.lstsq(M, g, rcond=RANK_TOL * n)[0], "svd"
+        return None
+    pivots = np.diag(factor[0]) ** 2
+    return scipy.linalg.cho_solve(factor, g) if pivots.min() > min_ratio * pivots.max() else None
+
+
+def _solve_damped_lstsq(J: np.ndarray, r: np.ndarray, lam: float, damping: str) -> tuple[np.ndarray, str]:
+    """``solve_damped(..., factor="lstsq")``."""
+    m, n = J.shape
+    if n == 0:
+        return np.zeros(0), "qr"
+    step = _cholesky_step(*_damped_normal(J, r, lam, damping), WELL_CONDITIONED)
+    if step is not None:
+        return step, "cholesky"
+    norms = np.linalg.norm(J, axis=0)
+    scale = np.where(norms > 0, norms, 1.0)
+    damping_rows = np.sqrt(lam) * (norms if damping == "marquardt" else np.ones(n)) / scale
+    A = np.vstack([J / scale, np.diag(damping_rows)])
+    b = np.concatenate([r, np.zeros(n)])
+    rcond = np.finfo(float).eps * (m + n)
+    Q, R, perm = scipy.linalg.qr(A, mode="economic", pivoting=True)
+    pivots = np.abs(np.diag(R))
+    if pivots.min() > rcond * pivots.max():
+        y = np.empty(n)
+        y[perm] = scipy.linalg.solve_triangular(R, Q.T @ b)
+        return y / scale, "qr"
+    return np.linalg.lstsq(A, b, rcond=rcond)[0] / scale, "svd"
 
 
 def _scaled_columns(J: np.ndarray):

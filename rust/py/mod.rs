@@ -7,6 +7,7 @@
 
 mod convert;
 
+use crate::error::CoreError;
 use crate::identify;
 use crate::kalman;
 use crate::kinematics::Chain;
@@ -238,15 +239,23 @@ fn unscented_transform<'py>(
     Ok((PyArray1::from_vec(py, mean), matrix(py, cov, k, k)?, matrix(py, cross, n, k)?))
 }
 
-/// Damped normal-equation step `(JᵀJ + λD) δ = Jᵀr`: returns `(delta, "cholesky" | "svd")`.
+/// Damped step `(JᵀJ + λD) δ = Jᵀr` by the normal equations (`factor="normal"`) or as the least
+/// squares of the augmented system (`"lstsq"`): returns `(delta, "cholesky" | "qr" | "svd")`.
 #[pyfunction]
-#[pyo3(signature = (J, r, lam, damping = "marquardt"))]
+#[pyo3(signature = (J, r, lam, damping = "marquardt", factor = "normal"))]
 #[allow(non_snake_case)]
-fn solve_damped<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>, lam: f64, damping: &str) -> PyResult<(Arr1<'py>, &'static str)> {
+fn solve_damped<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>, lam: f64, damping: &str, factor: &str) -> PyResult<(Arr1<'py>, &'static str)> {
     let damping = Damping::parse(damping).map_err(core_err)?;
+    let solve = match factor {
+        "normal" => solve::solve_damped,
+        "lstsq" => solve::solve_damped_lstsq,
+        other => {
+            return Err(core_err(CoreError::InvalidParameter { arg: "factor", reason: format!("expected 'normal' or 'lstsq'; got '{other}'") }));
+        }
+    };
     let (j, m, n) = array2(J, "J", None)?;
     let r = array1(r, "r", Some(m))?;
-    let (x, how) = py.detach(|| solve::solve_damped(&j, &r, m, n, lam, damping)).map_err(core_err)?;
+    let (x, how) = py.detach(|| solve(&j, &r, m, n, lam, damping)).map_err(core_err)?;
     Ok((PyArray1::from_vec(py, x), how.name()))
 }
 

@@ -1,9 +1,17 @@
-//! The damped normal-equation step of LM / VSLM (the paper's eq. 14–15):
+//! The damped step of LM / VSLM (the paper's eq. 14–15):
 //! `(JᵀJ + λD) δ = Jᵀr` with `D = diag(JᵀJ)` (Marquardt) or `I` (Levenberg, eq. 14).
 //!
-//! Cholesky (faer) first. When the damped matrix is not numerically positive definite — the DH
-//! identification model is rank-deficient and λ may be 0 — a rank-revealing SVD gives the
-//! minimum-norm step instead of a huge, meaningless one.
+//! Two factorisations of the same step:
+//! - [`solve_damped`], the normal equations as the paper writes them: Cholesky (faer) first;
+//!   when the damped matrix is not numerically positive definite — the DH identification model
+//!   is rank-deficient and λ may be 0 — a rank-revealing SVD gives the minimum-norm step instead
+//!   of a huge, meaningless one. Forming `JᵀJ` squares the condition number: directions of `J`
+//!   below ~3·10⁻⁷ of the largest are treated as null.
+//! - [`solve_damped_lstsq`], the least-squares solution of the augmented system
+//!   `[J; √λ·D^½] δ ≈ [r; 0]` by column-pivoted QR of `J` itself (as MINPACK does) whenever
+//!   the normal equations are ill-conditioned, so directions down to ~10⁻¹³ are kept: robocal's
+//!   production LM uses it, because on ill-conditioned real data the normal equations stall it
+//!   in a flat valley.
 
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
@@ -36,6 +44,7 @@ impl Damping {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolveMethod {
     Cholesky,
+    Qr,
     Svd,
 }
 
@@ -43,6 +52,7 @@ impl SolveMethod {
     pub fn name(self) -> &'static str {
         match self {
             Self::Cholesky => "cholesky",
+            Self::Qr => "qr",
             Self::Svd => "svd",
         }
     }
@@ -51,10 +61,8 @@ impl SolveMethod {
 /// Relative size below which a pivot or singular value counts as zero.
 const RANK_TOL: f64 = 1e-13;
 
-/// Solves `(JᵀJ + λD) δ = Jᵀr` for `J` (m, n) row-major and `r` (m).
-///
-/// Errors: `Shape`, `NonFinite`, `InvalidParameter` (λ < 0 or not finite).
-pub fn solve_damped(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64, damping: Damping) -> CoreResult<(Vec<f64>, SolveMethod)> {
+/// The checked views of `J` (m, n) and `r` (m).
+fn damped_inputs<'a>(j: &'a [f64], r: &'a [f64], m: usize, n: usize, lambda: f64) -> CoreResult<(MatRef<'a, f64>, MatRef<'a, f64>)> {
     let jm = row_major("J", j, m, n)?;
     let rv = row_major("r", r, m, 1)?;
     if !(lambda >= 0.0 && lambda.is_finite()) {
@@ -63,6 +71,14 @@ pub fn solve_damped(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64, dampi
             reason: format!("must be finite and >= 0; got {lambda}"),
         });
     }
+    Ok((jm, rv))
+}
+
+/// Solves `(JᵀJ + λD) δ = Jᵀr` for `J` (m, n) row-major and `r` (m) by the normal equations.
+///
+/// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter` (λ < 0 or not finite).
+pub fn solve_damped(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64, damping: Damping) -> CoreResult<(Vec<f64>, SolveMethod)> {
+    let (jm, rv) = damped_inputs(j, r, m, n, lambda)?;
     let a: Mat<f64> = jm.transpose() * jm;
     let g: Mat<f64> = jm.transpose() * rv;
     solve_damped_normal(a.as_ref(), g.as_ref(), lambda, damping)
@@ -70,40 +86,107 @@ pub fn solve_damped(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64, dampi
 
 /// The same step from the normal matrix `A = JᵀJ` (n, n) and gradient `g = Jᵀr` (n, 1).
 pub fn solve_damped_normal(a: MatRef<'_, f64>, g: MatRef<'_, f64>, lambda: f64, damping: Damping) -> CoreResult<(Vec<f64>, SolveMethod)> {
-    let n = a.nrows();
-    let mut damped = a.to_owned();
-    for i in 0..n {
-        damped[(i, i)] += lambda * if damping == Damping::Marquardt { a[(i, i)] } else { 1.0 };
+    let damped = damped_normal_matrix(a, lambda, damping);
+    // A factorisation that only succeeded through rounding (pivot ~ eps·max) gives a step
+    // dominated by noise; treat it as singular.
+    if let Some(x) = cholesky_step(damped.as_ref(), g, RANK_TOL) {
+        return Ok((x, SolveMethod::Cholesky));
     }
-    if let Ok(llt) = damped.llt(Side::Lower) {
-        let l = llt.L();
-        let diag: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
-        let max = diag.iter().cloned().fold(0.0, f64::max);
-        let min = diag.iter().cloned().fold(f64::INFINITY, f64::min);
-        // A factorisation that only succeeded through rounding (pivot ~ eps·max) gives a step
-        // dominated by noise; treat it as singular.
-        if n == 0 || min > RANK_TOL * max {
-            let x = llt.solve(g);
-            return Ok(((0..n).map(|i| x[(i, 0)]).collect(), SolveMethod::Cholesky));
-        }
-    }
-    let x = pseudo_solve(damped.as_ref(), g)?;
+    let x = min_norm_lstsq(damped.as_ref(), g, RANK_TOL * a.nrows() as f64)?;
     Ok((x, SolveMethod::Svd))
 }
 
-/// Minimum-norm solution of a symmetric system through its SVD.
-fn pseudo_solve(a: MatRef<'_, f64>, g: MatRef<'_, f64>) -> CoreResult<Vec<f64>> {
-    let n = a.nrows();
+/// `A + λD`.
+fn damped_normal_matrix(a: MatRef<'_, f64>, lambda: f64, damping: Damping) -> Mat<f64> {
+    let mut damped = a.to_owned();
+    for i in 0..a.nrows() {
+        damped[(i, i)] += lambda * if damping == Damping::Marquardt { a[(i, i)] } else { 1.0 };
+    }
+    damped
+}
+
+/// The Cholesky solution of `M x = g` if `M` factors with every squared pivot above
+/// `min_ratio` times the largest.
+fn cholesky_step(m: MatRef<'_, f64>, g: MatRef<'_, f64>, min_ratio: f64) -> Option<Vec<f64>> {
+    let n = m.nrows();
+    let llt = m.llt(Side::Lower).ok()?;
+    let l = llt.L();
+    let pivots: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
+    let max = pivots.iter().cloned().fold(0.0, f64::max);
+    let min = pivots.iter().cloned().fold(f64::INFINITY, f64::min);
+    if n > 0 && !(min > min_ratio * max) {
+        return None;
+    }
+    let x = llt.solve(g);
+    Some((0..n).map(|i| x[(i, 0)]).collect())
+}
+
+/// Squared Cholesky pivots above this fraction of the largest mean a damped normal matrix of
+/// condition below ~10⁸: its step is accurate to ~10⁻⁸, plenty for an LM step, and the normal
+/// equations are several times cheaper than QR. Below it [`solve_damped_lstsq`] factors `J`.
+const WELL_CONDITIONED: f64 = 1e-8;
+
+/// The same step as the least-squares solution of `[J; √λ·D^½] δ ≈ [r; 0]`: by the normal
+/// equations (Cholesky) when they are well conditioned ([`WELL_CONDITIONED`]), else in columns
+/// scaled to unit norm (so the rank test is scale-free) by column-pivoted QR, or — when the augmented
+/// matrix is rank-deficient (λ = 0, a column without effect) — the minimum-norm solution through
+/// its SVD, with singular values below `ε·(m + n)` of the largest treated as zero (NumPy's
+/// `lstsq` default).
+///
+/// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter` (λ < 0 or not finite).
+pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64, damping: Damping) -> CoreResult<(Vec<f64>, SolveMethod)> {
+    let (jm, rv) = damped_inputs(j, r, m, n, lambda)?;
+    if n == 0 {
+        return Ok((Vec::new(), SolveMethod::Qr));
+    }
+    let a: Mat<f64> = jm.transpose() * jm;
+    let g: Mat<f64> = jm.transpose() * rv;
+    if let Some(x) = cholesky_step(damped_normal_matrix(a.as_ref(), lambda, damping).as_ref(), g.as_ref(), WELL_CONDITIONED) {
+        return Ok((x, SolveMethod::Cholesky));
+    }
+    let norms: Vec<f64> = (0..n).map(|c| jm.col(c).norm_l2()).collect();
+    let scale: Vec<f64> = norms.iter().map(|&v| if v > 0.0 { v } else { 1.0 }).collect();
+    let sqrt_lambda = lambda.sqrt();
+    let aug = Mat::from_fn(m + n, n, |row, c| {
+        if row < m {
+            jm[(row, c)] / scale[c]
+        } else if row - m == c {
+            // √λ·D^½ in scaled columns: √λ·‖J_c‖/scale_c (Marquardt), √λ/scale_c (identity).
+            sqrt_lambda * if damping == Damping::Marquardt { norms[c] } else { 1.0 } / scale[c]
+        } else {
+            0.0
+        }
+    });
+    let rhs = Mat::from_fn(m + n, 1, |row, _| if row < m { rv[(row, 0)] } else { 0.0 });
+    let rcond = f64::EPSILON * (m + n) as f64;
+    let qr = aug.col_piv_qr();
+    let diag = qr.thin_R().diagonal().column_vector();
+    let rmax = (0..n).fold(0.0f64, |hi, k| hi.max(diag[k].abs()));
+    // (Comparisons with NaN are false: a factorisation gone wrong takes the SVD path too.)
+    let full_rank = rmax > 0.0 && (0..n).all(|k| diag[k].abs() > rcond * rmax);
+    let (y, how) = if full_rank {
+        let y = qr.solve_lstsq(&rhs);
+        ((0..n).map(|k| y[(k, 0)]).collect::<Vec<f64>>(), SolveMethod::Qr)
+    } else {
+        (min_norm_lstsq(aug.as_ref(), rhs.as_ref(), rcond)?, SolveMethod::Svd)
+    };
+    Ok((y.iter().zip(&scale).map(|(v, s)| v / s).collect(), how))
+}
+
+/// Minimum-norm least-squares solution of `A x ≈ b` (also of a singular symmetric system)
+/// through the thin SVD of `A`, singular values
+/// at or below `rcond` of the largest treated as zero.
+fn min_norm_lstsq(a: MatRef<'_, f64>, b: MatRef<'_, f64>, rcond: f64) -> CoreResult<Vec<f64>> {
     let svd = a
         .thin_svd()
-        .map_err(|e| CoreError::NoConvergence(format!("SVD of the damped normal matrix: {e:?}")))?;
+        .map_err(|e| CoreError::NoConvergence(format!("SVD of the damped system: {e:?}")))?;
     let s = svd.S().column_vector();
     let smax = (0..s.nrows()).map(|i| s[i]).fold(0.0, f64::max);
-    let utg: Mat<f64> = svd.U().transpose() * g;
-    let mut x = vec![0.0; n];
+    let utb: Mat<f64> = svd.U().transpose() * b;
+    let mut x = vec![0.0; a.ncols()];
     for k in 0..s.nrows() {
-        if s[k] > RANK_TOL * smax * n as f64 && s[k] > 0.0 {
-            let coef = utg[(k, 0)] / s[k];
+        if s[k] > rcond * smax && s[k] > 0.0 {
+            let coef = utb[(k, 0)] / s[k];
             for (i, xi) in x.iter_mut().enumerate() {
                 *xi += svd.V()[(i, k)] * coef;
             }
@@ -140,5 +223,49 @@ mod tests {
     fn negative_lambda_is_rejected() {
         let err = solve_damped(&[1.0], &[1.0], 1, 1, -1.0, Damping::Identity).unwrap_err();
         assert!(err.to_string().contains("lam"));
+        let err = solve_damped_lstsq(&[1.0], &[1.0], 1, 1, -1.0, Damping::Identity).unwrap_err();
+        assert!(err.to_string().contains("lam"));
+    }
+
+    #[test]
+    fn lstsq_equals_the_normal_equations_on_a_well_conditioned_problem() {
+        let j = [1.0, 0.0, 0.0, 2.0, 1.0, 1.0];
+        let r = [1.0, 2.0, 3.0];
+        for damping in [Damping::Marquardt, Damping::Identity] {
+            for lambda in [0.0, 0.3, 10.0] {
+                let (a, _) = solve_damped(&j, &r, 3, 2, lambda, damping).unwrap();
+                let (b, how) = solve_damped_lstsq(&j, &r, 3, 2, lambda, damping).unwrap();
+                assert_eq!(how, SolveMethod::Cholesky, "well conditioned: the normal equations");
+                assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn lstsq_keeps_a_direction_the_normal_equations_drop() {
+        // Columns (1, 1, 0) and (1, 1 + 1e-8, 1e-8): condition ~3e8, so JᵀJ's ~1e17 is below the
+        // normal equations' rank tolerance; the exact solution for r = J·(1, -1) is (1, -1).
+        let e = 1e-8;
+        let j = [1.0, 1.0, 1.0, 1.0 + e, 0.0, e];
+        let r = [0.0, -e, -e];
+        let (x, how) = solve_damped_lstsq(&j, &r, 3, 2, 0.0, Damping::Marquardt).unwrap();
+        assert_eq!(how, SolveMethod::Qr);
+        assert!((x[0] - 1.0).abs() < 1e-6 && (x[1] + 1.0).abs() < 1e-6, "{x:?}");
+        let (x, how) = solve_damped(&j, &r, 3, 2, 0.0, Damping::Marquardt).unwrap();
+        assert_eq!(how, SolveMethod::Svd);
+        assert!((x[0] - 1.0).abs() > 0.5, "the normal equations resolved it after all: {x:?}");
+    }
+
+    #[test]
+    fn lstsq_rank_deficient_is_the_minimum_norm_step() {
+        let j = [1.0, 1.0, 2.0, 2.0];
+        let r = [1.0, 2.0];
+        let (x, how) = solve_damped_lstsq(&j, &r, 2, 2, 0.0, Damping::Identity).unwrap();
+        assert_eq!(how, SolveMethod::Svd);
+        assert!((x[0] - 0.5).abs() < 1e-12 && (x[1] - 0.5).abs() < 1e-12, "{x:?}");
+        // A column without effect gets no step.
+        let j = [1.0, 0.0, 2.0, 0.0];
+        let (x, _) = solve_damped_lstsq(&j, &r, 2, 2, 0.1, Damping::Marquardt).unwrap();
+        assert!(x[1] == 0.0 && x[0].is_finite());
     }
 }

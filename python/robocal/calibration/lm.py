@@ -1,7 +1,11 @@
 """robocal's production Levenberg–Marquardt (Marquardt 1963 with Nielsen's damping update).
 
-Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core (faer Cholesky, SVD
-fallback), projected onto the problem's bounds if it has any. The damping adapts to the gain ratio ρ = actual / predicted cost reduction
+Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core as the least squares of
+``[J; √λ·diag(JᵀJ)^½] δ ≈ [r; 0]`` (faer column-pivoted QR of ``J`` itself, SVD fallback), not by
+the normal equations: they square the condition number, and on ill-conditioned real data (D1)
+their rank cut-off stopped the iteration in a flat valley above the least-squares optimum
+(``benches/lm_step_conditioning.py``). The step is projected onto the problem's bounds if it has
+any. The damping adapts to the gain ratio ρ = actual / predicted cost reduction
 (Nielsen 1999: λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λ·ν, ν ← 2ν on failure), and the
 iteration stops on any of scipy's tests: relative cost change < ``ftol``, relative step <
 ``xtol``, or ``‖Jᵀr‖∞`` < ``gtol``.
@@ -117,7 +121,7 @@ def _minimise(problem: Problem, x0, objective: _Cost, max_nfev: int, ftol: float
         if np.max(np.abs(g)) < gtol:
             success, message = True, "`gtol` termination condition is satisfied"
             break
-        step, _ = solve_damped(Jw, rw, lam, "marquardt")
+        step, _ = solve_damped(Jw, rw, lam, "marquardt", "lstsq")
         # Projected onto the bounds (if any); the gain ratio uses the step actually taken.
         x_new = problem.clip(x + step)
         step = x_new - x
