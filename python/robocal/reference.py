@@ -76,8 +76,8 @@ REDUNDANCY_COEF_MIN = 1e-6
 #: counts as failed; the SVD fallback drops singular values <= this * n * the largest.
 RANK_TOL = 1e-13
 #: ``solve_damped(factor="lstsq")``: the normal equations are used when every squared Cholesky
-#: pivot exceeds this times the largest (condition below ~1e8), else QR of the augmented system.
-WELL_CONDITIONED = 1e-8
+#: pivot exceeds this times the largest (condition below ~1e12), else QR of the augmented system.
+WELL_CONDITIONED = 1e-12
 #: ``cable_initial_guess``: the centred design matrix must have ``s_min > this * s_max``.
 CABLE_CONDITION_MIN = 1e-10
 #: ``merwe_sigma_points``: ``P`` must be symmetric to ``max|P - P^T| <= this * max|P|``.

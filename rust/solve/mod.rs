@@ -122,9 +122,10 @@ fn cholesky_step(m: MatRef<'_, f64>, g: MatRef<'_, f64>, min_ratio: f64) -> Opti
 }
 
 /// Squared Cholesky pivots above this fraction of the largest mean a damped normal matrix of
-/// condition below ~10⁸: its step is accurate to ~10⁻⁸, plenty for an LM step, and the normal
-/// equations are several times cheaper than QR. Below it [`solve_damped_lstsq`] factors `J`.
-const WELL_CONDITIONED: f64 = 1e-8;
+/// condition below ~10¹² (`J`'s below ~10⁶, as in most calibrations): its step is accurate to
+/// ~10⁻⁴, plenty for an LM step whose gain ratio is checked, and the normal equations are
+/// several times cheaper than QR. Below it [`solve_damped_lstsq`] factors `J`.
+const WELL_CONDITIONED: f64 = 1e-12;
 
 /// The same step as the least-squares solution of `[J; √λ·D^½] δ ≈ [r; 0]`: by the normal
 /// equations (Cholesky) when they are well conditioned ([`WELL_CONDITIONED`]), else in columns
