@@ -380,8 +380,11 @@ def target(name: str, results: dict, fast: str, slow: str, factor: float) -> Non
         print(f"**Target {name}: NOT MEASURED** (a run failed).\n")
         return
     if b.get("hit_s") is None:
-        print(f"**Target {name}: MET (scipy never reached robocal's RMSE)** — {slow} never reached robocal's final RMSE {a['rmse']:.6f} mm "
-              f"within {b['time_s']:.1f} s ({b['time_s'] / a['time_s']:.0f}× robocal's {a['time_s']:.3f} s); its best {b['rmse']:.6f} mm.\n")
+        # Only a lower bound on the ratio: it decides the target only if it already reaches it.
+        bound = b["time_s"] / a["time_s"]
+        verdict = "MET" if bound >= factor else f"NOT SHOWN (the lower bound {bound:.0f}× is below {factor:g}×)"
+        print(f"**Target {name}: {verdict}** — {slow} never reached robocal's final RMSE {a['rmse']:.6f} mm "
+              f"within {b['time_s']:.1f} s (≥ {bound:.0f}× robocal's {a['time_s']:.3f} s); its best {b['rmse']:.6f} mm.\n")
         return
     ratio = b["hit_s"] / a["time_s"]
     met = ratio >= factor

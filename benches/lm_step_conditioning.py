@@ -49,6 +49,12 @@ def main() -> None:
         with mock.patch.object(lm, "solve_damped", with_factor(factor)):
             fit = lm.levenberg_marquardt(problem)
         print(f"| {factor} | {fit.nit} | {fit.nfev} | {fit.message} | {rmse(problem.data_residuals(fit.x)):.6f} | {rmse(held_out.data_residuals(fit.x)):.6f} | {fit.x[a1]:.1f} |")
+    # When the QR-step LM passes the normal-equation LM's stopping point and scipy's best of
+    # docs/benchmarks.md (its history holds ½‖r‖² per iteration; one residual row per sample).
+    path = np.sqrt(2.0 * np.asarray(fit.history) / len(problem.data))
+    for level in (0.160614, 0.140747):
+        k = int(np.argmax(path <= level))
+        print(f"lstsq passes {level} mm at iteration {k} of {len(path) - 1} (~{fit.time_s * k / (len(path) - 1):.2f} s of its {fit.time_s:.2f} s)")
     J = problem.jacobian(fit.x)
     s = np.linalg.svd(J / np.linalg.norm(J, axis=0), compute_uv=False)
     print(f"\ncondition number of the column-scaled Jacobian at the last solution: {s[0] / s[-1]:.3g} (of JᵀJ: {(s[0] / s[-1]) ** 2:.3g})")
