@@ -70,13 +70,9 @@ def unscented_transform(sigmas_x, sigmas_y, Wm, Wc):
 
     Returns ``(mean_y (k,), cov_y (k, k), cross (n, k))`` — the paper's eq. (10)-(11).
     """
-    out = _robocal.unscented_transform(
+    return _robocal.unscented_transform(
         as_float_array(sigmas_x, "sigmas_x"), as_float_array(sigmas_y, "sigmas_y"), as_float_array(Wm, "Wm"), as_float_array(Wc, "Wc")
     )
-    # The core takes any finite values; weighted products of large ones overflow.
-    if not all(np.all(np.isfinite(a)) for a in out):
-        raise InvalidParameterError("`sigmas_x`, `sigmas_y` and the weights are too large: their weighted products overflow float64")
-    return out
 
 
 def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "normal"):
@@ -133,6 +129,14 @@ def as_count(value, name: str, least: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
         raise InvalidParameterError(f"`{name}` must be an integer >= {least}; got {value!r}")
     return int(value)
+
+
+def as_positive(value, name: str) -> float:
+    """``value`` as a float if it is finite and > 0, else an error naming ``name``."""
+    number = as_float(value, name)
+    if not (np.isfinite(number) and number > 0):
+        raise InvalidParameterError(f"`{name}` must be finite and > 0; got {value!r}")
+    return number
 
 
 def as_tolerance(value, name: str) -> float:

@@ -108,6 +108,13 @@ pub fn unscented_transform(sx: &[f64], n: usize, sy: &[f64], k: usize, wm: &[f64
     }
     let cov = dy.transpose() * &wdy;
     let cross = dx.transpose() * &wdy;
+    // Finite inputs can still overflow in the weighted products: an error, never inf or NaN.
+    if [y_mean.as_slice(), cov.as_slice(), cross.as_slice()].iter().any(|m| m.iter().any(|v| !v.is_finite())) {
+        return Err(CoreError::InvalidParameter {
+            arg: "sigmas_y",
+            reason: "with `sigmas_x` and the weights too large: their weighted products overflow float64".into(),
+        });
+    }
     let to_row_major = |m: DMatrix<f64>| m.transpose().as_slice().to_vec();
     Ok((y_mean.as_slice().to_vec(), to_row_major(cov), to_row_major(cross)))
 }
@@ -115,6 +122,13 @@ pub fn unscented_transform(sx: &[f64], n: usize, sy: &[f64], k: usize, wm: &[f64
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn overflowing_weighted_products_are_an_error() {
+        let big = 1e200;
+        let got = unscented_transform(&[0.0, 1.0], 1, &[big, -big], 1, &[0.5, 0.5], &[0.5, 0.5]);
+        assert!(matches!(got, Err(CoreError::InvalidParameter { arg: "sigmas_y", .. })), "{got:?}");
+    }
 
     #[test]
     fn sigma_points_reproduce_mean_and_covariance() {

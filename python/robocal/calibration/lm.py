@@ -1,9 +1,10 @@
 """robocal's production Levenberg–Marquardt (Marquardt 1963 with Nielsen's damping update).
 
-Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core as the least squares of
-``[J; √λ·diag(JᵀJ)^½] δ ≈ [r; 0]`` (faer column-pivoted QR of ``J`` itself, SVD fallback), not by
-the normal equations: they square the condition number, and on ill-conditioned real data (D1)
-their rank cut-off stopped the iteration in a flat valley above the least-squares optimum
+Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core (``factor="lstsq"``): by the
+normal equations while they are well conditioned, else as the least squares of
+``[J; √λ·diag(JᵀJ)^½] δ ≈ [r; 0]`` (faer column-pivoted QR of ``J`` itself, SVD fallback). The
+normal equations square the condition number, and on ill-conditioned real data (D1) their rank
+cut-off alone stopped the iteration in a flat valley above the least-squares optimum
 (``benches/lm_step_conditioning.py``). The step is projected onto the problem's bounds if it has
 any. The damping adapts to the gain ratio ρ = actual / predicted cost reduction
 (Nielsen 1999: λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λ·ν, ν ← 2ν on failure), and the
@@ -24,7 +25,7 @@ import time
 
 import numpy as np
 
-from ..core import as_count, as_float, as_tolerance, solve_damped
+from ..core import as_count, as_positive, as_tolerance, solve_damped
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from .problem import Problem, initial_x
@@ -82,8 +83,7 @@ def levenberg_marquardt(
     """
     if not isinstance(loss, str) or loss not in LOSSES:
         raise InvalidParameterError(f"`loss` must be one of {sorted(LOSSES)}; got {loss!r}")
-    if f_scale is not None and not (np.isfinite(as_float(f_scale, "f_scale")) and f_scale > 0):
-        raise InvalidParameterError(f"`f_scale` must be finite and > 0; got {f_scale!r}")
+    f_scale = None if f_scale is None else as_positive(f_scale, "f_scale")
     max_nfev = as_count(max_nfev, "max_nfev")
     ftol, xtol, gtol, lam0 = (as_tolerance(v, n) for v, n in ((ftol, "ftol"), (xtol, "xtol"), (gtol, "gtol"), (lam0, "lam0")))
     start = time.perf_counter()

@@ -21,7 +21,7 @@ from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 
-from ..core import as_count, as_float, as_float_array, as_tolerance, seeded_rng
+from ..core import as_count, as_float_array, as_positive, as_tolerance, seeded_rng
 from ..exceptions import InvalidParameterError
 from .problem import Problem
 from .result import CalibrationResult
@@ -85,15 +85,6 @@ class _Objective:
         return self.problem.costs(X)
 
 
-def _positive(**options) -> list[float]:
-    """The values of ``options`` as floats, each finite and > 0, or an error naming it."""
-    values = [as_float(value, name) for name, value in options.items()]
-    for (name, value), number in zip(options.items(), values):
-        if not (math.isfinite(number) and number > 0):
-            raise InvalidParameterError(f"`{name}` must be finite and > 0; got {value!r}")
-    return values
-
-
 def _converged(costs: np.ndarray, tol: float) -> bool:
     """scipy's ``differential_evolution`` test: ``std(costs) ≤ tol·|mean(costs)|``."""
     return bool(np.std(costs) <= tol * abs(np.mean(costs)))
@@ -148,7 +139,7 @@ def bas(
         ``history`` holds the best cost after each iteration (index 0: the start).
     """
     max_iter, xtol = as_count(max_iter, "max_iter", 0), as_tolerance(xtol, "xtol")
-    step, step_decay, antenna_ratio = _positive(step=step, step_decay=step_decay, antenna_ratio=antenna_ratio)
+    step, step_decay, antenna_ratio = (as_positive(v, n) for v, n in ((step, "step"), (step_decay, "step_decay"), (antenna_ratio, "antenna_ratio")))
     t0 = time.perf_counter()
     rng = seeded_rng(seed)
     f = _Objective(problem, bounds)
@@ -222,7 +213,7 @@ def pso(
         ``history`` holds the global-best cost after each iteration (index 0: the initial swarm).
     """
     population, max_iter, tol = as_count(population, "population"), as_count(max_iter, "max_iter", 0), as_tolerance(tol, "tol")
-    c1, c2, vmax = _positive(c1=c1, c2=c2, vmax=vmax)
+    c1, c2, vmax = (as_positive(v, n) for v, n in ((c1, "c1"), (c2, "c2"), (vmax, "vmax")))
     w = as_float_array(w, "w")
     if w.shape != (2,) or not np.all(np.isfinite(w)):
         raise InvalidParameterError(f"`w` must be the inertia weights (first, last); got {w!r}")
@@ -296,7 +287,7 @@ def de(
         ``history`` holds the best cost after each generation (index 0: the initial population).
     """
     max_iter, tol = as_count(max_iter, "max_iter", 0), as_tolerance(tol, "tol")
-    F, CR = _positive(F=F, CR=CR)
+    F, CR = as_positive(F, "F"), as_positive(CR, "CR")
     t0 = time.perf_counter()
     rng = seeded_rng(seed)
     f = _Objective(problem, bounds)
