@@ -6,7 +6,8 @@ damped step solved two ways (``robocal.solve_damped(..., factor=...)``, both in 
 normal equations (``"normal"``, the paper's formulation and robocal's LM before 2026-11-23) and
 as the least squares of ``[J; sqrt(lam)·D^½] s ≈ [r; 0]`` by QR of ``J`` itself (``"lstsq"``,
 robocal's LM now; MINPACK does the same). Prints iterations, the stop message, training and
-held-out RMSE and ``a1``, and the condition number of the column-scaled Jacobian.
+held-out RMSE and ``a1``, the condition number of the column-scaled Jacobian, and the time of
+one damped step of each kind there.
 
     python benches/lm_step_conditioning.py
 """
@@ -14,6 +15,7 @@ held-out RMSE and ``a1``, and the condition number of the column-scaled Jacobian
 from __future__ import annotations
 
 import os
+import timeit
 from pathlib import Path
 from unittest import mock
 
@@ -55,9 +57,13 @@ def main() -> None:
     for level in (0.160614, 0.140747):
         k = int(np.argmax(path <= level))
         print(f"lstsq passes {level} mm at iteration {k} of {len(path) - 1} (~{fit.time_s * k / (len(path) - 1):.2f} s of its {fit.time_s:.2f} s)")
-    J = problem.jacobian(fit.x)
+    J, r = problem.jacobian(fit.x), problem.residuals(fit.x)
     s = np.linalg.svd(J / np.linalg.norm(J, axis=0), compute_uv=False)
     print(f"\ncondition number of the column-scaled Jacobian at the last solution: {s[0] / s[-1]:.3g} (of JᵀJ: {(s[0] / s[-1]) ** 2:.3g})")
+    # The price of one damped step there (λ = 1e-9, best of 200 calls).
+    for factor in ("normal", "lstsq"):
+        best = min(timeit.repeat(lambda: solve_damped(J, r, 1e-9, "marquardt", factor), number=1, repeat=200))
+        print(f"one damped step, factor={factor!r} ({solve_damped(J, r, 1e-9, 'marquardt', factor)[1]}): {best * 1e3:.3f} ms for J of {J.shape[0]} x {J.shape[1]}")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .core import as_count, as_float, as_float_array, check_seed, identifiability
+from .core import as_count, as_float, as_float_array, as_positive, check_seed, identifiability
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
@@ -286,8 +286,7 @@ def simulate(
     if measurement not in MEASUREMENTS:
         raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
     samples = as_count(samples, "samples")
-    if not (math.isfinite(as_float(dt, "dt")) and dt > 0):
-        raise InvalidParameterError(f"`dt` must be > 0 s; got {dt!r}")
+    dt = as_positive(dt, "dt")  # s
     if not 0.0 <= as_float(outliers, "outliers") <= 1.0:
         raise InvalidParameterError(f"`outliers` must be a fraction within 0..1; got {outliers!r}")
     if isinstance(effects, (str, Effect)) or not isinstance(effects, Iterable):
