@@ -9,6 +9,7 @@ import pytest
 from scipy.optimize import least_squares
 
 import robocal
+from robocal.data import Dataset
 from robocal.calibration import Problem, metrics
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.exceptions import InvalidParameterError
@@ -53,12 +54,46 @@ def test_position_start_fits_the_base_frame_and_lm_finishes_the_job():
 def test_production_lm_reaches_the_scipy_optimum(cable_data):
     data, _ = cable_data
     p = Problem.build(robocal.robot("hsr-jr680"), data)
-    ours = levenberg_marquardt(p)
+    ours = levenberg_marquardt(p, statistical_stop=False)
     ref = least_squares(p.residuals, p.x0, jac=lambda x: -p.jacobian(x), method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
     assert ours.success, ours.message
     assert ours.cost == pytest.approx(ref.cost, rel=1e-8)
     assert np.all(np.abs(ours.x - ref.x) < 1e-3 * ours.std)  # same optimum, to a thousandth of the uncertainty
     assert ours.metrics["train"]["rmse"] == pytest.approx(0.03, rel=0.2)  # the simulated noise floor
+
+
+@pytest.mark.parametrize("robot, measurement", [("hsr-jr680", "cable"), ("ur10", "position"), ("abb-irb120", "pose")])
+def test_statistical_stop_lands_within_the_uncertainty_of_the_full_optimum(robot, measurement):
+    data, _ = simulate(robot, measurement, samples=400, seed=5)
+    p = Problem.build(robocal.robot(robot), data)
+    stopped = levenberg_marquardt(p)
+    full = levenberg_marquardt(p, statistical_stop=False, max_nfev=5000)
+    assert stopped.success and "within the noise" in stopped.message, stopped.message
+    assert full.success and "within the noise" not in full.message
+    assert stopped.nfev < full.nfev
+    # Every parameter within a tenth of its standard deviation of the fully converged optimum,
+    # and chi-square higher by less than the noise can tell apart.
+    assert np.all(np.abs(stopped.x - full.x) < 0.1 * full.std)
+    sigma2 = 2.0 * full.cost / (len(p.residuals(full.x)) - len(full.x))
+    assert 2.0 * (stopped.cost - full.cost) / sigma2 < 0.1
+
+
+def test_lm_converges_on_a_deliberately_flat_direction():
+    """Narrow joint ranges (q6 constant, the others within ±5°, as in D1) and a joint-1 reading
+    the geometric model cannot represent leave a long curved valley: the LM before geodesic
+    acceleration used its 2000-evaluation budget here without converging. It must end with
+    success in a few hundred evaluations, at the training error of the full convergence."""
+    robot = robocal.robot("hsr-jr680")
+    rng = np.random.default_rng(3)
+    q = np.radians([5, -60, 200, -160, 40, 60]) + np.radians(rng.uniform(-5, 5, (600, 6))) * [1, 1, 1, 1, 1, 0]
+    true = robot.with_params(a2=900.5, d4=1030.9, tool_z=60.0, anchor_x=1500.0, anchor_y=300.0, anchor_z=-200.0, cable_offset=950.0)
+    L = true.predict("cable", q * [1.3, 1, 1, 1, 1, 1])[:, 0] + rng.normal(0.0, 0.01, 600)
+    p = Problem.build(robot, Dataset(q=q, y=L[:, None], measurement="cable", robot="hsr-jr680"))
+    fit = levenberg_marquardt(p)
+    full = levenberg_marquardt(p, statistical_stop=False)
+    assert fit.success and full.success, (fit.message, full.message)
+    assert fit.nfev <= 300
+    assert fit.metrics["train"]["rmse"] <= 1.001 * full.metrics["train"]["rmse"]
 
 
 def test_calibrate_api_result_json(cable_data, tmp_path):

@@ -1,15 +1,37 @@
-"""robocal's production Levenberg–Marquardt (Marquardt 1963 with Nielsen's damping update).
+"""robocal's production Levenberg–Marquardt: geodesic acceleration, uphill steps and a stop at
+the noise level (Transtrum & Sethna 2012, "Improvements to the Levenberg-Marquardt algorithm
+for nonlinear least-squares minimization", arXiv:1201.5885).
 
-Each step solves ``(JᵀJ + λ·diag(JᵀJ)) δ = Jᵀr`` in the Rust core (``factor="lstsq"``): by the
-normal equations while they are well conditioned, else as the least squares of
-``[J; √λ·diag(JᵀJ)^½] δ ≈ [r; 0]`` (faer column-pivoted QR of ``J`` itself, SVD fallback). The
-normal equations square the condition number, and on ill-conditioned real data (D1) their rank
-cut-off alone stopped the iteration in a flat valley above the least-squares optimum
-(``benches/lm_step_conditioning.py``). The step is projected onto the problem's bounds if it has
-any. The damping adapts to the gain ratio ρ = actual / predicted cost reduction
-(Nielsen 1999: λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λ·ν, ν ← 2ν on failure), and the
-iteration stops on any of scipy's tests: relative cost change < ``ftol``, relative step <
-``xtol``, or ``‖Jᵀr‖∞`` < ``gtol``.
+Calibration problems on real data are *sloppy*: a narrow workspace leaves long, curved valleys
+in which the cost still falls, slowly, over meters of link length. A plain LM crawls along them
+in thousands of tiny steps (2000 evaluations on D1 without converging). Three changes fix that:
+
+- **Scaled damping with a memory.** Each step solves ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the
+  running maximum of ``diag(JᵀJ)`` (MINPACK's scaling), in the Rust core as least squares of
+  ``[J·D^-½; √λ·I] z ≈ [r; 0]`` — the normal equations while they are well conditioned, else
+  column-pivoted QR of ``J`` itself (the normal equations square the condition number).
+- **Geodesic acceleration.** A second-order correction ``a`` from the residuals' directional
+  second derivative along ``v`` (one extra residual evaluation at ``x + h·v``) bends the step
+  along the valley: the step is ``v + a/2``, taken only while ``2‖a‖/‖v‖ ≤ α``.
+- **Uphill steps.** A step that raises the cost slightly is still taken when it continues the
+  previous direction (``(1 − cos β)·C_new ≤ C_old``), so the iteration follows a valley's bends
+  instead of stopping at each; the best point seen is returned.
+
+The damping follows Nielsen (1999): ``λ·max(1/3, 1 − (2ρ − 1)³)`` after a step with gain ratio
+``ρ``, ``λ·ν, ν ← 2ν`` after a rejected one (``1 − (2ρ − 1)³`` = 2 for an uphill step: λ/3 then). The iteration
+stops when more iterations cannot change the fit by what the data's noise can tell apart
+(``σ̂² = 2·cost/(rows − n)``), either of:
+
+- the Gauss–Newton step of the linearised problem would move the fit by less than
+  :data:`NOISE_DISTANCE` standard deviations (``‖J·δ_GN‖ / σ̂``: every parameter then lies
+  within that fraction of its standard deviation of the linearised optimum);
+- the last :data:`STALL_STEPS` downhill steps lowered ``χ² = 2·cost/σ̂²`` by less than
+  :data:`STALL_CHI2` in all: what is left lies along directions the data barely determine
+  (the result's ``undetermined`` lists them);
+
+or on scipy's tests (relative cost change < ``ftol``, relative step < ``xtol``, ``‖Jᵀr‖∞`` <
+``gtol``). ``statistical_stop=False`` keeps only scipy's tests, to run to full convergence.
+Bounds (if the problem has any) project each step.
 
 Robust losses (``loss="huber"`` or ``"cauchy"``): the cost is ``½ s² Σ_i ρ(‖r_i‖² / s²)`` over the
 samples ``i`` (a sample's residual rows together), minimised by iteratively reweighted least
@@ -72,12 +94,14 @@ def levenberg_marquardt(
     method: str = "lm",
     loss: str = "linear",
     f_scale: float = None,
+    statistical_stop: bool = True,
 ) -> CalibrationResult:
     """Minimises ``½‖r(x)‖²`` (or the robust cost of ``loss``) of ``problem`` from ``x0``
     (default ``problem.x0``).
 
     Returns a :class:`CalibrationResult`; non-convergence within ``max_nfev`` is reported in
-    ``success``/``message``, not raised. With a robust ``loss`` the result's ``robust`` holds
+    ``success``/``message``, not raised; ``statistical_stop=False`` runs to scipy's
+    tolerances instead of stopping at the noise level (see the module notes). With a robust ``loss`` the result's ``robust`` holds
     the loss, the scale and the rows of the samples beyond :data:`OUTLYING` scales. Without
     ``f_scale`` the scale is estimated from a plain fit, then once more from the robust fit.
     """
@@ -87,7 +111,7 @@ def levenberg_marquardt(
     max_nfev = as_count(max_nfev, "max_nfev")
     ftol, xtol, gtol, lam0 = (as_tolerance(v, n) for v, n in ((ftol, "ftol"), (xtol, "xtol"), (gtol, "gtol"), (lam0, "lam0")))
     start = time.perf_counter()
-    options = dict(max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=gtol, lam0=lam0, method=method)
+    options = dict(max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=gtol, lam0=lam0, method=method, statistical_stop=bool(statistical_stop))
     fit = _minimise(problem, x0, _Cost(problem, "linear", 1.0), **options)
     if loss == "linear":
         return fit
@@ -106,49 +130,106 @@ def _sample_errors(problem: Problem, x: np.ndarray) -> np.ndarray:
     return np.sqrt((problem.data_residuals(x).reshape(len(problem.data), -1) ** 2).sum(axis=1))
 
 
-def _minimise(problem: Problem, x0, objective: _Cost, max_nfev: int, ftol: float, xtol: float, gtol: float, lam0: float, method: str) -> CalibrationResult:
+#: Stop when the Gauss–Newton step moves the fit by less than this many standard deviations.
+NOISE_DISTANCE = 0.1
+#: ... or when this many downhill steps together lowered χ² by less than :data:`STALL_CHI2`.
+STALL_STEPS = 5
+STALL_CHI2 = 0.1
+#: Geodesic acceleration: finite-difference step along the velocity, and the largest
+#: acceleration-to-velocity ratio accepted (Transtrum & Sethna's recommended values).
+GEODESIC_H = 0.1
+GEODESIC_ALPHA = 0.75
+
+
+def _minimise(
+    problem: Problem, x0, objective: _Cost, max_nfev: int, ftol: float, xtol: float, gtol: float, lam0: float, method: str, statistical_stop: bool
+) -> CalibrationResult:
     """The damped iteration on ``objective`` (see the module notes)."""
     start = time.perf_counter()
     x = initial_x(problem, x0)
     r = problem.residuals(x)
     cost, w = objective(r)
-    history, nfev, nit, lam, nu = [cost], 1, 0, lam0, 2.0
+    dof = max(len(r) - len(x), 1)
+    history, nfev, njev, nit, lam, nu = [cost], 1, 1, 0, lam0, 2.0
+    best_x, best_cost, previous, gains = x, cost, None, []
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
     J = problem.jacobian(x)
+    scale = np.sum(J * J, axis=0)
     while nfev < max_nfev:
         Jw, rw = J * w[:, None], r * w
         g = Jw.T @ rw
         if np.max(np.abs(g)) < gtol:
             success, message = True, "`gtol` termination condition is satisfied"
             break
-        step, _ = solve_damped(Jw, rw, lam, "marquardt", "lstsq")
-        # Projected onto the bounds (if any); the gain ratio uses the step actually taken.
-        x_new = problem.clip(x + step)
+        scale = np.maximum(scale, np.sum(Jw * Jw, axis=0))
+        d = np.sqrt(np.where(scale > 0, scale, 1.0))
+        Js = Jw / d
+        if statistical_stop:
+            noise = np.sqrt(2.0 * cost / dof)
+            if noise == 0.0:
+                success, message = True, "the residuals are zero"
+                break
+            distance = float(np.linalg.norm(Js @ solve_damped(Js, rw, 0.0, "identity", "lstsq")[0])) / noise
+            if distance < NOISE_DISTANCE:
+                success, message = True, f"converged to within the noise: a Gauss-Newton step would move the fit by {distance:.2g} standard deviations"
+                break
+            if len(gains) >= STALL_STEPS and sum(gains[-STALL_STEPS:]) < STALL_CHI2:
+                success = True
+                message = (f"converged to within the noise: the last {STALL_STEPS} steps lowered chi-square by {sum(gains[-STALL_STEPS:]):.2g} "
+                           f"in all (a Gauss-Newton step would still move the fit by {distance:.2g} standard deviations along directions the data barely determine)")  # fmt: skip
+                break
+        v = solve_damped(Js, rw, lam, "identity", "lstsq")[0] / d
+        # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional
+        # derivative of the model along v, and its damped solve the acceleration a.
+        r_probe = problem.residuals(x + GEODESIC_H * v) * w
+        nfev += 1
+        second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jw @ v)
+        a = solve_damped(Js, -second, lam, "identity", "lstsq")[0] / d
+        if 2.0 * np.linalg.norm(d * a) > GEODESIC_ALPHA * np.linalg.norm(d * v):
+            lam, nu = lam * nu, 2.0 * nu
+            continue
+        x_new = problem.clip(x + v + 0.5 * a)
         step = x_new - x
         r_new = problem.residuals(x_new)
         nfev += 1
         cost_new, w_new = objective(r_new)
-        Js = Jw @ step
-        predicted = float(step @ g) - 0.5 * float(Js @ Js)
-        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
-        small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
-        if rho > 0:
+        downhill = cost_new < cost
+        # An uphill step is taken when it continues the previous direction (cos β near 1).
+        uphill = (not downhill and previous is not None and cost_new * (1.0 - _cosine(v, previous, d)) <= cost)
+        if downhill or uphill:
             nit += 1
-            small_change = cost - cost_new < ftol * cost
-            x, r, cost, w = x_new, r_new, cost_new, w_new
+            noise2 = 2.0 * cost / dof
+            if downhill and noise2 > 0:
+                gains.append(2.0 * (cost - cost_new) / noise2)
+            small_change = downhill and cost - cost_new < ftol * cost
+            small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
+            x, r, cost, w, previous = x_new, r_new, cost_new, w_new, v
             history.append(cost)
-            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
+            if cost < best_cost:
+                best_x, best_cost = x, cost
+            # Nielsen's update from the gain ratio of the velocity's linear model.
+            Jv = Jw @ v
+            predicted = float(v @ g) - 0.5 * float(Jv @ Jv)
+            rho = (history[-2] - cost) / predicted if downhill and predicted > 0 else 0.0
+            lam, nu = lam * max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3), 2.0
             if small_change or small_step:
                 success = True
                 message = "`ftol` termination condition is satisfied" if small_change else "`xtol` termination condition is satisfied"
                 break
             J = problem.jacobian(x)
-        elif small_step:
+            njev += 1
+        elif np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x)):
             # Even tiny steps no longer lower the cost: a minimum to within rounding.
             success, message = True, "`xtol` termination condition is satisfied"
             break
         else:
-            lam *= nu
-            nu *= 2.0
-    return CalibrationResult.from_fit(method, problem, x, history, nit, nfev, success, message, time.perf_counter() - start)
+            lam, nu = lam * nu, 2.0 * nu
+    result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start)
+    result.njev = njev
+    return result
+
+
+def _cosine(u: np.ndarray, v: np.ndarray, d: np.ndarray) -> float:
+    """Cosine of the angle between ``u`` and ``v`` in the scaled metric ``diag(d)``."""
+    du, dv = d * u, d * v
+    return float(du @ dv) / max(float(np.linalg.norm(du) * np.linalg.norm(dv)), 1e-300)

@@ -44,6 +44,8 @@ class CalibrationResult:
         Cost after each iteration (index 0: the start).
     nit, nfev : int
         Iterations and residual evaluations.
+    njev : int, optional
+        Jacobian evaluations (methods that count them).
     success : bool
     message : str
     time_s : float
@@ -70,6 +72,7 @@ class CalibrationResult:
     metrics: dict = field(default_factory=dict)
     held_out: Optional[Dataset] = None
     robust: Optional[dict] = None
+    njev: Optional[int] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -120,6 +123,7 @@ class CalibrationResult:
                 "message": self.message,
                 "nit": int(self.nit),
                 "nfev": int(self.nfev),
+                "njev": None if self.njev is None else int(self.njev),
                 "cost": float(self.cost),
                 "history": [float(c) for c in self.history],
                 "time_s": float(self.time_s),
