@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional, Union
 
@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import Problem
+from ..calibration.problem import Problem, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import kfold
@@ -92,20 +92,81 @@ def _folds(m: int, k: int, seed: int, order: np.ndarray, groups) -> dict:
     return schemes
 
 
-def _cv_errors(A: np.ndarray, r: np.ndarray, folds: list, k: int) -> np.ndarray:
-    """Held-out squared error per sample of the linear model ``r ≈ A·δ`` fitted per fold."""
-    m = len(r) // k
+#: Singular values below this fraction of the largest count as zero in the linear screening.
+RCOND = 1e-10
+
+
+def _basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U, s, Vt`` of the SVD of ``A`` truncated at :data:`RCOND`."""
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    keep = sv > RCOND * sv[0] if sv.size else sv > 0
+    return U[:, keep], sv[keep], Vt[keep]
+
+
+def _unit_columns(A: np.ndarray) -> np.ndarray:
     scale = np.linalg.norm(A, axis=0)
-    scale[scale == 0] = 1.0
-    As = A / scale
-    err = np.zeros(m)
-    for train, test in folds:
-        rows_tr = (train[:, None] * k + np.arange(k)).ravel()
-        rows_te = (test[:, None] * k + np.arange(k)).ravel()
-        delta = np.linalg.lstsq(As[rows_tr], r[rows_tr], rcond=1e-10)[0]
-        e = r[rows_te] - As[rows_te] @ delta
-        err[test] = (e * e).reshape(-1, k).sum(axis=1)
-    return err
+    return A / np.where(scale > 0, scale, 1.0)
+
+
+class _Screen:
+    """Linear screening of candidates against the current model ``r ≈ J·δ``.
+
+    Adding columns ``C`` to ``J`` is solved by the Frisch–Waugh–Lovell split: ``C`` and ``r``
+    projected off ``J``'s (truncated) column space, the small problem in ``C`` solved there and
+    ``J``'s coefficients recovered from the SVD. The SVD of each fold's ``J`` is computed once per
+    round and shared by every candidate — one ``lstsq`` of ``[J, C]`` per candidate and fold
+    before, which was most of a diagnosis's time.
+    """
+
+    def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
+        self.J, self.r, self.k = _unit_columns(J), r, k
+        self.folds = {name: [self._fold(train, test) for train, test in folds] for name, folds in schemes.items()}
+        self.all = self._fold(np.arange(len(r) // k), np.array([], dtype=int))
+        self.m = len(r) // k
+
+    def _fold(self, train: np.ndarray, test: np.ndarray) -> tuple:
+        rows_tr, rows_te = (train[:, None] * self.k + np.arange(self.k)).ravel(), (test[:, None] * self.k + np.arange(self.k)).ravel()
+        U, sv, Vt = _basis(self.J[rows_tr])
+        coef = U.T @ self.r[rows_tr]
+        return rows_tr, rows_te, test, U, sv, Vt, coef, self.r[rows_tr] - U @ coef
+
+    def _solve(self, fold: tuple, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Coefficients ``(δ_J, c)`` of ``r ≈ J·δ_J + C·c`` on the fold's training rows, and the
+        rank ``C`` adds."""
+        rows_tr, _, _, U, sv, Vt, coef, r_perp = fold
+        if C.shape[1] == 0:
+            return Vt.T @ (coef / sv), np.zeros(0), 0
+        Ct = C[rows_tr]
+        UC = U.T @ Ct
+        c, _, rank, _ = np.linalg.lstsq(Ct - U @ UC, r_perp, rcond=RCOND * (sv[0] if sv.size else 1.0) / max(np.linalg.norm(Ct - U @ UC, 2), 1e-300))
+        return Vt.T @ ((coef - UC @ c) / sv), c, int(rank)
+
+    def errors(self, C: np.ndarray) -> dict:
+        """Held-out squared error per sample of ``r ≈ [J, C]·δ`` fitted per fold, per scheme."""
+        C = _unit_columns(C)
+        out = {}
+        for name, folds in self.folds.items():
+            err = np.zeros(self.m)
+            for fold in folds:
+                _, rows_te, test, *_ = fold
+                dJ, c = self._solve(fold, C)[:2]
+                e = self.r[rows_te] - self.J[rows_te] @ dJ - C[rows_te] @ c
+                err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
+            out[name] = err
+        return out
+
+    def f_test(self, C: np.ndarray) -> float:
+        """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for Gaussian noise
+        in the linearised model)."""
+        C = _unit_columns(C)
+        _, _, _, U, sv, _, coef, r_perp = self.all
+        _, c, extra = self._solve(self.all, C)
+        rss0 = float(r_perp @ r_perp)
+        e = r_perp - (C - U @ (U.T @ C)) @ c
+        rss1, dof = float(e @ e), len(self.r) - len(sv) - extra
+        if extra < 1 or dof < 1 or rss1 <= 0:
+            return 1.0
+        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof))
 
 
 def _rmse(sq: np.ndarray) -> float:
@@ -118,14 +179,27 @@ def _fit(problem: ExtendedProblem, x0=None):
     return levenberg_marquardt(problem, x0=x0, method="diagnose")
 
 
-def _nonlinear_cv(ext: ExtendedProblem, x_all: np.ndarray, folds: list) -> np.ndarray:
-    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold."""
-    err = np.zeros(len(ext.idx))
-    for train, test in folds:
-        fit = _fit(ext.with_samples(ext.idx[train]), x0=x_all)
-        r = ext.with_samples(ext.idx[test]).residuals(fit.x)
+def _fold_problem(ext: ExtendedProblem, train: np.ndarray) -> ExtendedProblem:
+    """``ext`` on the training samples ``train`` (positions in ``ext.idx``), its set-up started
+    from those samples alone (:func:`start_parameters`): nothing of a held-out fold reaches the
+    fit on the others, not even through the start point."""
+    idx = ext.idx[train]
+    base = replace(ext.base, start=start_parameters(ext.robot, ext.full_data.subset(idx)))
+    return ExtendedProblem(base, ext.causes, ext.full_data, idx)
+
+
+def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
+    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold, and the
+    fold fits. Each fold starts from ``starts[i]`` — the same fold's fit of a smaller model —
+    or from its own training samples' set-up: never from a fit that saw its held-out samples."""
+    err, fits = np.zeros(len(ext.idx)), []
+    for i, (train, test) in enumerate(folds):
+        fold = _fold_problem(ext, train)
+        fit = _fit(fold, x0=None if starts is None else starts[i])
+        r = ExtendedProblem(fold.base, ext.causes, ext.full_data, ext.idx[test]).residuals(fit.x)
         err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
-    return err
+        fits.append(fit.x)
+    return err, fits
 
 
 #: Gross errors lie beyond at least this many robust sigmas: a slipped cable or a broken beam
@@ -246,7 +320,9 @@ def diagnose(
     ext = ExtendedProblem(base, causes, dataset, keep)
     base_fit = _fit(ext)
     x = base_fit.x
-    baseline_cv = {name: _nonlinear_cv(ext, x, f) for name, f in schemes.items()}
+    baseline = {name: _nonlinear_cv(ext, f) for name, f in schemes.items()}
+    baseline_cv = {name: err for name, (err, _) in baseline.items()}
+    fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
     current_cv = baseline_cv
     while len(causes) < max_effects:
@@ -255,16 +331,16 @@ def diagnose(
         r = ext.residuals(x)
         params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
-        model_err = {name: _cv_errors(J, r, f, k) for name, f in schemes.items()}
+        screen = _Screen(J, r, schemes, k)
+        model_err = screen.errors(np.zeros((len(r), 0)))
         scored = []
         for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
             if c.stage == "parameters":
                 C = parts["extra"][:, [params.index(n) for n in c.params]]
             else:
                 C = ext.columns(x, c, parts, p)
-            A = np.hstack([J, C])
-            errs = {name: _cv_errors(A, r, f, k) for name, f in schemes.items()}
-            p_value = _f_test(J, C, r)
+            errs = screen.errors(C)
+            p_value = screen.f_test(C)
             gains = {name: _rmse(model_err[name]) - _rmse(errs[name]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
@@ -283,12 +359,13 @@ def diagnose(
                 rejected.append(_record(c, gain, gains, p_value, n_tests, physical, why))
                 continue
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
-            new_cv = {name: _nonlinear_cv(trial, fit.x, f) for name, f in schemes.items()}
+            refits = {name: _nonlinear_cv(trial, f, [_extended_start(xf, ext, trial) for xf in fold_x[name]]) for name, f in schemes.items()}
+            new_cv = {name: err for name, (err, _) in refits.items()}
             lost = [name for name in schemes if _rmse(new_cv[name]) >= _rmse(current_cv[name])]
             if lost:
                 rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
                 continue
-            accepted = (c, fit, p_value, gains, physical, trial, new_cv)
+            accepted = (c, fit, p_value, gains, physical, trial, new_cv, {name: xs for name, (_, xs) in refits.items()})
             break
         if accepted is None:
             for gain, c, p_value, gains in scored[:5]:
@@ -297,7 +374,7 @@ def diagnose(
                            f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * _rmse(model_err["random"]) else "no gain on every fold scheme")  # fmt: skip
                     rejected.append(_record(c, gain, gains, p_value, n_tests, None, why))
             break
-        c, fit, p_value, gains, physical, trial, new_cv = accepted
+        c, fit, p_value, gains, physical, trial, new_cv, fold_x = accepted
         # For the report's plot: the residual the cause was found in, against its fitted signature.
         signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - _reference(c, rob))
         plots[c.label] = {"residual": r, "signature": signature, "k": k}
@@ -321,7 +398,7 @@ def diagnose(
         outliers = _still_outlying(model, x, outliers, z_bound)
     if len(outliers):
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
-        before = _nonlinear_cv(everyone, _fit(everyone).x, kfold(len(dataset), folds, seed))
+        before, _ = _nonlinear_cv(everyone, kfold(len(dataset), folds, seed))
         effects.insert(0, {
             "kind": "outliers", "joint": None, "label": "outliers",
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound},
@@ -340,24 +417,6 @@ def diagnose(
         final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n)},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
-
-
-def _f_test(J: np.ndarray, C: np.ndarray, r: np.ndarray) -> float:
-    """p-value of the extra-sum-of-squares F test for adding columns ``C`` to ``J`` (linear
-    least squares of ``r``; exact for Gaussian noise in the linearised model)."""
-    def fit(A):
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        coef, _, rank, _ = np.linalg.lstsq(A / scale, r, rcond=1e-10)
-        e = r - (A / scale) @ coef
-        return float(e @ e), int(rank)
-
-    rss0, rank0 = fit(J)
-    rss1, rank1 = fit(np.hstack([J, C]))
-    extra, dof = rank1 - rank0, len(r) - rank1
-    if extra < 1 or dof < 1 or rss1 <= 0:
-        return 1.0
-    return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof))
 
 
 def _extended_start(x: np.ndarray, ext: ExtendedProblem, trial: ExtendedProblem) -> np.ndarray:
