@@ -169,7 +169,10 @@ def _minimise(
             if noise == 0.0:
                 success, message = True, "the residuals are zero"
                 break
-            distance = float(np.linalg.norm(Js @ solve_damped(Js, rw, 0.0, "identity", "lstsq")[0])) / noise
+            # A step that just gained more than a unit of χ² was far from the optimum: the
+            # Gauss–Newton distance (one more solve) is worth computing only after small gains.
+            near = not gains or gains[-1] < 1.0
+            distance = float(np.linalg.norm(Js @ solve_damped(Js, rw, 0.0, "identity", "lstsq")[0])) / noise if near else np.inf
             if distance < NOISE_DISTANCE:
                 success, message = True, f"converged to within the noise: a Gauss-Newton step would move the fit by {distance:.2g} standard deviations"
                 break

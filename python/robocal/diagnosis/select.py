@@ -207,23 +207,24 @@ def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = No
 GROSS_SIGMAS = 8.0
 
 
-def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.ndarray, float]:
+def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.ndarray, float, np.ndarray]:
     """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale, and
-    beyond :data:`GROSS_SIGMAS`."""
+    beyond :data:`GROSS_SIGMAS`; and the last all-data fit (each refit starts from the previous one)."""
     m = len(data)
     k = RESIDUAL_WIDTH[data.measurement]
     bound = max(float(chi2.ppf(1.0 - level / m, k)), GROSS_SIGMAS**2)
-    flagged = np.zeros(m, dtype=bool)
+    flagged, x = np.zeros(m, dtype=bool), None
     for _ in range(5):
         ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
-        fit = _fit(ext)
+        fit = _fit(ext, x0=x)
+        x = fit.x
         r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
         sigma = 1.4826 * np.median(np.abs(r[~flagged] - np.median(r[~flagged], axis=0)))
         now = np.sum(r * r, axis=1) / max(sigma, 1e-12) ** 2 > bound
         if np.array_equal(now, flagged):
             break
         flagged = now
-    return np.flatnonzero(flagged), float(np.sqrt(bound))
+    return np.flatnonzero(flagged), float(np.sqrt(bound)), x
 
 
 def _still_outlying(model: ExtendedProblem, x: np.ndarray, flagged: np.ndarray, z_bound: float) -> np.ndarray:
@@ -310,7 +311,7 @@ def diagnose(
     k = RESIDUAL_WIDTH[dataset.measurement]
 
     effects, rejected, plots = [], [], {}
-    outliers, z_bound = _outliers(base, dataset)
+    outliers, z_bound, x_outliers = _outliers(base, dataset)
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = np.argsort(dataset.t, kind="stable") if dataset.t is not None else np.arange(len(dataset))
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
@@ -318,7 +319,7 @@ def diagnose(
 
     causes: list[Candidate] = []
     ext = ExtendedProblem(base, causes, dataset, keep)
-    base_fit = _fit(ext)
+    base_fit = _fit(ext, x0=x_outliers)
     x = base_fit.x
     baseline = {name: _nonlinear_cv(ext, f) for name, f in schemes.items()}
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
