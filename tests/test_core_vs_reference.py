@@ -179,6 +179,22 @@ def random_jacobian(rng, m, n, rank_deficient: bool, dead: bool) -> np.ndarray:
 jacobian_settings = st.tuples(seeds, st.integers(1, 30), st.integers(1, 12), st.booleans(), st.booleans())
 
 
+@given(seeds, st.integers(1, 12), st.integers(0, 30), st.sampled_from([1e-6, 1e-3, 1.0, 100.0]))
+def test_damped_qr(seed, n, extra_rows, lam):
+    """One factorisation, many damped steps: equal to the NumPy twin's augmented least squares,
+    and ``‖Qᵀb‖`` equal to the norm of ``b``'s least-squares fit by ``J``."""
+    rng = np.random.default_rng(seed)
+    J = random_jacobian(rng, n + extra_rows, n, rank_deficient=False, dead=False)
+    J /= np.linalg.norm(J, axis=0)  # the LM passes unit-scale columns
+    b = rng.normal(size=len(J))
+    factored = core.DampedQr(J)
+    c = factored.project(b)
+    want, explained = ref.damped_qr_step(J, b, lam)
+    s = np.linalg.svd(np.vstack([J, np.sqrt(lam) * np.eye(n)]), compute_uv=False)
+    assert_close(factored.solve(c, lam), want, rtol=1e-12 * s[0] / s[-1] * max(1.0, s[0] / s[-1]), what="step")
+    assert np.linalg.norm(c) == pytest.approx(explained, rel=1e-9, abs=1e-12)
+
+
 @given(jacobian_settings, st.sampled_from([0.0, 1e-6, 1e-3, 1.0, 100.0]), st.sampled_from(["marquardt", "identity"]), st.sampled_from(["normal", "lstsq"]))
 def test_solve_damped(setting, lam, damping, factor):
     seed, m, n, deficient, dead = setting

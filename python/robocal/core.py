@@ -88,6 +88,17 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "no
     return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"), as_str(factor, "factor"))
 
 
+def factor_damped(J):
+    """``J`` (m, n), m >= n, factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
+    damped steps ``min ‖J·δ − b‖² + λ‖δ‖²``.
+
+    Returns a ``DampedQr`` with ``project(b)`` → ``c = Qᵀb`` (n,) — ``‖c‖`` is the norm of
+    ``b``'s part that ``J`` explains — and ``solve(c, lam)`` → the step ``δ`` (n,). Scale the
+    columns of ``J`` beforehand for Marquardt's damping.
+    """
+    return _robocal.DampedQr(as_float_array(J, "J"))
+
+
 def identifiability(J, tol: float = 1e-9) -> dict:
     """Rank, singular values, identifiable subset and redundancies of a Jacobian (m, n).
 

@@ -740,6 +740,21 @@ def unscented_transform(sigmas_x, sigmas_y, Wm, Wc) -> tuple[np.ndarray, np.ndar
 # --------------------------------------------------------------------------------------------
 # Damped solve, identifiability, covariance
 # --------------------------------------------------------------------------------------------
+def damped_qr_step(J, b, lam: float) -> tuple[np.ndarray, float]:
+    """Twin of ``DampedQr(J)``: the step minimising ``‖J·δ − b‖² + lam‖δ‖²`` (least squares of
+    ``[J; sqrt(lam) I] δ ≈ [b; 0]``, minimum-norm with NumPy's default cut-off) and ``‖Qᵀb‖``, the
+    norm of ``b``'s projection on the columns of ``J``."""
+    J = _array(J, "J", ("m", "n"))
+    b = _array(b, "b", (J.shape[0],))
+    lam = _float(lam, "lam")
+    if lam < 0:
+        raise ValueError(f"`lam` must be finite and >= 0; got {lam}")
+    n = J.shape[1]
+    step = np.linalg.lstsq(np.vstack([J, np.sqrt(lam) * np.eye(n)]), np.concatenate([b, np.zeros(n)]), rcond=None)[0]
+    explained = J @ np.linalg.lstsq(J, b, rcond=None)[0]
+    return step, float(np.linalg.norm(explained))
+
+
 def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "normal") -> tuple[np.ndarray, str]:
     """Damped step ``(J^T J + lam D) delta = J^T r``.
 

@@ -12,10 +12,16 @@
 //!   the normal equations are ill-conditioned, so directions down to ~10⁻¹³ are kept: robocal's
 //!   production LM uses it, because on ill-conditioned real data the normal equations stall it
 //!   in a flat valley.
+//! - [`DampedQr`], the same least-squares step with `D = I` for many `λ` and right-hand sides
+//!   from one factorisation of `J` (MINPACK's `lmpar`/`qrsolv` idea): `J·P = Q·R` once per
+//!   Jacobian, then each step is the small problem `[R; √λ·I] z ≈ [Qᵀb; 0]`, `O(n³)` instead
+//!   of `O(m·n²)`. The caller scales the columns (`J·D^-½`) to get Marquardt's damping.
 
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
 use faer::prelude::*;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::householder;
 use faer::{Mat, MatRef, Side};
 
 /// Damping matrix `D`.
@@ -65,13 +71,18 @@ const RANK_TOL: f64 = 1e-13;
 fn damped_inputs<'a>(j: &'a [f64], r: &'a [f64], m: usize, n: usize, lambda: f64) -> CoreResult<(MatRef<'a, f64>, MatRef<'a, f64>)> {
     let jm = row_major("J", j, m, n)?;
     let rv = row_major("r", r, m, 1)?;
+    check_lambda(lambda)?;
+    Ok((jm, rv))
+}
+
+fn check_lambda(lambda: f64) -> CoreResult<()> {
     if !(lambda >= 0.0 && lambda.is_finite()) {
         return Err(CoreError::InvalidParameter {
             arg: "lam",
             reason: format!("must be finite and >= 0; got {lambda}"),
         });
     }
-    Ok((jm, rv))
+    Ok(())
 }
 
 /// Solves `(JᵀJ + λD) δ = Jᵀr` for `J` (m, n) row-major and `r` (m) by the normal equations.
@@ -174,6 +185,87 @@ pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64,
     Ok((y.iter().zip(&scale).map(|(v, s)| v / s).collect(), how))
 }
 
+/// `J` (m, n) factored as `J·P = Q·R` (column-pivoted Householder QR, thin `Q`) for the damped
+/// steps `min ‖J·δ − b‖² + λ‖δ‖²` of several `λ` and `b`.
+#[derive(Debug, Clone)]
+pub struct DampedQr {
+    qr: faer::linalg::solvers::ColPivQr<f64>,
+    r: Mat<f64>,
+    m: usize,
+    /// `forward[k]`: the column of `J` that is column `k` of `J·P`.
+    forward: Vec<usize>,
+}
+
+impl DampedQr {
+    /// Factors `J` (m, n) row-major. Errors: `Shape`, `NonFinite`, `OutOfRange`.
+    pub fn new(j: &[f64], m: usize, n: usize) -> CoreResult<Self> {
+        let jm = row_major("J", j, m, n)?;
+        if m < n {
+            return Err(CoreError::Shape { arg: "J", expected: format!("(m, {n}) with m >= {n}"), got: format!("({m}, {n})") });
+        }
+        let qr = jm.col_piv_qr();
+        let forward = qr.P().arrays().0.to_vec();
+        let r = qr.thin_R().to_owned();
+        Ok(Self { qr, r, m, forward })
+    }
+
+    /// Number of columns of `J`.
+    pub fn ncols(&self) -> usize {
+        self.r.ncols()
+    }
+
+    /// `Qᵀb` (n) for `b` (m): `‖Qᵀr‖` is the norm of `r`'s projection on the columns of `J`.
+    /// Errors: `Shape`, `NonFinite`, `OutOfRange`.
+    pub fn project(&self, b: &[f64]) -> CoreResult<Vec<f64>> {
+        let m = self.m;
+        let mut c = row_major("b", b, m, 1)?.to_owned();
+        // Qᵀb from the Householder reflectors, O(m·n): Q itself is never formed.
+        let (basis, factor) = (self.qr.Q_basis(), self.qr.Q_coeff());
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            basis,
+            factor,
+            faer::Conj::No,
+            c.as_mut(),
+            faer::Par::Seq,
+            MemStack::new(&mut MemBuffer::new(householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(
+                m,
+                factor.nrows(),
+                1,
+            ))),
+        );
+        Ok((0..self.ncols()).map(|k| c[(k, 0)]).collect())
+    }
+
+    /// The step `δ` minimising `‖J·δ − b‖² + λ‖δ‖²` from `c = Qᵀb` ([`Self::project`]): the
+    /// least squares of `[R; √λ·I] z ≈ [c; 0]`, un-permuted; its minimum-norm solution through
+    /// the SVD when that is rank-deficient (λ = 0 and `J` singular).
+    /// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter` (λ < 0 or not finite).
+    pub fn solve(&self, c: &[f64], lambda: f64) -> CoreResult<Vec<f64>> {
+        let n = self.ncols();
+        let cv = row_major("c", c, n, 1)?;
+        check_lambda(lambda)?;
+        let sqrt_lambda = lambda.sqrt();
+        let aug = Mat::from_fn(2 * n, n, |row, col| if row < n { self.r[(row, col)] } else if row - n == col { sqrt_lambda } else { 0.0 });
+        let rhs = Mat::from_fn(2 * n, 1, |row, _| if row < n { cv[(row, 0)] } else { 0.0 });
+        let rcond = f64::EPSILON * (self.m + n) as f64;
+        let qr = aug.col_piv_qr();
+        let diag = qr.thin_R().diagonal().column_vector();
+        let rmax = (0..n).fold(0.0f64, |hi, k| hi.max(diag[k].abs()));
+        let full_rank = rmax > 0.0 && (0..n).all(|k| diag[k].abs() > rcond * rmax);
+        let z: Vec<f64> = if full_rank {
+            let y = qr.solve_lstsq(&rhs);
+            (0..n).map(|k| y[(k, 0)]).collect()
+        } else {
+            min_norm_lstsq(aug.as_ref(), rhs.as_ref(), rcond)?
+        };
+        let mut step = vec![0.0; n];
+        for (k, &col) in self.forward.iter().enumerate() {
+            step[col] = z[k];
+        }
+        Ok(step)
+    }
+}
+
 /// Minimum-norm least-squares solution of `A x ≈ b` (also of a singular symmetric system)
 /// through the thin SVD of `A`, singular values
 /// at or below `rcond` of the largest treated as zero.
@@ -257,6 +349,34 @@ mod tests {
         let (x, how) = solve_damped(&j, &r, 3, 2, 0.0, Damping::Marquardt).unwrap();
         assert_eq!(how, SolveMethod::Svd);
         assert!((x[0] - 1.0).abs() > 0.5, "the normal equations resolved it after all: {x:?}");
+    }
+
+    #[test]
+    fn damped_qr_equals_the_augmented_least_squares_for_any_lambda() {
+        // Ill-conditioned columns, so the pivoting reorders them; J·δ ≈ r with (J, r) fixed.
+        let j = [1.0, 2.0, 0.0, 1.0, 2.0 + 1e-6, 1.0, 0.0, 1.0, 3.0, 2.0, 4.0, 0.5];
+        let r = [1.0, -2.0, 0.5, 3.0];
+        let f = DampedQr::new(&j, 4, 3).unwrap();
+        let c = f.project(&r).unwrap();
+        for lambda in [0.0, 1e-3, 0.7, 50.0] {
+            let a = f.solve(&c, lambda).unwrap();
+            let (b, _) = solve_damped_lstsq(&j, &r, 4, 3, lambda, Damping::Identity).unwrap();
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-6 * (1.0 + b[k].abs()), "lambda {lambda}: {a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn damped_qr_projection_norm_is_the_explained_part_of_r() {
+        // r in the column space of J: ‖Qᵀr‖ = ‖r‖.
+        let j = [1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+        let r = [2.0, -1.0, 1.0];
+        let c = DampedQr::new(&j, 3, 2).unwrap().project(&r).unwrap();
+        let norm = (c[0] * c[0] + c[1] * c[1]).sqrt();
+        assert!((norm - 6f64.sqrt()).abs() < 1e-12);
+        assert!(DampedQr::new(&j, 3, 2).unwrap().solve(&c, -1.0).unwrap_err().to_string().contains("lam"));
+        assert!(DampedQr::new(&j, 2, 3).is_err(), "fewer rows than columns");
     }
 
     #[test]

@@ -6,10 +6,11 @@ Calibration problems on real data are *sloppy*: a narrow workspace leaves long, 
 in which the cost still falls, slowly, over meters of link length. A plain LM crawls along them
 in thousands of tiny steps (2000 evaluations on D1 without converging). Three changes fix that:
 
-- **Scaled damping with a memory.** Each step solves ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the
-  running maximum of ``diag(JᵀJ)`` (MINPACK's scaling), in the Rust core as least squares of
-  ``[J·D^-½; √λ·I] z ≈ [r; 0]`` — the normal equations while they are well conditioned, else
-  column-pivoted QR of ``J`` itself (the normal equations square the condition number).
+- **Scaled damping with a memory, one factorisation per Jacobian.** Each step solves
+  ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the running maximum of ``diag(JᵀJ)`` (MINPACK's scaling)
+  as the least squares of ``[J·D^-½; √λ·I] z ≈ [r; 0]`` (the normal equations would square the
+  condition number): ``J·D^-½`` is factored once by column-pivoted QR in the Rust core
+  (:func:`robocal.core.factor_damped`), and every λ tried and the acceleration below reuse it.
 - **Geodesic acceleration.** A second-order correction ``a`` from the residuals' directional
   second derivative along ``v`` (one extra residual evaluation at ``x + h·v``) bends the step
   along the valley: the step is ``v + a/2``, taken only while ``2‖a‖/‖v‖ ≤ α``.
@@ -47,7 +48,7 @@ import time
 
 import numpy as np
 
-from ..core import as_count, as_positive, as_tolerance, solve_damped
+from ..core import as_count, as_positive, as_tolerance, factor_damped
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from .problem import Problem, initial_x
@@ -154,40 +155,41 @@ def _minimise(
     best_x, best_cost, previous, gains = x, cost, None, []
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
     J = problem.jacobian(x)
-    scale = np.sum(J * J, axis=0)
+    scale, fresh = np.sum(J * J, axis=0), True
     while nfev < max_nfev:
-        Jw, rw = J * w[:, None], r * w
-        g = Jw.T @ rw
-        if np.max(np.abs(g)) < gtol:
-            success, message = True, "`gtol` termination condition is satisfied"
-            break
-        scale = np.maximum(scale, np.sum(Jw * Jw, axis=0))
-        d = np.sqrt(np.where(scale > 0, scale, 1.0))
-        Js = Jw / d
-        if statistical_stop:
-            noise = np.sqrt(2.0 * cost / dof)
-            if noise == 0.0:
-                success, message = True, "the residuals are zero"
+        if fresh:  # a new Jacobian: factor it once for every step tried from this point
+            fresh = False
+            Jw, rw = J * w[:, None], r * w
+            g = Jw.T @ rw
+            if np.max(np.abs(g)) < gtol:
+                success, message = True, "`gtol` termination condition is satisfied"
                 break
-            # A step that just gained more than a unit of χ² was far from the optimum: the
-            # Gauss–Newton distance (one more solve) is worth computing only after small gains.
-            near = not gains or gains[-1] < 1.0
-            distance = float(np.linalg.norm(Js @ solve_damped(Js, rw, 0.0, "identity", "lstsq")[0])) / noise if near else np.inf
-            if distance < NOISE_DISTANCE:
-                success, message = True, f"converged to within the noise: a Gauss-Newton step would move the fit by {distance:.2g} standard deviations"
-                break
-            if len(gains) >= STALL_STEPS and sum(gains[-STALL_STEPS:]) < STALL_CHI2:
-                success = True
-                message = (f"converged to within the noise: the last {STALL_STEPS} steps lowered chi-square by {sum(gains[-STALL_STEPS:]):.2g} "
-                           f"in all (a Gauss-Newton step would still move the fit by {distance:.2g} standard deviations along directions the data barely determine)")  # fmt: skip
-                break
-        v = solve_damped(Js, rw, lam, "identity", "lstsq")[0] / d
+            scale = np.maximum(scale, np.sum(Jw * Jw, axis=0))
+            d = np.sqrt(np.where(scale > 0, scale, 1.0))
+            factored = factor_damped(Jw / d)
+            c = factored.project(rw)
+            if statistical_stop:
+                noise = np.sqrt(2.0 * cost / dof)
+                if noise == 0.0:
+                    success, message = True, "the residuals are zero"
+                    break
+                # ‖Qᵀr‖ = ‖J·δ_GN‖: how far the Gauss–Newton step of the linearised problem moves the fit.
+                distance = float(np.linalg.norm(c)) / noise
+                if distance < NOISE_DISTANCE:
+                    success, message = True, f"converged to within the noise: a Gauss-Newton step would move the fit by {distance:.2g} standard deviations"
+                    break
+                if len(gains) >= STALL_STEPS and sum(gains[-STALL_STEPS:]) < STALL_CHI2:
+                    success = True
+                    message = (f"converged to within the noise: the last {STALL_STEPS} steps lowered chi-square by {sum(gains[-STALL_STEPS:]):.2g} "
+                               f"in all (a Gauss-Newton step would still move the fit by {distance:.2g} standard deviations along directions the data barely determine)")  # fmt: skip
+                    break
+        v = factored.solve(c, lam) / d
         # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional
         # derivative of the model along v, and its damped solve the acceleration a.
         r_probe = problem.residuals(x + GEODESIC_H * v) * w
         nfev += 1
         second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jw @ v)
-        a = solve_damped(Js, -second, lam, "identity", "lstsq")[0] / d
+        a = factored.solve(factored.project(-second), lam) / d
         if 2.0 * np.linalg.norm(d * a) > GEODESIC_ALPHA * np.linalg.norm(d * v):
             lam, nu = lam * nu, 2.0 * nu
             continue
@@ -219,7 +221,7 @@ def _minimise(
                 success = True
                 message = "`ftol` termination condition is satisfied" if small_change else "`xtol` termination condition is satisfied"
                 break
-            J = problem.jacobian(x)
+            J, fresh = problem.jacobian(x), True
             njev += 1
         elif np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x)):
             # Even tiny steps no longer lower the cost: a minimum to within rounding.
