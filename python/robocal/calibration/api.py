@@ -252,6 +252,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows" + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else ""))
     if doc["implausible"]:
         print("  warning: " + describe_implausible(doc["implausible"]))
+    if doc["undetermined"]:
+        widest = max(doc["undetermined"], key=lambda u: u["std"])
+        combination = " ".join(f"{w:+.2f}·{n}" for n, w in widest["combination"].items())
+        print(f"  {len(doc['undetermined'])} parameter combinations are undetermined (standard deviation beyond 10 mm / 2 deg); "
+              f"the widest, {widest['std']:.3g} limits: {combination}")  # fmt: skip
     if args.out:
         print(f"  result written to {args.out}")
     return 0

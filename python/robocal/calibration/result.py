@@ -101,10 +101,36 @@ class CalibrationResult:
                 flagged.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
         return flagged
 
+    def undetermined(self, shown: int = 4) -> list[dict]:
+        """Parameter combinations the data leave wider than :data:`PLAUSIBLE`.
+
+        In coordinates scaled by the limits (10 mm, 2°; 1 % for a scale factor), the singular
+        directions ``v`` of the scaled Jacobian with standard deviation ``σ̂/s`` above one: the fit
+        can move along them by more than a limit without changing what the data can tell apart.
+        Each is ``{"std": σ̂/s (in limits), "combination": {name: weight}}`` with the ``shown``
+        largest weights of ``v`` (unit norm; a parameter's move is weight · std · its limit).
+        """
+        J = np.asarray(self.problem.jacobian(self.x), dtype=np.float64)
+        r = self.problem.residuals(self.x)
+        if J.shape[0] <= J.shape[1] or J.shape[1] == 0:
+            return []
+        units = [self.problem.robot.param_units[k] for k in self.problem.free]
+        limits = np.array([PLAUSIBLE.get(u, 0.01) for u in units] + [1.0] * (J.shape[1] - len(units)))
+        _, sv, Vt = np.linalg.svd(J * limits, full_matrices=False)
+        noise = float(np.sqrt(r @ r / (J.shape[0] - J.shape[1])))
+        names = list(self.problem.names)
+        out = []
+        for s, v in zip(sv, Vt):
+            std = noise / s if s > 0 else np.inf
+            if std > 1.0:
+                top = np.argsort(-np.abs(v))[:shown]
+                out.append({"std": float(std), "combination": {names[k]: float(v[k]) for k in top}})
+        return out
+
     def to_dict(self) -> dict:
         """The result file (:mod:`robocal.results`, schema ``robocal.result/1``): ``method``,
         ``robot``, ``measurement``, ``parameters``, ``free``, ``fixed`` (name -> reason),
-        ``implausible`` (see :meth:`implausible`), ``metrics``, ``convergence``, ``causes`` for
+        ``implausible`` (see :meth:`implausible`), ``undetermined`` (:meth:`undetermined`), ``metrics``, ``convergence``, ``causes`` for
         an extended model, the robot's definition and the dataset's provenance."""
         return result_document(self._core(), self.problem.robot, self.problem.data, self.held_out)
 
@@ -117,6 +143,7 @@ class CalibrationResult:
             "free": self.problem.names,
             "fixed": self.problem.fixed,
             "implausible": self.implausible(),
+            "undetermined": self.undetermined(),
             "metrics": self.metrics,
             "convergence": {
                 "success": bool(self.success),
