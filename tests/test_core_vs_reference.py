@@ -179,12 +179,13 @@ def random_jacobian(rng, m, n, rank_deficient: bool, dead: bool) -> np.ndarray:
 jacobian_settings = st.tuples(seeds, st.integers(1, 30), st.integers(1, 12), st.booleans(), st.booleans())
 
 
-@given(seeds, st.integers(1, 12), st.integers(0, 30), st.sampled_from([1e-6, 1e-3, 1.0, 100.0]))
+@given(seeds, st.integers(1, 12), st.integers(-11, 30), st.sampled_from([1e-6, 1e-3, 1.0, 100.0]))
 def test_damped_qr(seed, n, extra_rows, lam):
     """One factorisation, many damped steps: equal to the NumPy twin's augmented least squares,
-    and ``‖Qᵀb‖`` equal to the norm of ``b``'s least-squares fit by ``J``."""
+    and ``‖Qᵀb‖`` equal to the norm of ``b``'s least-squares fit by ``J`` (fewer rows than
+    columns too: a diagnosis fold can be underdetermined)."""
     rng = np.random.default_rng(seed)
-    J = random_jacobian(rng, n + extra_rows, n, rank_deficient=False, dead=False)
+    J = random_jacobian(rng, max(1, n + extra_rows), n, rank_deficient=False, dead=False)
     J /= np.linalg.norm(J, axis=0)  # the LM passes unit-scale columns
     b = rng.normal(size=len(J))
     factored = core.DampedQr(J)

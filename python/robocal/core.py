@@ -89,7 +89,7 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "no
 
 
 def factor_damped(J):
-    """``J`` (m, n), m >= n, factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
+    """``J`` (m, n) factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
     damped steps ``min ‖J·δ − b‖² + λ‖δ‖²``.
 
     Returns a ``DampedQr`` with ``project(b)`` → ``c = Qᵀb`` (n,) — ``‖c‖`` is the norm of

@@ -197,13 +197,13 @@ pub struct DampedQr {
 }
 
 impl DampedQr {
-    /// Factors `J` (m, n) row-major. Errors: `Shape`, `NonFinite`, `OutOfRange`.
+    /// Factors `J` (m, n) row-major; fewer rows than columns are padded with zero rows (which
+    /// change no least-squares problem). Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn new(j: &[f64], m: usize, n: usize) -> CoreResult<Self> {
         let jm = row_major("J", j, m, n)?;
-        if m < n {
-            return Err(CoreError::Shape { arg: "J", expected: format!("(m, {n}) with m >= {n}"), got: format!("({m}, {n})") });
-        }
-        let qr = jm.col_piv_qr();
+        let rows = m.max(n);
+        let padded = Mat::from_fn(rows, n, |row, col| if row < m { jm[(row, col)] } else { 0.0 });
+        let qr = padded.col_piv_qr();
         let forward = qr.P().arrays().0.to_vec();
         let r = qr.thin_R().to_owned();
         Ok(Self { qr, r, m, forward })
@@ -217,8 +217,9 @@ impl DampedQr {
     /// `Qᵀb` (n) for `b` (m): `‖Qᵀr‖` is the norm of `r`'s projection on the columns of `J`.
     /// Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn project(&self, b: &[f64]) -> CoreResult<Vec<f64>> {
-        let m = self.m;
-        let mut c = row_major("b", b, m, 1)?.to_owned();
+        let bm = row_major("b", b, self.m, 1)?;
+        let m = self.m.max(self.ncols());
+        let mut c = Mat::from_fn(m, 1, |row, _| if row < self.m { bm[(row, 0)] } else { 0.0 });
         // Qᵀb from the Householder reflectors, O(m·n): Q itself is never formed.
         let (basis, factor) = (self.qr.Q_basis(), self.qr.Q_coeff());
         householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
@@ -376,7 +377,10 @@ mod tests {
         let norm = (c[0] * c[0] + c[1] * c[1]).sqrt();
         assert!((norm - 6f64.sqrt()).abs() < 1e-12);
         assert!(DampedQr::new(&j, 3, 2).unwrap().solve(&c, -1.0).unwrap_err().to_string().contains("lam"));
-        assert!(DampedQr::new(&j, 2, 3).is_err(), "fewer rows than columns");
+        // Fewer rows than columns: the minimum-norm solution of the underdetermined system.
+        let f = DampedQr::new(&[1.0, 1.0, 0.0], 1, 3).unwrap();
+        let step = f.solve(&f.project(&[2.0]).unwrap(), 0.0).unwrap();
+        assert!((step[0] - 1.0).abs() < 1e-12 && (step[1] - 1.0).abs() < 1e-12 && step[2].abs() < 1e-12, "{step:?}");
     }
 
     #[test]
