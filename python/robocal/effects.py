@@ -606,6 +606,31 @@ class Drift(ObservationEffect):
         return y
 
 
+class Step(ObservationEffect):
+    """The sensor's zero jumps once in the session (a cable re-hooked or re-zeroed, a tracker
+    bumped): from sample ``sample`` on, cable ``ΔL = size``; position and pose ``Δp = size·e_axis``.
+
+    Keys: ``sample`` (0-based index of the first sample after the step, required), ``size`` in mm
+    (default 0.5), ``axis`` (``x``, ``y`` or ``z``, default z; position and pose only).
+    """
+
+    kind = "step"
+    keys = {"sample": Key("0-based sample", integer=True), "size": Key("mm", 0.5), "axis": Key("word", None, choices=("x", "y", "z"))}
+
+    def check(self, robot, measurement):
+        super().check(robot, measurement)
+        if measurement == "cable" and self.values["axis"] is not None:
+            raise self.error("key 'axis' applies to position and pose measurements; a cable steps along its length")
+
+    def observe(self, acq):
+        if not 0 < self.values["sample"] < len(acq.y):
+            raise self.error(f"key 'sample' must lie within 1..{len(acq.y) - 1}; got {self.values['sample']}")
+        y = acq.y.copy()
+        column = 0 if acq.measurement == "cable" else "xyz".index(self.values["axis"] or "z")
+        y[self.values["sample"] :, column] += self["size"]
+        return y
+
+
 class CableScale(ObservationEffect):
     """Scale error of the cable sensor: ``L' = (1 + ε) · L``.
 
@@ -659,7 +684,7 @@ class Outliers(ObservationEffect):
         return record
 
 
-EFFECTS = {cls.kind: cls for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Temperature, CableScale, AxisMisalignment, Outliers)}
+EFFECTS = {cls.kind: cls for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Step, Temperature, CableScale, AxisMisalignment, Outliers)}
 
 
 def parse_effect(spec: str) -> Effect:

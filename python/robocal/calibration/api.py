@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import json
+import re
 from pathlib import Path
 from typing import Callable, Optional, Union
 
@@ -174,6 +175,7 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
     """``problem`` extended by ``causes`` (labels, or a diagnose report as dict or path) on the
     samples ``idx`` of ``dataset`` (bases such as backlash and drift need the whole sequence)."""
     from ..diagnosis import ExtendedProblem, library  # the diagnose package imports this module
+    from ..diagnosis.candidates import step_candidate
 
     if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
         try:
@@ -190,6 +192,10 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
     if not isinstance(causes, (list, tuple)) or not all(isinstance(c, str) for c in causes):
         raise InvalidParameterError(f"`causes` must be cause labels, a diagnose report or its JSON file; got {causes!r}")
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
+    for label in causes:  # steps sit where diagnose found them: their label says where
+        step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
+        if step:
+            pool[label] = step_candidate(dataset, int(step.group(1)))
     unknown = [c for c in causes if c not in pool]
     if unknown:
         raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")

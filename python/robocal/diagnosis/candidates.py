@@ -7,7 +7,7 @@ Every candidate is linear in its coefficients ``c`` and acts at one stage of the
     scale, coupling, backlash). Its Jacobian columns are ``∂h/∂q_j · B`` — and ``∂h/∂q_j`` is the
     ``theta_j`` column of the identification Jacobian, since ``theta_j`` adds to ``q_j``.
 ``observations``
-    the reading, ``h + B·c`` (drift, temperature).
+    the reading, ``h + B·c`` (drift, temperature, a step of the sensor's zero).
 ``parameters``
     parameters of the robot's own vector that the baseline leaves out (``cable_scale``, Hayati
     ``beta_j`` on a plain-DH baseline, base / tool / anchor terms).
@@ -125,6 +125,11 @@ class Candidate:
             fastest = float(np.max(np.abs(c)))
             bad = self.detail["unit"] == "h" and fastest > LIMITS["drift_mm_per_h"]
             return out, (f"drift {fastest:.3g} mm/h exceeds {LIMITS['drift_mm_per_h']:g} mm/h" if bad else None)
+        if kind == "step":
+            out = {f"size_{a}" if len(self.detail["axes"]) > 1 else "size": q(v, sd, "mm") for a, v, sd in zip(self.detail["axes"], c, s)}
+            out["sample"] = q(self.detail["sample"], np.nan, "sample")
+            out["row"] = q(self.detail["row"], np.nan, "row")
+            return out, None
         if kind == "temperature":
             out = {"alpha": q(c[0] * 1e6, s[0] * 1e6, "1e-6/K"), "target": q(np.nan, np.nan, self.detail["target"])}
             bad = not 0.0 < c[0] < LIMITS["alpha"]
@@ -221,6 +226,51 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     if missing:
         out.append(Candidate("frame", None, "parameters", params=missing))
     return out
+
+
+#: Change points proposed per diagnosis: ruptures' binary segmentation asked for this many.
+STEPS_PROPOSED = 3
+
+
+def step_candidate(data: Dataset, sample: int) -> Candidate:
+    """A step of the sensor's zero (cable) or of the tracker's position (its translation) at
+    ``sample`` (0-based index of the first sample after it): every sample acquired from then on
+    reads ``h + c`` (``c`` per axis)."""
+    m, k = len(data), RESIDUAL_WIDTH[data.measurement]
+    if not 0 < sample < m:
+        raise InvalidParameterError(f"a step needs its first sample within 1..{m - 1}; got {sample}")
+    position = np.empty(m, dtype=int)
+    position[_acquisition_order(data)] = np.arange(m)
+    after = (position >= position[sample]).astype(np.float64)
+    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
+    basis = np.zeros((m, k, len(axes)))
+    for a in range(len(axes)):
+        basis[:, a, a] = after
+    row = int(data.rows[sample]) if data.rows is not None else sample
+    return Candidate("step", None, "observations", basis, detail={"sample": int(sample), "row": row, "axes": axes})
+
+
+def _acquisition_order(data: Dataset) -> np.ndarray:
+    return np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
+
+
+def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> list[Candidate]:
+    """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
+    samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
+    residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
+    the samples (and 5). Each becomes a candidate that the selection tests like any other."""
+    import ruptures  # imported on use: only a diagnosis needs it
+
+    order = np.argsort(np.argsort(_acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
+    signal = residuals[order]
+    scale = np.std(signal, axis=0)
+    signal = signal / np.where(scale > 0, scale, 1.0)
+    m = len(signal)
+    min_size = max(5, m // 100)
+    if m < 2 * min_size + 1:
+        return []
+    breaks = ruptures.Binseg(model="l2", min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
+    return [step_candidate(data, int(idx[order[b]])) for b in breaks if b < m]
 
 
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the

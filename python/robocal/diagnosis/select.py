@@ -40,7 +40,7 @@ from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot
-from .candidates import Candidate, library
+from .candidates import Candidate, library, step_candidates
 from .model import ExtendedProblem
 
 
@@ -325,6 +325,7 @@ def diagnose(
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
+    pool += step_candidates(dataset, keep, ext.residuals(x).reshape(len(keep), k))
     current_cv = baseline_cv
     while len(causes) < max_effects:
         ext = ExtendedProblem(base, causes, dataset, keep)
