@@ -44,6 +44,7 @@ from .data.dataset import Dataset
 from .data.splits import chronological, kfold, paper_split, random_split
 from .core import seeded_rng
 from .exceptions import InvalidParameterError
+from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress
 from .robot import Robot
 
@@ -513,19 +514,18 @@ class ComparisonResult:
         """Writes ``table_*.md`` / ``table_*.csv``, ``tables.md`` (all tables), the figures
         ``fig5_metrics.png``, ``fig6_convergence.png``, ``fig7_errors.png`` and
         ``comparison.json`` into ``out`` (created). Returns the paths."""
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out = make_folder(out)
         written = []
         tables = self.tables()
         for table in tables:
             for suffix, text in ((".md", table.markdown()), (".csv", table.csv())):
                 written.append(out / f"{table.name}{suffix}")
-                written[-1].write_text(text)
+                write_text(written[-1], text)
         written.append(out / "tables.md")
-        written[-1].write_text(f"# Comparison of calibrators\n\n{self._protocol_note()}\n\n" + "\n".join(t.markdown() for t in tables))
+        write_text(written[-1], f"# Comparison of calibrators\n\n{self._protocol_note()}\n\n" + "\n".join(t.markdown() for t in tables))
         written += _figures(self, out)
         written.append(out / "comparison.json")
-        written[-1].write_text(json.dumps(self.to_dict(), indent=1, default=repr))  # repr: options that are not JSON
+        write_json(written[-1], self.to_dict(), indent=1, default=repr)  # repr: options that are not JSON
         return written
 
 
@@ -577,7 +577,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title(f"Held-out RMSE / MAE / MAX, mean ± std over {len(result.splits)} split(s) (cf. paper Fig. 5)")
     ax.legend()
     paths.append(out / "fig5_metrics.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
 
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.add_subplot()
@@ -594,7 +594,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title("Cost history of the first successful split per method (cf. paper Fig. 6)")
     ax.legend(fontsize="small")
     paths.append(out / "fig6_convergence.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
 
     fig = Figure(figsize=(9, 5), layout="constrained")
     ax = fig.add_subplot()
@@ -611,7 +611,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title("Per-sample held-out errors (cf. paper Fig. 7)")
     ax.legend(fontsize="small", ncol=2)
     paths.append(out / "fig7_errors.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
     return paths
 
 

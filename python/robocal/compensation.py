@@ -32,6 +32,7 @@ from .core import as_float_array, solve_damped
 from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
 from .exceptions import InvalidParameterError, ShapeError
+from .outputs import Staged
 from .results import load_result
 from .robot import Robot
 
@@ -164,13 +165,12 @@ def compensate(result, targets) -> list[dict]:
 
 
 def write_joints(rows: list[dict], path, n_joints: int) -> Path:
-    path = Path(path)
-    with path.open("w", newline="") as f:
+    with Staged(path) as stage, stage.tmp.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["row"] + [f"q{j}" for j in range(1, n_joints + 1)] + [f"dq{j}" for j in range(1, n_joints + 1)] + ["residual_mm", "status"])
         for r in rows:
             w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["status"]])
-    return path
+    return stage.path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

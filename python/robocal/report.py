@@ -35,6 +35,7 @@ from .calibration.metrics import sample_errors
 from .calibration.problem import is_kinematic, start_parameters
 from .data.dataset import Dataset
 from .exceptions import InvalidParameterError, RobocalError
+from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
 from .robot import Robot
 
@@ -167,7 +168,7 @@ def _pyplot():
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=_DPI)
+    save_figure(fig, path, dpi=_DPI)
     _pyplot().close(fig)
     return path
 
@@ -534,8 +535,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     robot, doc = load_result(result)
     diag = _load_diagnosis(diagnosis)
     d = _load_data(doc, data)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out)
     meas = doc["measurement"]
     notes = list(d.notes)
     figures: list[str] = []
@@ -604,9 +604,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 </body>
 </html>
 """
-    path = out / "index.html"
-    path.write_text(page, encoding="utf-8")
-    return path
+    return write_text(out / "index.html", page)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

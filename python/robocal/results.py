@@ -37,6 +37,7 @@ import numpy as np
 
 from ._robocal import __version__
 from .exceptions import InvalidParameterError
+from .outputs import write_json
 from .robot import Joint, Robot
 
 SCHEMA = "robocal.result/1"
@@ -83,9 +84,7 @@ def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
 
 
 def save_result(document: dict, path) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(document, indent=2))
-    return path
+    return write_json(path, document)
 
 
 def _fail(where: str, why: str):

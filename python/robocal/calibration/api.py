@@ -15,6 +15,7 @@ from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import random_split
 from ..exceptions import InvalidParameterError
+from ..results import save_result
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
@@ -232,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
                        **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
     doc = result.to_dict()
     if args.out:
-        Path(args.out).write_text(json.dumps(doc, indent=2))
+        save_result(doc, args.out)
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0

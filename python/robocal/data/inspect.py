@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core import identifiability, solve_damped
 from ..exceptions import DataError, RobocalError
+from ..outputs import write_json
 from .dataset import Dataset
 from .public import FORMATS, detect_format, load
 
@@ -356,5 +357,5 @@ def run(args) -> int:
     else:
         print(format_report(report))
         if args.json:
-            Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+            write_json(args.json, report)
     return 1 if args.strict and report["problems"] else 0
