@@ -86,18 +86,24 @@ def _load_data(doc: dict, data) -> _Data:
         return _Data(dataset, str(data), [f"measurements from {data} (given with --data)"], same_file=_same_file(doc, data))
     if not recorded:
         return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
+    recorded = str(recorded)
     if not Path(recorded).is_file():
         return _Data(path=recorded, notes=[f"the measurement file {recorded} is not on this machine: the figures that need the data are left out (pass --data FILE)"])
+    # A result file may come from someone else and name any local file: it is read only when it
+    # is, byte for byte, the file the result was calibrated on, and its content is never shown.
+    if not _same_file(doc, recorded):
+        return _Data(path=recorded, notes=[f"the file {recorded} named by the result is not read: its sha256 does not match the one recorded "
+                                           "in the result; the figures that need the data are left out (pass --data FILE)"])  # fmt: skip
     try:
         dataset = load(recorded, measurement=doc["measurement"])
-    except RobocalError as exc:
-        return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read ({exc}): the figures that need the data are left out"])
-    return _Data(dataset, recorded, [], same_file=_same_file(doc, recorded))
+    except RobocalError:
+        return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read: the figures that need the data are left out"])
+    return _Data(dataset, recorded, [], same_file=True)
 
 
 def _same_file(doc: dict, path) -> bool:
     recorded = (doc.get("dataset") or {}).get("sha256")
-    return recorded is not None and file_sha256(path) == recorded
+    return isinstance(recorded, str) and file_sha256(path) == recorded
 
 
 def _load_diagnosis(diagnosis) -> Optional[dict]:
