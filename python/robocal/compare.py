@@ -36,7 +36,7 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, add_kinematic_prior_argument, held_out_residuals, load_inputs
+from .calibration.api import METHODS, add_data_arguments, add_kinematic_prior_argument, held_out_residuals, load_inputs
 from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
@@ -151,6 +151,7 @@ def compare(
     subset: Optional[int] = None,
     method_options: Optional[dict] = None,
     kinematic_prior=None,
+    angle_unit: Optional[str] = None,
 ) -> "ComparisonResult":
     """Runs every method on every split of ``data`` (the same splits for all methods).
 
@@ -177,6 +178,8 @@ def compare(
     kinematic_prior : (float, float), optional
         ``(mm, deg)`` prior at nominal on the kinematic parameters, for every method (see
         :meth:`~robocal.calibration.Problem.build`).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical file (see :func:`robocal.data.load`).
 
     Returns
     -------
@@ -191,7 +194,7 @@ def compare(
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise InvalidParameterError(f"`repeats` must be a positive integer; got {repeats!r}")
     method_options = dict(method_options or {})
-    dataset, robot_model = load_inputs(data, robot, measurement)
+    dataset, robot_model = load_inputs(data, robot, measurement, angle_unit)
     notes = []
     if subset is not None:
         if not 2 <= subset <= len(dataset):
@@ -617,9 +620,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
 
 # -- command line --------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
-    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
-    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    add_data_arguments(parser)
     parser.add_argument("--protocol", choices=PROTOCOLS, default="paper",
                         help="paper: 120 random samples -> 100 train / 20 test per repeat; kfold: REPEATS folds; "
                              "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)")  # fmt: skip
@@ -633,7 +634,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
-                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior)  # fmt: skip
+                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior,
+                     angle_unit=args.angle_unit)  # fmt: skip
     paths = result.write(args.out)
     print(result.table_viii().markdown())
     failed = [r for r in result.runs if r["status"] == "failed"]

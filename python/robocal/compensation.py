@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -35,7 +36,8 @@ import numpy as np
 from .core import as_float_array, solve_damped
 from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
-from .exceptions import InvalidParameterError, ShapeError
+from .data.dataset import angle_unit_check
+from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
 from .results import load_result
 from .robot import Robot
@@ -63,8 +65,9 @@ class Targets:
                 raise ShapeError(f"`targets seeds` must have shape ({m}, N); got {self.seeds.shape}")
 
 
-def read_targets(path, n_joints: int) -> Targets:
-    """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in deg]."""
+def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targets:
+    """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in ``angle_unit``,
+    deg by default; seed joints implausible for the default unit are refused]."""
     header, body = split_delimited(read_text(path), ",", path)
     require_columns(header, ["x", "y", "z"], path, "a targets file")
     pose = all(c in header for c in ("qw", "qx", "qy", "qz"))
@@ -74,7 +77,11 @@ def read_targets(path, n_joints: int) -> Targets:
     seeds = None
     if any(j in header for j in joints):
         require_columns(header, joints, path, "seed joints")
-        seeds = np.radians(numeric_columns(header, body, joints, path)[0])
+        seeds, seed_rows, _ = numeric_columns(header, body, joints, path)
+        seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
+        check = angle_unit_check(seeds, angle_unit or "deg", seed_rows)
+        if not check["plausible"] and angle_unit is None:
+            raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", path)
     return Targets(values, seeds, rows)
 
 
@@ -203,14 +210,18 @@ def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:
     return q
 
 
-def compensate(result, targets) -> list[dict]:
+def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
     """Joint commands for every target (see the module notes).
 
     Parameters
     ----------
     result : path or dict
         A result file (:func:`robocal.results.load_result`).
-    targets : path or Targets
+    targets : path, array_like (m, 3 | 7) or Targets
+        A targets CSV (:func:`read_targets`), target rows ``x, y, z`` [``qw, qx, qy, qz``] (mm),
+        or :class:`Targets`.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the seed joint columns of a targets file (deg by default).
 
     Returns
     -------
@@ -225,8 +236,11 @@ def compensate(result, targets) -> list[dict]:
     # base/tool calibration.
     setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
     nominal.params[setup] = calibrated.params[setup]
-    if not isinstance(targets, Targets):
-        targets = read_targets(targets, calibrated.n_joints)
+    if isinstance(targets, (str, os.PathLike)):
+        targets = read_targets(targets, calibrated.n_joints, angle_unit)
+    elif not isinstance(targets, Targets):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
+        y = as_float_array(targets, "targets")
+        targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
     causes = doc.get("causes", [])
     offsets = joint_offsets(calibrated, causes)
     skipped = sorted({str(c.get("label", c.get("kind"))) for c in causes if c.get("kind") not in COMPENSABLE})
@@ -253,10 +267,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", help="a result file of robocal calibrate (--out)")
     parser.add_argument("targets", help="CSV with x,y,z [qw,qx,qy,qz] [q1..qN in deg, the nominal commands]")
     parser.add_argument("--out", required=True, help="joints CSV: one row per target, joints in deg, corrections, residual, status")
+    parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q1..qN seed columns of the targets (default deg)")
 
 
 def run(args: argparse.Namespace) -> int:
-    rows = compensate(args.result, args.targets)
+    rows = compensate(args.result, args.targets, args.angle_unit)
     n_joints = len(rows[0]["q"]) if rows else 0
     write_joints(rows, args.out, n_joints)
     bad = [r for r in rows if not r["status"].startswith("ok")]

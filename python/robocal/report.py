@@ -72,7 +72,7 @@ class _Data:
     same_file: bool = False
 
 
-def _load_data(doc: dict, data) -> _Data:
+def _load_data(doc: dict, data, angle_unit: Optional[str] = None) -> _Data:
     from .data import load
 
     recorded = (doc.get("dataset") or {}).get("source")
@@ -82,7 +82,7 @@ def _load_data(doc: dict, data) -> _Data:
         return _Data(data, data.source, ["measurements passed as a Dataset"], same_file=data.source is not None and data.source == recorded)
     if data is not None:
         # An explicit file must load: its errors are the caller's to see.
-        dataset = load(data, measurement=doc["measurement"])
+        dataset = load(data, measurement=doc["measurement"], angle_unit=angle_unit)
         return _Data(dataset, str(data), [f"measurements from {data} (given with --data)"], same_file=_same_file(doc, data))
     if not recorded:
         return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
@@ -512,7 +512,8 @@ def _figure(path: Path, caption: str) -> str:
 
 
 # -- entry points -----------------------------------------------------------------------------
-def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None) -> Path:
+def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None,
+           angle_unit: Optional[str] = None) -> Path:  # fmt: skip
     """Writes the HTML report of a calibration result and its figures; returns the page's path.
 
     Parameters
@@ -525,6 +526,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         The measurements (default: the file the result names, if it is on this machine).
     diagnosis : str, Path or dict, optional
         A ``robocal diagnose --json`` report to add (held-out RMSE per cause, table of causes).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical ``data`` file (see :func:`robocal.data.load`).
 
     Returns
     -------
@@ -540,7 +543,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     """
     robot, doc = load_result(result)
     diag = _load_diagnosis(diagnosis)
-    d = _load_data(doc, data)
+    d = _load_data(doc, data, angle_unit)
     out = make_folder(out)
     meas = doc["measurement"]
     notes = list(d.notes)
@@ -618,9 +621,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", required=True, help="folder for index.html and its figures")
     parser.add_argument("--data", metavar="FILE", help="measurement file (default: the one the result names)")
     parser.add_argument("--diagnosis", metavar="REPORT.json", help="a `robocal diagnose --json` report to include")
+    parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q columns of a canonical --data file (default deg)")
 
 
 def run(args: argparse.Namespace) -> int:
-    path = report(args.result, args.out, data=args.data, diagnosis=args.diagnosis)
+    path = report(args.result, args.out, data=args.data, diagnosis=args.diagnosis, angle_unit=args.angle_unit)
     print(f"wrote {path}")
     return 0

@@ -142,4 +142,4 @@ def validate(model: type[BaseModel], document, where: str) -> BaseModel:
         if e["type"] == "extra_forbidden" and model is RobotSpec:
             what += f" (allowed: {', '.join(JointSpec.model_fields if len(e['loc']) > 2 else RobotSpec.model_fields)})"
         more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
-        raise InvalidParameterError(f"{where}: {_where(e['loc'], model.__name__)}: {what}{got}{more}") from None
+        raise InvalidParameterError(f"{where}: {_where(e['loc'], 'the top level')}: {what}{got}{more}") from None

@@ -19,7 +19,7 @@ import numpy as np
 from ..core import identifiability, solve_damped
 from ..exceptions import DataError, RobocalError
 from ..outputs import write_json
-from .dataset import Dataset
+from .dataset import Dataset, angle_unit_check
 from .public import FORMATS, detect_format, load
 
 #: Residuals beyond this many robust sigmas are reported as outliers.
@@ -27,8 +27,6 @@ OUTLIER_SIGMAS = 5.0
 #: D2 rounding: joint angles to 0.1 deg, controller positions to 0.1 mm (half of each is the bound).
 JOINT_ROUNDING_DEG = 0.1
 POSITION_ROUNDING_MM = 0.1
-#: |q| above this (rad) cannot be a joint angle in rad: the unit is probably deg.
-MAX_PLAUSIBLE_RAD = 4 * math.pi
 #: MAD to standard deviation for normal errors.
 MAD_TO_SIGMA = 1.4826
 
@@ -71,7 +69,7 @@ def inspect(
         dataset, fmt, unit = source, None, "rad"
     else:
         fmt = format or detect_format(source)
-        dataset = load(source, fmt, measurement, angle_unit, robot, exclude_bad_rows=True)
+        dataset = load(source, fmt, measurement, angle_unit, robot, exclude_bad_rows=True, check_units=False)  # reported below
         unit = angle_unit or {"ipa": "rad"}.get(fmt, "deg")
     name = robot or dataset.robot
     model = load_robot(name) if name else None
@@ -86,7 +84,7 @@ def inspect(
         "notes": list(dataset.notes),
         "bad_cells": [{"row": int(e["row"]), "column": e.get("column"), "reason": e["reason"]} for e in dataset.excluded],
         "duplicates": duplicate_rows(dataset),
-        "angle_unit": angle_unit_check(dataset, unit),
+        "angle_unit": angle_unit_check(dataset.q, unit, dataset.rows),
         "out_of_limits": out_of_limits(dataset, model) if model else [],
         "fit": _fit_or_error(dataset, model, sigmas) if model else None,
         "cross_check": cross_check(dataset, model) if model and "controller_xyz" in dataset.extra else None,
@@ -115,24 +113,6 @@ def duplicate_rows(dataset: Dataset) -> list[list[int]]:
     inverse = inverse.ravel()
     groups = [dataset.rows[inverse == g].tolist() for g in np.flatnonzero(counts > 1)]
     return sorted(groups)
-
-
-def angle_unit_check(dataset: Dataset, unit: str) -> dict:
-    """Whether the joint values are plausible for the unit the file declares.
-
-    In rad, a value beyond ``4 pi`` cannot be a joint angle; in deg, a file whose values all lie
-    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians.
-    """
-    q = np.abs(dataset.q)  # rad
-    if unit == "rad" and q.max() > MAX_PLAUSIBLE_RAD:
-        rows = dataset.rows[(q > MAX_PLAUSIBLE_RAD).any(axis=1)]
-        return {"unit": unit, "plausible": False,
-                "message": f"{rows.size} rows have |q| > 4 pi (up to {q.max():.4g}): the angles look like degrees (first row {rows[0]})"}  # fmt: skip
-    declared = np.degrees(q) if unit == "deg" else q
-    if unit == "deg" and declared.max() <= 2 * math.pi and len(dataset) > 1:
-        return {"unit": unit, "plausible": False,
-                "message": f"every |q| is at most {declared.max():.4g} deg (within 2 pi): the angles look like radians"}  # fmt: skip
-    return {"unit": unit, "plausible": True, "message": f"joint values plausible in {unit} (max |q| = {np.degrees(q.max()):.4g} deg)"}
 
 
 def out_of_limits(dataset: Dataset, robot) -> list[dict]:
