@@ -17,7 +17,7 @@ from ..core import as_float_array, cable_initial_guess, identifiability, solve_d
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError, NonFiniteError
 from ..reference import frame_params
-from ..robot import Robot
+from ..robot import RESIDUAL_WIDTH, Robot
 from ..simulation import DEFAULT_NOISE
 
 
@@ -200,6 +200,14 @@ class Problem:
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
+        residuals = len(data) * RESIDUAL_WIDTH[data.measurement]
+        if residuals <= len(free) and not prior:
+            # As many unknowns as equations: any data are fitted exactly (RMSE 0), nothing is learnt.
+            raise InvalidParameterError(
+                f"{len(data)} {data.measurement} samples give {residuals} residuals for {len(free)} identifiable parameters: "
+                f"{residuals - len(free)} degrees of freedom; a calibration needs more residuals than parameters (more samples, "
+                "or a kinematic prior)"
+            )
         return problem
 
     def _checked_pairs(self, pairs: dict, what: str, form: str, valid) -> dict:

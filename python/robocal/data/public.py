@@ -31,7 +31,7 @@ import numpy as np
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
-from .table import numeric_columns, read_text, require_columns, split_delimited
+from .table import check_header, numeric_columns, read_text, require_columns, split_delimited
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -106,6 +106,7 @@ def _read_xlsx(path: Path, sheet: Optional[str] = None):
         book.close()
     if not header:
         raise DataError(f"sheet {chosen!r} is empty (a header row is expected)", path, 1)
+    check_header(header, path)
     return header, body, notes
 
 
@@ -150,6 +151,7 @@ def _check_joint_columns(header, n: int, robot: str, path) -> None:
 
 
 def _ignored_note(header, used) -> list[str]:
+    used = set(used)
     ignored = [h for h in header if h not in used]
     return [f"ignored columns {ignored}"] if ignored else []
 
