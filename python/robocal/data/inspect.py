@@ -19,6 +19,7 @@ import numpy as np
 from ..core import identifiability, solve_damped
 from ..exceptions import DataError, RobocalError
 from ..outputs import write_json
+from ..stats import robust_sigma
 from .dataset import Dataset, angle_unit_check
 from .public import FORMATS, detect_format, load
 
@@ -27,8 +28,6 @@ OUTLIER_SIGMAS = 5.0
 #: D2 rounding: joint angles to 0.1 deg, controller positions to 0.1 mm (half of each is the bound).
 JOINT_ROUNDING_DEG = 0.1
 POSITION_ROUNDING_MM = 0.1
-#: MAD to standard deviation for normal errors.
-MAD_TO_SIGMA = 1.4826
 
 
 def inspect(
@@ -158,13 +157,9 @@ def _start(dataset: Dataset, robot) -> tuple[np.ndarray, list[str]]:
     return params, names
 
 
-def _scales(r: np.ndarray) -> np.ndarray:
-    """Robust per-component scale (MAD about 0), one for positions (mm) and one for rotations."""
-    blocks = [slice(0, min(3, r.shape[1]))] + ([slice(3, 6)] if r.shape[1] == 6 else [])
-    s = np.empty(r.shape[1])
-    for b in blocks:
-        s[b] = max(MAD_TO_SIGMA * np.median(np.abs(r[:, b])), 1e-12)
-    return s
+def _pooled(sigmas: np.ndarray) -> float:
+    """One σ for the report from per-component σ: their root mean square."""
+    return float(np.sqrt(np.mean(sigmas**2)))
 
 
 def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iterations: int = 100) -> dict:
@@ -173,16 +168,16 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
     Cable: anchor, sensor zero and tool point from :func:`robocal.cable_initial_guess`; position /
     pose: base frame from a Kabsch alignment of flange and measured positions, the tool point (and
     rotation). Only the identifiable subset of these is fitted. Then Levenberg-Marquardt on
-    Huber-weighted residuals (per sample, standardised by the robust MAD scale; pose rotations
-    scaled by their own MAD), re-weighting at every step until the step vanishes. Samples whose
+    Huber-weighted residuals (per sample, each component standardised by its own robust scale,
+    :func:`robocal.stats.robust_sigma`), re-weighting at every step until the step vanishes. Samples whose
     standardised residual norm exceeds ``sigmas`` are outliers.
 
     Returns
     -------
     dict
         ``fitted`` (name -> value; mm, rad), ``not_identifiable`` (names held at their start),
-        ``scale`` (robust sigma per residual component: ``cable_mm`` or ``position_mm``, and
-        ``rotation_deg`` for poses), ``threshold`` (sigmas), ``iterations``, ``outliers``
+        ``scale`` (robust sigma: ``cable_mm``, or ``position_mm`` — the RMS of the x, y, z
+        components' — and ``rotation_deg`` for poses), ``threshold`` (sigmas), ``iterations``, ``outliers``
         (``{row, residual_mm[, rotation_deg], sigmas}``, largest first) and ``rms_mm`` of the inliers.
     """
     from scipy.stats import chi2
@@ -204,7 +199,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
 
     lam, done = 1e-3, 0
     for done in range(1, iterations + 1):
-        s = _scales(r)
+        s = robust_sigma(r)
         w, rw = whitened(r, s)
         J = robot.jacobian(dataset.measurement, dataset.q, y, params, cols)
         Jw = J * np.tile(1 / s, m)[:, None] * np.repeat(w, k)[:, None]
@@ -221,7 +216,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
         params, r, lam = trial, r_trial, max(lam / 10, 1e-9)
         if np.all(np.abs(delta) <= 1e-10 * (1 + np.abs(params[cols]))) or (cost - rt @ rt) <= 1e-12 * cost:
             break
-    s = _scales(r)
+    s = robust_sigma(r)
     z = np.linalg.norm(r / s, axis=1)  # standardised residual norm of each sample
     outliers = []
     for i in np.argsort(-z):
@@ -235,7 +230,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
     return {
         "fitted": {robot.param_names[j]: float(params[j]) for j in cols},
         "not_identifiable": [n for i, n in enumerate(names) if i not in keep],
-        "scale": {"position_mm" if k > 1 else "cable_mm": float(s[0])} | ({"rotation_deg": float(np.degrees(s[3]))} if k == 6 else {}),
+        "scale": {"position_mm" if k > 1 else "cable_mm": _pooled(s[: min(k, 3)])} | ({"rotation_deg": float(np.degrees(_pooled(s[3:])))} if k == 6 else {}),
         "threshold": float(sigmas),
         "iterations": done,
         "rms_mm": float(np.sqrt(np.mean(r[inliers, : min(k, 3)] ** 2) * min(k, 3))),
