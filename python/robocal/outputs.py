@@ -28,15 +28,14 @@ def same_file(a, b) -> bool:
         return Path(a).resolve() == Path(b).resolve()
 
 
+def _flat(paths: Iterable) -> list:
+    """``paths`` with nested lists (an option given several values) flattened."""
+    return [q for p in paths for q in (_flat(p) if isinstance(p, (list, tuple)) else [p])]
+
+
 def _existing(paths: Iterable) -> list[Path]:
     """The paths among ``paths`` that name something on disk (a built-in robot name does not)."""
-    found = []
-    for p in paths:
-        if isinstance(p, (list, tuple)):
-            found += _existing(p)
-        elif p not in (None, "", "-") and os.path.exists(p):
-            found.append(Path(p))
-    return found
+    return [Path(p) for p in _flat(paths) if p not in (None, "", "-") and os.path.exists(p)]
 
 
 def _writable_folder(folder: Path, what) -> None:
@@ -65,6 +64,10 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
     OutputError
         Naming the output and what is wrong with it.
     """
+    files, folders = list(files), list(folders)
+    for p in [*_flat(inputs), *files, *folders]:
+        if p is not None and "\x00" in str(p):
+            raise OutputError(f"{str(p)!r}: a path cannot contain a NUL character")
     sources = _existing(inputs)
     files = [Path(f) for f in files if f not in (None, "", "-")]
     for i, out in enumerate(files):

@@ -25,7 +25,8 @@ from ..exceptions import DataError
 MAX_ABS = 1e12
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+#: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.IGNORECASE | re.ASCII)
 
 
 def shown(value, limit: int = 40) -> str:
