@@ -336,6 +336,21 @@ def test_public_functions_take_what_users_pass(inputs):
         robocal.calibrate(str(inputs / "d.csv"), robot=ROBOT, test_fraction="a fifth")
 
 
+@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(fraction=st.one_of(st.floats(allow_nan=True), st.text(max_size=6), st.none(), st.booleans(), st.lists(st.floats(), max_size=2)),
+       targets=st.one_of(st.lists(st.lists(st.floats(-2000, 2000), min_size=0, max_size=8), max_size=3), st.text(max_size=6),
+                         st.integers(), st.none()))  # fmt: skip
+def test_fuzz_the_public_functions_users_call_first(inputs, fraction, targets):
+    """``calibrate(test_fraction=...)`` and ``compensate(result, targets)``: a result or a
+    robocal error, never a TypeError from inside."""
+    for call in (lambda: robocal.calibrate(str(inputs / "d.csv"), robot=ROBOT, test_fraction=fraction, max_nfev=5),
+                 lambda: robocal.compensate(str(inputs / "result.json"), targets)):  # fmt: skip
+        try:
+            call()
+        except RobocalError:
+            pass
+
+
 # -- 7. the fuzz -----------------------------------------------------------------------------------
 def _pools(w: Path, t: Path) -> dict:
     """Per kind of argument, values that should work and values that should not (wrong, hostile,
