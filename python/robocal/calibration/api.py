@@ -153,6 +153,7 @@ def calibrate(
     else:
         train, test = dataset, None
     problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
+    problem.require_dof()
     if causes is None:
         fit = METHODS[method][2]
         if "seed" in inspect.signature(fit).parameters:

@@ -200,15 +200,19 @@ class Problem:
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
-        residuals = len(data) * RESIDUAL_WIDTH[data.measurement]
-        if residuals <= len(free) and not prior:
-            # As many unknowns as equations: any data are fitted exactly (RMSE 0), nothing is learnt.
-            raise InvalidParameterError(
-                f"{len(data)} {data.measurement} samples give {residuals} residuals for {len(free)} identifiable parameters: "
-                f"{residuals - len(free)} degrees of freedom; a calibration needs more residuals than parameters (more samples, "
-                "or a kinematic prior)"
-            )
         return problem
+
+    def require_dof(self) -> None:
+        """An error with the counts when the residuals do not outnumber the estimated parameters
+        and no prior regularises them: any data are then fitted exactly (RMSE 0), nothing is
+        learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)"""
+        residuals = len(self.data) * RESIDUAL_WIDTH[self.data.measurement]
+        if residuals <= len(self.free) and not self.prior:
+            raise InvalidParameterError(
+                f"{len(self.data)} {self.data.measurement} samples give {residuals} residuals for {len(self.free)} identifiable "
+                f"parameters: {residuals - len(self.free)} degrees of freedom; a calibration needs more residuals than parameters "
+                "(more samples, or a kinematic prior)"
+            )
 
     def _checked_pairs(self, pairs: dict, what: str, form: str, valid) -> dict:
         """``name -> (a, b)`` on estimated parameters, each pair checked with ``valid(a, b)``."""
