@@ -395,7 +395,9 @@ CHOICES = {"--format": ["dh", "mdh", "urdf", "canonical", "sdf"], "--angle-unit"
            "--measurement": ["cable", "position", "pose"], "--method": ["lm", "vslm", "nope"], "--loss": ["huber", "linear", "l1"],
            "--table-format": ["csv", "json", "xlsx"], "--kinematic-prior": ["10,1", "1", "a,b", "-1,0"],
            "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"], "--name": ["r", "<b>&"]}  # fmt: skip
-REQUIRED = {"export": ["--format", "--out"], "compensate": ["--out"], "report": ["--out"], "simulate": ["--out"], "compare": ["--out"]}
+#: Options always drawn (required, or without which the canonical file cannot be calibrated).
+REQUIRED = {"export": ["--format", "--out"], "compensate": ["--out"], "report": ["--out"], "simulate": ["--out"], "compare": ["--out", "--robot"],
+            "calibrate": ["--robot"], "diagnose": ["--robot"]}  # fmt: skip
 PINNED = {"compare": ["--methods", "lm", "--repeats", "1", "--protocol", "80-20"], "diagnose": ["--folds", "2"], "demo": ["--samples", "60"]}
 READS = ("data", "result", "targets", "diagnosis", "robot")
 
@@ -412,9 +414,11 @@ def command_lines(draw, w: Path, t: Path):
 
     def value(kind, option=None):
         if option in CHOICES:
-            return draw(st.sampled_from(CHOICES[option]) | st.text(max_size=8))
+            return draw(st.sampled_from(CHOICES[option]) | st.sampled_from(CHOICES[option]) | st.text(max_size=8))
         good, bad = pools[kind]
-        return str(draw(st.sampled_from(good) | st.sampled_from(bad)) if good else draw(st.text(max_size=8)))
+        # two draws in three from the good values: bad ones alone would stop most commands at
+        # their first argument and leave the work behind it unexercised
+        return str(draw(st.sampled_from(good) | st.sampled_from(good) | st.sampled_from(bad)) if good else draw(st.text(max_size=8)))
 
     command = draw(st.sampled_from(sorted(SPECS)))
     positional, options = SPECS[command]
