@@ -164,6 +164,20 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypat
     assert target.read_text() == "old" and list(tmp_path.iterdir()) == [target]
 
 
+def test_outputs_get_the_usual_file_mode(tmp_path):
+    from robocal import outputs
+
+    new = outputs.write_text(tmp_path / "new.txt", "x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert new.stat().st_mode & 0o777 == 0o666 & ~mask  # not mkstemp's 0o600
+    old = tmp_path / "old.txt"
+    old.write_text("y")
+    old.chmod(0o640)
+    outputs.write_text(old, "z")
+    assert old.stat().st_mode & 0o777 == 0o640 and old.read_text() == "z"
+
+
 def test_os_errors_anywhere_are_exit_2_naming_the_path(inputs, tmp_path, capsys, monkeypatch):
     import robocal.data.inspect as ins
 

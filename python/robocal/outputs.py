@@ -105,6 +105,12 @@ def make_folder(folder) -> Path:
     return folder
 
 
+def _umask() -> int:
+    mask = os.umask(0)  # the only way to read it is to set it
+    os.umask(mask)
+    return mask
+
+
 class Staged:
     """A temporary file beside ``path`` that replaces ``path`` when the ``with`` block ends
     without an exception and :meth:`discard` was not called.
@@ -131,6 +137,9 @@ class Staged:
             raise OutputError(f"{self.path}: cannot write it ({exc.strerror or exc})") from None
         os.close(fd)
         self.tmp = Path(name)
+        # mkstemp creates the file readable by its owner only; an output gets the mode a plain
+        # open() would give it (the existing file's, else 0o666 less the umask).
+        os.chmod(self.tmp, self.path.stat().st_mode & 0o7777 if self.path.is_file() else 0o666 & ~_umask())
         return self
 
     def discard(self) -> None:
