@@ -110,3 +110,22 @@ def test_extended_model_compensates_a_gear_error(tmp_path):
         assert all(r["status"].startswith("ok") for r in rows)
         errors[name] = np.linalg.norm(reached(np.radians([r["q"] for r in rows])) - targets, axis=1)
     assert np.median(errors["extended"]) < 0.5 * np.median(errors["geometric"]), errors
+
+
+def test_targets_from_configurations_within_the_limits_are_reached_within_them():
+    """Issue 14: every target made from joints inside the limits is reachable inside them; the
+    bounded LM with restarts reaches at least 99 % (the former solver called 47 of 200
+    unreachable) and never answers with a joint outside its limits."""
+    from robocal.compensation import Targets, _limits
+
+    data, _ = simulate("hsr-jr680", "position", samples=300, seed=2)
+    doc = robocal.calibrate(data, robot="hsr-jr680", test_fraction=0.0).to_dict()
+    robot, _ = robocal.load_result(doc)
+    lower, upper = _limits(robot)
+    q = lower + (upper - lower) * np.random.default_rng(1).random((100, 6))
+    rows = compensate(doc, Targets(robot.predict("position", q), None, np.arange(2, 102)))
+    reached = [r for r in rows if r["status"] == "ok"]
+    assert len(reached) >= 99, [r["status"] for r in rows if r["status"] != "ok"]
+    solved = np.radians([r["q"] for r in rows])
+    assert np.all(solved >= lower - 1e-9) and np.all(solved <= upper + 1e-9)
+    assert max(r["residual_mm"] for r in reached) < 1e-4

@@ -161,7 +161,8 @@ def test_robot_files(tmp_path_factory, spec, suffix, raw):
 
 
 def test_robot_file_errors_name_the_file(tmp_path):
-    for text, why in [("{", "not a robot file"), ('{"joints": 5}', "'joints' list"), ('{"joints": [7]}', "joint 1 must be a mapping")]:
+    for text, why in [("{", "not a robot file"), ('{"joints": 5}', "key 'joints': input should be a valid list"),
+                      ('{"joints": [7]}', "joint 1: input should be a valid dictionary"), ("[]", "input should be a valid dictionary")]:
         path = tmp_path / "r.json"
         path.write_text(text)
         with pytest.raises(InvalidParameterError, match=why) as info:

@@ -15,7 +15,7 @@ def test_paper_split():
     assert not set(train) & set(test) and max(train.max(), test.max()) < 1042
     np.testing.assert_array_equal(paper_split(1042, seed=3)[1], test)
     assert not np.array_equal(paper_split(1042, seed=4)[1], test)
-    with pytest.raises(InvalidParameterError, match="`m` must be an integer >= 120; got 119"):
+    with pytest.raises(InvalidParameterError, match="needs at least 120 samples; the data have 119"):
         paper_split(119)
 
 

@@ -36,7 +36,7 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, add_kinematic_prior_argument, held_out_residuals, load_inputs
+from .calibration.api import METHODS, add_data_arguments, add_kinematic_prior_argument, held_out_residuals, load_inputs
 from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
@@ -44,6 +44,7 @@ from .data.dataset import Dataset
 from .data.splits import chronological, kfold, paper_split, random_split
 from .core import seeded_rng
 from .exceptions import InvalidParameterError
+from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress
 from .robot import Robot
 
@@ -150,6 +151,7 @@ def compare(
     subset: Optional[int] = None,
     method_options: Optional[dict] = None,
     kinematic_prior=None,
+    angle_unit: Optional[str] = None,
 ) -> "ComparisonResult":
     """Runs every method on every split of ``data`` (the same splits for all methods).
 
@@ -176,6 +178,8 @@ def compare(
     kinematic_prior : (float, float), optional
         ``(mm, deg)`` prior at nominal on the kinematic parameters, for every method (see
         :meth:`~robocal.calibration.Problem.build`).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical file (see :func:`robocal.data.load`).
 
     Returns
     -------
@@ -190,7 +194,7 @@ def compare(
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise InvalidParameterError(f"`repeats` must be a positive integer; got {repeats!r}")
     method_options = dict(method_options or {})
-    dataset, robot_model = load_inputs(data, robot, measurement)
+    dataset, robot_model = load_inputs(data, robot, measurement, angle_unit)
     notes = []
     if subset is not None:
         if not 2 <= subset <= len(dataset):
@@ -513,19 +517,18 @@ class ComparisonResult:
         """Writes ``table_*.md`` / ``table_*.csv``, ``tables.md`` (all tables), the figures
         ``fig5_metrics.png``, ``fig6_convergence.png``, ``fig7_errors.png`` and
         ``comparison.json`` into ``out`` (created). Returns the paths."""
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out = make_folder(out)
         written = []
         tables = self.tables()
         for table in tables:
             for suffix, text in ((".md", table.markdown()), (".csv", table.csv())):
                 written.append(out / f"{table.name}{suffix}")
-                written[-1].write_text(text)
+                write_text(written[-1], text)
         written.append(out / "tables.md")
-        written[-1].write_text(f"# Comparison of calibrators\n\n{self._protocol_note()}\n\n" + "\n".join(t.markdown() for t in tables))
+        write_text(written[-1], f"# Comparison of calibrators\n\n{self._protocol_note()}\n\n" + "\n".join(t.markdown() for t in tables))
         written += _figures(self, out)
         written.append(out / "comparison.json")
-        written[-1].write_text(json.dumps(self.to_dict(), indent=1, default=repr))  # repr: options that are not JSON
+        write_json(written[-1], self.to_dict(), indent=1, default=repr)  # repr: options that are not JSON
         return written
 
 
@@ -577,7 +580,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title(f"Held-out RMSE / MAE / MAX, mean ± std over {len(result.splits)} split(s) (cf. paper Fig. 5)")
     ax.legend()
     paths.append(out / "fig5_metrics.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
 
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.add_subplot()
@@ -594,7 +597,7 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title("Cost history of the first successful split per method (cf. paper Fig. 6)")
     ax.legend(fontsize="small")
     paths.append(out / "fig6_convergence.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
 
     fig = Figure(figsize=(9, 5), layout="constrained")
     ax = fig.add_subplot()
@@ -611,15 +614,13 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_title("Per-sample held-out errors (cf. paper Fig. 7)")
     ax.legend(fontsize="small", ncol=2)
     paths.append(out / "fig7_errors.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
     return paths
 
 
 # -- command line --------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
-    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
-    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    add_data_arguments(parser)
     parser.add_argument("--protocol", choices=PROTOCOLS, default="paper",
                         help="paper: 120 random samples -> 100 train / 20 test per repeat; kfold: REPEATS folds; "
                              "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)")  # fmt: skip
@@ -633,7 +634,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
-                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior)  # fmt: skip
+                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior,
+                     angle_unit=args.angle_unit)  # fmt: skip
     paths = result.write(args.out)
     print(result.table_viii().markdown())
     failed = [r for r in result.runs if r["status"] == "failed"]

@@ -8,20 +8,25 @@ measurement frame of the calibration (the tracker's frame for tracker data, the 
 cable data).
 
 For each target: a seed (the given joints, else the nominal model's inverse kinematics from the
-middle of the joint ranges), then damped Gauss–Newton on the joint angles of the *calibrated*
-model — with the joint causes of an extended model (``calibrate --causes``: compliance,
-periodic gear errors, scale, coupling) applied to the commanded angles; backlash and sensor
-causes are named in the status as not compensated — (Jacobian from the Rust core: ``∂h/∂q_j`` is the ``theta_j`` column). Position targets
-leave three degrees of freedom of a 6-axis arm free: the damped steps take the smallest change
-from the seed, so the tool keeps the seed's orientation as far as possible. A target is
-reported unreachable — a row with its reason, never dropped — when the iteration does not get
-within ``tol`` mm or leaves the joint limits.
+middle of the joint ranges), then Levenberg–Marquardt on the joint angles of the *calibrated*
+model with the joint limits kept at every step (:func:`bounded_lm`: projected steps, accepted
+only when they decrease the error, damping by the gain ratio) — with the joint causes of an
+extended model (``calibrate --causes``: compliance, periodic gear errors, scale, coupling)
+applied to the commanded angles; backlash and sensor causes are named in the status as not
+compensated. The Jacobian comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
+Position targets leave three degrees of freedom of a 6-axis arm free: the damped steps take a
+small change from the seed, so the tool keeps the seed's orientation as far as possible. A
+target that the seed does not lead to is tried from the middle of the joint ranges and from
+:data:`RESTARTS` random configurations within the limits; only then is it reported
+unreachable — a row with its reason, never dropped. ``benches/bench_compensation.py`` compares
+the reach rate and time with scipy's ``least_squares(bounds=...)``.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -31,7 +36,9 @@ import numpy as np
 from .core import as_float_array, solve_damped
 from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
-from .exceptions import InvalidParameterError, ShapeError
+from .data.dataset import angle_unit_check
+from .exceptions import DataError, InvalidParameterError, ShapeError
+from .outputs import Staged
 from .results import load_result
 from .robot import Robot
 
@@ -58,8 +65,9 @@ class Targets:
                 raise ShapeError(f"`targets seeds` must have shape ({m}, N); got {self.seeds.shape}")
 
 
-def read_targets(path, n_joints: int) -> Targets:
-    """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in deg]."""
+def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targets:
+    """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in ``angle_unit``,
+    deg by default; seed joints implausible for the default unit are refused]."""
     header, body = split_delimited(read_text(path), ",", path)
     require_columns(header, ["x", "y", "z"], path, "a targets file")
     pose = all(c in header for c in ("qw", "qx", "qy", "qz"))
@@ -69,7 +77,11 @@ def read_targets(path, n_joints: int) -> Targets:
     seeds = None
     if any(j in header for j in joints):
         require_columns(header, joints, path, "seed joints")
-        seeds = np.radians(numeric_columns(header, body, joints, path)[0])
+        seeds, seed_rows, _ = numeric_columns(header, body, joints, path)
+        seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
+        check = angle_unit_check(seeds, angle_unit or "deg", seed_rows)
+        if not check["plausible"] and angle_unit is None:
+            raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", path)
     return Targets(values, seeds, rows)
 
 
@@ -79,61 +91,137 @@ def _joint_columns(robot: Robot) -> list[int]:
     return [robot.index(f"theta{j}") for j in range(1, robot.n_joints + 1)]
 
 
-def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None) -> tuple[np.ndarray, float, str]:
-    """Joint commands (rad) with which ``robot`` reaches ``target`` (xyz, or xyz + quaternion).
+#: Random starts within the joint limits tried after the given seed and the middle of the
+#: ranges before a target is called unreachable (a 6-axis arm has up to 8 inverse-kinematics
+#: branches; a start on the wrong side of a limit cannot cross it).
+RESTARTS = 24
+#: Weight of the rotation residual (rad) against the position residual (mm) of pose targets: a
+#: length of the order of the arm, so that neither part dominates the damped steps.
+ROTATION_WEIGHT_MM = 1000.0
 
-    ``offsets(q) -> Δq`` are joint causes of an extended model: the links take ``q + Δq(q)``
-    (the Jacobian neglects ``∂Δq/∂q``, a relative change of order 1e-4).
+
+def _limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    return np.array([j.limits[0] for j in robot.joints]), np.array([j.limits[1] for j in robot.joints])
+
+
+def _into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """``q`` moved by whole turns towards the middle of each range, then clipped into it: the
+    same joint angles where the range allows (revolute joints), the nearest ones otherwise."""
+    q = q + 2.0 * np.pi * np.round((0.5 * (lower + upper) - q) / (2.0 * np.pi))
+    return np.clip(q, lower, upper)
+
+
+def bounded_lm(residual, jacobian, q0, lower, upper, done, max_iter: int = 100):
+    """Levenberg–Marquardt on ``½‖r(q)‖²`` with ``lower <= q <= upper`` kept at every step.
+
+    Each step is damped Gauss–Newton on the joints that are free — a joint at a limit whose
+    gradient points outwards is held there — projected onto the box, and accepted only when the
+    cost decreases; the damping follows the gain ratio of the actual to the predicted decrease
+    (Nielsen's update, as in Madsen, Nielsen & Tingleff, *Methods for non-linear least squares
+    problems*, 2004). Returns ``(q, r)`` at the last accepted point.
+    """
+    q = np.clip(np.asarray(q0, dtype=np.float64), lower, upper)
+    r = residual(q)
+    J = jacobian(q)
+    mu, nu = None, 2.0
+    for _ in range(max_iter):
+        if done(r):
+            break
+        g = J.T @ r  # r = y - h: the cost decreases along +g
+        free = ~(((q <= lower) & (g < 0)) | ((q >= upper) & (g > 0)))
+        if not free.any():
+            break
+        if mu is None:
+            mu = 1e-3 * max(float(np.max(np.sum(J * J, axis=0))), 1e-12)
+        step = np.zeros_like(q)
+        step[free], _ = solve_damped(J[:, free], r, mu, "identity")
+        trial = np.clip(q + step, lower, upper)
+        d = trial - q
+        Jd = J @ d
+        predicted = r @ Jd - 0.5 * Jd @ Jd  # ½‖r‖² − ½‖r − J·d‖²
+        r_trial = residual(trial)
+        actual = 0.5 * (r @ r - r_trial @ r_trial)
+        if predicted > 0 and actual > 0:
+            rho = actual / predicted
+            q, r, J = trial, r_trial, jacobian(trial)
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+        else:
+            mu *= nu
+            nu *= 2.0
+            if mu > 1e20 or not np.any(np.abs(d) > 1e-15 * (1.0 + np.abs(q))):
+                break
+    return q, r
+
+
+def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None,
+                 restarts: int = RESTARTS) -> tuple[np.ndarray, float, str]:  # fmt: skip
+    """Joint commands (rad) within the joint limits with which ``robot`` reaches ``target``
+    (xyz, or xyz + quaternion).
+
+    :func:`bounded_lm` from ``seed`` (moved into the limits), then from the middle of the joint
+    ranges and from ``restarts`` random configurations within the limits (seeded: the same
+    target gives the same answer) until one reaches the target. ``offsets(q) -> Δq`` are joint
+    causes of an extended model: the links take ``q + Δq(q)`` (the Jacobian neglects
+    ``∂Δq/∂q``, a relative change of order 1e-4).
     Returns ``(q, residual_mm, status)``; ``status`` is ``"ok"`` or the reason it is not.
     """
     measurement = "pose" if target.size == 7 else "position"
     cols = _joint_columns(robot)
-    q = np.array(seed, dtype=np.float64)[None, :]
+    lower, upper = _limits(robot)
     y = target[None, :]
-    lam = 1e-6
+    weight = np.array([1.0, 1.0, 1.0] + [ROTATION_WEIGHT_MM] * 3)[: 3 if measurement == "position" else 6]
 
     def actual(q):
-        return q if offsets is None else q + offsets(q)
+        return q[None, :] if offsets is None else q[None, :] + offsets(q[None, :])
 
-    for _ in range(max_iter):
-        r = robot.residuals(measurement, actual(q), y).ravel()
+    def residual(q):
+        return robot.residuals(measurement, actual(q), y).ravel() * weight
+
+    def jacobian(q):
+        return robot.jacobian(measurement, actual(q), y=y, cols=cols) * weight[:, None]
+
+    def reached(r):
+        return np.linalg.norm(r[:3]) < tol and (measurement == "position" or np.linalg.norm(r[3:]) < tol * 1e-3 * ROTATION_WEIGHT_MM)
+
+    rng = np.random.default_rng(0)
+    starts = [_into_limits(np.asarray(seed, dtype=np.float64), lower, upper), 0.5 * (lower + upper)]
+    starts += list(lower + (upper - lower) * rng.random((restarts, len(lower))))
+    best = None
+    for start in starts:
+        q, r = bounded_lm(residual, jacobian, start, lower, upper, reached, max_iter)
         error = float(np.linalg.norm(r[:3]))
-        if error < tol and (measurement == "position" or np.linalg.norm(r[3:]) < tol * 1e-3):
-            break
-        J = robot.jacobian(measurement, actual(q), y=y, cols=cols)
-        step, _ = solve_damped(J, r, lam, "identity")
-        q = q + step[None, :]
-    else:
-        r = robot.residuals(measurement, actual(q), y).ravel()
-    error = float(np.linalg.norm(r[:3]))
-    lower = np.array([j.limits[0] for j in robot.joints])
-    upper = np.array([j.limits[1] for j in robot.joints])
-    # Revolute joints: the same pose modulo 2π; bring the solution into the limits if it can be.
-    q0 = q[0] + 2.0 * np.pi * np.round((0.5 * (lower + upper) - q[0]) / (2.0 * np.pi))
-    if error > tol or not np.all(np.isfinite(q0)):
-        return q0, error, f"unreachable: the calibrated model gets no closer than {error:.3g} mm"
-    outside = [f"q{j + 1}" for j in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9))]
-    if outside:
-        return q0, error, f"unreachable: the solution leaves the joint limits of {', '.join(outside)}"
-    return q0, error, "ok"
+        if not np.isfinite(error):
+            continue
+        if reached(r):
+            return q, error, "ok"
+        if best is None or r @ r < best[2]:
+            best = (q, error, r @ r)
+    if best is None:
+        return starts[0], float("nan"), "unreachable: the calibrated model's residual is not finite"
+    return best[0], best[1], (f"unreachable within the joint limits: from {len(starts)} starts the calibrated model gets no closer "
+                              f"than {best[1]:.3g} mm")  # fmt: skip
 
 
 def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:
-    """The nominal model's solution from the middle of the joint ranges (a start for the
-    calibrated one)."""
-    middle = np.array([0.5 * (j.limits[0] + j.limits[1]) for j in nominal.joints])
-    q, _, _ = solve_joints(nominal, target, middle)
+    """The nominal model's solution within the limits (a start for the calibrated one)."""
+    lower, upper = _limits(nominal)
+    q, _, _ = solve_joints(nominal, target, 0.5 * (lower + upper))
     return q
 
 
-def compensate(result, targets) -> list[dict]:
+def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
     """Joint commands for every target (see the module notes).
 
     Parameters
     ----------
     result : path or dict
         A result file (:func:`robocal.results.load_result`).
-    targets : path or Targets
+    targets : path, array_like (m, 3 | 7) or Targets
+        A targets CSV (:func:`read_targets`), target rows ``x, y, z`` [``qw, qx, qy, qz``] (mm),
+        or :class:`Targets`.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the seed joint columns of a targets file (deg by default).
 
     Returns
     -------
@@ -148,8 +236,11 @@ def compensate(result, targets) -> list[dict]:
     # base/tool calibration.
     setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
     nominal.params[setup] = calibrated.params[setup]
-    if not isinstance(targets, Targets):
-        targets = read_targets(targets, calibrated.n_joints)
+    if isinstance(targets, (str, os.PathLike)):
+        targets = read_targets(targets, calibrated.n_joints, angle_unit)
+    elif not isinstance(targets, Targets):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
+        y = as_float_array(targets, "targets")
+        targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
     causes = doc.get("causes", [])
     offsets = joint_offsets(calibrated, causes)
     skipped = sorted({str(c.get("label", c.get("kind"))) for c in causes if c.get("kind") not in COMPENSABLE})
@@ -164,23 +255,23 @@ def compensate(result, targets) -> list[dict]:
 
 
 def write_joints(rows: list[dict], path, n_joints: int) -> Path:
-    path = Path(path)
-    with path.open("w", newline="") as f:
+    with Staged(path) as stage, stage.tmp.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["row"] + [f"q{j}" for j in range(1, n_joints + 1)] + [f"dq{j}" for j in range(1, n_joints + 1)] + ["residual_mm", "status"])
         for r in rows:
             w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["status"]])
-    return path
+    return stage.path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", help="a result file of robocal calibrate (--out)")
     parser.add_argument("targets", help="CSV with x,y,z [qw,qx,qy,qz] [q1..qN in deg, the nominal commands]")
     parser.add_argument("--out", required=True, help="joints CSV: one row per target, joints in deg, corrections, residual, status")
+    parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q1..qN seed columns of the targets (default deg)")
 
 
 def run(args: argparse.Namespace) -> int:
-    rows = compensate(args.result, args.targets)
+    rows = compensate(args.result, args.targets, args.angle_unit)
     n_joints = len(rows[0]["q"]) if rows else 0
     write_joints(rows, args.out, n_joints)
     bad = [r for r in rows if not r["status"].startswith("ok")]

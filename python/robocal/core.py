@@ -7,6 +7,8 @@ checked again in Rust.
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from . import _robocal
@@ -135,10 +137,17 @@ def seeded_rng(seed, name: str = "seed") -> np.random.Generator:
     return np.random.default_rng(check_seed(seed, name))
 
 
-def as_count(value, name: str, least: int = 1) -> int:
-    """``value`` as an int if it is an integer >= ``least`` (not a bool), else an error naming ``name``."""
+#: Upper bound of sample counts a user asks for (simulate, export's round trip): a million
+#: samples is far beyond any calibration and still fits in memory; a typo of 1e8 does not.
+MAX_SAMPLES = 1_000_000
+
+
+def as_count(value, name: str, least: int = 1, most: Optional[int] = None) -> int:
+    """``value`` as an int if it is an integer in ``[least, most]`` (not a bool), else an error naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
         raise InvalidParameterError(f"`{name}` must be an integer >= {least}; got {value!r}")
+    if most is not None and value > most:
+        raise InvalidParameterError(f"`{name}` must be at most {most:,}; got {value:,}")
     return int(value)
 
 

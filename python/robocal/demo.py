@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .outputs import make_folder, write_json
 
 #: The effect the demo hides: backlash of 0.03 deg on joint 2 (about 0.5 mm at the tool).
 EFFECT = "backlash:joint=2,width=0.03"
@@ -30,8 +31,7 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
     from .diagnosis.cli import write_figures
     from .simulation import simulate, write_simulation
 
-    folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = make_folder(out)
     t0 = time.perf_counter()
     data, truth = simulate("hsr-jr680", "cable", samples=samples, seed=seed, effects=[EFFECT])
     csv, _ = write_simulation(data, truth, folder / "data.csv", folder / "truth.json")
@@ -40,7 +40,7 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
 
     result = calibrate(str(csv), robot="hsr-jr680", method="ukf-vslm", seed=seed)
     doc = result.to_dict()
-    (folder / "result.json").write_text(json.dumps(doc, indent=2))
+    write_json(folder / "result.json", doc)
     start = result.problem.with_data(result.held_out).data_residuals(result.problem.x0)
     before = float(np.sqrt(np.mean(start**2)))
     after = doc["metrics"]["test"]["rmse"]
@@ -57,7 +57,7 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
 
     diagnosis = diagnose(data, seed=seed)
     report = diagnosis.to_dict()
-    (folder / "diagnosis.json").write_text(json.dumps(report, indent=2))
+    write_json(folder / "diagnosis.json", report)
     figures = write_figures(diagnosis, folder)
     print(f"\ndiagnosis: geometric model held-out RMSE {report['baseline']['rmse_heldout']:.4f} mm")
     for e in report["effects"]:

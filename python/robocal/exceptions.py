@@ -48,6 +48,11 @@ class DataError(RobocalError, ValueError):
         self.message, self.path, self.row, self.column = message, path, row, column
 
 
+class OutputError(RobocalError, ValueError):
+    """An output cannot be written where asked (it is an input, its folder is missing, the disk
+    is full, ...): the message names the path."""
+
+
 class NoConvergenceError(RobocalError, RuntimeError):
     """An iterative routine failed (results normally report non-convergence instead)."""
 
@@ -61,4 +66,5 @@ __all__ = [
     "NotPositiveDefiniteError",
     "NoConvergenceError",
     "DataError",
+    "OutputError",
 ]

@@ -81,7 +81,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .core import seeded_rng
+from .core import MAX_SAMPLES, as_count, seeded_rng
+from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
 from .robot import Joint, Robot
 
@@ -203,7 +204,7 @@ def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, 
     path = Path(path)
     fmt = _table_format(path, table_format)
     if fmt == "csv":
-        with path.open("w", newline="") as f:
+        with Staged(path) as stage, stage.tmp.open("w", newline="") as f:
             writer = csv.writer(f)
             writer.writerow(TABLE_COLUMNS)
             for row in rows:
@@ -218,7 +219,7 @@ def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, 
             "frame_convention": "Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)",
             "rows": [{c: row.get(c) for c in TABLE_COLUMNS} for row in rows],
         }
-        path.write_text(json.dumps(doc, indent=2))
+        write_json(path, doc)
     return path
 
 
@@ -525,8 +526,7 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
     """
     from .reference import so3_log
 
-    if samples < 1:
-        raise InvalidParameterError(f"`samples` must be >= 1; got {samples}")
+    samples = as_count(samples, "samples", most=MAX_SAMPLES)
     rng = seeded_rng(seed)
     lo = np.array([j.limits[0] for j in robot.joints])
     hi = np.array([j.limits[1] for j in robot.joints])
@@ -551,8 +551,7 @@ def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name
     if fmt == "urdf":
         if table_format is not None:
             raise InvalidParameterError("--table-format applies to --format dh and mdh, not urdf")
-        out.write_text(export_urdf(robot, name=name))
-        return out
+        return write_text(out, export_urdf(robot, name=name))
     return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
 
 
@@ -576,19 +575,26 @@ def run(args: argparse.Namespace) -> int:
     from .results import load_result
 
     robot, _ = load_result(args.result)
-    path = export(robot, args.format, args.out, table_format=args.table_format, name=args.name)
-    check = roundtrip_check(robot, path, samples=args.samples, seed=args.seed)
+    as_count(args.samples, "--samples", most=MAX_SAMPLES)  # before anything is written
     kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
-    article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
-    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {path}")
+    # The file is written to a temporary beside --out and replaces it only once its round trip
+    # passes: a failed export never overwrites a previous good one.
+    table_format = _table_format(Path(args.out), args.table_format) if args.format != "urdf" else args.table_format
+    with Staged(args.out) as stage:
+        export(robot, args.format, stage.tmp, table_format=table_format, name=args.name)
+        check = roundtrip_check(robot, stage.tmp, samples=args.samples, seed=args.seed)
+        failed = []
+        if not check["max_position_error_mm"] <= POSITION_TOL:
+            failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
+        if not check["max_rotation_error_rad"] <= ROTATION_TOL:
+            failed.append(f"rotation error {check['max_rotation_error_rad']:.3g} rad > {ROTATION_TOL:g} rad")
+        if failed:
+            stage.discard()
     print(f"round trip over {check['samples']} joint vectors within limits: max tool position error "
           f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad")  # fmt: skip
-    failed = []
-    if not check["max_position_error_mm"] <= POSITION_TOL:
-        failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
-    if not check["max_rotation_error_rad"] <= ROTATION_TOL:
-        failed.append(f"rotation error {check['max_rotation_error_rad']:.3g} rad > {ROTATION_TOL:g} rad")
     if failed:
-        print(f"robocal export: the written {kind} does not reproduce the calibrated kinematics: " + "; ".join(failed))
+        print(f"robocal export: the {kind} does not reproduce the calibrated kinematics, {args.out} not written: " + "; ".join(failed))
         return 1
+    article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
+    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
     return 0

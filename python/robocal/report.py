@@ -35,6 +35,7 @@ from .calibration.metrics import sample_errors
 from .calibration.problem import is_kinematic, start_parameters
 from .data.dataset import Dataset
 from .exceptions import InvalidParameterError, RobocalError
+from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
 from .robot import Robot
 
@@ -71,7 +72,7 @@ class _Data:
     same_file: bool = False
 
 
-def _load_data(doc: dict, data) -> _Data:
+def _load_data(doc: dict, data, angle_unit: Optional[str] = None) -> _Data:
     from .data import load
 
     recorded = (doc.get("dataset") or {}).get("source")
@@ -81,22 +82,28 @@ def _load_data(doc: dict, data) -> _Data:
         return _Data(data, data.source, ["measurements passed as a Dataset"], same_file=data.source is not None and data.source == recorded)
     if data is not None:
         # An explicit file must load: its errors are the caller's to see.
-        dataset = load(data, measurement=doc["measurement"])
+        dataset = load(data, measurement=doc["measurement"], angle_unit=angle_unit)
         return _Data(dataset, str(data), [f"measurements from {data} (given with --data)"], same_file=_same_file(doc, data))
     if not recorded:
         return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
+    recorded = str(recorded)
     if not Path(recorded).is_file():
         return _Data(path=recorded, notes=[f"the measurement file {recorded} is not on this machine: the figures that need the data are left out (pass --data FILE)"])
+    # A result file may come from someone else and name any local file: it is read only when it
+    # is, byte for byte, the file the result was calibrated on, and its content is never shown.
+    if not _same_file(doc, recorded):
+        return _Data(path=recorded, notes=[f"the file {recorded} named by the result is not read: its sha256 does not match the one recorded "
+                                           "in the result; the figures that need the data are left out (pass --data FILE)"])  # fmt: skip
     try:
         dataset = load(recorded, measurement=doc["measurement"])
-    except RobocalError as exc:
-        return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read ({exc}): the figures that need the data are left out"])
-    return _Data(dataset, recorded, [], same_file=_same_file(doc, recorded))
+    except RobocalError:
+        return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read: the figures that need the data are left out"])
+    return _Data(dataset, recorded, [], same_file=True)
 
 
 def _same_file(doc: dict, path) -> bool:
     recorded = (doc.get("dataset") or {}).get("sha256")
-    return recorded is not None and file_sha256(path) == recorded
+    return isinstance(recorded, str) and file_sha256(path) == recorded
 
 
 def _load_diagnosis(diagnosis) -> Optional[dict]:
@@ -167,7 +174,7 @@ def _pyplot():
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=_DPI)
+    save_figure(fig, path, dpi=_DPI)
     _pyplot().close(fig)
     return path
 
@@ -505,7 +512,8 @@ def _figure(path: Path, caption: str) -> str:
 
 
 # -- entry points -----------------------------------------------------------------------------
-def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None) -> Path:
+def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None,
+           angle_unit: Optional[str] = None) -> Path:  # fmt: skip
     """Writes the HTML report of a calibration result and its figures; returns the page's path.
 
     Parameters
@@ -518,6 +526,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         The measurements (default: the file the result names, if it is on this machine).
     diagnosis : str, Path or dict, optional
         A ``robocal diagnose --json`` report to add (held-out RMSE per cause, table of causes).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical ``data`` file (see :func:`robocal.data.load`).
 
     Returns
     -------
@@ -533,9 +543,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     """
     robot, doc = load_result(result)
     diag = _load_diagnosis(diagnosis)
-    d = _load_data(doc, data)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    d = _load_data(doc, data, angle_unit)
+    out = make_folder(out)
     meas = doc["measurement"]
     notes = list(d.notes)
     figures: list[str] = []
@@ -604,9 +613,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 </body>
 </html>
 """
-    path = out / "index.html"
-    path.write_text(page, encoding="utf-8")
-    return path
+    return write_text(out / "index.html", page)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -614,9 +621,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", required=True, help="folder for index.html and its figures")
     parser.add_argument("--data", metavar="FILE", help="measurement file (default: the one the result names)")
     parser.add_argument("--diagnosis", metavar="REPORT.json", help="a `robocal diagnose --json` report to include")
+    parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q columns of a canonical --data file (default deg)")
 
 
 def run(args: argparse.Namespace) -> int:
-    path = report(args.result, args.out, data=args.data, diagnosis=args.diagnosis)
+    path = report(args.result, args.out, data=args.data, diagnosis=args.diagnosis, angle_unit=args.angle_unit)
     print(f"wrote {path}")
     return 0

@@ -37,6 +37,7 @@ import numpy as np
 
 from ._robocal import __version__
 from .exceptions import InvalidParameterError
+from .outputs import write_json
 from .robot import Joint, Robot
 
 SCHEMA = "robocal.result/1"
@@ -83,9 +84,7 @@ def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
 
 
 def save_result(document: dict, path) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(document, indent=2))
-    return path
+    return write_json(path, document)
 
 
 def _fail(where: str, why: str):
@@ -117,22 +116,18 @@ def load_result(source) -> tuple[Robot, dict]:
         _fail(where, "the top level is not an object")
     if doc.get("schema") != SCHEMA:
         _fail(where, f"schema {doc.get('schema')!r}, expected {SCHEMA!r}")
-    try:
-        model = doc["robot_model"]
-        name = str(model["name"])
-        joints = [Joint(j["convention"], j["kind"], bool(j["hayati"]), tuple(float(v) for v in j["limits"])) for j in model["joints"]]
-        nominal = np.array(model["nominal"], dtype=np.float64)
-        calibrated = {p["name"]: float(p["value"]) for p in doc["parameters"]}
-    except (KeyError, TypeError, ValueError) as exc:
-        _fail(where, f"robot_model or parameters malformed: {type(exc).__name__} {exc}")
-    robot = Robot(name, joints, nominal)
+    from .schemas import ResultSpec, validate  # pydantic loads only when a result is read
+
+    spec = validate(ResultSpec, doc, where)
+    model = spec.robot_model
+    joints = [Joint(j.convention, j.kind, j.hayati, tuple(j.limits)) for j in model.joints]
+    nominal = np.array(model.nominal, dtype=np.float64)
+    calibrated = {p.name: p.value for p in spec.parameters}
+    robot = Robot(model.name, joints, nominal)
     missing = [n for n in robot.param_names if n not in calibrated]
     if missing:
         _fail(where, f"parameters lack {missing[:5]}")
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         _fail(where, "a parameter value is not finite")
-    causes = doc.get("causes", [])
-    if not isinstance(causes, list) or not all(isinstance(c, dict) for c in causes):
-        _fail(where, f"causes must be a list of objects; got {causes!r}")
-    return Robot(name, joints, values), doc
+    return Robot(model.name, joints, values), doc

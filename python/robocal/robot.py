@@ -91,9 +91,10 @@ class Robot:
         convention: str = "dh",
         degrees: bool = True,
     ) -> "Robot":
-        """Builds a revolute robot from rows ``(alpha, a, d, theta[, (lower, upper)[, hayati]])``.
+        """Builds a robot from rows ``(alpha, a, d, theta[, (lower, upper)[, hayati[, kind]]])``.
 
-        Angles are in degrees when ``degrees`` (the way DH tables are published), lengths in mm.
+        Angles are in degrees when ``degrees`` (the way DH tables are published), lengths in mm;
+        ``kind`` is ``"revolute"`` (default) or ``"prismatic"``, whose limits are in mm.
         """
         to_rad = math.radians if degrees else float
         joints, values = [], []
@@ -101,10 +102,11 @@ class Robot:
             if isinstance(row, (str, bytes)) or not isinstance(row, Sequence) or len(row) < 4:
                 raise ShapeError(f"DH row {i} must hold at least (alpha, a, d, theta); got {row!r}")
             alpha, a, d, theta = (as_float(v, f"DH row {i} {key}") for key, v in zip(("alpha", "a", "d", "theta"), row))
+            kind = row[6] if len(row) > 6 else "revolute"
             limits = as_float_array(row[4], f"DH row {i} limits") if len(row) > 4 else np.array([-180.0, 180.0] if degrees else [-math.pi, math.pi])
-            limits = tuple((np.radians(limits) if degrees else limits).tolist())  # its shape is checked by Robot()
+            limits = tuple((np.radians(limits) if degrees and kind == "revolute" else limits).tolist())  # its shape is checked by Robot()
             hayati = bool(row[5]) if len(row) > 5 else False
-            joints.append(Joint(convention=convention, limits=limits, hayati=hayati))
+            joints.append(Joint(convention=convention, kind=kind, limits=limits, hayati=hayati))
             values.append((to_rad(alpha), a, d, to_rad(theta), 0.0))
         params = np.zeros(5 * len(joints) + 17)
         params[: 5 * len(joints)] = np.ravel(values)
@@ -117,7 +119,10 @@ class Robot:
 
         The file holds ``name``, optional ``convention`` (``dh``/``mdh``, default ``dh``) and
         ``joints``: a list of mappings with ``alpha`` (deg), ``a`` (mm), ``d`` (mm), ``theta`` (deg)
-        and optional ``limits`` ``[lower, upper]`` (deg) and ``hayati`` (bool).
+        and optional ``limits`` ``[lower, upper]`` (deg; mm for a prismatic joint), ``hayati``
+        (bool) and ``kind`` (``revolute``/``prismatic``). Checked strictly
+        (:class:`robocal.schemas.RobotSpec`): an unknown key, a wrong type or a bad value is an
+        :class:`InvalidParameterError` naming the file, the joint and the key.
         """
         path = Path(path)
         if path.suffix.lower() in (".yaml", ".yml"):
@@ -132,18 +137,11 @@ class Robot:
             raise InvalidParameterError(f"{path}: cannot read the robot file ({exc.strerror or exc})") from None
         except (UnicodeDecodeError, malformed) as exc:
             raise InvalidParameterError(f"{path}: not a robot file ({type(exc).__name__}: {exc})") from None
-        if not isinstance(spec, Mapping) or not isinstance(spec.get("joints"), list):
-            raise InvalidParameterError(f"{path}: expected a mapping with a 'joints' list")
-        rows = []
-        for i, joint in enumerate(spec["joints"], start=1):
-            if not isinstance(joint, Mapping):
-                raise InvalidParameterError(f"{path}: joint {i} must be a mapping with alpha, a, d, theta; got {joint!r}")
-            missing = [k for k in ("alpha", "a", "d", "theta") if k not in joint]
-            if missing:
-                raise InvalidParameterError(f"{path}: joint {i} lacks {', '.join(missing)}")
-            limits = joint.get("limits", (-180.0, 180.0))
-            rows.append((joint["alpha"], joint["a"], joint["d"], joint["theta"], limits, joint.get("hayati", False)))
-        return cls.from_dh(spec.get("name", path.stem), rows, convention=spec.get("convention", "dh"))
+        from .schemas import RobotSpec, validate  # pydantic loads only when a robot file is read
+
+        spec = validate(RobotSpec, spec, str(path))
+        rows = [(j.alpha, j.a, j.d, j.theta, j.limits, j.hayati, j.kind) for j in spec.joints]
+        return cls.from_dh(spec.name or path.stem, rows, convention=spec.convention)
 
     # -- the vector ---------------------------------------------------------------------------
     @property

@@ -13,17 +13,19 @@ from __future__ import annotations
 
 import json
 import math
+from contextlib import nullcontext
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .core import as_count, as_float, as_float_array, as_positive, check_seed, identifiability
+from .core import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed, identifiability
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError
+from .outputs import Staged, check_outputs
 from .robot import MEASUREMENTS, Robot, robot as load_robot
 
 #: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
@@ -285,7 +287,7 @@ def simulate(
     """
     if measurement not in MEASUREMENTS:
         raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
-    samples = as_count(samples, "samples")
+    samples = as_count(samples, "samples", least=1, most=MAX_SAMPLES)
     dt = as_positive(dt, "dt")  # s
     if not 0.0 <= as_float(outliers, "outliers") <= 1.0:
         raise InvalidParameterError(f"`outliers` must be a fraction within 0..1; got {outliers!r}")
@@ -371,12 +373,13 @@ def true_params(truth: Mapping, r: Robot) -> np.ndarray:
 def write_simulation(dataset: Dataset, truth: Mapping, out_csv, truth_json=None) -> tuple[Path, Optional[Path]]:
     """Writes the dataset as a canonical CSV (joint angles in deg) and, if asked, the truth as
     JSON; returns both paths."""
-    csv_path = write_canonical(dataset, out_csv)
-    json_path = None
-    if truth_json is not None:
-        json_path = Path(truth_json)
-        json_path.write_text(json.dumps(truth, indent=2) + "\n")
-    return csv_path, json_path
+    # Both staged before either is renamed: a bad truth path leaves no CSV behind.
+    check_outputs(files=[out_csv, truth_json])
+    with Staged(out_csv) as data_stage, (Staged(truth_json) if truth_json is not None else nullcontext()) as truth_stage:
+        write_canonical(dataset, data_stage.tmp)
+        if truth_stage is not None:
+            truth_stage.tmp.write_text(json.dumps(truth, indent=2) + "\n")
+    return Path(out_csv), None if truth_json is None else Path(truth_json)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import random_split
 from ..exceptions import InvalidParameterError
+from ..results import save_result
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
@@ -34,7 +35,9 @@ METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
 }
 
 
-def load_inputs(data: Union[str, Path, Dataset], robot: Union[str, Robot, None] = None, measurement: Optional[str] = None) -> tuple[Dataset, Robot]:
+def load_inputs(
+    data: Union[str, Path, Dataset], robot: Union[str, Robot, None] = None, measurement: Optional[str] = None, angle_unit: Optional[str] = None
+) -> tuple[Dataset, Robot]:
     """The dataset and the robot a calibration runs on.
 
     Parameters
@@ -45,13 +48,16 @@ def load_inputs(data: Union[str, Path, Dataset], robot: Union[str, Robot, None] 
         Default: the robot recorded in the data.
     measurement : {"cable", "position", "pose"}, optional
         Required of the data; chooses among them for files that provide more than one.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical file (see :func:`robocal.data.load`, which
+        refuses values implausible for the unit unless it is given).
 
     Returns
     -------
     dataset : Dataset
     robot : Robot
     """
-    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, robot=robot if isinstance(robot, str) else None)
+    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, angle_unit=angle_unit, robot=robot if isinstance(robot, str) else None)
     if measurement is not None and dataset.measurement != measurement:
         raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
     if robot is None:
@@ -85,6 +91,7 @@ def calibrate(
     bounds=None,
     kinematic_prior=None,
     causes=None,
+    angle_unit: Optional[str] = None,
     **options,
 ) -> CalibrationResult:
     """Calibrates ``robot`` on ``data`` and evaluates it on a held-out random split.
@@ -122,6 +129,9 @@ def calibrate(
         ``"joint_periodic joint 2 harmonic=3"``), or a diagnose report (dict or JSON file) whose
         causes are taken. Fitted with the geometric parameters by ``method="lm"``; the result
         JSON then has ``causes`` with their physical parameters.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of a canonical file (degrees by default; values implausible
+        for the default unit are refused, see :func:`robocal.data.load`).
     **options
         Passed to the method.
 
@@ -133,9 +143,10 @@ def calibrate(
     """
     if not isinstance(method, str) or method not in METHODS:
         raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    if not 0.0 <= as_float(test_fraction, "test_fraction") < 1.0:
+    test_fraction = as_float(test_fraction, "test_fraction")
+    if not 0.0 <= test_fraction < 1.0:
         raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
-    dataset, r = load_inputs(data, robot, measurement)
+    dataset, r = load_inputs(data, robot, measurement, angle_unit)
     train_idx, test_idx = None, None
     if test_fraction > 0:
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
@@ -143,6 +154,7 @@ def calibrate(
     else:
         train, test = dataset, None
     problem = Problem.build(r, train, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
+    problem.require_dof()
     if causes is None:
         fit = METHODS[method][2]
         if "seed" in inspect.signature(fit).parameters:
@@ -215,10 +227,21 @@ def add_kinematic_prior_argument(parser: argparse.ArgumentParser) -> None:
                         help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles")  # fmt: skip
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def add_data_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of every command that calibrates on a measurement file."""
     parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
     parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
     parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    add_angle_unit_argument(parser)
+
+
+def add_angle_unit_argument(parser: argparse.ArgumentParser, what: str = "q columns of a canonical file") -> None:
+    parser.add_argument("--angle-unit", choices=("deg", "rad"),
+                        help=f"unit of the {what} (default deg; values implausible for the default are refused)")  # fmt: skip
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_data_arguments(parser)
     parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
@@ -233,12 +256,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
-                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior,
+                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior, angle_unit=args.angle_unit,
                        causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None,
                        **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
     doc = result.to_dict()
     if args.out:
-        Path(args.out).write_text(json.dumps(doc, indent=2))
+        save_result(doc, args.out)
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0
@@ -256,6 +279,8 @@ def run(args: argparse.Namespace) -> int:
     if "robust" in doc:
         rows = doc["robust"]["outlying_rows"]
         print(f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows" + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else ""))
+    for note in result.problem.data.notes:  # what the reader noticed, e.g. angles kept in an unlikely unit as asked
+        print(f"  note: {note}")
     if doc["implausible"]:
         print("  warning: " + describe_implausible(doc["implausible"]))
     if doc["undetermined"]:

@@ -17,7 +17,7 @@ from ..core import as_float_array, cable_initial_guess, identifiability, solve_d
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError, NonFiniteError
 from ..reference import frame_params
-from ..robot import Robot
+from ..robot import RESIDUAL_WIDTH, Robot
 from ..simulation import DEFAULT_NOISE
 
 
@@ -201,6 +201,18 @@ class Problem:
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
         return problem
+
+    def require_dof(self) -> None:
+        """An error with the counts when the residuals do not outnumber the estimated parameters
+        and no prior regularises them: any data are then fitted exactly (RMSE 0), nothing is
+        learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)"""
+        residuals = len(self.data) * RESIDUAL_WIDTH[self.data.measurement]
+        if residuals <= len(self.free) and not self.prior:
+            raise InvalidParameterError(
+                f"{len(self.data)} {self.data.measurement} samples give {residuals} residuals for {len(self.free)} identifiable "
+                f"parameters: {residuals - len(self.free)} degrees of freedom; a calibration needs more residuals than parameters "
+                "(more samples, or a kinematic prior)"
+            )
 
     def _checked_pairs(self, pairs: dict, what: str, form: str, valid) -> dict:
         """``name -> (a, b)`` on estimated parameters, each pair checked with ``valid(a, b)``."""

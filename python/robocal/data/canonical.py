@@ -21,6 +21,7 @@ from .table import numeric_columns, read_text, require_columns, split_delimited
 
 ANGLE_UNITS = ("deg", "rad")
 OPTIONAL_COLUMNS = ("t", "temp", "sample")
+NUMERIC_OPTIONAL = ("t", "temp")
 
 
 def _measurement_from_header(header: list[str], path) -> str:
@@ -68,8 +69,9 @@ def read_canonical(
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     obs = OBSERVATION_COLUMNS[measurement]
     require_columns(header, obs, path, f"a {measurement} file")
-    wanted = joints + list(obs) + [c for c in OPTIONAL_COLUMNS if c in header]
-    ignored = [h for h in header if h not in wanted]
+    wanted = joints + list(obs) + [c for c in NUMERIC_OPTIONAL if c in header]
+    known = set(wanted) | set(OPTIONAL_COLUMNS)  # the sample label is text, documented and not used
+    ignored = [h for h in header if h not in known]
     values, rows, excluded = numeric_columns(header, body, wanted, path, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
     n = len(joints)
     q = values[:, :n]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Optional
 
@@ -16,6 +17,34 @@ OBSERVATION_COLUMNS = {
     "position": ("x", "y", "z"),
     "pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
 }
+
+
+#: |q| above this (rad) cannot be a joint angle in rad: the unit is probably deg.
+MAX_PLAUSIBLE_RAD = 4 * math.pi
+
+
+def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
+    """Whether joint values ``q`` (m, N), read as ``unit`` and converted to rad, are plausible.
+
+    In rad, a value beyond ``4 pi`` cannot be a joint angle; in deg, a file whose values all lie
+    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians. Returns
+    ``{unit, plausible, message, likely}``; ``message`` names the columns and the likely unit.
+    """
+    q = np.abs(np.asarray(q, dtype=np.float64))  # rad
+    if q.size == 0:
+        return {"unit": unit, "plausible": True, "likely": unit, "message": "no joint values"}
+    if unit == "rad" and q.max() > MAX_PLAUSIBLE_RAD:
+        columns = [f"q{j + 1}" for j in np.flatnonzero(q.max(axis=0) > MAX_PLAUSIBLE_RAD)]
+        bad = (q > MAX_PLAUSIBLE_RAD).any(axis=1)
+        first = f", first row {rows[bad][0]}" if rows is not None else ""
+        return {"unit": unit, "plausible": False, "likely": "deg",
+                "message": f"columns {', '.join(columns)} hold |q| up to {q.max():.4g}, beyond 4 pi: the angles look like degrees "
+                           f"({int(bad.sum())} rows{first})"}  # fmt: skip
+    if unit == "deg" and np.degrees(q.max()) <= 2 * math.pi and len(q) > 1:
+        return {"unit": unit, "plausible": False, "likely": "rad",
+                "message": f"every joint value (columns q1..q{q.shape[1]}) is at most {np.degrees(q.max()):.4g} in size (within 2 pi): "
+                           "the angles look like radians"}  # fmt: skip
+    return {"unit": unit, "plausible": True, "likely": unit, "message": f"joint values plausible in {unit} (max |q| = {np.degrees(q.max()):.4g} deg)"}
 
 
 @dataclass

@@ -18,7 +18,9 @@ import numpy as np
 
 from ..core import identifiability, solve_damped
 from ..exceptions import DataError, RobocalError
-from .dataset import Dataset
+from ..outputs import write_json
+from ..stats import robust_sigma
+from .dataset import Dataset, angle_unit_check
 from .public import FORMATS, detect_format, load
 
 #: Residuals beyond this many robust sigmas are reported as outliers.
@@ -26,10 +28,6 @@ OUTLIER_SIGMAS = 5.0
 #: D2 rounding: joint angles to 0.1 deg, controller positions to 0.1 mm (half of each is the bound).
 JOINT_ROUNDING_DEG = 0.1
 POSITION_ROUNDING_MM = 0.1
-#: |q| above this (rad) cannot be a joint angle in rad: the unit is probably deg.
-MAX_PLAUSIBLE_RAD = 4 * math.pi
-#: MAD to standard deviation for normal errors.
-MAD_TO_SIGMA = 1.4826
 
 
 def inspect(
@@ -70,7 +68,7 @@ def inspect(
         dataset, fmt, unit = source, None, "rad"
     else:
         fmt = format or detect_format(source)
-        dataset = load(source, fmt, measurement, angle_unit, robot, exclude_bad_rows=True)
+        dataset = load(source, fmt, measurement, angle_unit, robot, exclude_bad_rows=True, check_units=False)  # reported below
         unit = angle_unit or {"ipa": "rad"}.get(fmt, "deg")
     name = robot or dataset.robot
     model = load_robot(name) if name else None
@@ -85,7 +83,7 @@ def inspect(
         "notes": list(dataset.notes),
         "bad_cells": [{"row": int(e["row"]), "column": e.get("column"), "reason": e["reason"]} for e in dataset.excluded],
         "duplicates": duplicate_rows(dataset),
-        "angle_unit": angle_unit_check(dataset, unit),
+        "angle_unit": angle_unit_check(dataset.q, unit, dataset.rows),
         "out_of_limits": out_of_limits(dataset, model) if model else [],
         "fit": _fit_or_error(dataset, model, sigmas) if model else None,
         "cross_check": cross_check(dataset, model) if model and "controller_xyz" in dataset.extra else None,
@@ -114,24 +112,6 @@ def duplicate_rows(dataset: Dataset) -> list[list[int]]:
     inverse = inverse.ravel()
     groups = [dataset.rows[inverse == g].tolist() for g in np.flatnonzero(counts > 1)]
     return sorted(groups)
-
-
-def angle_unit_check(dataset: Dataset, unit: str) -> dict:
-    """Whether the joint values are plausible for the unit the file declares.
-
-    In rad, a value beyond ``4 pi`` cannot be a joint angle; in deg, a file whose values all lie
-    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians.
-    """
-    q = np.abs(dataset.q)  # rad
-    if unit == "rad" and q.max() > MAX_PLAUSIBLE_RAD:
-        rows = dataset.rows[(q > MAX_PLAUSIBLE_RAD).any(axis=1)]
-        return {"unit": unit, "plausible": False,
-                "message": f"{rows.size} rows have |q| > 4 pi (up to {q.max():.4g}): the angles look like degrees (first row {rows[0]})"}  # fmt: skip
-    declared = np.degrees(q) if unit == "deg" else q
-    if unit == "deg" and declared.max() <= 2 * math.pi and len(dataset) > 1:
-        return {"unit": unit, "plausible": False,
-                "message": f"every |q| is at most {declared.max():.4g} deg (within 2 pi): the angles look like radians"}  # fmt: skip
-    return {"unit": unit, "plausible": True, "message": f"joint values plausible in {unit} (max |q| = {np.degrees(q.max()):.4g} deg)"}
 
 
 def out_of_limits(dataset: Dataset, robot) -> list[dict]:
@@ -177,13 +157,9 @@ def _start(dataset: Dataset, robot) -> tuple[np.ndarray, list[str]]:
     return params, names
 
 
-def _scales(r: np.ndarray) -> np.ndarray:
-    """Robust per-component scale (MAD about 0), one for positions (mm) and one for rotations."""
-    blocks = [slice(0, min(3, r.shape[1]))] + ([slice(3, 6)] if r.shape[1] == 6 else [])
-    s = np.empty(r.shape[1])
-    for b in blocks:
-        s[b] = max(MAD_TO_SIGMA * np.median(np.abs(r[:, b])), 1e-12)
-    return s
+def _pooled(sigmas: np.ndarray) -> float:
+    """One σ for the report from per-component σ: their root mean square."""
+    return float(np.sqrt(np.mean(sigmas**2)))
 
 
 def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iterations: int = 100) -> dict:
@@ -192,16 +168,16 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
     Cable: anchor, sensor zero and tool point from :func:`robocal.cable_initial_guess`; position /
     pose: base frame from a Kabsch alignment of flange and measured positions, the tool point (and
     rotation). Only the identifiable subset of these is fitted. Then Levenberg-Marquardt on
-    Huber-weighted residuals (per sample, standardised by the robust MAD scale; pose rotations
-    scaled by their own MAD), re-weighting at every step until the step vanishes. Samples whose
+    Huber-weighted residuals (per sample, each component standardised by its own robust scale,
+    :func:`robocal.stats.robust_sigma`), re-weighting at every step until the step vanishes. Samples whose
     standardised residual norm exceeds ``sigmas`` are outliers.
 
     Returns
     -------
     dict
         ``fitted`` (name -> value; mm, rad), ``not_identifiable`` (names held at their start),
-        ``scale`` (robust sigma per residual component: ``cable_mm`` or ``position_mm``, and
-        ``rotation_deg`` for poses), ``threshold`` (sigmas), ``iterations``, ``outliers``
+        ``scale`` (robust sigma: ``cable_mm``, or ``position_mm`` — the RMS of the x, y, z
+        components' — and ``rotation_deg`` for poses), ``threshold`` (sigmas), ``iterations``, ``outliers``
         (``{row, residual_mm[, rotation_deg], sigmas}``, largest first) and ``rms_mm`` of the inliers.
     """
     from scipy.stats import chi2
@@ -223,7 +199,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
 
     lam, done = 1e-3, 0
     for done in range(1, iterations + 1):
-        s = _scales(r)
+        s = robust_sigma(r)
         w, rw = whitened(r, s)
         J = robot.jacobian(dataset.measurement, dataset.q, y, params, cols)
         Jw = J * np.tile(1 / s, m)[:, None] * np.repeat(w, k)[:, None]
@@ -240,7 +216,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
         params, r, lam = trial, r_trial, max(lam / 10, 1e-9)
         if np.all(np.abs(delta) <= 1e-10 * (1 + np.abs(params[cols]))) or (cost - rt @ rt) <= 1e-12 * cost:
             break
-    s = _scales(r)
+    s = robust_sigma(r)
     z = np.linalg.norm(r / s, axis=1)  # standardised residual norm of each sample
     outliers = []
     for i in np.argsort(-z):
@@ -254,7 +230,7 @@ def robust_fit(dataset: Dataset, robot, sigmas: float = OUTLIER_SIGMAS, iteratio
     return {
         "fitted": {robot.param_names[j]: float(params[j]) for j in cols},
         "not_identifiable": [n for i, n in enumerate(names) if i not in keep],
-        "scale": {"position_mm" if k > 1 else "cable_mm": float(s[0])} | ({"rotation_deg": float(np.degrees(s[3]))} if k == 6 else {}),
+        "scale": {"position_mm" if k > 1 else "cable_mm": _pooled(s[: min(k, 3)])} | ({"rotation_deg": float(np.degrees(_pooled(s[3:])))} if k == 6 else {}),
         "threshold": float(sigmas),
         "iterations": done,
         "rms_mm": float(np.sqrt(np.mean(r[inliers, : min(k, 3)] ** 2) * min(k, 3))),
@@ -356,5 +332,5 @@ def run(args) -> int:
     else:
         print(format_report(report))
         if args.json:
-            Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+            write_json(args.json, report)
     return 1 if args.strict and report["problems"] else 0

@@ -30,8 +30,8 @@ import numpy as np
 
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
-from .dataset import OBSERVATION_COLUMNS, Dataset
-from .table import numeric_columns, read_text, require_columns, split_delimited
+from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
+from .table import check_header, numeric_columns, read_text, require_columns, split_delimited
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -106,6 +106,7 @@ def _read_xlsx(path: Path, sheet: Optional[str] = None):
         book.close()
     if not header:
         raise DataError(f"sheet {chosen!r} is empty (a header row is expected)", path, 1)
+    check_header(header, path)
     return header, body, notes
 
 
@@ -150,6 +151,7 @@ def _check_joint_columns(header, n: int, robot: str, path) -> None:
 
 
 def _ignored_note(header, used) -> list[str]:
+    used = set(used)
     ignored = [h for h in header if h not in used]
     return [f"ignored columns {ignored}"] if ignored else []
 
@@ -381,6 +383,7 @@ def load(
     robot: Optional[str] = None,
     exclude_bad_rows: bool = False,
     sheet: Optional[str] = None,
+    check_units: bool = True,
 ) -> Dataset:
     """Reads a measurement file of any supported format into a :class:`Dataset`.
 
@@ -402,11 +405,17 @@ def load(
         Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
     sheet : str, optional
         Worksheet of an .xlsx workbook (first by default).
+    check_units : bool
+        Refuse joint values implausible for the unit they are read in
+        (:func:`~robocal.data.dataset.angle_unit_check`: radians in a degree file, degrees read
+        as radians) with an error naming the columns and the likely unit — unless ``angle_unit``
+        was given explicitly, which records the finding in ``Dataset.notes`` instead.
 
     Raises
     ------
     DataError
-        On an unknown format, a mismatching robot, measurement or unit, or any bad content.
+        On an unknown format, a mismatching robot, measurement or unit, implausible joint
+        values for the unit, or any bad content.
     """
     if not isinstance(path, (str, os.PathLike)):
         raise DataError(f"`path` must be a file path (str or Path); got {type(path).__name__} {path!r}")
@@ -433,4 +442,12 @@ def load(
         dataset = read_robotcali(path, sheet, exclude_bad_rows)
     else:
         dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
+    if check_units:
+        unit = angle_unit or native_unit or "deg"
+        check = angle_unit_check(dataset.q, unit, dataset.rows)
+        if not check["plausible"] and angle_unit is None:
+            raise DataError(f"{check['message']}; read them as {check['likely']} with angle_unit={check['likely']!r} "
+                            f"(--angle-unit {check['likely']}), or confirm {unit} with angle_unit={unit!r}", path)  # fmt: skip
+        if not check["plausible"]:
+            dataset.notes.append(f"{check['message']} (kept in {unit} as asked)")
     return _check_robot(dataset, fmt, robot, path)

@@ -15,8 +15,13 @@ from ..core import as_count, seeded_rng
 from ..exceptions import InvalidParameterError
 
 
-def _check_m(m: int, least: int) -> int:
-    return as_count(m, "m", least)
+def _check_m(m: int, least: int, split: str) -> int:
+    """``m`` if it is a sample count of at least ``least``, else an error saying what ``split``
+    needs (the user sees a sample count, not an argument name)."""
+    m = as_count(m, "m", 0)
+    if m < least:
+        raise InvalidParameterError(f"{split} needs at least {least} samples; the data have {m}")
+    return m
 
 
 def _test_count(m: int, test_fraction: float) -> int:
@@ -34,7 +39,7 @@ def paper_split(m: int, seed: int = 0, n_train: int = 100, n_test: int = 20) -> 
     train, test : ndarray of int
         Disjoint, sorted.
     """
-    m = _check_m(m, n_train + n_test)
+    m = _check_m(m, n_train + n_test, f"the paper's split ({n_train} training + {n_test} test samples)")
     if n_train < 1 or n_test < 1:
         raise InvalidParameterError(f"`n_train` and `n_test` must be >= 1; got {n_train}, {n_test}")
     pick = seeded_rng(seed).choice(m, size=n_train + n_test, replace=False)
@@ -43,7 +48,7 @@ def paper_split(m: int, seed: int = 0, n_train: int = 100, n_test: int = 20) -> 
 
 def random_split(m: int, test_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A random ``1 - test_fraction`` / ``test_fraction`` split of all samples (each side >= 1)."""
-    m = _check_m(m, 2)
+    m = _check_m(m, 2, "a random training / held-out split")
     order = seeded_rng(seed).permutation(m)
     n_test = _test_count(m, test_fraction)
     return np.sort(order[n_test:]), np.sort(order[:n_test])
@@ -57,7 +62,7 @@ def kfold(m: int, k: int = 5, seed: int = 0) -> list[tuple[np.ndarray, np.ndarra
     list of (train, test)
         Fold sizes differ by at most one.
     """
-    m = _check_m(m, 2)
+    m = _check_m(m, 2, "k-fold cross-validation")
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 2 <= k <= m:
         raise InvalidParameterError(f"`k` must be an integer in [2, m={m}]; got {k!r}")
     folds = np.array_split(seeded_rng(seed).permutation(m), k)
@@ -74,7 +79,7 @@ def chronological(m: int, test_fraction: float = 0.2, t: Optional[np.ndarray] = 
     t : array_like, shape (m,), optional
         Acquisition times; row order is the acquisition order without them.
     """
-    m = _check_m(m, 2)
+    m = _check_m(m, 2, "a chronological split")
     order = np.arange(m)
     if t is not None:
         t = np.asarray(t, dtype=np.float64)

@@ -12,12 +12,27 @@ from __future__ import annotations
 import csv
 import difflib
 import math
+import re
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
 
 from ..exceptions import DataError
+
+#: Largest magnitude a cell may hold: beyond ±1e12 mm / rad the core's squares overflow (the
+#: core refuses such inputs too, but here the error can name the file, row and column).
+MAX_ABS = 1e12
+#: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
+#: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
+#: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.IGNORECASE | re.ASCII)
+
+
+def shown(value, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters: a 100 000-digit cell is not echoed."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(str(value))} characters)"
 
 
 def read_text(path) -> str:
@@ -40,8 +55,19 @@ def split_delimited(text: str, delimiter: str, path):
     if not lines or not any(cell.strip() for cell in lines[0]):
         raise DataError("the file is empty (a header row is expected)", path, 1)
     header = [h.strip() for h in lines[0]]
+    check_header(header, path)
     body = [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
     return header, body
+
+
+def check_header(header: Sequence[str], path) -> None:
+    """A :class:`DataError` on row 1 naming the first column name that appears twice (which of
+    the two holds the data cannot be guessed). Linear in the number of columns."""
+    seen = set()
+    for name in header:
+        if name and name in seen:
+            raise DataError(f"the column {shown(name)} appears more than once in the header", path, 1, name[:40])
+        seen.add(name)
 
 
 def parse_number(cell, path, row: int, column: str, decimal_comma: bool = False, finite: bool = True) -> float:
@@ -61,17 +87,24 @@ def parse_number(cell, path, row: int, column: str, decimal_comma: bool = False,
     if isinstance(cell, bool) or not isinstance(cell, (str, int, float, type(None))):
         raise DataError(f"expected a number; got {cell!r} ({type(cell).__name__})", path, row, column)
     if cell is None or (isinstance(cell, str) and not cell.strip()):
+        if not finite:  # a column that may hold NaN may also be left empty (docs/data-format.md)
+            return math.nan
         raise DataError("expected a number; the cell is empty", path, row, column)
     if isinstance(cell, str):
         text = cell.strip()
-        try:
-            value = float(text.replace(",", ".") if decimal_comma else text)
-        except ValueError:
-            raise DataError(f"expected a number; got {text!r}", path, row, column) from None
+        text = text.replace(",", ".") if decimal_comma else text
+        if not _NUMBER.fullmatch(text):
+            raise DataError(f"expected a number; got {shown(cell.strip())}", path, row, column)
+        value = float(text)
     else:
-        value = float(cell)
+        try:
+            value = float(cell)
+        except OverflowError:  # a spreadsheet integer beyond float range
+            value = math.inf
     if finite and not math.isfinite(value):
-        raise DataError(f"expected a finite number; got {cell!r}", path, row, column)
+        raise DataError(f"expected a finite number; got {shown(cell)}", path, row, column)
+    if math.isfinite(value) and abs(value) > MAX_ABS:
+        raise DataError(f"{value:.3g} is beyond ±{MAX_ABS:.0e}, the largest value robocal takes", path, row, column)
     return value
 
 
@@ -131,7 +164,10 @@ def numeric_columns(
     """
     if not body:
         raise DataError("the file has a header but no data rows", path, 2)
-    position = [list(header).index(name) for name in wanted]
+    first = {}
+    for i, name in enumerate(header):
+        first.setdefault(name, i)
+    position = [first[name] for name in wanted]
     values, rows, excluded = [], [], []
     for row_number, cells in body:
         try:
