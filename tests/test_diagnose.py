@@ -14,12 +14,14 @@ of the range the issue sets.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import robocal
 from robocal.calibration import Problem
+from robocal.data import Dataset
 from robocal.diagnosis import LIMITS, diagnose
 from robocal.effects import DEG
 from robocal.exceptions import InvalidParameterError
@@ -269,3 +271,54 @@ def test_held_out_figures_never_see_the_held_out_samples():
     data, _ = simulate("hsr-jr680", "cable", samples=20, seed=1)
     report = diagnose(data).to_dict()
     assert report["baseline"]["rmse_heldout"] > 20 * report["baseline"]["rmse_train"]
+
+
+STRUCTURES = ("joint_zero", "joint_sign", "joint_reference")
+
+
+@pytest.mark.parametrize("robot,measurement,kind", [(r, m, k) for r in ROBOTS for m in ("cable", "position") for k in STRUCTURES])
+def test_hidden_reading_convention_is_named(robot, measurement, kind):
+    """The controller reports a joint in another convention than the model (a zero 90/180/270°
+    away, the other sign, relative to a neighbouring joint): the geometric fit goes implausible
+    or fails, and diagnose names the convention (kind, joint, offset or source and coefficient)."""
+    rng = np.random.default_rng([ROBOTS.index(robot), ("cable", "position").index(measurement), STRUCTURES.index(kind), 7])
+    j = int(rng.integers(2, 6))  # 1-based joints 2..5: every robot's data move them widely
+    data, _ = simulate(robot, measurement, samples=600, seed=int(rng.integers(1000)))
+    q = data.q.copy()
+    if kind == "joint_zero":
+        offset = float(rng.choice([90.0, 180.0, 270.0]))
+        q[:, j - 1] -= np.radians(offset)  # the reading lacks the offset the model needs
+        expected = {"offset": offset}
+    elif kind == "joint_sign":
+        q[:, j - 1] *= -1.0
+        expected = {}
+    else:
+        source, c = j - 1, float(rng.choice([-1.0, 1.0]))  # read relative to the joint before
+        q[:, j - 1] -= c * q[:, source - 1]
+        expected = {"source": source, "coefficient": c}
+    report = diagnose(replace(data, q=q)).to_dict()
+    found = [e for e in report["effects"] if e["kind"] in STRUCTURES]
+    assert found, f"{kind} joint {j} {expected}: nothing structural found; effects {[e['label'] for e in report['effects']]}"
+    first = found[0]
+    alternatives = first["significance"]["undetermined_between"]
+    named = (first["kind"], first["joint"]) == (kind, j) and all(first["params"][k]["value"] == pytest.approx(v) for k, v in expected.items())
+    assert named or any(label.startswith(f"{kind} joint {j}") for label in alternatives), f"{kind} joint {j} {expected}: found {first['label']} (alternatives {alternatives})"
+    # Either the geometry could not fit the readings at all, or it fitted them only with
+    # implausible parameters (a 90° zero is a θ offset, a reversed joint flips α's): the
+    # convention makes it plausible at an equal or better held-out error.
+    assert first["rmse_heldout_after"] <= 1.01 * first["rmse_heldout_before"]
+    assert first["significance"]["implausible_before"] > 0 or first["rmse_heldout_after"] < 0.5 * first["rmse_heldout_before"]
+    assert report["baseline"]["implausible"] == []
+
+
+def test_no_reading_convention_is_claimed_on_narrow_clean_data():
+    """Clean data over a D1-like narrow region (every joint within ±5°, joint 6 constant): the
+    geometry is poorly determined and may go implausible, but no convention makes it plausible at
+    an equal held-out error, so none may be claimed."""
+    robot = robocal.robot("hsr-jr680")
+    rng = np.random.default_rng(11)
+    q = np.radians([5, -60, 200, -160, 40, 60]) + np.radians(rng.uniform(-5, 5, (400, 6))) * [1, 1, 1, 1, 1, 0]
+    true = robot.with_params(a2=900.5, d4=1030.9, tool_z=60.0, anchor_x=1500.0, anchor_y=300.0, anchor_z=-200.0, cable_offset=950.0)
+    L = true.predict("cable", q)[:, 0] + rng.normal(0.0, DEFAULT_NOISE["cable"].sigma, len(q))
+    report = diagnose(Dataset(q=q, y=L[:, None], measurement="cable", robot="hsr-jr680")).to_dict()
+    assert [e["label"] for e in report["effects"] if e["kind"] in STRUCTURES] == []

@@ -38,8 +38,9 @@ Robust losses (``loss="huber"`` or ``"cauchy"``): the cost is ``½ s² Σ_i ρ(�
 samples ``i`` (a sample's residual rows together), minimised by iteratively reweighted least
 squares — each step's rows are weighted by ``√ρ′`` at the current residuals (scipy's loss
 functions without their second-order term). The scale ``s`` (``f_scale``) defaults to 2.5
-robust sigmas (1.4826 · median of the per-sample errors) of a plain fit, which is done first,
-then of the robust fit, which is repeated once with it.
+robust sigmas per component on a ``k``-component residual, ``2.5·√k·σ̂`` with ``σ̂`` the RMS of
+the components' robust sigmas (:func:`robocal.stats.robust_sigma`), of a plain fit, which is
+done first, then of the robust fit, which is repeated once with it.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ import numpy as np
 from ..core import as_count, as_positive, as_tolerance, factor_damped
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
+from ..stats import robust_sigma
 from .problem import Problem, initial_x
 from .result import CalibrationResult
 
@@ -117,13 +119,20 @@ def levenberg_marquardt(
     if loss == "linear":
         return fit
     for _ in range(1 if f_scale is not None else 2):
-        scale = f_scale if f_scale is not None else 2.5 * 1.4826 * float(np.median(_sample_errors(problem, fit.x)))
+        scale = f_scale if f_scale is not None else _default_scale(problem, fit.x)
         fit = _minimise(problem, fit.x, _Cost(problem, loss, scale), **options)
     outlying = np.flatnonzero(_sample_errors(problem, fit.x) > OUTLYING * scale)
     rows = problem.data.rows[outlying] if problem.data.rows is not None else outlying
     fit.robust = {"loss": loss, "f_scale": float(scale), "outlying_rows": [int(v) for v in rows]}
     fit.time_s = time.perf_counter() - start  # all passes
     return fit
+
+
+def _default_scale(problem: Problem, x: np.ndarray) -> float:
+    """``2.5·√k·σ̂``: 2.5 robust sigmas per component of the ``k``-component residuals."""
+    components = problem.data_residuals(x).reshape(len(problem.data), -1)
+    sigma = robust_sigma(components)
+    return 2.5 * float(np.sqrt(np.sum(sigma**2)))
 
 
 def _sample_errors(problem: Problem, x: np.ndarray) -> np.ndarray:
@@ -159,7 +168,8 @@ def _minimise(
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
-            Jw, rw = J * w[:, None], r * w
+            weighted = objective.loss != "linear"  # least squares: the weights are all 1
+            Jw, rw = (J * w[:, None], r * w) if weighted else (J, r)
             g = Jw.T @ rw
             if np.max(np.abs(g)) < gtol:
                 success, message = True, "`gtol` termination condition is satisfied"
@@ -186,7 +196,8 @@ def _minimise(
         v = factored.solve(c, lam) / d
         # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional
         # derivative of the model along v, and its damped solve the acceleration a.
-        r_probe = problem.residuals(x + GEODESIC_H * v) * w
+        r_probe = problem.residuals(x + GEODESIC_H * v)
+        r_probe = r_probe * w if weighted else r_probe
         nfev += 1
         second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jw @ v)
         a = factored.solve(factored.project(-second), lam) / d

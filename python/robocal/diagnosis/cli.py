@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration.api import add_data_arguments
 from ..calibration.result import describe_implausible
+from ..outputs import make_folder, save_figure, write_text
 from .select import Diagnosis, diagnose
 
 
@@ -49,7 +51,7 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     paths = []
     for i, (label, d) in enumerate(diagnosis.plots.items(), start=1):
         fig, ax = plt.subplots(figsize=(5.5, 4.5))
@@ -70,8 +72,7 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
         ax.set(xlabel="fitted signature of the cause (mm)", ylabel="residual before the cause (mm)", title=label)
         ax.legend(loc="upper left", fontsize=8)
         fig.tight_layout()
-        path = out / f"cause_{i}.png"
-        fig.savefig(path, dpi=120)
+        path = save_figure(fig, out / f"cause_{i}.png", dpi=120)
         plt.close(fig)
         paths.append(path)
     report = diagnosis.to_dict()
@@ -82,16 +83,13 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
     ax.set_xticks(range(len(steps)), steps, rotation=20, ha="right")
     ax.set(ylabel="held-out RMSE (mm), 5-fold", title="held-out error as causes are added")
     fig.tight_layout()
-    path = out / "heldout_rmse.png"
-    fig.savefig(path, dpi=120)
+    path = save_figure(fig, out / "heldout_rmse.png", dpi=120)
     plt.close(fig)
     return paths + [path]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
-    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
-    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    add_data_arguments(parser)
     parser.add_argument("--folds", type=int, default=5, help="folds of the random and the blocked cross-validation (default 5)")
     parser.add_argument("--alpha", type=float, default=0.05, help="family-wise significance level per selection round (default 0.05)")
     parser.add_argument("--plain-dh", action="store_true", help="baseline without Hayati beta (makes axis_misalignment a candidate)")
@@ -102,7 +100,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     d = diagnose(args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
-                 hayati=not args.plain_dh, seed=args.seed)  # fmt: skip
+                 hayati=not args.plain_dh, seed=args.seed, angle_unit=args.angle_unit)  # fmt: skip
     report = d.to_dict()
     text = json.dumps(report, indent=2)
     if args.json == "-":
@@ -110,11 +108,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(summary(report))
         if args.json:
-            Path(args.json).write_text(text)
+            write_text(args.json, text)
     if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "report.json").write_text(text)
+        out = make_folder(args.out)
+        write_text(out / "report.json", text)
         paths = write_figures(d, out)
         if args.json != "-":
             print(f"  wrote report.json and {len(paths)} figures to {out}")

@@ -40,6 +40,8 @@ from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot
+from ..stats import robust_sigma
+from . import structure
 from .candidates import Candidate, library, step_candidates
 from .model import ExtendedProblem
 
@@ -202,6 +204,13 @@ def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = No
     return err, fits
 
 
+#: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On
+#: an ill-conditioned geometry (D1) dozens of screening-significant joint candidates in a row
+#: fail the plausibility check, each after a full fit; the rest are reported as not fitted.
+#: Sensor (observation) and parameter candidates are always fitted.
+MAX_TRIALS = 8
+
+
 #: Gross errors lie beyond at least this many robust sigmas: a slipped cable or a broken beam
 #: is off by many sigmas, while a cause the geometric model misses bends many residuals a little.
 GROSS_SIGMAS = 8.0
@@ -219,8 +228,8 @@ def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.nda
         fit = _fit(ext, x0=x)
         x = fit.x
         r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
-        sigma = 1.4826 * np.median(np.abs(r[~flagged] - np.median(r[~flagged], axis=0)))
-        now = np.sum(r * r, axis=1) / max(sigma, 1e-12) ** 2 > bound
+        sigma = robust_sigma(r[~flagged])
+        now = np.sum((r / sigma) ** 2, axis=1) > bound
         if np.array_equal(now, flagged):
             break
         flagged = now
@@ -232,8 +241,7 @@ def _still_outlying(model: ExtendedProblem, x: np.ndarray, flagged: np.ndarray, 
     m = len(model.full_data)
     r = model.with_samples(np.arange(m)).residuals(x).reshape(m, model.k)
     kept = r[model.idx]
-    sigma = 1.4826 * np.median(np.abs(kept - np.median(kept, axis=0)))
-    z = np.sqrt(np.sum(r[flagged] ** 2, axis=1)) / max(sigma, 1e-12)
+    z = np.sqrt(np.sum((r[flagged] / robust_sigma(kept)) ** 2, axis=1))
     return flagged[z > z_bound]
 
 
@@ -260,6 +268,7 @@ def diagnose(
     hayati: bool = True,
     groups=None,
     seed: int = 0,
+    angle_unit: Optional[str] = None,
 ) -> Diagnosis:
     """Shows what the geometric model gets wrong on ``data``, names the causes, measures the gain.
 
@@ -285,6 +294,8 @@ def diagnose(
         A label per sample (session, series): adds leave-one-group-out folds.
     seed : int
         Seeds the random folds.
+    angle_unit : {"deg", "rad"}, optional
+        Unit of a canonical file's joint columns (see :func:`robocal.data.load`).
 
     Returns
     -------
@@ -302,15 +313,17 @@ def diagnose(
     folds, max_effects, min_gain = as_count(folds, "folds", 2), as_count(max_effects, "max_effects", 0), as_tolerance(min_gain, "min_gain")
     if not 0.0 < as_float(alpha, "alpha") < 1.0:
         raise InvalidParameterError(f"`alpha` must lie in (0, 1); got {alpha!r}")
-    dataset, rob = load_inputs(data, robot, measurement)
+    dataset, rob = load_inputs(data, robot, measurement, angle_unit)
     if groups is not None and np.shape(groups) != (len(dataset),):
         raise InvalidParameterError(f"`groups` needs one label per sample, shape ({len(dataset)},); got {groups!r}")
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
-    base = Problem.build(rob, dataset, mask=_baseline_mask(rob, dataset.measurement, hayati))
+    mask = _baseline_mask(rob, dataset.measurement, hayati)
+    dataset, effects, rejected = _structure(rob, dataset, mask, folds, seed, groups)
+    base = Problem.build(rob, dataset, mask=mask)
     k = RESIDUAL_WIDTH[dataset.measurement]
 
-    effects, rejected, plots = [], [], {}
+    plots = {}
     outliers, z_bound, x_outliers = _outliers(base, dataset)
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = np.argsort(dataset.t, kind="stable") if dataset.t is not None else np.arange(len(dataset))
@@ -348,11 +361,17 @@ def diagnose(
         scored.sort(key=lambda s: -s[0])
         n_tests = len(scored)
         accepted = None
+        joint_trials = 0
         for gain, c, p_value, gains in scored:
             relevant = gain >= min_gain * _rmse(model_err["random"])
             significant = p_value * n_tests < alpha and relevant and all(g > 0 for g in gains.values())
             if not significant:
                 break
+            if c.stage == "joints":
+                if joint_trials >= MAX_TRIALS:
+                    rejected.append(_record(c, gain, gains, p_value, n_tests, None, f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round"))
+                    continue
+                joint_trials += 1
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
             fit = _fit(trial, x0=_extended_start(x, ext, trial))
             physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
@@ -419,6 +438,28 @@ def diagnose(
         final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n)},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
+
+
+def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
+    """The joint-reading conventions (:mod:`.structure`) that make an implausible geometric fit
+    plausible: the data with them applied, their report entries and the alternatives rejected.
+    Searched only when the geometric fit of the data as read is implausible."""
+    def fit(d: Dataset, max_nfev=None):
+        result = levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
+        return result.metrics["train"]["rmse"], len(result.implausible())
+
+    order = np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
+    schemes = _folds(len(data), folds, seed, order, groups)
+
+    def cross_validate(d: Dataset) -> dict:
+        ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
+        return {name: _rmse(_nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
+
+    rmse, bad = fit(data)
+    if bad == 0:
+        return data, [], []
+    accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], rmse, bad), seed)
+    return structure.apply_all(data, accepted), effects, rejected
 
 
 def _extended_start(x: np.ndarray, ext: ExtendedProblem, trial: ExtendedProblem) -> np.ndarray:
