@@ -126,8 +126,9 @@ def calibrate(
         :meth:`Problem.build`).
     causes : list of str, dict or path, optional
         An extended model: cause labels as ``robocal diagnose`` reports them (e.g.
-        ``"joint_periodic joint 2 harmonic=3"``), or a diagnose report (dict or JSON file) whose
-        causes are taken. Fitted with the geometric parameters by ``method="lm"``; the result
+        ``"joint_periodic joint 2 harmonic=3"``, ``"joint_sign joint 4"``), or a diagnose report
+        (dict or JSON file) whose causes are taken. Reading conventions (``joint_zero``,
+        ``joint_sign``, ``joint_reference``) transform the joint readings before the fit. Fitted with the geometric parameters by ``method="lm"``; the result
         JSON then has ``causes`` with their physical parameters.
     angle_unit : {"deg", "rad"}, optional
         Unit of the joint columns of a canonical file (degrees by default; values implausible
@@ -147,6 +148,14 @@ def calibrate(
     if not 0.0 <= test_fraction < 1.0:
         raise InvalidParameterError(f"`test_fraction` must lie in [0, 1); got {test_fraction}")
     dataset, r = load_inputs(data, robot, measurement, angle_unit)
+    labels = structures = None
+    if causes is not None:
+        from ..diagnosis import structure  # the diagnose package imports this module
+
+        labels = cause_labels(causes)
+        structures = [s for s in (structure.parse(label, r.n_joints) for label in labels) if s is not None]
+        labels = [label for label in labels if structure.parse(label, r.n_joints) is None]
+        dataset = structure.apply_all(dataset, structures)  # the readings in the model's convention
     train_idx, test_idx = None, None
     if test_fraction > 0:
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
@@ -166,8 +175,9 @@ def calibrate(
         return result
     if method != "lm":
         raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
-    model = extended_problem(problem, dataset, train_idx if test is not None else np.arange(len(dataset)), causes)
+    model = extended_problem(problem, dataset, train_idx if test is not None else np.arange(len(dataset)), labels)
     result = levenberg_marquardt(model, **_checked_options(levenberg_marquardt, method, options))
+    result.structure = [s.label for s in structures]
     if test is not None:
         result.metrics["test"] = metrics(model.with_samples(test_idx).residuals(result.x), test.measurement)
         result.held_out = test
@@ -183,12 +193,9 @@ def _checked_options(function: Callable, method: str, options: dict) -> dict:
     return options
 
 
-def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes):
-    """``problem`` extended by ``causes`` (labels, or a diagnose report as dict or path) on the
-    samples ``idx`` of ``dataset`` (bases such as backlash and drift need the whole sequence)."""
-    from ..diagnosis import ExtendedProblem, library  # the diagnose package imports this module
-    from ..diagnosis.candidates import step_candidate
-
+def cause_labels(causes) -> list[str]:
+    """Cause labels from labels, a diagnose report (dict) or its JSON file: the report's
+    reading conventions (``model.structure``) first, then its ``model.causes``."""
     if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
         try:
             causes = json.loads(Path(causes).read_text())
@@ -196,13 +203,22 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
             raise InvalidParameterError(f"cannot read the diagnose report {causes}: {exc}") from None
     if isinstance(causes, dict):
         try:
-            causes = causes["model"]["causes"]
-        except (KeyError, TypeError):
+            causes = list(causes["model"].get("structure", [])) + list(causes["model"]["causes"])
+        except (KeyError, TypeError, AttributeError):
             raise InvalidParameterError("a diagnose report needs model.causes (the JSON of `robocal diagnose --json`)") from None
     if isinstance(causes, str):
         causes = [causes]
     if not isinstance(causes, (list, tuple)) or not all(isinstance(c, str) for c in causes):
         raise InvalidParameterError(f"`causes` must be cause labels, a diagnose report or its JSON file; got {causes!r}")
+    return list(causes)
+
+
+def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str]):
+    """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
+    ``dataset`` (bases such as backlash and drift need the whole sequence)."""
+    from ..diagnosis import ExtendedProblem, library  # the diagnose package imports this module
+    from ..diagnosis.candidates import step_candidate
+
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
     for label in causes:  # steps sit where diagnose found them: their label says where
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)

@@ -46,6 +46,8 @@ class CalibrationResult:
         Iterations and residual evaluations.
     njev : int, optional
         Jacobian evaluations (methods that count them).
+    structure : list of str
+        Labels of the reading conventions applied to the joint readings before the fit.
     success : bool
     message : str
     time_s : float
@@ -73,6 +75,7 @@ class CalibrationResult:
     held_out: Optional[Dataset] = None
     robust: Optional[dict] = None
     njev: Optional[int] = None
+    structure: list = field(default_factory=list)
 
     @property
     def params(self) -> np.ndarray:
@@ -163,6 +166,8 @@ class CalibrationResult:
             doc["causes"] = self.problem.describe_causes(self.x, self.std)
         if self.robust is not None:
             doc["robust"] = self.robust
+        if self.structure:
+            doc["structure"] = list(self.structure)  # reading conventions applied to the joint readings
         return doc
 
     @classmethod

@@ -76,6 +76,7 @@ class Diagnosis:
                 "free": [self.robot.param_names[k] for k in self.model.free],
                 "parameters": {n: float(v) for n, v in zip(self.robot.param_names, self.model.full(self.x))},
                 "causes": [c.label for c in self.model.causes],
+                "structure": [e["label"] for e in self.effects if e["kind"] in ("joint_zero", "joint_sign", "joint_reference")],
             },
             "time_s": self.time_s,
         }
