@@ -322,3 +322,16 @@ def test_no_reading_convention_is_claimed_on_narrow_clean_data():
     L = true.predict("cable", q)[:, 0] + rng.normal(0.0, DEFAULT_NOISE["cable"].sigma, len(q))
     report = diagnose(Dataset(q=q, y=L[:, None], measurement="cable", robot="hsr-jr680")).to_dict()
     assert [e["label"] for e in report["effects"] if e["kind"] in STRUCTURES] == []
+
+
+def test_error_floor_predicts_the_residual_of_rounded_joint_readings():
+    """Noise-free data whose joint readings are written on a 0.1° grid (as D2's are): the only
+    error left is the rounding, and the floor diagnose reports must predict the residual the
+    geometric fit leaves (within 20 %)."""
+    data, _ = simulate("abb-irb120", "position", samples=600, seed=8, noise=0)
+    rounded = replace(data, q=np.radians(np.round(np.degrees(data.q), 1)))
+    report = diagnose(rounded).to_dict()
+    floor = report["final"]["floor"]
+    assert [r["step"] for r in floor["joint_resolution"]] == pytest.approx([0.1] * 6) and {r["unit"] for r in floor["joint_resolution"]} == {"deg"}
+    assert report["baseline"]["rmse_train"] == pytest.approx(floor["joints_mm"], rel=0.2)
+    assert report["final"]["floor_mm"] >= floor["joints_mm"]

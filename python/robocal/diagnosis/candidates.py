@@ -127,8 +127,8 @@ class Candidate:
             return out, (f"drift {fastest:.3g} mm/h exceeds {LIMITS['drift_mm_per_h']:g} mm/h" if bad else None)
         if kind == "step":
             out = {f"size_{a}" if len(self.detail["axes"]) > 1 else "size": q(v, sd, "mm") for a, v, sd in zip(self.detail["axes"], c, s)}
-            out["sample"] = q(self.detail["sample"], np.nan, "sample")
-            out["row"] = q(self.detail["row"], np.nan, "row")
+            out["sample"] = q(self.detail["sample"], np.nan, "")
+            out["row"] = q(self.detail["row"], np.nan, "")
             return out, None
         if kind == "temperature":
             out = {"alpha": q(c[0] * 1e6, s[0] * 1e6, "1e-6/K"), "target": q(np.nan, np.nan, self.detail["target"])}

@@ -19,7 +19,7 @@ def _quantities(params: dict) -> str:
     for name, q in params.items():
         if isinstance(q, dict) and q.get("value") is not None and np.isfinite(q["value"]):
             sd = f" ± {q['std']:.2g}" if q.get("std") is not None else ""
-            shown.append(f"{name} {q['value']:.4g}{sd} {q['unit']}")
+            shown.append(f"{name} {q['value']:.4g}{sd} {q['unit']}".rstrip())
         elif isinstance(q, list):
             shown.append(f"{name} {q[:8]}{' ...' if len(q) > 8 else ''}")
     return ", ".join(shown)
@@ -38,6 +38,9 @@ def summary(report: dict) -> str:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(f"  + {e['kind']}{where}: {_quantities(e['params'])}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm")
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
+    if "floor_mm" in f:
+        lines.append(f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
+                     f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
     return "\n".join(lines)

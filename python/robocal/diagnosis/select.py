@@ -42,6 +42,7 @@ from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma
 from . import structure
+from .budget import floor as error_floor
 from .candidates import Candidate, library, step_candidates
 from .model import ExtendedProblem
 
@@ -414,6 +415,7 @@ def diagnose(
         current_cv = new_cv
 
     model = ExtendedProblem(base, causes, dataset, keep)
+    budget = error_floor(rob, dataset.subset(keep), model.full(x))
     if len(outliers) and causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
         # bent the residuals is not an outlier.
@@ -436,7 +438,8 @@ def diagnose(
                   # geometry fits the data only with parameters no robot has.
                   "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
-        final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n)},
+        final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n),
+               "floor_mm": budget["floor_mm"], "floor": budget},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
 
