@@ -362,16 +362,25 @@ def diagnose(
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
         n_tests = len(scored)
+
+        def tests_of(c: Candidate) -> int:
+            # A step's position was chosen from the data among every sample: Bonferroni over
+            # those positions as well (its p-value is that of the best of them).
+            return n_tests + (len(r) // k if c.kind == "step" else 0)
+
         accepted = None
         joint_trials = 0
         for gain, c, p_value, gains in scored:
             relevant = gain >= min_gain * _rmse(model_err["random"])
-            significant = p_value * n_tests < alpha and relevant and all(g > 0 for g in gains.values())
+            significant = p_value * tests_of(c) < alpha and relevant and all(g > 0 for g in gains.values())
+            if not significant and c.kind == "step":
+                rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, "not significant over every possible step position"))
+                continue
             if not significant:
                 break
             if c.stage == "joints":
                 if joint_trials >= MAX_TRIALS:
-                    rejected.append(_record(c, gain, gains, p_value, n_tests, None, f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round"))
+                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round"))
                     continue
                 joint_trials += 1
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
@@ -379,23 +388,23 @@ def diagnose(
             physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
             why = f"implausible: {why}" if why else _undetermined(trial.coefficients(fit.x, c) - _reference(c, rob), _std(trial, fit, c))
             if why is not None:
-                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, why))
+                rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, why))
                 continue
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
             refits = {name: _nonlinear_cv(trial, f, [_extended_start(xf, ext, trial) for xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
             lost = [name for name in schemes if _rmse(new_cv[name]) >= _rmse(current_cv[name])]
             if lost:
-                rejected.append(_record(c, gain, gains, p_value, n_tests, physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
+                rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
                 continue
             accepted = (c, fit, p_value, gains, physical, trial, new_cv, {name: xs for name, (_, xs) in refits.items()})
             break
         if accepted is None:
             for gain, c, p_value, gains in scored[:5]:
                 if not any(r["label"] == c.label for r in rejected):
-                    why = ("not significant" if p_value * n_tests >= alpha else
+                    why = ("not significant" if p_value * tests_of(c) >= alpha else
                            f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * _rmse(model_err["random"]) else "no gain on every fold scheme")  # fmt: skip
-                    rejected.append(_record(c, gain, gains, p_value, n_tests, None, why))
+                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, why))
             break
         c, fit, p_value, gains, physical, trial, new_cv, fold_x = accepted
         # For the report's plot: the residual the cause was found in, against its fitted signature.
@@ -408,7 +417,7 @@ def diagnose(
             "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
             "rmse_heldout_before": _rmse(current_cv["random"]), "rmse_heldout_after": _rmse(new_cv["random"]),
             "significance": {"test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
-                             "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests), "candidates": n_tests,
+                             "p_value": p_value, "p_adjusted": min(1.0, p_value * tests_of(c)), "candidates": n_tests,
                              "screening_gain_mm": gains,
                              "rmse_heldout_blocked_before": _rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": _rmse(new_cv["blocked"])},
         })  # fmt: skip
