@@ -374,7 +374,8 @@ def diagnose(
             relevant = gain >= min_gain * _rmse(model_err["random"])
             significant = p_value * tests_of(c) < alpha and relevant and all(g > 0 for g in gains.values())
             if not significant and c.kind == "step":
-                rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, "not significant over every possible step position"))
+                if not any(x["label"] == c.label for x in rejected):
+                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, "not significant over every possible step position"))
                 continue
             if not significant:
                 break

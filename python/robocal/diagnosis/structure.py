@@ -180,6 +180,9 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
                 or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)]
         if not good:
             rejected += [{"kind": t.structures[-1].kind, "joint": t.structures[-1].joint + 1, "label": t.structures[-1].label,
+                          "gain_mm": current.heldout["random"] - t.heldout["random"],
+                          "gains_mm": {k: current.heldout[k] - t.heldout[k] for k in current.heldout},
+                          "p_value": None, "p_adjusted": None, "params": t.structures[-1].params,
                           "reason": f"{t.implausible} implausible parameters instead of {current.implausible} at held-out RMSE "
                                     f"{t.heldout['random']:.4g} mm instead of {current.heldout['random']:.4g} mm: neither plausible nor "
                                     f"{REAL_GAIN:.0%} better"} for t in trials]  # fmt: skip
