@@ -335,3 +335,22 @@ def test_error_floor_predicts_the_residual_of_rounded_joint_readings():
     assert [r["step"] for r in floor["joint_resolution"]] == pytest.approx([0.1] * 6) and {r["unit"] for r in floor["joint_resolution"]} == {"deg"}
     assert report["baseline"]["rmse_train"] == pytest.approx(floor["joints_mm"], rel=0.2)
     assert report["final"]["floor_mm"] >= floor["joints_mm"]
+
+
+def test_rejected_reading_conventions_are_reported_like_other_causes():
+    """A convention that lowers the number of implausible parameters but leaves the geometry
+    implausible without a 10 % held-out gain is rejected with its numbers, in the same record
+    shape as every other rejected cause (the command-line summary prints them)."""
+    from robocal.diagnosis import structure
+    from robocal.diagnosis.cli import summary
+
+    data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
+    fit = lambda d, max_nfev=None: (1.0, 5) if np.array_equal(d.q[:, :2], data.q[:len(d), :2]) else (0.85, 3)  # noqa: E731
+    cross_validate = lambda d: {"random": 1.0, "blocked": 1.2} if np.array_equal(d.q, data.q) else {"random": 0.97, "blocked": 1.19}  # noqa: E731
+    accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], 1.0, 5))
+    assert accepted == [] and effects == [] and rejected
+    assert {"kind", "joint", "label", "gain_mm", "gains_mm", "p_value", "p_adjusted", "params", "reason"} <= set(rejected[0])
+    report = {"robot": "abb-irb120", "measurement": "cable", "samples": 100, "effects": [], "rejected": rejected,
+              "baseline": {"n_params": 25, "rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "implausible": []},
+              "final": {"rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "n_params": 25}}  # fmt: skip
+    assert "neither plausible nor 10% better" in summary(report)
