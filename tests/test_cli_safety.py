@@ -484,6 +484,8 @@ def test_fuzz_the_command_line(fuzz_dirs, data):
     err = io.StringIO()
     old = signal.signal(signal.SIGALRM, _alarm)
     signal.alarm(60)
+    cwd = os.getcwd()
+    os.chdir(t)  # an output named "-" or relative lands among the outputs, not in the checkout
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
             try:
@@ -491,6 +493,7 @@ def test_fuzz_the_command_line(fuzz_dirs, data):
             except SystemExit as exc:
                 code = exc.code
     finally:
+        os.chdir(cwd)
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
     event(f"{argv[0]} exit {code}")  # shown by --hypothesis-show-statistics: what the fuzz reached
