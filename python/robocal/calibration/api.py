@@ -152,9 +152,9 @@ def calibrate(
     if causes is not None:
         from ..diagnosis import structure  # the diagnose package imports this module
 
-        labels = cause_labels(causes)
-        structures = [s for s in (structure.parse(label, r.n_joints) for label in labels) if s is not None]
-        labels = [label for label in labels if structure.parse(label, r.n_joints) is None]
+        parsed = [(label, structure.parse(label, r.n_joints)) for label in cause_labels(causes)]
+        structures = [s for _, s in parsed if s is not None]
+        labels = [label for label, s in parsed if s is None]
         dataset = structure.apply_all(dataset, structures)  # the readings in the model's convention
     train_idx, test_idx = None, None
     if test_fraction > 0:

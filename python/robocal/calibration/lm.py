@@ -165,10 +165,10 @@ def _minimise(
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
     J = problem.jacobian(x)
     scale, fresh = np.sum(J * J, axis=0), True
+    weighted = objective.loss != "linear"  # least squares: the weights are all 1
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
-            weighted = objective.loss != "linear"  # least squares: the weights are all 1
             Jw, rw = (J * w[:, None], r * w) if weighted else (J, r)
             g = Jw.T @ rw
             if np.max(np.abs(g)) < gtol:
@@ -199,7 +199,8 @@ def _minimise(
         r_probe = problem.residuals(x + GEODESIC_H * v)
         r_probe = r_probe * w if weighted else r_probe
         nfev += 1
-        second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jw @ v)
+        Jv = Jw @ v
+        second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jv)
         a = factored.solve(factored.project(-second), lam) / d
         if 2.0 * np.linalg.norm(d * a) > GEODESIC_ALPHA * np.linalg.norm(d * v):
             lam, nu = lam * nu, 2.0 * nu
@@ -212,19 +213,17 @@ def _minimise(
         downhill = cost_new < cost
         # An uphill step is taken when it continues the previous direction (cos β near 1).
         uphill = (not downhill and previous is not None and cost_new * (1.0 - _cosine(v, previous, d)) <= cost)
+        small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
         if downhill or uphill:
             nit += 1
-            noise2 = 2.0 * cost / dof
-            if downhill and noise2 > 0:
-                gains.append(2.0 * (cost - cost_new) / noise2)
+            if downhill and cost > 0:
+                gains.append((cost - cost_new) / (cost / dof))  # Δχ² in units of σ̂² = 2·cost/dof
             small_change = downhill and cost - cost_new < ftol * cost
-            small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
             x, r, cost, w, previous = x_new, r_new, cost_new, w_new, v
             history.append(cost)
             if cost < best_cost:
                 best_x, best_cost = x, cost
             # Nielsen's update from the gain ratio of the velocity's linear model.
-            Jv = Jw @ v
             predicted = float(v @ g) - 0.5 * float(Jv @ Jv)
             rho = (history[-2] - cost) / predicted if downhill and predicted > 0 else 0.0
             lam, nu = lam * max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3), 2.0
@@ -234,7 +233,7 @@ def _minimise(
                 break
             J, fresh = problem.jacobian(x), True
             njev += 1
-        elif np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x)):
+        elif small_step:
             # Even tiny steps no longer lower the cost: a minimum to within rounding.
             success, message = True, "`xtol` termination condition is satisfied"
             break

@@ -69,7 +69,10 @@ def floor(robot: Robot, data: Dataset, params: np.ndarray) -> dict:
     recorded = data.extra.get("measurement_std")
     if recorded is not None and np.shape(recorded)[1:] and np.shape(recorded)[1] >= min(k, 3):
         sensor_var[:, :3] += np.asarray(recorded, dtype=np.float64)[:, :3] ** 2  # the tracker's own
-    per_sample = lambda var: float(np.sqrt(np.mean(var.reshape(len(data), k).sum(axis=1))))  # noqa: E731
+
+    def per_sample(var: np.ndarray) -> float:  # eq. (28): the RMS over samples of the summed components
+        return float(np.sqrt(np.mean(var.reshape(len(data), k).sum(axis=1))))
+
     return {
         "floor_mm": per_sample(joint_var + sensor_var.ravel()),
         "joints_mm": per_sample(joint_var),

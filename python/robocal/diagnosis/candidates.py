@@ -240,7 +240,7 @@ def step_candidate(data: Dataset, sample: int) -> Candidate:
     if not 0 < sample < m:
         raise InvalidParameterError(f"a step needs its first sample within 1..{m - 1}; got {sample}")
     position = np.empty(m, dtype=int)
-    position[_acquisition_order(data)] = np.arange(m)
+    position[acquisition_order(data)] = np.arange(m)
     after = (position >= position[sample]).astype(np.float64)
     axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
     basis = np.zeros((m, k, len(axes)))
@@ -250,7 +250,8 @@ def step_candidate(data: Dataset, sample: int) -> Candidate:
     return Candidate("step", None, "observations", basis, detail={"sample": int(sample), "row": row, "axes": axes})
 
 
-def _acquisition_order(data: Dataset) -> np.ndarray:
+def acquisition_order(data: Dataset) -> np.ndarray:
+    """Sample indices in acquisition order: by ``t`` if the data carry it, else row order."""
     return np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
 
 
@@ -261,7 +262,7 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
     the samples (and 5). Each becomes a candidate that the selection tests like any other."""
     import ruptures  # imported on use: only a diagnosis needs it
 
-    order = np.argsort(np.argsort(_acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
+    order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
     signal = residuals[order]
     scale = np.std(signal, axis=0)
     signal = signal / np.where(scale > 0, scale, 1.0)

@@ -43,7 +43,7 @@ from ..robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma
 from . import structure
 from .budget import floor as error_floor
-from .candidates import Candidate, library, step_candidates
+from .candidates import Candidate, acquisition_order, library, step_candidates
 from .model import ExtendedProblem
 
 
@@ -183,26 +183,31 @@ def _fit(problem: ExtendedProblem, x0=None):
     return levenberg_marquardt(problem, x0=x0, method="diagnose")
 
 
-def _fold_problem(ext: ExtendedProblem, train: np.ndarray) -> ExtendedProblem:
+def _fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.ndarray] = None) -> ExtendedProblem:
     """``ext`` on the training samples ``train`` (positions in ``ext.idx``), its set-up started
-    from those samples alone (:func:`start_parameters`): nothing of a held-out fold reaches the
-    fit on the others, not even through the start point."""
+    from those samples alone (:func:`start_parameters`; ``setup``, if given, is that start,
+    computed before for the same samples): nothing of a held-out fold reaches the fit on the
+    others, not even through the start point."""
     idx = ext.idx[train]
-    base = replace(ext.base, start=start_parameters(ext.robot, ext.full_data.subset(idx)))
-    return ExtendedProblem(base, ext.causes, ext.full_data, idx)
+    if setup is None:
+        setup = start_parameters(ext.robot, ext.full_data.subset(idx))
+    return ExtendedProblem(replace(ext.base, start=setup), ext.causes, ext.full_data, idx)
 
 
 def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
-    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold, and the
-    fold fits. Each fold starts from ``starts[i]`` — the same fold's fit of a smaller model —
-    or from its own training samples' set-up: never from a fit that saw its held-out samples."""
+    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold, and per
+    fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair for the same fold of a smaller
+    model (its fit laid out for ``ext``): the set-up is reused and the fit is the start. Without
+    it each fold starts from its own training samples' set-up: never from a fit that saw its
+    held-out samples."""
     err, fits = np.zeros(len(ext.idx)), []
     for i, (train, test) in enumerate(folds):
-        fold = _fold_problem(ext, train)
-        fit = _fit(fold, x0=None if starts is None else starts[i])
+        setup, x0 = (None, None) if starts is None else starts[i]
+        fold = _fold_problem(ext, train, setup)
+        fit = _fit(fold, x0=x0)
         r = ExtendedProblem(fold.base, ext.causes, ext.full_data, ext.idx[test]).residuals(fit.x)
         err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
-        fits.append(fit.x)
+        fits.append((fold.base.start, fit.x))
     return err, fits
 
 
@@ -328,7 +333,7 @@ def diagnose(
     plots = {}
     outliers, z_bound, x_outliers = _outliers(base, dataset)
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
-    order = np.argsort(dataset.t, kind="stable") if dataset.t is not None else np.arange(len(dataset))
+    order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
     schemes = _folds(len(keep), folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
 
@@ -392,7 +397,7 @@ def diagnose(
                 rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, why))
                 continue
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
-            refits = {name: _nonlinear_cv(trial, f, [_extended_start(xf, ext, trial) for xf in fold_x[name]]) for name, f in schemes.items()}
+            refits = {name: _nonlinear_cv(trial, f, [(setup, _extended_start(xf, ext, trial)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
             lost = [name for name in schemes if _rmse(new_cv[name]) >= _rmse(current_cv[name])]
             if lost:
@@ -462,7 +467,7 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
         result = levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
         return result.metrics["train"]["rmse"], len(result.implausible())
 
-    order = np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
+    order = acquisition_order(data)
     schemes = _folds(len(data), folds, seed, order, groups)
 
     def cross_validate(d: Dataset) -> dict:

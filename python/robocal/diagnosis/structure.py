@@ -139,10 +139,6 @@ class Trial:
     implausible: int
     heldout: Optional[dict] = None
 
-    @property
-    def label(self) -> str:
-        return " + ".join(s.label for s in self.structures) or "as read"
-
 
 def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0) -> tuple[list[Structure], list[dict], list[dict]]:
     """Greedy search for the reading conventions that make the geometry plausible.
