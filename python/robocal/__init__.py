@@ -32,6 +32,7 @@ __all__ = [
     "simulate",
     "solve_damped",
     "unscented_transform",
+    "verify",
 ]
 
 
@@ -45,6 +46,7 @@ _LAZY = {
     "diagnose": ("robocal.diagnosis", "diagnose"),
     "compensate": ("robocal.compensation", "compensate"),
     "load_result": ("robocal.results", "load_result"),
+    "verify": ("robocal.verification", "verify"),
 }
 
 

@@ -33,6 +33,7 @@ COMMANDS = {
     "compare": ("robocal.compare", "run the paper's comparison of calibrators and write its tables and figures", Paths(("data", "robot"), (), ("out",))),
     "diagnose": ("robocal.diagnosis.cli", "show what the geometric model gets wrong, name the cause, measure the held-out gain",
                  Paths(("data", "robot"), ("json",), ("out",))),  # fmt: skip
+    "verify": ("robocal.verification", "evaluate a calibration result on new measurements, re-fitting only the session set-up", Paths(("result", "data"), ("json",))),
     "compensate": ("robocal.compensation", "joint commands that make the calibrated robot reach desired tool positions", Paths(("result", "targets"), ("out",))),
     "report": ("robocal.report", "an HTML page with figures of a calibration result (and its diagnosis)", Paths(("result", "data", "diagnosis"), (), ("out",))),
     "export": ("robocal.export", "write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip", Paths(("result",), ("out",))),

@@ -26,7 +26,7 @@ from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError
 from .outputs import Staged, check_outputs
-from .robot import MEASUREMENTS, Robot, robot as load_robot
+from .robot import MEASUREMENTS, Robot, robot as load_robot, setup_names
 
 #: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
 CABLE_SENSOR = "HY150-2000"
@@ -229,6 +229,10 @@ def _quantity(value: float, unit: str) -> dict:
     return {"value": value, "unit": unit}
 
 
+#: Standard deviation (mm per axis) of where a tracker stands in another session.
+SESSION_SHIFT_MM = 200.0
+
+
 def simulate(
     robot: Union[str, Robot] = "hsr-jr680",
     measurement: str = "cable",
@@ -241,6 +245,7 @@ def simulate(
     dt: float = 2.0,
     tool: Optional[Sequence[float]] = None,
     anchor: Optional[Sequence[float]] = None,
+    session: int = 0,
 ) -> tuple[Dataset, dict]:
     """Simulates an acquisition of ``robot`` with known ground truth.
 
@@ -269,6 +274,11 @@ def simulate(
         The measured point on the flange in mm (default :data:`DEFAULT_TOOL`).
     anchor : (3,) float, optional
         Cable anchor in mm (default: see :func:`setup`).
+    session : int
+        ``0``: the acquisition of ``seed``. ``s > 0``: the same robot (the kinematic errors of
+        session 0 with the same ``samples``, the same draws of the effects) measured in another
+        session: a new path and noise, and the set-up (base, tool, anchor, zero errors) drawn
+        anew.
 
     Returns
     -------
@@ -303,12 +313,21 @@ def simulate(
     if sum(e.kind == "temperature" for e in chosen) > 1:
         raise InvalidParameterError("at most one temperature effect: the dataset has one temperature column")
     noise = sensor_noise(measurement, noise)
+    session = as_count(session, "session", least=0)
     seeds = np.random.SeedSequence(check_seed(seed))  # seed=None draws fresh entropy, recorded in the truth
     rng_path, rng_errors, rng_noise, rng_effects = (np.random.default_rng(s) for s in seeds.spawn(4))
 
     q = acquisition_path(nominal, measurement, int(samples), rng_path)
-    t = dt * np.arange(len(q))
     errors, perturbed = geometric_errors(nominal, measurement, q, rng_errors) if geometric_error else (np.zeros(nominal.n_params), np.array([], int))
+    if session:
+        rng_path, rng_noise, rng_setup = (np.random.default_rng(s) for s in np.random.SeedSequence([seeds.entropy, session]).spawn(3))
+        q = acquisition_path(nominal, measurement, int(samples), rng_path)
+        setup_errors, _ = geometric_errors(nominal, measurement, q, rng_setup) if geometric_error else (errors, None)
+        placed = [nominal.index(name) for name in setup_names(nominal, measurement)]
+        errors[placed] = setup_errors[placed]
+        if measurement != "cable":  # the tracker stands elsewhere: a translation of SESSION_SHIFT_MM per axis
+            errors[[nominal.index(f"base_{c}") for c in "xyz"]] += rng_setup.normal(0.0, SESSION_SHIFT_MM, 3)
+    t = dt * np.arange(len(q))
     true = nominal.params + errors
     acq = Acquisition(nominal, measurement, q, t, np.tile(true, (len(q), 1)), np.zeros_like(q), rng_effects)
     for effect in chosen:
@@ -338,6 +357,7 @@ def simulate(
         "robot": base.name,
         "measurement": measurement,
         "seed": int(seeds.entropy),
+        "session": session,
         "samples": len(q),
         "dt": _quantity(dt, "s"),
         "parameters": {
@@ -391,6 +411,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--measurement", default="cable", choices=MEASUREMENTS, help="observation type (default cable)")
     parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
     parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    parser.add_argument("--session", type=int, default=0, help="another session of the same robot: new path, noise and set-up (default 0)")
     parser.add_argument("--effect", action="append", default=[], metavar="KIND[:key=value,...]",
                         help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}")  # fmt: skip
     parser.add_argument("--noise", type=float, default=None, metavar="MM", help="sensor noise sigma in mm (0: noiseless; default: the sensor's)")
@@ -403,7 +424,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     """Runs ``robocal simulate``; returns the exit code."""
     dataset, truth = simulate(args.robot, args.measurement, args.samples, args.seed, args.effect, noise=args.noise,
-                              geometric_error=args.geometric_error, outliers=args.outliers)  # fmt: skip
+                              geometric_error=args.geometric_error, outliers=args.outliers, session=args.session)  # fmt: skip
     csv_path, json_path = write_simulation(dataset, truth, args.out, args.truth)
     effects = ", ".join(e["spec"] for e in truth["effects"]) or "none"
     print(f"wrote {len(dataset)} {args.measurement} samples of {truth['robot']} to {csv_path}" + (f" and the truth to {json_path}" if json_path else ""))

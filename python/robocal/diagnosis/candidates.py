@@ -277,6 +277,8 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the
 #: approach direction, observation causes belong to the sensor, not the robot).
 COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling")
+#: Every cause acting on the joints: what a result carries to a new session of the same robot.
+JOINT_KINDS = COMPENSABLE + ("backlash",)
 
 
 def _check_joint_cause(robot: Robot, cause: dict) -> None:
@@ -294,10 +296,11 @@ def _check_joint_cause(robot: Robot, cause: dict) -> None:
         raise InvalidParameterError(f"{where}: needs {basis.shape[1]} finite coefficients for a finite basis; got {cause.get('coefficients')!r}")
 
 
-def joint_offsets(robot: Robot, causes: list[dict]):
-    """``Δq(q)`` (m, N) of the compensable joint causes of a result file's ``causes`` entries
-    (``kind``, 1-based ``joint``, ``detail``, ``coefficients``), or None if there are none."""
-    usable = [c for c in causes if c.get("kind") in COMPENSABLE]
+def joint_offsets(robot: Robot, causes: list[dict], kinds: tuple = COMPENSABLE):
+    """``Δq(q)`` (m, N) of the joint causes of ``kinds`` among a result file's ``causes``
+    entries (``kind``, 1-based ``joint``, ``detail``, ``coefficients``), or None if there are
+    none. (Backlash needs ``q`` in acquisition order: it is not among the default kinds.)"""
+    usable = [c for c in causes if c.get("kind") in kinds]
     if not usable:
         return None
     for cause in usable:

@@ -1,0 +1,147 @@
+"""Several sessions of one robot fitted together, and fits of part of a model.
+
+A *session* is one measurement set-up: the tracker or the cable sensor placed once, the tool
+point mounted once. From one session to the next the robot is the same — its kinematics and the
+causes acting on its joints — while the set-up and the sensor's own terms (a step of its zero,
+a drift) are new. :class:`Sessions` stacks one problem per session over a parameter vector in
+which each shared entry appears once and each session's private entries once per session.
+:class:`Partial` fits some entries of a problem with the others held at given values: a new
+session's set-up under a calibrated robot.
+
+Both have the interface the production LM works on (``x0``, ``residuals``, ``jacobian``,
+``data_residuals``, ``clip``, ``data``, ``names``), so the same solver fits them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..robot import RESIDUAL_WIDTH, SETUP_PREFIXES
+#: Causes whose coefficients belong to a session's sensor, not to the robot.
+SESSION_KINDS = ("drift", "step", "temperature", "outliers")
+
+
+def is_private(name: str) -> bool:
+    """True for an entry fitted per session: a set-up parameter (``base_x``, ``anchor_y``,
+    ``cable_offset``, ...) or a coefficient of a session cause (``"step sample=12 row=14 c0"``)."""
+    return name.startswith(SETUP_PREFIXES) or name.split(" ")[0] in SESSION_KINDS
+
+
+def concatenate(datasets: list[Dataset]) -> Dataset:
+    """The samples of several sessions in one dataset (their file rows kept; ``t`` and ``temp``
+    only where every session has them)."""
+    first = datasets[0]
+
+    def joined(name):
+        values = [getattr(d, name) for d in datasets]
+        return None if any(v is None for v in values) else np.concatenate(values)
+
+    return replace(first, q=np.vstack([d.q for d in datasets]), y=np.vstack([d.y for d in datasets]), t=joined("t"), temp=joined("temp"),
+                   rows=np.concatenate([d.rows for d in datasets]), source=None, excluded=[], notes=[], extra={})  # fmt: skip
+
+
+def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A problem's residuals at ``x`` as (data rows, prior rows)."""
+    r = problem.residuals(x)
+    n = len(problem.data) * RESIDUAL_WIDTH[problem.data.measurement]
+    return r[:n], r[n:]
+
+
+class Sessions:
+    """One problem per session over a shared parameter vector.
+
+    ``x`` holds every shared entry once (named as in the sessions' problems) and every private
+    entry (:func:`is_private`) once per session (named ``"<name> [session s]"``, 1-based). Shared
+    entries start where the first session that has them starts.
+    """
+
+    def __init__(self, problems: list):
+        self.problems = list(problems)
+        self.robot = self.problems[0].robot
+        index: dict = {}
+        self.names, self.maps = [], []
+        start = []
+        for s, p in enumerate(self.problems, start=1):
+            positions = []
+            for name, value in zip(p.names, p.x0):
+                key = (name, s) if is_private(name) else (name, 0)
+                if key not in index:
+                    index[key] = len(self.names)
+                    self.names.append(f"{name} [session {s}]" if key[1] else name)
+                    start.append(value)
+                positions.append(index[key])
+            self.maps.append(np.array(positions, dtype=int))
+        self._x0 = np.array(start, dtype=np.float64)
+        self.data = concatenate([p.data for p in self.problems])
+
+    @property
+    def x0(self) -> np.ndarray:
+        return self._x0.copy()
+
+    def session_x(self, x: np.ndarray, s: int) -> np.ndarray:
+        """Session ``s``'s (0-based) own parameter vector in ``x``."""
+        return np.asarray(x)[self.maps[s]]
+
+    def data_residuals(self, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([p.data_residuals(self.session_x(x, s)) for s, p in enumerate(self.problems)])
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        # Data rows of every session first, then every prior row: what the robust loss expects.
+        parts = [_split(p, self.session_x(x, s)) for s, p in enumerate(self.problems)]
+        return np.concatenate([d for d, _ in parts] + [r for _, r in parts])
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        blocks = [(p.jacobian(self.session_x(x, s)), len(p.data) * RESIDUAL_WIDTH[p.data.measurement]) for s, p in enumerate(self.problems)]
+        n_data, n_prior = sum(n for _, n in blocks), sum(J.shape[0] - n for J, n in blocks)
+        J = np.zeros((n_data + n_prior, len(self.names)))
+        at_data, at_prior = 0, n_data
+        for (Js, n), cols in zip(blocks, self.maps):
+            J[at_data : at_data + n, cols] = Js[:n]
+            J[at_prior : at_prior + Js.shape[0] - n, cols] = Js[n:]
+            at_data, at_prior = at_data + n, at_prior + Js.shape[0] - n
+        return J
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        x = np.array(x, dtype=np.float64)
+        for s, p in enumerate(self.problems):
+            x[self.maps[s]] = p.clip(x[self.maps[s]])
+        return x
+
+
+class Partial:
+    """``problem`` with only the entries named ``free`` fitted, the others held at ``x_full``."""
+
+    def __init__(self, problem, free: list[str], x_full: np.ndarray):
+        names = list(problem.names)
+        missing = [n for n in free if n not in names]
+        if missing:
+            raise ValueError(f"{missing} are not entries of the problem")
+        self.problem, self.robot, self.data = problem, problem.robot, problem.data
+        self.cols = np.array([names.index(n) for n in free], dtype=int)
+        self.names = list(free)
+        self._full = np.array(x_full, dtype=np.float64)
+
+    @property
+    def x0(self) -> np.ndarray:
+        return self._full[self.cols].copy()
+
+    def full_x(self, x: np.ndarray) -> np.ndarray:
+        """The problem's whole vector with the fitted entries set to ``x``."""
+        full = self._full.copy()
+        full[self.cols] = x
+        return full
+
+    def data_residuals(self, x: np.ndarray) -> np.ndarray:
+        return self.problem.data_residuals(self.full_x(x))
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        return self.problem.residuals(self.full_x(x))
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return self.problem.jacobian(self.full_x(x))[:, self.cols]
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        return self.problem.clip(self.full_x(x))[self.cols]
