@@ -243,9 +243,13 @@ def add_kinematic_prior_argument(parser: argparse.ArgumentParser) -> None:
                         help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles")  # fmt: skip
 
 
-def add_data_arguments(parser: argparse.ArgumentParser) -> None:
-    """The arguments of every command that calibrates on a measurement file."""
-    parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
+def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) -> None:
+    """The arguments of every command that calibrates on a measurement file (``sessions``: on
+    one or more, each a session of one robot)."""
+    if sessions:
+        parser.add_argument("data", nargs="+", help="measurement file(s); several files are sessions of one robot (judged leave-one-session-out)")
+    else:
+        parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
     parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
     parser.add_argument("--measurement", choices=["cable", "position", "pose"])
     add_angle_unit_argument(parser)

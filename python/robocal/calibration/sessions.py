@@ -19,7 +19,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..robot import RESIDUAL_WIDTH, SETUP_PREFIXES
+from ..robot import RESIDUAL_WIDTH, SETUP_PREFIXES, Robot
+from .problem import Problem
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
 SESSION_KINDS = ("drift", "step", "temperature", "outliers")
 
@@ -41,6 +42,59 @@ def concatenate(datasets: list[Dataset]) -> Dataset:
 
     return replace(first, q=np.vstack([d.q for d in datasets]), y=np.vstack([d.y for d in datasets]), t=joined("t"), temp=joined("temp"),
                    rows=np.concatenate([d.rows for d in datasets]), source=None, excluded=[], notes=[], extra={})  # fmt: skip
+
+
+#: A column whose part not explained by the columns kept before it is below this fraction of its
+#: norm adds nothing the others cannot do: it is fixed.
+REDUNDANT = 1e-7
+
+
+def session_problems(robot: Robot, datasets: list[Dataset], mask) -> list[Problem]:
+    """One :class:`Problem` per session with free sets that fit together.
+
+    Fitted alone, each session resolves its redundancies its own way (``theta1`` or the
+    tracker's ``base_rz``, ``d1`` or ``base_z``); stacked, a shared parameter redundant with every
+    session's set-up must be the one fixed, since each session needs its own set-up. The columns
+    of the stacked Jacobian at the sessions' starts are kept greedily — every session's set-up
+    first, then the shared parameters — when they add a direction the kept ones do not span.
+    """
+    bases = [Problem.build(robot, d, mask=mask) for d in datasets]
+    cols = np.unique(robot.columns(mask, "mask"))
+    private = [c for c in cols if is_private(robot.param_names[c])]
+    shared = [c for c in cols if not is_private(robot.param_names[c])]
+    blocks = [robot.jacobian(d.measurement, d.q, y=d.y, params=b.start, cols=private + shared) for d, b in zip(datasets, bases)]
+    n, p = len(datasets), len(private)
+    stacked = np.zeros((sum(len(J) for J in blocks), n * p + len(shared)))
+    at = 0
+    for s, J in enumerate(blocks):
+        stacked[at : at + len(J), s * p : (s + 1) * p] = J[:, :p]
+        stacked[at : at + len(J), n * p :] = J[:, p:]
+        at += len(J)
+    kept = _independent(stacked)
+    out = []
+    for s, (d, b) in enumerate(zip(datasets, bases)):
+        free = [c for i, c in enumerate(private) if kept[s * p + i]] + [c for i, c in enumerate(shared) if kept[n * p + i]]
+        fixed = {robot.param_names[c]: "redundant with the set-ups of the sessions" for c in cols if c not in free}
+        out.append(replace(b, free=np.array(sorted(free), dtype=int), fixed=fixed))
+    return out
+
+
+def _independent(A: np.ndarray) -> np.ndarray:
+    """Which columns of ``A``, taken in order, add a direction the kept ones do not span."""
+    basis = np.zeros((A.shape[0], 0))
+    kept = np.zeros(A.shape[1], dtype=bool)
+    for j in range(A.shape[1]):
+        norm = np.linalg.norm(A[:, j])
+        if norm == 0.0:
+            continue
+        v = A[:, j] / norm
+        v = v - basis @ (basis.T @ v)
+        v = v - basis @ (basis.T @ v)  # twice: Gram-Schmidt keeps its orthogonality
+        rest = np.linalg.norm(v)
+        if rest > REDUNDANT:
+            basis = np.column_stack([basis, v / rest])
+            kept[j] = True
+    return kept
 
 
 def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

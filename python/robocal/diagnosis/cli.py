@@ -11,7 +11,8 @@ import numpy as np
 from ..calibration.api import add_data_arguments
 from ..calibration.result import describe_implausible
 from ..outputs import make_folder, save_figure, write_text
-from .select import Diagnosis, diagnose
+from . import diagnose
+from .select import Diagnosis
 
 
 def _quantities(params: dict) -> str:
@@ -43,6 +44,31 @@ def summary(report: dict) -> str:
                      f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
+    return "\n".join(lines)
+
+
+def sessions_summary(report: dict) -> str:
+    """A few lines for the terminal on a multi-session report."""
+    b, f = report["baseline"], report["final"]
+    rmse = lambda values: " / ".join(f"{v:.4f}" for v in values)  # noqa: E731
+    lines = [f"{report['robot']}, {report['measurement']} data, {len(report['sessions'])} sessions:"]
+    for i, s in enumerate(report["sessions"], start=1):
+        own = [e["label"] for e in s["diagnosis"]["effects"]]
+        lines.append(f"  session {i} ({s['source'] or 'data'}, {s['samples']} samples) on its own: " + ("; ".join(own) if own else "nothing beyond the geometry"))
+    lines.append(f"  geometric model, leave-one-session-out RMSE {b['rmse_loso']:.4f} mm (per session {rmse(b['per_session'])})")
+    if b["implausible"]:
+        lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))
+    for e in report["effects"]:
+        lines.append(f"  + {e['label']} (found in sessions {e['found_in_sessions']}): {_quantities(e['params'])}; held-out "
+                     f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})")  # fmt: skip
+    for r in report["rejected"]:
+        lines.append(f"  not carried: {r['label']} (found in sessions {r['found_in_sessions']}): {r['reason']}")
+    for i, s in enumerate(report["model"]["sessions"], start=1):
+        if s["causes"]:
+            lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
+    lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
+    if f["implausible"]:
+        lines.append("  warning: final model: " + describe_implausible(f["implausible"]))
     return "\n".join(lines)
 
 
@@ -92,7 +118,7 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_data_arguments(parser)
+    add_data_arguments(parser, sessions=True)
     parser.add_argument("--folds", type=int, default=5, help="folds of the random and the blocked cross-validation (default 5)")
     parser.add_argument("--alpha", type=float, default=0.05, help="family-wise significance level per selection round (default 0.05)")
     parser.add_argument("--plain-dh", action="store_true", help="baseline without Hayati beta (makes axis_misalignment a candidate)")
@@ -102,20 +128,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    d = diagnose(args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
+    d = diagnose(args.data[0] if len(args.data) == 1 else args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
                  hayati=not args.plain_dh, seed=args.seed, angle_unit=args.angle_unit)  # fmt: skip
     report = d.to_dict()
     text = json.dumps(report, indent=2)
     if args.json == "-":
         print(text)
     else:
-        print(summary(report))
+        print(summary(report) if len(args.data) == 1 else sessions_summary(report))
         if args.json:
             write_text(args.json, text)
     if args.out:
         out = make_folder(args.out)
         write_text(out / "report.json", text)
-        paths = write_figures(d, out)
+        paths = write_figures(d, out) if isinstance(d, Diagnosis) else []
         if args.json != "-":
             print(f"  wrote report.json and {len(paths)} figures to {out}")
     return 0

@@ -77,7 +77,7 @@ class Diagnosis:
                 "free": [self.robot.param_names[k] for k in self.model.free],
                 "parameters": {n: float(v) for n, v in zip(self.robot.param_names, self.model.full(self.x))},
                 "causes": [c.label for c in self.model.causes],
-                "structure": [e["label"] for e in self.effects if e["kind"] in ("joint_zero", "joint_sign", "joint_reference")],
+                "structure": [e["label"] for e in self.effects if e["kind"] in structure.KINDS],
             },
             "time_s": self.time_s,
         }
@@ -252,7 +252,7 @@ def _still_outlying(model: ExtendedProblem, x: np.ndarray, flagged: np.ndarray, 
     return flagged[z > z_bound]
 
 
-def _baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
+def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
     mask = robot.default_mask(measurement)
     if not hayati:
         for j, joint in enumerate(robot.joints, start=1):
@@ -325,7 +325,7 @@ def diagnose(
         raise InvalidParameterError(f"`groups` needs one label per sample, shape ({len(dataset)},); got {groups!r}")
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
-    mask = _baseline_mask(rob, dataset.measurement, hayati)
+    mask = baseline_mask(rob, dataset.measurement, hayati)
     dataset, effects, rejected = _structure(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
     k = RESIDUAL_WIDTH[dataset.measurement]

@@ -33,6 +33,8 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..effects import DEG
 
+#: The kinds of reading convention.
+KINDS = ("joint_zero", "joint_sign", "joint_reference")
 #: Zero offsets tried on every moving joint (deg).
 ZERO_OFFSETS = (90.0, 180.0, 270.0)
 #: Samples of the screening fits, their evaluation budget and how many hypotheses go on to

@@ -1,0 +1,271 @@
+"""Several sessions of one robot: ``robocal diagnose A.csv B.csv C.csv``.
+
+Each session is first diagnosed on its own (:func:`~robocal.diagnosis.select.diagnose`): its
+outliers, the steps and drift of its sensor, the causes its data support. What belongs to the
+*robot* — the reading conventions of its joints and the causes acting on them — must then hold
+on a session it was not fitted on. Every such candidate found in any session is judged by
+leave-one-session-out cross-validation: the robot (kinematics and shared causes) is fitted on
+all sessions but one, each with its own set-up and its own session terms
+(:class:`~robocal.calibration.sessions.Sessions`); on the left-out session only its set-up and
+its session terms are fitted, the robot held (:class:`~robocal.calibration.sessions.Partial`).
+Candidates are accepted greedily: one must lower the pooled held-out RMSE by ``min_gain`` while
+no left-out session gets worse by more than that. Session terms are never carried from one
+session to another.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ..calibration.api import load_inputs
+from ..calibration.lm import levenberg_marquardt
+from ..calibration.problem import PLAUSIBLE, is_kinematic
+from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
+from ..data.dataset import Dataset
+from ..exceptions import InvalidParameterError
+from ..progress import progress
+from ..robot import RESIDUAL_WIDTH, Robot
+from . import structure
+from .candidates import Candidate, library
+from .model import ExtendedProblem
+from .select import Diagnosis, baseline_mask, diagnose
+
+#: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
+SESSION_TERMS = SESSION_KINDS + ("frame",)
+
+
+@dataclass
+class _Session:
+    """One session: the data as read, the samples kept (its outliers out), its own terms."""
+
+    data: Dataset
+    diagnosis: Diagnosis
+    keep: np.ndarray = field(init=False)
+    terms: list = field(init=False)
+
+    def __post_init__(self):
+        self.keep = np.asarray(self.diagnosis.model.idx)
+        self.terms = [c for c in self.diagnosis.model.causes if c.kind in SESSION_TERMS]
+
+
+@dataclass(frozen=True)
+class _Model:
+    """What the sessions share beyond the kinematics: reading conventions and cause labels."""
+
+    structures: tuple = ()
+    causes: tuple = ()
+
+    def plus(self, candidate) -> "_Model":
+        if isinstance(candidate, structure.Structure):
+            return _Model(self.structures + (candidate,), self.causes)
+        return _Model(self.structures, self.causes + (candidate,))
+
+
+def _label(candidate) -> str:
+    return candidate.label if isinstance(candidate, structure.Structure) else candidate
+
+
+class _Evaluator:
+    """Per-session problems of a model (cached by their conventions) and their
+    leave-one-session-out errors."""
+
+    def __init__(self, robot: Robot, sessions: list[_Session], mask: np.ndarray, hayati: bool):
+        self.robot, self.sessions, self.mask, self.hayati = robot, sessions, mask, hayati
+        self._bases: dict = {}
+        self._starts: dict = {}
+
+    def problems(self, model: _Model) -> list[ExtendedProblem]:
+        key = tuple(c.label for c in model.structures)
+        if key not in self._bases:
+            datas = [structure.apply_all(session.data, list(model.structures)) for session in self.sessions]
+            bases = session_problems(self.robot, datas, self.mask)
+            pools = [{c.label: c for c in library(self.robot, d, list(b.names) + list(b.fixed), hayati=self.hayati)} for d, b in zip(datas, bases)]
+            self._bases[key] = list(zip(bases, datas, pools))
+        out = []
+        for session, (base, data, pool) in zip(self.sessions, self._bases[key]):
+            # a cause whose joint does not move in a session does not act there
+            shared = [pool[label] for label in model.causes if label in pool]
+            out.append(ExtendedProblem(base, session.terms + shared, data, session.keep))
+        return out
+
+    def held_out(self, model: _Model) -> list[np.ndarray]:
+        """Per session, the squared errors of its samples under the model fitted on the others."""
+        problems = self.problems(model)
+        errors = []
+        for h, held in enumerate(problems):
+            train = Sessions([p for s, p in enumerate(problems) if s != h])
+            fit = levenberg_marquardt(train, x0=self._warm(("train", h), train.names, train.x0), method="diagnose")
+            self._starts[("train", h)] = dict(zip(train.names, fit.x))
+            robot = self._starts[("train", h)]
+            start = np.array([v if is_private(n) else robot.get(n, v) for n, v in zip(held.names, held.x0)])
+            part = Partial(held, [n for n in held.names if is_private(n)], start)
+            fitted = levenberg_marquardt(part, x0=self._warm(("held", h), part.names, part.x0), method="diagnose")
+            self._starts[("held", h)] = dict(zip(part.names, fitted.x))
+            r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
+            errors.append(np.sum(r * r, axis=1))
+        return errors
+
+    def _warm(self, key, names: list[str], x0: np.ndarray) -> np.ndarray:
+        """``x0`` with the entries a previous fit of the same fold found (a smaller model's)."""
+        previous = self._starts.get(key, {})
+        return np.array([previous.get(n, v) for n, v in zip(names, x0)])
+
+
+def _rmse(errors: list[np.ndarray]) -> float:
+    return float(np.sqrt(np.mean(np.concatenate(errors))))
+
+
+def _per_session(errors: list[np.ndarray]) -> list[float]:
+    return [float(np.sqrt(np.mean(e))) for e in errors]
+
+
+@dataclass
+class SessionsDiagnosis:
+    """What :func:`diagnose_sessions` found; :meth:`to_dict` is the JSON report."""
+
+    robot: Robot
+    measurement: str
+    sessions: list
+    baseline: dict
+    effects: list
+    rejected: list
+    final: dict
+    model: dict
+    time_s: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {
+            "robot": self.robot.name,
+            "measurement": self.measurement,
+            "samples": sum(len(s.data) for s in self.sessions),
+            "sessions": [{"source": s.data.source, "samples": len(s.data), "diagnosis": s.diagnosis.to_dict()} for s in self.sessions],
+            "baseline": self.baseline,
+            "effects": self.effects,
+            "rejected": self.rejected,
+            "final": self.final,
+            "model": self.model,
+            "time_s": self.time_s,
+        }
+
+
+def _implausible(robot: Robot, values: dict) -> list[dict]:
+    """Kinematic parameters of ``values`` beyond :data:`PLAUSIBLE` from nominal."""
+    out = []
+    for name, value in values.items():
+        if name in robot.param_names and is_kinematic(name):
+            k = robot.index(name)
+            unit, deviation = robot.param_units[k], float(value - robot.params[k])
+            if unit in PLAUSIBLE and abs(deviation) > PLAUSIBLE[unit]:
+                out.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
+    return out
+
+
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def diagnose_sessions(
+    data: list,
+    robot=None,
+    measurement: Optional[str] = None,
+    folds: int = 5,
+    alpha: float = 0.05,
+    max_effects: int = 4,
+    min_gain: float = 0.005,
+    hayati: bool = True,
+    seed: int = 0,
+    angle_unit: Optional[str] = None,
+) -> SessionsDiagnosis:
+    """Diagnoses several sessions of one robot (see the module notes).
+
+    Parameters are those of :func:`~robocal.diagnosis.select.diagnose`; ``data`` is a list of at
+    least two files or Datasets, one per session, of the same robot and measurement.
+
+    Returns
+    -------
+    SessionsDiagnosis
+        ``to_dict()``: ``sessions`` (each with its own diagnosis), ``baseline`` and ``final``
+        (pooled leave-one-session-out RMSE ``rmse_loso``, ``per_session``, ``implausible``),
+        ``effects`` and ``rejected`` (the shared candidates with their held-out errors), ``model``
+        (``structure`` and ``causes`` shared by the robot — what ``calibrate --causes`` takes —
+        and each session's own terms).
+    """
+    t0 = time.perf_counter()
+    if not isinstance(data, (list, tuple)) or len(data) < 2:
+        raise InvalidParameterError(f"a multi-session diagnosis needs a list of at least two sessions; got {data!r}")
+    loaded = [load_inputs(d, robot, measurement, angle_unit) for d in data]
+    rob, kind = loaded[0][1], loaded[0][0].measurement
+    for i, (d, r) in enumerate(loaded[1:], start=2):
+        if r.name != rob.name or d.measurement != kind:
+            raise InvalidParameterError(f"session {i} ({d.source or 'data'}) holds {d.measurement} data of {r.name}; session 1 holds {kind} data of {rob.name}")
+    sessions = []
+    for d, _ in progress(loaded, desc="diagnose: each session on its own", unit="session"):
+        sessions.append(_Session(d, diagnose(d, rob, folds=folds, alpha=alpha, max_effects=max_effects, min_gain=min_gain, hayati=hayati, seed=seed)))
+    evaluator = _Evaluator(rob, sessions, baseline_mask(rob, kind, hayati), hayati)
+
+    found: dict = {}  # label -> (candidate, sessions it was found in)
+    for s, session in enumerate(sessions, start=1):
+        report = session.diagnosis.to_dict()
+        for label in report["model"]["structure"]:
+            found.setdefault(label, (structure.parse(label, rob.n_joints), []))[1].append(s)
+        for c in session.diagnosis.model.causes:
+            if c.kind not in SESSION_TERMS:
+                found.setdefault(c.label, (c.label, []))[1].append(s)
+
+    model = _Model()
+    current = evaluator.held_out(model)
+    geometric = Sessions(evaluator.problems(model))
+    geometric_fit = levenberg_marquardt(geometric, method="diagnose")
+    baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
+                "implausible": _implausible(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
+    effects, rejected = [], []
+    pending = dict(found)
+    while pending and len(effects) < max_effects:
+        trials = []
+        for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
+            trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
+        trials.sort(key=lambda t: t[0])
+        rmse, label, candidate, where, errors = trials[0]
+        before, after = _per_session(current), _per_session(errors)
+        worse = [s + 1 for s, (b, a) in enumerate(zip(before, after)) if a > (1.0 + min_gain) * b]
+        if rmse > (1.0 - min_gain) * _rmse(current) or worse:
+            for rmse_t, label_t, candidate_t, where_t, errors_t in trials:
+                why = (f"held-out error on session(s) {worse} rises" if label_t == label and worse else
+                       f"pooled held-out RMSE {rmse_t:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm")  # fmt: skip
+                rejected.append(_entry(label_t, candidate_t, where_t, current, errors_t, why))
+            break
+        effects.append(_entry(label, candidate, where, current, errors, None))
+        model, current = model.plus(candidate), errors
+        del pending[label]
+
+    problems = evaluator.problems(model)
+    joint = Sessions(problems)
+    fit = levenberg_marquardt(joint, x0=np.array([dict(zip(geometric.names, geometric_fit.x)).get(n, v) for n, v in zip(joint.names, joint.x0)]), method="diagnose")
+    values = {n: float(v) for n, v in zip(joint.names, fit.x) if not is_private(n)}
+    parameters = {n: v for n, v in values.items() if n in rob.param_names}
+    for e in effects:  # physical size from the fit on every session
+        s = next(i for i, p in enumerate(problems) if any(c.label == e["label"] for c in p.causes)) if e["kind"] not in structure.KINDS else None
+        if s is not None:
+            described = problems[s].describe_causes(joint.session_x(fit.x, s), None if fit.std is None else joint.session_x(fit.std, s))
+            e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
+    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": _implausible(rob, parameters),
+             "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
+    return SessionsDiagnosis(
+        robot=rob, measurement=kind, sessions=sessions, baseline=baseline, effects=effects, rejected=rejected, final=final,
+        model={"structure": [s.label for s in model.structures], "causes": list(model.causes), "parameters": parameters,
+               "sessions": [{"source": s.data.source, "causes": [c.label for c in s.terms]} for s in sessions]},
+        time_s=time.perf_counter() - t0,
+    )  # fmt: skip
+
+
+def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
+    kind = candidate.kind if isinstance(candidate, structure.Structure) else label.split(" ")[0]
+    joint = candidate.joint + 1 if isinstance(candidate, structure.Structure) else (int(label.split(" ")[2]) if " joint " in label else None)
+    entry = {"kind": kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
+             "found_in_sessions": where, "rmse_loso_before": _rmse(before), "rmse_loso_after": _rmse(after),
+             "per_session_before": _per_session(before), "per_session_after": _per_session(after)}  # fmt: skip
+    if reason is not None:
+        entry["reason"] = reason
+    return entry
