@@ -127,7 +127,8 @@ def calibrate(
     causes : list of str, dict or path, optional
         An extended model: cause labels as ``robocal diagnose`` reports them (e.g.
         ``"joint_periodic joint 2 harmonic=3"``, ``"joint_sign joint 4"``), or a diagnose report
-        (dict or JSON file) whose causes are taken. Reading conventions (``joint_zero``,
+        (dict or JSON file) whose causes — and the tolerance prior of its final model, unless
+        ``kinematic_prior`` is given — are taken. Reading conventions (``joint_zero``,
         ``joint_sign``, ``joint_reference``) transform the joint readings before the fit. Fitted with the geometric parameters by ``method="lm"``; the result
         JSON then has ``causes`` with their physical parameters.
     angle_unit : {"deg", "rad"}, optional
@@ -152,7 +153,9 @@ def calibrate(
     if causes is not None:
         from ..diagnosis import structure  # the diagnose package imports this module
 
-        parsed = [(label, structure.parse(label, r.n_joints)) for label in cause_labels(causes)]
+        labels, reported_prior = read_causes(causes)
+        kinematic_prior = reported_prior if kinematic_prior is None else kinematic_prior
+        parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
         structures = [s for _, s in parsed if s is not None]
         labels = [label for label, s in parsed if s is None]
         dataset = structure.apply_all(dataset, structures)  # the readings in the model's convention
@@ -179,7 +182,7 @@ def calibrate(
     result = levenberg_marquardt(model, **_checked_options(levenberg_marquardt, method, options))
     result.structure = [s.label for s in structures]
     if test is not None:
-        result.metrics["test"] = metrics(model.with_samples(test_idx).residuals(result.x), test.measurement)
+        result.metrics["test"] = metrics(model.with_samples(test_idx).data_residuals(result.x), test.measurement)
         result.held_out = test
     return result
 
@@ -193,16 +196,19 @@ def _checked_options(function: Callable, method: str, options: dict) -> dict:
     return options
 
 
-def cause_labels(causes) -> list[str]:
-    """Cause labels from labels, a diagnose report (dict) or its JSON file: the report's
-    reading conventions (``model.structure``) first, then its ``model.causes``."""
+def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
+    """Cause labels from labels, a diagnose report (dict) or its JSON file — the report's
+    reading conventions (``model.structure``) first, then its ``model.causes`` — and the
+    report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
     if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
         try:
             causes = json.loads(Path(causes).read_text())
         except (OSError, ValueError) as exc:
             raise InvalidParameterError(f"cannot read the diagnose report {causes}: {exc}") from None
+    prior = None
     if isinstance(causes, dict):
         try:
+            prior = causes["model"].get("kinematic_prior")
             causes = list(causes["model"].get("structure", [])) + list(causes["model"]["causes"])
         except (KeyError, TypeError, AttributeError):
             raise InvalidParameterError("a diagnose report needs model.causes (the JSON of `robocal diagnose --json`)") from None
@@ -210,7 +216,7 @@ def cause_labels(causes) -> list[str]:
         causes = [causes]
     if not isinstance(causes, (list, tuple)) or not all(isinstance(c, str) for c in causes):
         raise InvalidParameterError(f"`causes` must be cause labels, a diagnose report or its JSON file; got {causes!r}")
-    return list(causes)
+    return list(causes), None if prior is None else tuple(prior)
 
 
 def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str]):

@@ -29,6 +29,9 @@ KINEMATIC = ("alpha", "a", "d", "theta", "beta")
 #: (mm, rad): manufacturing and assembly errors of industrial arms are tenths of a mm to a few
 #: mm and hundredths to tenths of a degree; 10 mm or 2 degrees is a curve fit, not a calibration.
 PLAUSIBLE = {"mm": 10.0, "rad": np.radians(2.0)}
+#: Standard deviations of the manufacturing-tolerance prior of a physical model (mm, rad): what
+#: the geometry of an industrial arm deviates from its drawing, as a Gaussian at nominal.
+TOLERANCE = {"mm": 1.0, "rad": np.radians(0.1)}
 
 
 def is_kinematic(name: str) -> bool:

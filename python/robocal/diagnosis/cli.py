@@ -39,6 +39,14 @@ def summary(report: dict) -> str:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(f"  + {e['kind']}{where}: {_quantities(e['params'])}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm")
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
+    prior = f.get("tolerance_prior")
+    if prior and prior["accepted"]:
+        lines.append(f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
+                     f"where the data leave it undetermined; unconstrained held-out RMSE {f['rmse_heldout_unconstrained']:.4f} mm")  # fmt: skip
+    elif prior:
+        lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
+    if f.get("implausible"):
+        lines.append("  warning: final model: " + describe_implausible(f["implausible"]))
     if "floor_mm" in f:
         lines.append(f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
                      f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")

@@ -43,6 +43,9 @@ class ExtendedProblem:
             self.slices.append(slice(at, at + n))
             at += n
         self.n = at
+        # The base problem's priors (name -> (mean, sigma)) act on the same names here.
+        names = self.names
+        self._prior = [(names.index(n), m, sd) for n, (m, sd) in base.prior.items() if n in names]
         theta = {self.robot.index(f"theta{j + 1}") for j in range(self.robot.n_joints)}
         self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
         self._theta = sorted(theta)
@@ -127,6 +130,15 @@ class ExtendedProblem:
         raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`data_residuals` followed by the prior rows of the base problem."""
+        r = self.data_residuals(x)
+        if not self._prior:
+            return r
+        idx, mean, sigma = (np.array(v) for v in zip(*self._prior))
+        return np.concatenate([r, self.base.prior_scale * (mean - np.asarray(x)[idx]) / sigma])
+
+    def data_residuals(self, x: np.ndarray) -> np.ndarray:
+        """``y − h`` of every sample, flattened."""
         p, q = self.full(x), self.joints(x)
         r = self.robot.residuals(self.data.measurement, q, self.data.y, params=p).ravel()
         observed = [(c, s) for c, s in zip(self.causes, self.slices) if c.stage == "observations"]
@@ -136,12 +148,16 @@ class ExtendedProblem:
                 r = r - self.columns(x, c, parts, p) @ x[s]
         return r
 
-    data_residuals = residuals
-
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         J, p, parts = self._jacobian_columns(x, [])
         blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
-        return np.hstack(blocks)
+        J = np.hstack(blocks)
+        if not self._prior:
+            return J
+        rows = np.zeros((len(self._prior), J.shape[1]))
+        for row, (i, _, sigma) in enumerate(self._prior):
+            rows[row, i] = self.base.prior_scale / sigma
+        return np.vstack([J, rows])
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)

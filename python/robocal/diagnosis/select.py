@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import Problem, start_parameters
+from ..calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import kfold
@@ -78,6 +78,8 @@ class Diagnosis:
                 "parameters": {n: float(v) for n, v in zip(self.robot.param_names, self.model.full(self.x))},
                 "causes": [c.label for c in self.model.causes],
                 "structure": [e["label"] for e in self.effects if e["kind"] in structure.KINDS],
+                # (mm, deg) of the final model's tolerance prior on the kinematics, if it has one
+                "kinematic_prior": [prior["sigma_mm"], prior["sigma_deg"]] if (prior := self.final.get("tolerance_prior")) and prior["accepted"] else None,
             },
             "time_s": self.time_s,
         }
@@ -205,7 +207,7 @@ def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = No
         setup, x0 = (None, None) if starts is None else starts[i]
         fold = _fold_problem(ext, train, setup)
         fit = _fit(fold, x0=x0)
-        r = ExtendedProblem(fold.base, ext.causes, ext.full_data, ext.idx[test]).residuals(fit.x)
+        r = ExtendedProblem(fold.base, ext.causes, ext.full_data, ext.idx[test]).data_residuals(fit.x)
         err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
         fits.append((fold.base.start, fit.x))
     return err, fits
@@ -246,7 +248,7 @@ def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.nda
 def _still_outlying(model: ExtendedProblem, x: np.ndarray, flagged: np.ndarray, z_bound: float) -> np.ndarray:
     """The ``flagged`` samples still beyond the bound under the fitted extended ``model``."""
     m = len(model.full_data)
-    r = model.with_samples(np.arange(m)).residuals(x).reshape(m, model.k)
+    r = model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
     kept = r[model.idx]
     z = np.sqrt(np.sum((r[flagged] / robust_sigma(kept)) ** 2, axis=1))
     return flagged[z > z_bound]
@@ -430,6 +432,9 @@ def diagnose(
         current_cv = new_cv
 
     model = ExtendedProblem(base, causes, dataset, keep)
+    unconstrained = _rmse(current_cv["random"])
+    model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
+    x = final_fit.x
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     if len(outliers) and causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
@@ -454,9 +459,53 @@ def diagnose(
                   "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
         final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n),
-               "floor_mm": budget["floor_mm"], "floor": budget},
+               "floor_mm": budget["floor_mm"], "floor": budget,
+               # The physical model: a tolerance prior where the geometry is undetermined
+               # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
+               "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
+
+
+#: The tolerance prior may cost at most this fraction of held-out error: beyond it the data
+#: contradict a physical geometry rather than leave it undetermined.
+PRIOR_COST = 0.05
+
+
+def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict):
+    """The final model made physical where the data leave the geometry undetermined.
+
+    A fit whose kinematic parameters lie beyond the plausibility limits, or whose parameter
+    combinations are wider than them (:meth:`CalibrationResult.undetermined`), is fitted again
+    with a manufacturing-tolerance prior at nominal on every kinematic parameter
+    (:data:`TOLERANCE`, weighted against the sensor's nominal noise): well-determined directions
+    keep what the data say, the others stay near the drawing instead of running to metres. The
+    prior is kept if its held-out error (on every fold scheme) is within
+    :data:`PRIOR_COST` of the unconstrained model's; otherwise the data contradict a physical
+    geometry, and the unconstrained model stays with its implausible parameters listed.
+
+    Returns the model, its fit, its held-out errors and the report entry of the prior (``None``
+    if the fit was physical already).
+    """
+    fit = _fit(model, x0=x)
+    if not fit.implausible() and not fit.undetermined():
+        return model, fit, current_cv, None
+    robot, start = model.robot, model.base.start
+    prior = {robot.param_names[k]: (float(start[k]), TOLERANCE[robot.param_units[k]]) for k in model.free
+             if is_kinematic(robot.param_names[k]) and robot.param_units[k] in TOLERANCE}  # fmt: skip
+    physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
+    x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
+    entry = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"])), "accepted": False}
+    cv = {}
+    for name, folds in schemes.items():  # random, blocked, then groups
+        cv[name] = _nonlinear_cv(physical, folds)[0]
+        entry[f"rmse_heldout_{name}"] = _rmse(cv[name])
+        if _rmse(cv[name]) > (1.0 + PRIOR_COST) * _rmse(current_cv[name]):
+            entry["reason"] = (f"the prior raises the {name}-fold held-out RMSE from {_rmse(current_cv[name]):.4g} to {_rmse(cv[name]):.4g} mm: "
+                               "the data contradict a geometry within the tolerances; the unconstrained model is kept")  # fmt: skip
+            return model, fit, current_cv, entry
+    entry["accepted"] = True
+    return physical, _fit(physical, x0=x0), {**current_cv, **cv}, entry
 
 
 def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:

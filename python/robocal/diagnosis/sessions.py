@@ -227,14 +227,17 @@ def diagnose_sessions(
         for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
             trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
         trials.sort(key=lambda t: t[0])
-        rmse, label, candidate, where, errors = trials[0]
-        before, after = _per_session(current), _per_session(errors)
-        worse = [s + 1 for s, (b, a) in enumerate(zip(before, after)) if a > (1.0 + min_gain) * b]
-        if rmse > (1.0 - min_gain) * _rmse(current) or worse:
-            for rmse_t, label_t, candidate_t, where_t, errors_t in trials:
-                why = (f"held-out error on session(s) {worse} rises" if label_t == label and worse else
-                       f"pooled held-out RMSE {rmse_t:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm")  # fmt: skip
-                rejected.append(_entry(label_t, candidate_t, where_t, current, errors_t, why))
+        before, reasons = _per_session(current), {}
+        for rmse, label, candidate, where, errors in trials:  # the best that helps without hurting a session
+            worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors))) if a > (1.0 + min_gain) * b]
+            if rmse > (1.0 - min_gain) * _rmse(current):
+                reasons[label] = f"pooled held-out RMSE {rmse:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm"
+            elif worse:
+                reasons[label] = f"held-out error on session(s) {worse} rises"
+            else:
+                break
+        else:
+            rejected += [_entry(label, candidate, where, current, errors, reasons[label]) for _, label, candidate, where, errors in trials]
             break
         effects.append(_entry(label, candidate, where, current, errors, None))
         model, current = model.plus(candidate), errors
