@@ -311,6 +311,25 @@ def test_hidden_reading_convention_is_named(robot, measurement, kind):
     assert report["baseline"]["implausible"] == []
 
 
+@pytest.mark.parametrize("robot,measurement", [(r, m) for r in ROBOTS for m in ("cable", "position")])
+def test_hidden_remastered_joint_is_named(robot, measurement):
+    """A joint re-mastered a few degrees off (a zero error no DH deviation reaches): diagnose
+    names a continuous ``joint_zero`` of that joint, its offset within a few of the simulated
+    geometric errors of ``theta`` (which the zero error absorbs)."""
+    rng = np.random.default_rng([ROBOTS.index(robot), ("cable", "position").index(measurement), 31])
+    j, offset = int(rng.integers(2, 6)), float(rng.choice([-1.0, 1.0]) * rng.uniform(3.0, 8.0))
+    data, truth = simulate(robot, measurement, samples=600, seed=int(rng.integers(1000)))
+    q = data.q.copy()
+    q[:, j - 1] -= np.radians(offset)
+    report = diagnose(replace(data, q=q)).to_dict()
+    found = [e for e in report["effects"] if e["kind"] == "joint_zero"]
+    assert found and found[0]["joint"] == j, f"joint {j} {offset:.3f} deg: effects {[e['label'] for e in report['effects']]}"
+    theta = truth["parameters"][f"theta{j}"]
+    expected = offset + np.degrees(theta["value"] - theta["nominal"])
+    assert found[0]["params"]["offset"]["value"] == pytest.approx(expected, abs=0.05)
+    assert report["baseline"]["implausible"] == []
+
+
 def test_no_reading_convention_is_claimed_on_narrow_clean_data():
     """Clean data over a D1-like narrow region (every joint within ±5°, joint 6 constant): the
     geometry is poorly determined and may go implausible, but no convention makes it plausible at

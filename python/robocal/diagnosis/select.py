@@ -512,8 +512,11 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
     """The joint-reading conventions (:mod:`.structure`) that make an implausible geometric fit
     plausible: the data with them applied, their report entries and the alternatives rejected.
     Searched only when the geometric fit of the data as read is implausible."""
+    def geometric(d: Dataset, max_nfev=None):
+        return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
+
     def fit(d: Dataset, max_nfev=None):
-        result = levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
+        result = geometric(d, max_nfev)
         return result.metrics["train"]["rmse"], len(result.implausible())
 
     order = acquisition_order(data)
@@ -523,10 +526,12 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
         return {name: _rmse(_nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
 
-    rmse, bad = fit(data)
-    if bad == 0:
+    as_read = geometric(data)
+    bad = as_read.implausible()
+    if not bad:
         return data, [], []
-    accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], rmse, bad), seed)
+    baseline = structure.Trial([], as_read.metrics["train"]["rmse"], len(bad))
+    accepted, effects, rejected = structure.search(data, fit, cross_validate, baseline, seed, extra=structure.zero_errors(bad))
     return structure.apply_all(data, accepted), effects, rejected
 
 

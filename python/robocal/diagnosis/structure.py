@@ -7,7 +7,8 @@ the model needs:
 
 ``joint_zero``
     ``q_j + offset``: the DH θ offset already included in the reading, or not (a multiple of
-    90°), or a joint re-mastered after a crash or a motor change (any offset).
+    90°), or a joint re-mastered after a crash or a motor change (any offset: proposed where a
+    geometric fit moves ``theta_j`` beyond the limits, :func:`zero_errors`).
 ``joint_sign``
     ``−q_j``: the joint counts the other way.
 ``joint_reference``
@@ -142,13 +143,24 @@ class Trial:
     heldout: Optional[dict] = None
 
 
-def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0) -> tuple[list[Structure], list[dict], list[dict]]:
+def zero_errors(implausible: list[dict]) -> list[Structure]:
+    """Continuous zero errors (a joint re-mastered after a crash or a motor change): one
+    ``joint_zero`` per ``theta`` offset a geometric fit moved beyond the plausibility limits
+    (``implausible`` as :meth:`CalibrationResult.implausible` lists them), at the offset it
+    found (rounded to 0.001°)."""
+    return [Structure("joint_zero", int(f["name"][len("theta"):]) - 1, round(f["deviation"] / DEG, 3) * DEG)
+            for f in implausible if f["name"].startswith("theta")]  # fmt: skip
+
+
+def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0,
+           extra: tuple = ()) -> tuple[list[Structure], list[dict], list[dict]]:  # fmt: skip
     """Greedy search for the reading conventions that make the geometry plausible.
 
     ``fit(dataset, max_nfev) -> (rmse, n_implausible)`` fits the geometric model;
     ``cross_validate(dataset) -> {scheme: held-out RMSE}``. ``baseline`` is the fit of the data
-    as read (its held-out RMSE is cross-validated when a hypothesis needs the comparison). Returns the accepted structures, their report entries and
-    the rejected or undetermined alternatives.
+    as read (its held-out RMSE is cross-validated when a hypothesis needs the comparison);
+    ``extra`` hypotheses (:func:`zero_errors` of that fit) join the first round. Returns the
+    accepted structures, their report entries and the rejected or undetermined alternatives.
     """
     accepted, effects, rejected = [], [], []
     current = baseline
@@ -159,7 +171,7 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
             break
         now = apply_all(data, accepted)
         scored = []
-        for h in hypotheses(now):
+        for h in hypotheses(now) + ([] if accepted else list(extra)):
             rmse, bad = fit(apply_all(now.subset(screen), [h]), SCREEN_NFEV)
             scored.append((bad, rmse, h))
         scored.sort(key=lambda s: (s[0], s[1], s[2].size()))
