@@ -152,3 +152,23 @@ def test_bad_result_files_raise(calibrated, tmp_path):
     bad_diag.write_text("{}")
     with pytest.raises(InvalidParameterError, match="diagnose"):
         report(path, tmp_path / "d", diagnosis=bad_diag)
+
+
+def test_diagnosis_section_shows_structure_budget_and_sessions(calibrated, tmp_path):
+    """A diagnosis that found a reading convention: the page names it with its alternatives, the
+    error budget (final held-out RMSE beside the floor of the data's resolution) and, for several
+    sessions, what each session keeps."""
+    path, _, _ = calibrated
+    data, _ = robocal.simulate("abb-irb120", "position", samples=300, seed=2)
+    flipped = data.q.copy()
+    flipped[:, 2] *= -1.0
+    from dataclasses import replace
+
+    diagnosis = robocal.diagnose(replace(data, q=flipped)).to_dict()
+    assert diagnosis["effects"][0]["label"] == "joint_sign joint 3"
+    text = report(path, tmp_path / "one", diagnosis=diagnosis).read_text()
+    assert "<h3>Structure</h3>" in text and "joint_sign joint 3" in text
+    assert "<h3>Error budget</h3>" in text and f"{diagnosis['final']['floor_mm']:.4f}" in text
+    sessions = robocal.diagnose([robocal.simulate("abb-irb120", "position", samples=200, seed=2, session=s)[0] for s in range(2)]).to_dict()
+    text = report(path, tmp_path / "two", diagnosis=sessions).read_text()
+    assert "<h3>Sessions</h3>" in text and "sessions it was not fitted on" in text

@@ -33,7 +33,9 @@ import numpy as np
 from ._robocal import __version__
 from .calibration.metrics import sample_errors
 from .calibration.problem import is_kinematic, start_parameters
+from .calibration.result import describe_implausible
 from .data.dataset import Dataset
+from .diagnosis import structure
 from .exceptions import InvalidParameterError, RobocalError
 from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
@@ -117,9 +119,10 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
         except ValueError as exc:
             raise InvalidParameterError(f"{diagnosis}: the diagnose report is not valid JSON ({exc})") from None
     if report is not None:
-        ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and "rmse_heldout" in report["baseline"] and isinstance(report.get("effects"), list)
-        if not ok:
-            raise InvalidParameterError(f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report (needs baseline.rmse_heldout and effects)")
+        ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
+        if not ok or _held(report) not in report["baseline"]:
+            raise InvalidParameterError(f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report "
+                                        "(needs baseline.rmse_heldout, or baseline.rmse_loso for several sessions, and effects)")  # fmt: skip
     return report
 
 
@@ -331,16 +334,22 @@ def _fig_identifiability(ev: _Evaluation, out: Path) -> Optional[Path]:
     return _save(fig, out / "identifiability.png")
 
 
+def _held(report: dict) -> str:
+    """The key of a report's held-out RMSE: cross-validated within one session, or
+    leave-one-session-out over several."""
+    return "rmse_loso" if "sessions" in report else "rmse_heldout"
+
+
 def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
-    effects = report["effects"]
+    effects, key = report["effects"], _held(report)
     steps = []
     outliers = [e for e in effects if e.get("kind") == "outliers"]
     if outliers and outliers[0].get("rmse_heldout_before") is not None:
         steps.append(("geometric, outliers kept", float(outliers[0]["rmse_heldout_before"])))
-    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), float(report["baseline"]["rmse_heldout"])))
+    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), float(report["baseline"][key])))
     for e in effects:
         if e.get("kind") != "outliers":
-            steps.append((f"+ {e.get('label') or e.get('kind')}", float(e["rmse_heldout_after"])))
+            steps.append((f"+ {e.get('label') or e.get('kind')}", float(e[f"{key}_after"])))
     return steps
 
 
@@ -357,7 +366,8 @@ def _fig_diagnosis(report: dict, out: Path) -> Path:
     ax.set_yticks(y, names, fontsize=9)
     ax.set_xlim(0, rmse.max() * 1.3)
     folds = report["baseline"].get("folds")
-    ax.set(xlabel=f"held-out RMSE (mm){f', {folds}-fold cross-validation' if folds else ''}", title="Held-out error as the diagnosed causes are added")
+    how = ", leave-one-session-out" if "sessions" in report else (f", {folds}-fold cross-validation" if folds else "")
+    ax.set(xlabel=f"held-out RMSE (mm){how}", title="Held-out error as the diagnosed causes are added")
     fig.tight_layout()
     return _save(fig, out / "diagnosis.png")
 
@@ -494,17 +504,78 @@ def _causes(doc: dict) -> str:
 
 
 def _diagnosis_table(report: dict) -> str:
-    rows = []
+    key, rows = _held(report), []
     for e in report["effects"]:
         rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")),
-                     _fixed(e.get("rmse_heldout_before"), 4), _fixed(e.get("rmse_heldout_after"), 4)])  # fmt: skip
+                     _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])  # fmt: skip
     b, f = report["baseline"], report.get("final") or {}
     intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
-             f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b['rmse_heldout'], 4)} mm"
-             f"{', final ' + _fixed(f['rmse_heldout'], 4) + ' mm' if f.get('rmse_heldout') is not None else ''}.</p>")  # fmt: skip
+             f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b[key], 4)} mm"
+             f"{', final ' + _fixed(f[key], 4) + ' mm' if f.get(key) is not None else ''}.</p>")  # fmt: skip
     if not rows:
         return intro + "<p>No cause beyond the geometric model is significant: the residuals look like noise.</p>"
     return intro + _table(["effect", "parameters", "held-out RMSE before (mm)", "after (mm)"], rows, numeric={2, 3})
+
+
+#: Kinds that change how the data are read rather than add a smooth term.
+STRUCTURAL = structure.KINDS + ("step",)
+
+
+def _structure_section(report: dict) -> str:
+    """The structural causes found (reading conventions, sensor steps) with the alternatives the
+    data could not tell apart, and the structural hypotheses rejected."""
+    found = [e for e in report["effects"] if e.get("kind") in STRUCTURAL]
+    tried = [r for r in report.get("rejected", []) if r.get("kind") in STRUCTURAL]
+    if not found and not tried:
+        return ""
+    rows = [[_esc(e["label"]), _quantities(e.get("params")), _esc(", ".join((e.get("significance") or {}).get("undetermined_between") or []) or "none")] for e in found]
+    part = ("<h3>Structure</h3><p>How the controller reports its joints (a zero 90° away or re-mastered, a reversed sign, a joint read "
+            "relative to another) and steps of the sensor's zero or the tracker's position: not small corrections but a different reading "
+            "of the data, each judged by full re-fits.</p>")  # fmt: skip
+    if rows:
+        part += _table(["found", "parameters", "alternatives the data cannot tell apart"], rows)
+    if tried:
+        part += _table(["rejected", "why"], [[_esc(r["label"]), _esc(r.get("reason", ""))] for r in tried[:8]])
+    return part
+
+
+def _budget_section(report: dict) -> str:
+    """The error budget (what the data's resolution explains) and the physical model's state."""
+    f = report.get("final") or {}
+    part = ""
+    floor = f.get("floor")
+    if isinstance(floor, dict) and f.get("floor_mm") is not None and f.get("rmse_heldout") is not None:
+        rows = [["final held-out RMSE", _fixed(f["rmse_heldout"], 4)], ["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
+                ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)], ["floor (both)", _fixed(f["floor_mm"], 4)],
+                ["unexplained above the floor", _fixed(max(f["rmse_heldout"] - f["floor_mm"], 0.0), 4)]]  # fmt: skip
+        part += ("<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains "
+                 f"({_esc(floor.get('note', ''))}).</p>" + _table(["", "mm"], rows, numeric={1}))  # fmt: skip
+    prior = f.get("tolerance_prior")
+    if prior:
+        if prior.get("accepted"):
+            part += (f'<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
+                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get('rmse_heldout_unconstrained'), 4)} mm.</p>")  # fmt: skip
+        else:
+            part += f'<p class="warn">No physical model: a tolerance prior (±{_esc(prior["sigma_mm"])} mm, ±{_esc(prior["sigma_deg"])}°) was tried; {_esc(prior.get("reason", ""))}.</p>'
+    if f.get("implausible"):
+        part += '<p class="warn">Final model: ' + _esc(describe_implausible(f["implausible"])) + ".</p>"
+    return part
+
+
+def _sessions_section(report: dict) -> str:
+    """Per session of a multi-session diagnosis: what its own data show and what it keeps."""
+    if "sessions" not in report:
+        return ""
+    own = (report.get("model") or {}).get("sessions") or []
+    rows = []
+    for i, s in enumerate(report["sessions"]):
+        d = s.get("diagnosis") or {}
+        kept = own[i]["causes"] if i < len(own) else []
+        rows.append([str(i + 1), _esc(s.get("source") or ""), str(s.get("samples", "")), _esc("; ".join(e.get("label", "") for e in d.get("effects", [])) or "none"),
+                     _esc("; ".join(kept) or "none"), _fixed(report["final"]["per_session"][i], 4) if i < len(report["final"].get("per_session", [])) else ""])  # fmt: skip
+    return ("<h3>Sessions</h3><p>Each session diagnosed on its own; a cause of the robot is kept only if it lowers the error of sessions it was not "
+            "fitted on. Session terms (steps, drift, outliers, set-up) stay with their session.</p>"
+            + _table(["session", "file", "samples", "found on its own", "keeps", "held-out RMSE (mm), left out"], rows, numeric={2, 5}))  # fmt: skip
 
 
 def _figure(path: Path, caption: str) -> str:
@@ -582,7 +653,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     if diag is not None:
         p = _fig_diagnosis(diag, out)
         diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
-                     + _diagnosis_table(diag))  # fmt: skip
+                     + _diagnosis_table(diag) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
 
     title = f"robocal calibration report: {doc.get('robot', '')}"
     note_html = "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in notes)
