@@ -129,3 +129,24 @@ def test_targets_from_configurations_within_the_limits_are_reached_within_them()
     solved = np.radians([r["q"] for r in rows])
     assert np.all(solved >= lower - 1e-9) and np.all(solved <= upper + 1e-9)
     assert max(r["residual_mm"] for r in reached) < 1e-4
+
+
+def test_commands_are_in_the_controllers_reading_convention(tmp_path):
+    """A controller that reports joint 3 reversed: the calibration applies the convention, and
+    compensation takes seeds and returns commands as that controller reads them — the robot,
+    commanded so, reaches the targets."""
+    from dataclasses import replace
+
+    data, truth = simulate("ur10", "position", samples=300, seed=8)
+    flip = np.where(np.arange(6) == 2, -1.0, 1.0)
+    result = robocal.calibrate(replace(data, q=data.q * flip), robot="ur10", test_fraction=0.0, causes=["joint_sign joint 3"])
+    doc = result.to_dict()
+    assert doc["structure"] == ["joint_sign joint 3"]
+    ur10 = robocal.robot("ur10")
+    true = ur10.with_params(**dict(zip(ur10.param_names, true_params(truth, ur10))))
+    q_true = np.radians(np.random.default_rng(1).uniform(-100, 100, (8, 6)))
+    targets = true.predict("position", q_true)
+    rows = compensate(doc, np.column_stack([targets]))
+    assert all(r["status"].startswith("ok") for r in rows)
+    commands = np.radians([r["q"] for r in rows])  # as the controller reads them: joint 3 reversed
+    assert np.max(np.linalg.norm(true.predict("position", commands * flip) - targets, axis=1)) < 0.1

@@ -13,7 +13,8 @@ model with the joint limits kept at every step (:func:`bounded_lm`: projected st
 only when they decrease the error, damping by the gain ratio) — with the joint causes of an
 extended model (``calibrate --causes``: compliance, periodic gear errors, scale, coupling)
 applied to the commanded angles; backlash and sensor causes are named in the status as not
-compensated. The Jacobian comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
+compensated. Where the result found how the controller reads its joints (``structure``), seeds
+and commands are the controller's readings, converted to the model's angles and back. The Jacobian comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
 Position targets leave three degrees of freedom of a 6-axis arm free: the damped steps take a
 small change from the seed, so the tool keeps the seed's orientation as far as possible. A
 target that the seed does not lead to is tried from the middle of the joint ranges and from
@@ -34,6 +35,7 @@ from typing import Optional
 import numpy as np
 
 from .core import as_float_array, solve_damped
+from .diagnosis import structure
 from .diagnosis.candidates import COMPENSABLE, joint_offsets
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
@@ -241,14 +243,17 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
     elif not isinstance(targets, Targets):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
         y = as_float_array(targets, "targets")
         targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
+    conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
     causes = doc.get("causes", [])
     offsets = joint_offsets(calibrated, causes)
     skipped = sorted({str(c.get("label", c.get("kind"))) for c in causes if c.get("kind") not in COMPENSABLE})
     note = f" (not compensated: {', '.join(skipped)})" if skipped else ""
     out = []
     for i, target in enumerate(targets.y):
-        seed = targets.seeds[i] if targets.seeds is not None else nominal_seed(nominal, target)
-        q, error, status = solve_joints(calibrated, target, seed, offsets=offsets)
+        # Seeds and commands in the controller's convention; the model solves in its own.
+        seed = targets.seeds[i] if targets.seeds is not None else structure.to_readings(nominal_seed(nominal, target)[None, :], conventions)[0]
+        q, error, status = solve_joints(calibrated, target, structure.to_model(seed[None, :], conventions)[0], offsets=offsets)
+        q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
         out.append({"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status})
     return out

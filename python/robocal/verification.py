@@ -28,7 +28,6 @@ from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
 from .diagnosis import structure
 from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets
-from .exceptions import InvalidParameterError
 from .outputs import write_text
 from .results import load_result
 from .robot import Robot, setup_names
@@ -89,10 +88,7 @@ def verify(
     """
     calibrated, doc = load_result(result)
     dataset, _ = load_inputs(data, calibrated, measurement or doc["measurement"], angle_unit)
-    conventions = [structure.parse(label, calibrated.n_joints) for label in doc.get("structure", [])]
-    if any(s is None for s in conventions):
-        bad = [label for label, s in zip(doc["structure"], conventions) if s is None]
-        raise InvalidParameterError(f"result: unreadable reading conventions {bad}")
+    conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
     read = structure.apply_all(dataset, conventions)  # the readings in the model's convention
     causes = doc.get("causes", [])
     carried = [c for c in causes if c.get("kind") in JOINT_KINDS]

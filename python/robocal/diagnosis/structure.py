@@ -33,6 +33,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import DEG
+from ..exceptions import InvalidParameterError
 
 #: The kinds of reading convention.
 KINDS = ("joint_zero", "joint_sign", "joint_reference")
@@ -69,6 +70,17 @@ class Structure:
             out[:, self.joint] *= -1.0
         else:
             out[:, self.joint] += self.value * q[:, self.source]
+        return out
+
+    def invert(self, q: np.ndarray) -> np.ndarray:
+        """The readings from the model's angles ``q`` (m, N): what the controller reports."""
+        out = np.array(q, dtype=np.float64, copy=True)
+        if self.kind == "joint_zero":
+            out[:, self.joint] -= self.value
+        elif self.kind == "joint_sign":
+            out[:, self.joint] *= -1.0
+        else:
+            out[:, self.joint] -= self.value * q[:, self.source]
         return out
 
     @property
@@ -116,12 +128,34 @@ def parse(label: str, n_joints: int) -> Optional[Structure]:
     return s
 
 
-def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
-    """``data`` with its joint readings transformed by ``structures`` in order."""
-    q = data.q
+def parse_all(labels: list[str], n_joints: int) -> list[Structure]:
+    """The :class:`Structure` of every label of a result's ``structure``, or an error naming the
+    unreadable ones."""
+    parsed = [parse(label, n_joints) for label in labels]
+    bad = [label for label, s in zip(labels, parsed) if s is None]
+    if bad:
+        raise InvalidParameterError(f"result: unreadable reading conventions {bad}")
+    return parsed
+
+
+def to_readings(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
+    """Model angles ``q`` back to the controller's readings: ``structures`` undone in reverse
+    order (the inverse of :func:`apply_all` on the joints)."""
+    for s in reversed(structures):
+        q = s.invert(q)
+    return q
+
+
+def to_model(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
+    """The controller's readings ``q`` as the model's angles (``structures`` in order)."""
     for s in structures:
         q = s.apply(q)
-    return replace(data, q=q)
+    return q
+
+
+def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
+    """``data`` with its joint readings transformed by ``structures`` in order."""
+    return replace(data, q=to_model(data.q, structures))
 
 
 def hypotheses(data: Dataset) -> list[Structure]:
