@@ -15,6 +15,7 @@ session to another.
 
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import dataclass, field
 from typing import Optional
@@ -165,23 +166,18 @@ def _implausible(robot: Robot, values: dict) -> list[dict]:
     return out
 
 
+#: The options of a single-session diagnosis, with their defaults: a multi-session one takes them.
+OPTIONS = {n: p.default for n, p in inspect.signature(diagnose).parameters.items() if p.default is not inspect.Parameter.empty and n not in ("robot", "measurement", "angle_unit", "groups")}
+
+
 @threadpool_limits.wrap(limits=1, user_api="blas")
-def diagnose_sessions(
-    data: list,
-    robot=None,
-    measurement: Optional[str] = None,
-    folds: int = 5,
-    alpha: float = 0.05,
-    max_effects: int = 4,
-    min_gain: float = 0.005,
-    hayati: bool = True,
-    seed: int = 0,
-    angle_unit: Optional[str] = None,
-) -> SessionsDiagnosis:
+def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None, angle_unit: Optional[str] = None, **options) -> SessionsDiagnosis:
     """Diagnoses several sessions of one robot (see the module notes).
 
-    Parameters are those of :func:`~robocal.diagnosis.select.diagnose`; ``data`` is a list of at
-    least two files or Datasets, one per session, of the same robot and measurement.
+    ``data`` is a list of at least two files or Datasets, one per session, of the same robot and
+    measurement; the other parameters and ``options`` (:data:`OPTIONS`: ``folds``, ``alpha``,
+    ``max_effects``, ``min_gain``, ``hayati``, ``seed``) are those of
+    :func:`~robocal.diagnosis.select.diagnose`.
 
     Returns
     -------
@@ -192,6 +188,11 @@ def diagnose_sessions(
         (``structure`` and ``causes`` shared by the robot — what ``calibrate --causes`` takes —
         and each session's own terms).
     """
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise InvalidParameterError(f"a multi-session diagnosis takes the options {sorted(OPTIONS)}; got {unknown}")
+    options = {**OPTIONS, **options}
+    max_effects, min_gain, hayati = options["max_effects"], options["min_gain"], options["hayati"]
     t0 = time.perf_counter()
     if not isinstance(data, (list, tuple)) or len(data) < 2:
         raise InvalidParameterError(f"a multi-session diagnosis needs a list of at least two sessions; got {data!r}")
@@ -202,7 +203,7 @@ def diagnose_sessions(
             raise InvalidParameterError(f"session {i} ({d.source or 'data'}) holds {d.measurement} data of {r.name}; session 1 holds {kind} data of {rob.name}")
     sessions = []
     for d, _ in progress(loaded, desc="diagnose: each session on its own", unit="session"):
-        sessions.append(_Session(d, diagnose(d, rob, folds=folds, alpha=alpha, max_effects=max_effects, min_gain=min_gain, hayati=hayati, seed=seed)))
+        sessions.append(_Session(d, diagnose(d, rob, **options)))
     evaluator = _Evaluator(rob, sessions, baseline_mask(rob, kind, hayati), hayati)
 
     found: dict = {}  # label -> (candidate, sessions it was found in)
