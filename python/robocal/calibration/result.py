@@ -15,13 +15,19 @@ from ..results import result_document
 from .problem import PLAUSIBLE, Problem, is_kinematic
 
 
-def describe_implausible(flags: list[dict], shown: int = 3) -> str:
-    """One line on :meth:`CalibrationResult.implausible` flags: how many, and the worst ones."""
+#: What implausible parameters usually mean, and the remedy.
+UNDETERMINED = "the data do not determine them; a kinematic prior or more varied poses are needed"
+#: ... and when a geometry within the tolerances was tried and fits worse.
+CONTRADICTED = "the data demand them (a geometry within the tolerances fits worse): they describe the measured region, not the robot"
+
+
+def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDETERMINED) -> str:
+    """One line on :meth:`CalibrationResult.implausible` flags: how many, the worst ones and
+    ``meaning``."""
     worst = sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"])[:shown]
     parts = [f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.4g} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in worst]
     more = ", ..." if len(flags) > shown else ""
-    return (f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): "
-            "the data do not determine them; a kinematic prior or more varied poses are needed")  # fmt: skip
+    return f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): {meaning}"
 
 
 @dataclass

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.api import add_data_arguments
-from ..calibration.result import describe_implausible
+from ..calibration.result import CONTRADICTED, UNDETERMINED, describe_implausible
 from ..outputs import make_folder, save_figure, write_text
 from . import diagnose
 from .select import Diagnosis
@@ -46,7 +46,8 @@ def summary(report: dict) -> str:
     elif prior:
         lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
     if f.get("implausible"):
-        lines.append("  warning: final model: " + describe_implausible(f["implausible"]))
+        meaning = CONTRADICTED if prior and not prior["accepted"] else UNDETERMINED
+        lines.append("  warning: final model: " + describe_implausible(f["implausible"], meaning=meaning))
     if "floor_mm" in f:
         lines.append(f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
                      f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")
