@@ -37,7 +37,7 @@ def test_stacked_sessions_share_the_robot_and_keep_their_setups():
     assert sum(n.startswith("base_x") for n in stacked.names) == 3 and stacked.names.count("a2") == 1
     fit = levenberg_marquardt(stacked)
     assert fit.metrics["train"]["rmse"] < 0.04  # mm: the simulated tracker noise
-    held = Partial(problems[0], [n for n in problems[0].names if is_private(n)], problems[0].x0)
+    held = Partial(problems[0], [n for n in problems[0].names if is_private(n, "position")], problems[0].x0)
     assert held.names == [n for n in problems[0].names if n.startswith(("base_", "tool_"))]
 
 
@@ -87,3 +87,15 @@ def test_cli_diagnoses_several_files(tmp_path, capsys):
     report = json.loads(out.read_text())
     assert report["model"]["causes"] == [CASES[0][3]] and len(report["sessions"]) == 3
     assert np.isfinite(report["final"]["rmse_loso"])
+
+
+def test_a_reading_convention_of_the_controller_is_carried():
+    """The controller reports joint 3 reversed in every session: each session's own diagnosis
+    names it, and it holds leave-one-session-out with a plausible geometry."""
+    from dataclasses import replace
+
+    flip = np.where(np.arange(6) == 2, -1.0, 1.0)
+    data = [replace(d, q=d.q * flip) for d in _sessions("abb-irb120", "position", [], samples=300)]
+    report = robocal.diagnose(data).to_dict()
+    assert report["model"]["structure"] == ["joint_sign joint 3"]
+    assert report["final"]["implausible"] == [] and report["final"]["rmse_loso"] < 0.5 * report["baseline"]["rmse_loso"]

@@ -19,16 +19,19 @@ from dataclasses import replace
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..robot import RESIDUAL_WIDTH, SETUP_PREFIXES, Robot
+from ..robot import RESIDUAL_WIDTH, Robot
 from .problem import Problem
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
 SESSION_KINDS = ("drift", "step", "temperature", "outliers")
 
 
-def is_private(name: str) -> bool:
-    """True for an entry fitted per session: a set-up parameter (``base_x``, ``anchor_y``,
-    ``cable_offset``, ...) or a coefficient of a session cause (``"step sample=12 row=14 c0"``)."""
-    return name.startswith(SETUP_PREFIXES) or name.split(" ")[0] in SESSION_KINDS
+def is_private(name: str, measurement: str) -> bool:
+    """True for an entry fitted per session: the set-up a new session places anew
+    (:func:`~robocal.robot.setup_names`: tracker base and tool point; cable anchor and zero)
+    or a coefficient of a session cause (``"step sample=12 row=14 c0"``)."""
+    if name.split(" ")[0] in SESSION_KINDS:
+        return True
+    return name.startswith(("anchor_", "cable_offset") if measurement == "cable" else ("base_", "tool_"))
 
 
 def concatenate(datasets: list[Dataset]) -> Dataset:
@@ -60,8 +63,9 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask) -> list[Proble
     """
     bases = [Problem.build(robot, d, mask=mask) for d in datasets]
     cols = np.unique(robot.columns(mask, "mask"))
-    private = [c for c in cols if is_private(robot.param_names[c])]
-    shared = [c for c in cols if not is_private(robot.param_names[c])]
+    measurement = datasets[0].measurement
+    private = [c for c in cols if is_private(robot.param_names[c], measurement)]
+    shared = [c for c in cols if not is_private(robot.param_names[c], measurement)]
     blocks = [robot.jacobian(d.measurement, d.q, y=d.y, params=b.start, cols=private + shared) for d, b in zip(datasets, bases)]
     n, p = len(datasets), len(private)
     stacked = np.zeros((sum(len(J) for J in blocks), n * p + len(shared)))
@@ -114,14 +118,14 @@ class Sessions:
 
     def __init__(self, problems: list):
         self.problems = list(problems)
-        self.robot = self.problems[0].robot
+        self.robot, self.measurement = self.problems[0].robot, self.problems[0].data.measurement
         index: dict = {}
         self.names, self.maps = [], []
         start = []
         for s, p in enumerate(self.problems, start=1):
             positions = []
             for name, value in zip(p.names, p.x0):
-                key = (name, s) if is_private(name) else (name, 0)
+                key = (name, s) if is_private(name, self.measurement) else (name, 0)
                 if key not in index:
                     index[key] = len(self.names)
                     self.names.append(f"{name} [session {s}]" if key[1] else name)

@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import PLAUSIBLE, is_kinematic
+from ..calibration.problem import PLAUSIBLE, is_kinematic, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
@@ -61,6 +61,11 @@ class _Model:
     structures: tuple = ()
     causes: tuple = ()
 
+    @property
+    def conventions(self) -> tuple:
+        """Labels of the reading conventions: models with the same read the same joint angles."""
+        return tuple(c.label for c in self.structures)
+
     def plus(self, candidate) -> "_Model":
         if isinstance(candidate, structure.Structure):
             return _Model(self.structures + (candidate,), self.causes)
@@ -77,11 +82,13 @@ class _Evaluator:
 
     def __init__(self, robot: Robot, sessions: list[_Session], mask: np.ndarray, hayati: bool):
         self.robot, self.sessions, self.mask, self.hayati = robot, sessions, mask, hayati
+        self.measurement = sessions[0].data.measurement
         self._bases: dict = {}
         self._starts: dict = {}
+        self._fits: dict = {}
 
     def problems(self, model: _Model) -> list[ExtendedProblem]:
-        key = tuple(c.label for c in model.structures)
+        key = model.conventions
         if key not in self._bases:
             datas = [structure.apply_all(session.data, list(model.structures)) for session in self.sessions]
             bases = session_problems(self.robot, datas, self.mask)
@@ -94,22 +101,48 @@ class _Evaluator:
             out.append(ExtendedProblem(base, session.terms + shared, data, session.keep))
         return out
 
+    def fit(self, model: _Model):
+        """The model fitted on every session (once per model): the stacked problem and its fit."""
+        if model not in self._fits:
+            stacked = Sessions(self.problems(model))
+            key = (model.conventions, "all")
+            fit = levenberg_marquardt(stacked, x0=self._warm(key, stacked.names, stacked.x0), method="diagnose")
+            self._starts[key] = dict(zip(stacked.names, fit.x))
+            self._fits[model] = (stacked, fit)
+        return self._fits[model]
+
+    def implausible(self, model: _Model) -> list[dict]:
+        """Kinematic parameters beyond the limits when ``model`` is fitted on every session."""
+        stacked, fit = self.fit(model)
+        return _implausible(self.robot, dict(zip(stacked.names, fit.x)))
+
     def held_out(self, model: _Model) -> list[np.ndarray]:
         """Per session, the squared errors of its samples under the model fitted on the others."""
         problems = self.problems(model)
         errors = []
         for h, held in enumerate(problems):
             train = Sessions([p for s, p in enumerate(problems) if s != h])
-            fit = levenberg_marquardt(train, x0=self._warm(("train", h), train.names, train.x0), method="diagnose")
-            self._starts[("train", h)] = dict(zip(train.names, fit.x))
-            robot = self._starts[("train", h)]
-            start = np.array([v if is_private(n) else robot.get(n, v) for n, v in zip(held.names, held.x0)])
-            part = Partial(held, [n for n in held.names if is_private(n)], start)
-            fitted = levenberg_marquardt(part, x0=self._warm(("held", h), part.names, part.x0), method="diagnose")
-            self._starts[("held", h)] = dict(zip(part.names, fitted.x))
+            key = (model.conventions, h)  # a smaller model's fits on the same readings start it
+            fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose")
+            self._starts[(*key, "train")] = dict(zip(train.names, fit.x))
+            part = Partial(held, [n for n in held.names if is_private(n, self.measurement)], self._held_start(held, self._starts[(*key, "train")]))
+            fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose")
+            self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
             r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
             errors.append(np.sum(r * r, axis=1))
         return errors
+
+    def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
+        """The left-out session's start: the trained robot, and the set-up that places it best
+        on that session's own data (:func:`start_parameters` under the trained kinematics — the
+        nominal ones may lie in another basin, e.g. a joint fitted reversed)."""
+        names, robot = held.names, self.robot
+        p = held.full(held.x0)
+        shared = {n: v for n, v in trained.items() if n in robot.param_names and not is_private(n, self.measurement)}
+        p[[robot.index(n) for n in shared]] = list(shared.values())
+        placed = start_parameters(robot, held.data, params=p)
+        return np.array([(placed[robot.index(n)] if n in robot.param_names else v) if is_private(n, self.measurement) else trained.get(n, v)
+                         for n, v in zip(names, held.x0)])  # fmt: skip
 
     def _warm(self, key, names: list[str], x0: np.ndarray) -> np.ndarray:
         """``x0`` with the entries a previous fit of the same fold found (a smaller model's)."""
@@ -217,8 +250,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
 
     model = _Model()
     current = evaluator.held_out(model)
-    geometric = Sessions(evaluator.problems(model))
-    geometric_fit = levenberg_marquardt(geometric, method="diagnose")
+    geometric, geometric_fit = evaluator.fit(model)
     baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": _implausible(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
@@ -235,6 +267,11 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 reasons[label] = f"pooled held-out RMSE {rmse:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm"
             elif worse:
                 reasons[label] = f"held-out error on session(s) {worse} rises"
+            elif isinstance(candidate, structure.Structure) and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current) and evaluator.implausible(model.plus(candidate)):
+                # A convention is no small correction: as within one session, it must make the
+                # geometry plausible or gain REAL_GAIN.
+                reasons[label] = (f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
+                                  f"it gains {1.0 - rmse / _rmse(current):.1%} and leaves {len(evaluator.implausible(model.plus(candidate)))} parameters implausible")  # fmt: skip
             else:
                 break
         else:
@@ -245,9 +282,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         del pending[label]
 
     problems = evaluator.problems(model)
-    joint = Sessions(problems)
-    fit = levenberg_marquardt(joint, x0=np.array([dict(zip(geometric.names, geometric_fit.x)).get(n, v) for n, v in zip(joint.names, joint.x0)]), method="diagnose")
-    values = {n: float(v) for n, v in zip(joint.names, fit.x) if not is_private(n)}
+    joint, fit = evaluator.fit(model)
+    values = {n: float(v) for n, v in zip(joint.names, fit.x) if not is_private(n, kind)}
     parameters = {n: v for n, v in values.items() if n in rob.param_names}
     for e in effects:  # physical size from the fit on every session
         s = next(i for i, p in enumerate(problems) if any(c.label == e["label"] for c in p.causes)) if e["kind"] not in structure.KINDS else None
