@@ -18,7 +18,6 @@ import json
 from pathlib import Path
 from typing import Optional, Union
 
-import numpy as np
 
 from .calibration.api import add_angle_unit_argument, load_inputs
 from .calibration.lm import levenberg_marquardt

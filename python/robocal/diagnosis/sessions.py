@@ -30,9 +30,9 @@ from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private,
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..progress import progress
-from ..robot import RESIDUAL_WIDTH, Robot
+from ..robot import Robot
 from . import structure
-from .candidates import Candidate, library
+from .candidates import library
 from .model import ExtendedProblem
 from .select import Diagnosis, baseline_mask, diagnose
 
@@ -70,10 +70,6 @@ class _Model:
         if isinstance(candidate, structure.Structure):
             return _Model(self.structures + (candidate,), self.causes)
         return _Model(self.structures, self.causes + (candidate,))
-
-
-def _label(candidate) -> str:
-    return candidate.label if isinstance(candidate, structure.Structure) else candidate
 
 
 class _Evaluator:
