@@ -31,7 +31,7 @@ import numpy as np
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
-from .table import check_header, numeric_columns, read_text, require_columns, split_delimited
+from .table import check_header, numeric_columns, read_text, require_columns, split_delimited, text_column
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -47,6 +47,8 @@ IPA_STD = [f"measurement_std_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")]
 IPA_GOAL = ["Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw"]
 
 XLSX_SIGNATURE = b"PK\x03\x04"
+#: ``text.splitlines()[0]`` without splitting the rest: everything up to a line boundary.
+_FIRST_LINE = re.compile("[^\n\r\x0b\x0c\x1c-\x1e\x85\u2028\u2029]*")
 
 
 # -- tables ------------------------------------------------------------------------------------
@@ -298,8 +300,7 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         y = np.hstack([y, _quaternions(values[:, 9:12])])
     notes, t = [], None
     if "Timestamp" in header:
-        kept = {int(r) for r in rows}
-        stamps = [cells[header.index("Timestamp")].strip() for number, cells in body if number in kept]
+        stamps = text_column(body, header.index("Timestamp"), rows)
         t, notes = _timestamps(stamps, rows, path)
     extra = {}
     if all(c in column for c in IPA_GOAL):
@@ -339,7 +340,7 @@ def detect_format(path) -> str:
             return "hsr"
         raise DataError(f"an .xlsx workbook whose first sheet's header {header} is neither D1 ({HSR_COLUMNS}) nor D2 ({ROBOTCALI_COLUMNS})", path, 1)
     text = read_text(path)
-    first = text.splitlines()[0] if text.strip() else ""
+    first = _FIRST_LINE.match(text).group() if text.strip() else ""
     if not first.strip():
         raise DataError("the file is empty (a header row is expected)", path, 1)
     fields = {sep: [c.strip() for c in first.split(sep)] for sep in (";", ",")}

@@ -5,6 +5,16 @@ numbers 1-based with the header as row 1. Cells are strings (CSV) or numbers / `
 (spreadsheets). Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and
 column — or, when the caller asks for it, an entry of the excluded-rows list. Nothing is dropped
 silently.
+
+Delimited text is read twice over only when it must be: :func:`split_delimited` hands out a
+:class:`DelimitedBody`, whose numeric columns come from pyarrow's columnar CSV reader (all cells
+read as text, checked and converted column by column in C++). That fast path *accepts* a column
+only when every cell is one the per-cell rules take with the same value (ASCII digits, sign,
+point, exponent; no empty cell, no NaN / infinity, within ``MAX_ABS``) and the file's line
+structure is one it reproduces exactly (no quotes, no lone CR, no Unicode line separator, no
+over-long line). Anything else — or pyarrow missing — falls back to the per-cell path over
+:func:`csv.reader` records, which names the bad file, row and column: errors are the same either
+way, because the fast path never raises.
 """
 
 from __future__ import annotations
@@ -13,8 +23,9 @@ import csv
 import difflib
 import math
 import re
+from functools import cached_property
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -23,6 +34,9 @@ from ..exceptions import DataError
 #: Largest magnitude a cell may hold: beyond ±1e12 mm / rad the core's squares overflow (the
 #: core refuses such inputs too, but here the error can name the file, row and column).
 MAX_ABS = 1e12
+#: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
+#: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
+COLUMNAR = True
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
 #: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
@@ -38,8 +52,8 @@ def shown(value, limit: int = 40) -> str:
 def read_text(path) -> str:
     """The file's text (UTF-8, an optional BOM removed), or a :class:`DataError`."""
     path = Path(path)
-    try:
-        return path.read_text(encoding="utf-8-sig")
+    try:  # bytes then decode: no newline translation to pay for (str.splitlines reads CRLF and CR alike)
+        return path.read_bytes().decode("utf-8-sig")
     except OSError as exc:
         raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
     except UnicodeDecodeError as exc:
@@ -47,17 +61,196 @@ def read_text(path) -> str:
 
 
 def split_delimited(text: str, delimiter: str, path):
-    """Header and ``(row_number, cells)`` records of a delimited text (blank lines skipped)."""
-    try:
-        lines = list(csv.reader(text.splitlines(), delimiter=delimiter))
-    except csv.Error as exc:
-        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+    """Header and ``(row_number, cells)`` records of a delimited text (blank lines skipped).
+
+    The records are a :class:`DelimitedBody` (split on first use; numeric columns by the
+    columnar reader) when the text's structure allows it, else a list.
+    """
+    body = DelimitedBody.of(text, delimiter, path)
+    lines = [] if body is None else [next(csv.reader([body.first_line], delimiter=delimiter))]
+    if body is None:
+        lines = _records(text, delimiter, path)
     if not lines or not any(cell.strip() for cell in lines[0]):
         raise DataError("the file is empty (a header row is expected)", path, 1)
     header = [h.strip() for h in lines[0]]
     check_header(header, path)
-    body = [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
-    return header, body
+    if body is not None:
+        body.n_columns = len(header)
+        return header, body
+    return header, [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+
+
+def _records(text: str, delimiter: str, path) -> list[list[str]]:
+    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path)."""
+    try:
+        return list(csv.reader(text.splitlines(), delimiter=delimiter))
+    except csv.Error as exc:
+        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+
+
+#: Bytes a text may hold for the columnar reader to split it exactly as :func:`csv.reader`
+#: over ``str.splitlines()`` does: tab, LF, CR (only as CRLF, checked apart), printable ASCII but
+#: the quote (deleted by ``bytes.translate``; what is left is refused), and the bytes of
+#: multi-byte UTF-8 characters (U+0085, U+2028 and U+2029, where ``splitlines`` breaks lines,
+#: are checked apart). The other controls (VT, FF, FS, GS, RS also break lines; NUL) are left to
+#: the per-cell path.
+_TEXT_BYTES = bytes([9, 10, 13, *(c for c in range(32, 127) if c != ord('"')), *range(128, 256)])
+_UNICODE_BREAKS = ("\x85", "\u2028", "\u2029")
+#: Bytes of a numeric cell on the fast path: ASCII digits, sign, point, exponent, and the spaces
+#: / tabs ``str.strip()`` removes around them (a comma too, for a decimal comma).
+_NUMBER_BYTES = b"0123456789+-.eE \t"
+
+
+def _only_number_bytes(cells: bytes, decimal_comma: bool) -> bool:
+    rest = cells.translate(None, _NUMBER_BYTES)
+    return not (rest.replace(b",", b"") if decimal_comma else rest)
+
+
+class DelimitedBody(Sequence):
+    """The data rows of a delimited text: a sequence of ``(row_number, cells)`` records (split by
+    :func:`csv.reader` on first use, as :func:`split_delimited` always did), and numeric columns
+    read by pyarrow's columnar CSV reader (:meth:`numeric`) without splitting a row in Python.
+
+    Built by :meth:`of` only for texts whose line structure the columnar reader reproduces.
+    """
+
+    def __init__(self, text: str, data: bytes, delimiter: str, path, newlines: np.ndarray):
+        self.text, self.data, self.delimiter, self.path = text, data, delimiter, path
+        self.newlines = newlines
+        first = newlines[0] if newlines.size else len(data)
+        self.first_line = data[:first].rstrip(b"\r").decode("utf-8")
+        self.n_columns = 0
+        # what the body's cells hold beyond delimiters and line ends: only number bytes? spaces?
+        rest = data[first:].translate(None, b"\r\n" + delimiter.encode() + _NUMBER_BYTES)
+        self.number_bytes_only = {False: not rest, True: not rest.replace(b",", b"")}
+        self.padded = data.find(b" ", first) >= 0 or data.find(b"\t", first) >= 0
+
+    @classmethod
+    def of(cls, text: str, delimiter: str, path) -> Optional["DelimitedBody"]:
+        """A body for ``text``, or None where only the per-cell path splits it exactly."""
+        if not COLUMNAR:
+            return None
+        data = text.encode("utf-8")
+        if data.translate(None, _TEXT_BYTES) or len(delimiter) != 1 or not delimiter.isascii() or delimiter == '"':
+            return None
+        if not data.isascii() and any(c in text for c in _UNICODE_BREAKS):
+            return None
+        buf = np.frombuffer(data, dtype=np.uint8)
+        if b"\r" in data:  # CR only in CRLF, which both readers take as one line end
+            cr = np.flatnonzero(buf == 13)
+            if cr[-1] + 1 == len(buf) or (buf[cr + 1] != 10).any():
+                return None
+        newlines = np.flatnonzero(buf == 10)
+        longest = np.diff(newlines, prepend=-1, append=len(data)).max() if data else 0
+        if longest > csv.field_size_limit() or not data[: newlines[0] if newlines.size else len(data)].strip():
+            return None  # csv.reader refuses over-long fields; a blank first line is the empty-file error
+        return cls(text, data, delimiter, path, newlines)
+
+    # -- the records, as the per-cell path sees them
+    @cached_property
+    def records(self) -> list[tuple[int, list[str]]]:
+        lines = _records(self.text, self.delimiter, self.path)
+        return [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index):
+        return self.records[index]
+
+    def __iter__(self):
+        return iter(self.records)
+
+    # -- the columnar reader
+    @cached_property
+    def rows(self) -> np.ndarray:
+        """Row numbers (header = 1) of the non-empty lines after the header."""
+        ends = np.append(self.newlines, len(self.data))
+        starts = np.concatenate([[0], self.newlines + 1])
+        buf = np.frombuffer(self.data, dtype=np.uint8)
+        cr = np.zeros(len(ends), dtype=np.int64)
+        inside = ends > starts
+        cr[inside] = buf[ends[inside] - 1] == 13
+        lines = np.flatnonzero(ends - starts - cr > 0)
+        return lines[lines > 0] + 1
+
+    @cached_property
+    def columns(self):
+        """The cells as a pyarrow Table of text columns, or None (pyarrow missing, a row with
+        another cell count than the header — anything the per-cell path must look at)."""
+        try:
+            import pyarrow as pa
+            import pyarrow.csv as pacsv
+        except ImportError:
+            return None
+        names = [str(i) for i in range(self.n_columns)]
+        try:
+            table = pacsv.read_csv(
+                pa.py_buffer(self.data),
+                read_options=pacsv.ReadOptions(column_names=names, skip_rows=1),
+                parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False, escape_char=False, ignore_empty_lines=True),
+                convert_options=pacsv.ConvertOptions(column_types={n: pa.string() for n in names}, null_values=[],
+                                                     strings_can_be_null=False, check_utf8=False),
+            )  # fmt: skip
+        except (pa.ArrowException, ValueError):
+            return None
+        return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
+
+    def numeric(self, positions: Sequence[int], decimal_comma: bool = False) -> Optional[np.ndarray]:
+        """Columns ``positions`` as floats, shape ``(len(rows), len(positions))``, when every cell
+        is a number the per-cell path takes with the same value (finite, within ``MAX_ABS``);
+        None otherwise, for the per-cell path to name the bad cell."""
+        table = self.columns
+        if table is None:
+            return None
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        out = np.empty((table.num_rows, len(positions)), dtype=np.float64)
+        for k, position in enumerate(positions):
+            column = table.column(position)
+            padded = self.padded
+            if not self.number_bytes_only[bool(decimal_comma)]:
+                cells = b"".join(_chunk_bytes(chunk) for chunk in column.chunks)
+                if not _only_number_bytes(cells, decimal_comma):
+                    return None
+                padded = b" " in cells or b"\t" in cells
+            if padded:
+                column = pc.utf8_trim(column, characters=" \t")
+            if decimal_comma:
+                column = pc.replace_substring(column, ",", ".")
+            if any(_chunk_has_empty(chunk) for chunk in column.chunks):
+                return None
+            try:
+                out[:, k] = pc.cast(column, pa.float64()).to_numpy()
+            except (pa.ArrowException, ValueError):
+                return None
+        if not np.isfinite(out).all() or (np.abs(out) > MAX_ABS).any():
+            return None
+        return out
+
+
+def text_column(body, position: int, rows: np.ndarray) -> list[str]:
+    """The cells of column ``position`` (stripped) in the records numbered ``rows``: from the
+    columnar table when those are all its rows, else record by record."""
+    if isinstance(body, DelimitedBody) and body.columns is not None and np.array_equal(rows, body.rows):
+        return [cell.strip() for cell in body.columns.column(position).to_pylist()]
+    kept = {int(r) for r in rows}
+    return [cells[position].strip() for number, cells in body if number in kept]
+
+
+def _offsets(chunk) -> np.ndarray:
+    return np.frombuffer(chunk.buffers()[1], dtype=np.int32)[chunk.offset : chunk.offset + len(chunk) + 1]
+
+
+def _chunk_bytes(chunk) -> bytes:
+    """The UTF-8 bytes of a pyarrow string array's cells, one after the other."""
+    offsets, data = _offsets(chunk), chunk.buffers()[2]
+    return b"" if data is None or not len(chunk) else data.to_pybytes()[offsets[0] : offsets[-1]]
+
+
+def _chunk_has_empty(chunk) -> bool:
+    return bool((np.diff(_offsets(chunk)) == 0).any())
 
 
 def check_header(header: Sequence[str], path) -> None:
@@ -162,12 +355,15 @@ def numeric_columns(
     DataError
         On the first bad row unless ``exclude_bad_rows``; when no row is left.
     """
-    if not body:
-        raise DataError("the file has a header but no data rows", path, 2)
     first = {}
     for i, name in enumerate(header):
         first.setdefault(name, i)
     position = [first[name] for name in wanted]
+    fast = body.numeric(position, decimal_comma) if isinstance(body, DelimitedBody) else None
+    if fast is not None:
+        return fast, body.rows.copy(), []
+    if not body:
+        raise DataError("the file has a header but no data rows", path, 2)
     values, rows, excluded = [], [], []
     for row_number, cells in body:
         try:
