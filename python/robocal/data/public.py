@@ -31,7 +31,9 @@ import numpy as np
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
-from .table import check_header, numeric_columns, read_text, require_columns, split_delimited, text_column
+from .frame import SOURCE as FRAME
+from .frame import is_frame, read_frame
+from .table import check_header, numeric_columns, read_text, require_columns, shown, split_delimited, text_column
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -247,8 +249,8 @@ def _timestamps(stamps: list[str], rows: np.ndarray, path):
         back = np.flatnonzero(np.diff(t) < 0) + 1
         notes = []
         if back.size:
-            shown = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
-            notes.append(f"the clock goes backwards at {back.size} rows ({shown}): file order is not acquisition order; sort by `t`")
+            listed = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
+            notes.append(f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; sort by `t`")
         return t, notes
     if all(re.fullmatch(r"[-+]?\d+([.,]\d*)?[eE][-+]?\d+", s) for s in stamps):
         return None, [
@@ -390,7 +392,11 @@ def load(
 
     Parameters
     ----------
-    path : str or Path
+    path : str, Path or pandas.DataFrame
+        A file, or a DataFrame with the canonical columns (read by
+        :func:`~robocal.data.frame.read_frame` as the CSV with the same content; rows are its
+        positions, 0-based; ``robot`` and ``angle_unit`` default to ``frame.attrs``, where
+        :meth:`Dataset.to_frame` records them).
     format : {"canonical", "hsr", "robotcali", "ipa"}, optional
         Detected from the content by default (:func:`detect_format`).
     measurement : {"cable", "position", "pose"}, optional
@@ -418,23 +424,30 @@ def load(
         On an unknown format, a mismatching robot, measurement or unit, implausible joint
         values for the unit, or any bad content.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise DataError(f"`path` must be a file path (str or Path); got {type(path).__name__} {path!r}")
-    path = Path(path)
+    frame = is_frame(path)
+    if not frame and not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"`path` must be a file path (str or Path) or a pandas DataFrame; got {type(path).__name__} {shown(path)}")
+    source, path = (path, FRAME) if frame else (None, Path(path))
     if format is not None and format not in FORMATS:
         raise DataError(f"`format` must be one of {FORMATS}; got {format!r}", path)
+    if frame:  # what Dataset.to_frame recorded, unless given
+        robot = robot if robot is not None else source.attrs.get("robot")
+        angle_unit = angle_unit if angle_unit is not None else source.attrs.get("angle_unit")
     if angle_unit is not None and angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
     if measurement is not None and (not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS):
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
-    fmt = format or detect_format(path)
+    if frame and format not in (None, "canonical"):
+        raise DataError(f"a DataFrame is read as a canonical table; got format={format!r}", path)
+    fmt = "canonical" if frame else format or detect_format(path)
     native_unit = {"hsr": "deg", "robotcali": "deg", "ipa": "rad"}.get(fmt)
     if native_unit and angle_unit not in (None, native_unit):
         raise DataError(f"{fmt} files give joint angles in {native_unit}; got angle_unit={angle_unit!r}", path)
     if fmt in ("hsr", "robotcali") and measurement not in (None, "cable"):
         raise DataError(f"{fmt} files hold cable measurements; got measurement={measurement!r}", path)
     if fmt == "canonical":
-        dataset = read_canonical(path, angle_unit or "deg", measurement, None, exclude_bad_rows)
+        read = read_frame if frame else read_canonical
+        dataset = read(source if frame else path, angle_unit or "deg", measurement, None, exclude_bad_rows)
         if sheet is not None:
             raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
     elif fmt == "hsr":

@@ -196,10 +196,11 @@ class DelimitedBody(Sequence):
             return None
         return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
 
-    def numeric(self, positions: Sequence[int], decimal_comma: bool = False) -> Optional[np.ndarray]:
+    def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
         """Columns ``positions`` as floats, shape ``(len(rows), len(positions))``, when every cell
         is a number the per-cell path takes with the same value (finite, within ``MAX_ABS``);
-        None otherwise, for the per-cell path to name the bad cell."""
+        None otherwise, for the per-cell path to name the bad cell. (``finite``, which columns
+        must be finite, is moot: an empty or NaN cell always goes to the per-cell path.)"""
         table = self.columns
         if table is None:
             return None
@@ -359,7 +360,8 @@ def numeric_columns(
     for i, name in enumerate(header):
         first.setdefault(name, i)
     position = [first[name] for name in wanted]
-    fast = body.numeric(position, decimal_comma) if isinstance(body, DelimitedBody) else None
+    numeric = getattr(body, "numeric", None)  # a columnar body: DelimitedBody, FrameBody
+    fast = numeric(position, decimal_comma, [name not in allow_nonfinite for name in wanted]) if numeric else None
     if fast is not None:
         return fast, body.rows.copy(), []
     if not body:
