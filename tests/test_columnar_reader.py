@@ -220,3 +220,25 @@ def test_blank_and_padded_lines_keep_their_row_numbers(tmp_path):
     d = read_canonical(path, angle_unit="rad")
     np.testing.assert_array_equal(d.rows, [2, 4])
     np.testing.assert_array_equal(d.q, [[1, 2], [4, 5]])
+
+
+digits14 = st.text(alphabet="0123456789", min_size=14, max_size=14)
+stamp = st.datetimes(min_value=__import__("datetime").datetime(1971, 1, 2), max_value=__import__("datetime").datetime(2099, 12, 30)).map(lambda d: d.strftime("%Y%m%d%H%M%S"))
+
+
+@settings(max_examples=300)
+@given(st.lists(stamp | digits14, min_size=1, max_size=20))
+def test_clock_matches_strptime(stamps):
+    """The UR10 ``Timestamp`` clock read by array arithmetic equals strptime's, or defers."""
+    from datetime import datetime
+
+    from robocal.data.public import _clock
+
+    fast = _clock(stamps)
+    try:
+        slow = np.array([datetime.strptime(s, "%Y%m%d%H%M%S").timestamp() for s in stamps])
+    except ValueError:
+        assert fast is None
+        return
+    if fast is not None:
+        np.testing.assert_array_equal(fast, slow)
