@@ -242,3 +242,13 @@ def test_clock_matches_strptime(stamps):
         return
     if fast is not None:
         np.testing.assert_array_equal(fast, slow)
+
+
+def test_without_pyarrow_every_cell_takes_the_per_cell_path(tmp_path, monkeypatch):
+    d = Dataset(q=np.ones((4, 2)), y=np.arange(4.0), measurement="cable")
+    path = write_canonical(d, tmp_path / "d.csv", angle_unit="rad")
+    monkeypatch.setattr(table, "_arrow", lambda: None)
+    back = read_canonical(path, angle_unit="rad")
+    np.testing.assert_array_equal(back.y[:, 0], d.y[:, 0])
+    (tmp_path / "ipa.csv").write_text(IPA_HEADER + "\n" + ";".join(["20200714163904"] + ["1,5"] * 13) + "\n")
+    assert read_ipa(tmp_path / "ipa.csv", measurement="position").t.tolist() == [0.0]

@@ -263,8 +263,8 @@ def _clock(stamps: list[str]) -> Optional[np.ndarray]:
 def _timestamps(stamps: list[str], rows: np.ndarray, path):
     """``(t, notes)`` from the ``Timestamp`` cells: seconds since the earliest sample when every
     stamp is ``yyyymmddHHMMSS``; ``None`` with an explanatory note otherwise."""
-    if all(re.fullmatch(r"\d{14}", s) for s in stamps):
-        clock = _clock(stamps)
+    clock = _clock(stamps)
+    if clock is not None or all(re.fullmatch(r"\d{14}", s) for s in stamps):
         if clock is None:  # a field out of range somewhere: strptime stamp by stamp names the row
             clock = []
             for s, row in zip(stamps, rows):

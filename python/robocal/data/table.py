@@ -103,7 +103,19 @@ _NUMBER_BYTES = b"0123456789+-.eE \t"
 
 def _only_number_bytes(cells: bytes, decimal_comma: bool) -> bool:
     rest = cells.translate(None, _NUMBER_BYTES)
-    return not (rest.replace(b",", b"") if decimal_comma else rest)
+    return not (rest.translate(None, b",") if decimal_comma else rest)
+
+
+def _arrow():
+    """pyarrow, with its ``csv`` and ``compute`` modules loaded, or None where it is missing
+    (then every cell takes the per-cell path). Imported on first use: ``import robocal`` stays light."""
+    try:
+        import pyarrow
+        import pyarrow.compute
+        import pyarrow.csv  # noqa: F401
+    except ImportError:
+        return None
+    return pyarrow
 
 
 class DelimitedBody(Sequence):
@@ -114,15 +126,14 @@ class DelimitedBody(Sequence):
     Built by :meth:`of` only for texts whose line structure the columnar reader reproduces.
     """
 
-    def __init__(self, text: str, data: bytes, delimiter: str, path, newlines: np.ndarray):
+    def __init__(self, text: str, data: bytes, delimiter: str, path, newlines: np.ndarray, rest: bytes):
         self.text, self.data, self.delimiter, self.path = text, data, delimiter, path
         self.newlines = newlines
         first = newlines[0] if newlines.size else len(data)
         self.first_line = data[:first].rstrip(b"\r").decode("utf-8")
         self.n_columns = 0
-        # what the body's cells hold beyond delimiters and line ends: only number bytes? spaces?
-        rest = data[first:].translate(None, b"\r\n" + delimiter.encode() + _NUMBER_BYTES)
-        self.number_bytes_only = {False: not rest, True: not rest.replace(b",", b"")}
+        # ``rest``: the body's bytes beside number bytes, delimiters and line ends
+        self.number_bytes_only = {False: not rest, True: not rest.translate(None, b",")}
         self.padded = data.find(b" ", first) >= 0 or data.find(b"\t", first) >= 0
 
     @classmethod
@@ -131,7 +142,13 @@ class DelimitedBody(Sequence):
         if not COLUMNAR:
             return None
         data = text.encode("utf-8")
-        if data.translate(None, _TEXT_BYTES) or len(delimiter) != 1 or not delimiter.isascii() or delimiter == '"':
+        if len(delimiter) != 1 or not delimiter.isascii() or delimiter == '"':
+            return None
+        first = data.find(b"\n")
+        first = len(data) if first < 0 else first
+        # one pass over the body: what is left beside number bytes must be text bytes too
+        rest = data[first:].translate(None, b"\r\n" + delimiter.encode() + _NUMBER_BYTES)
+        if data[:first].translate(None, _TEXT_BYTES) or rest.translate(None, _TEXT_BYTES):
             return None
         if not data.isascii() and any(c in text for c in _UNICODE_BREAKS):
             return None
@@ -142,9 +159,9 @@ class DelimitedBody(Sequence):
                 return None
         newlines = np.flatnonzero(buf == 10)
         longest = np.diff(newlines, prepend=-1, append=len(data)).max() if data else 0
-        if longest > csv.field_size_limit() or not data[: newlines[0] if newlines.size else len(data)].strip():
+        if longest > csv.field_size_limit() or not data[:first].strip():
             return None  # csv.reader refuses over-long fields; a blank first line is the empty-file error
-        return cls(text, data, delimiter, path, newlines)
+        return cls(text, data, delimiter, path, newlines, rest)
 
     # -- the records, as the per-cell path sees them
     @cached_property
@@ -178,34 +195,66 @@ class DelimitedBody(Sequence):
     def columns(self):
         """The cells as a pyarrow Table of text columns, or None (pyarrow missing, a row with
         another cell count than the header — anything the per-cell path must look at)."""
-        try:
-            import pyarrow as pa
-            import pyarrow.csv as pacsv
-        except ImportError:
-            return None
-        names = [str(i) for i in range(self.n_columns)]
-        try:
-            table = pacsv.read_csv(
-                pa.py_buffer(self.data),
-                read_options=pacsv.ReadOptions(column_names=names, skip_rows=1),
-                parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False, escape_char=False, ignore_empty_lines=True),
-                convert_options=pacsv.ConvertOptions(column_types={n: pa.string() for n in names}, null_values=[],
-                                                     strings_can_be_null=False, check_utf8=False),
-            )  # fmt: skip
-        except (pa.ArrowException, ValueError):
-            return None
-        return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
+        pa = _arrow()
+        return None if pa is None else self._read({str(i): pa.string() for i in range(self.n_columns)})
 
     def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
         """Columns ``positions`` as floats, shape ``(len(rows), len(positions))``, when every cell
         is a number the per-cell path takes with the same value (finite, within ``MAX_ABS``);
         None otherwise, for the per-cell path to name the bad cell. (``finite``, which columns
         must be finite, is moot: an empty or NaN cell always goes to the per-cell path.)"""
+        if self.number_bytes_only[bool(decimal_comma)] and not self.padded:
+            out = self._floats(positions, decimal_comma)  # every cell of the body is made of number bytes
+        else:
+            out = self._cast(positions, decimal_comma)
+        if out is None or not np.isfinite(out).all() or (np.abs(out) > MAX_ABS).any():
+            return None
+        return out
+
+    def _read(self, column_types: dict, **convert):
+        """pyarrow's ``read_csv`` of the body with ``column_types`` (name = position), or None."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        pacsv = pa.csv
+        names = [str(i) for i in range(self.n_columns)]
+        try:
+            table = pacsv.read_csv(
+                pa.py_buffer(self.data),
+                read_options=pacsv.ReadOptions(column_names=names, skip_rows=1),
+                parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False, escape_char=False, ignore_empty_lines=True),
+                convert_options=pacsv.ConvertOptions(column_types=column_types, null_values=[], strings_can_be_null=False,
+                                                     include_columns=list(column_types), check_utf8=False, **convert),
+            )  # fmt: skip
+        except (pa.ArrowException, ValueError):
+            return None
+        return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
+
+    def text_column(self, position: int) -> Optional[list[str]]:
+        """The raw cells of column ``position`` for every row of :attr:`rows`, or None."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        table = self.columns if "columns" in vars(self) else self._read({str(position): pa.string()})
+        return None if table is None else table.column(str(position)).to_pylist()
+
+    def _floats(self, positions: Sequence[int], decimal_comma: bool) -> Optional[np.ndarray]:
+        """The columns parsed to float64 by the CSV reader itself (no text columns built)."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        table = self._read({str(p): pa.float64() for p in dict.fromkeys(positions)}, decimal_point="," if decimal_comma else ".")
+        if table is None:
+            return None
+        return np.column_stack([table.column(str(p)).to_numpy() for p in positions])
+
+    def _cast(self, positions: Sequence[int], decimal_comma: bool) -> Optional[np.ndarray]:
+        """The columns as text, each checked for number bytes, trimmed, then cast to float64."""
         table = self.columns
         if table is None:
             return None
-        import pyarrow as pa
-        import pyarrow.compute as pc
+        pa = _arrow()
+        pc = pa.compute
 
         out = np.empty((table.num_rows, len(positions)), dtype=np.float64)
         for k, position in enumerate(positions):
@@ -226,16 +275,16 @@ class DelimitedBody(Sequence):
                 out[:, k] = pc.cast(column, pa.float64()).to_numpy()
             except (pa.ArrowException, ValueError):
                 return None
-        if not np.isfinite(out).all() or (np.abs(out) > MAX_ABS).any():
-            return None
         return out
 
 
 def text_column(body, position: int, rows: np.ndarray) -> list[str]:
     """The cells of column ``position`` (stripped) in the records numbered ``rows``: from the
     columnar table when those are all its rows, else record by record."""
-    if isinstance(body, DelimitedBody) and body.columns is not None and np.array_equal(rows, body.rows):
-        return [cell.strip() for cell in body.columns.column(position).to_pylist()]
+    if isinstance(body, DelimitedBody) and np.array_equal(rows, body.rows):
+        column = body.text_column(position)
+        if column is not None:
+            return [cell.strip() for cell in column]
     kept = {int(r) for r in rows}
     return [cells[position].strip() for number, cells in body if number in kept]
 
