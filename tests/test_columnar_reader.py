@@ -252,3 +252,12 @@ def test_without_pyarrow_every_cell_takes_the_per_cell_path(tmp_path, monkeypatc
     np.testing.assert_array_equal(back.y[:, 0], d.y[:, 0])
     (tmp_path / "ipa.csv").write_text(IPA_HEADER + "\n" + ";".join(["20200714163904"] + ["1,5"] * 13) + "\n")
     assert read_ipa(tmp_path / "ipa.csv", measurement="position").t.tolist() == [0.0]
+
+
+def test_decimal_comma_files_take_the_columnar_path(tmp_path, monkeypatch):
+    rows = [";".join([f"2020071416390{k}"] + [f"{k},{j}5" for j in range(13)]) for k in range(5)]
+    (tmp_path / "ipa.csv").write_text(IPA_HEADER + "\r\n" + "\r\n".join(rows) + "\r\n")
+    monkeypatch.setattr(table, "_records", lambda *a: pytest.fail("the per-cell path ran on a clean file"))
+    d = read_ipa(tmp_path / "ipa.csv", measurement="position")
+    np.testing.assert_array_equal(d.q[:, 0], [0.05, 1.05, 2.05, 3.05, 4.05])
+    np.testing.assert_array_equal(d.t, np.arange(5.0))
