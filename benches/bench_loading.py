@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_calibration import best_of, load_avg, numpy_twin, rmse
+from bench_calibration import load_avg, numpy_twin, rmse
 from machine import cpu_model
 
 DATASETS = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets"))

@@ -8,7 +8,6 @@ in :meth:`Dataset.to_frame <robocal.data.Dataset.to_frame>`.
 from __future__ import annotations
 
 import sys
-from functools import cached_property
 from typing import Optional, Sequence
 
 import numpy as np
@@ -16,7 +15,7 @@ import numpy as np
 from ..exceptions import DataError
 from .canonical import canonical_dataset
 from .dataset import ANGLE_UNITS, Dataset, require_pandas
-from .table import MAX_ABS, check_header
+from .table import MAX_ABS, ColumnarBody, check_header
 
 #: How a frame is named in errors and in ``Dataset.source``.
 SOURCE = "DataFrame"
@@ -28,7 +27,7 @@ def is_frame(obj) -> bool:
     return pandas is not None and isinstance(obj, pandas.DataFrame)
 
 
-class FrameBody(Sequence):
+class FrameBody(ColumnarBody):
     """The rows of a DataFrame as ``(position, cells)`` records (built on first use), and its
     numeric columns as one array when every cell is a number the per-cell rules take."""
 
@@ -37,8 +36,8 @@ class FrameBody(Sequence):
         self.rows = np.arange(len(frame), dtype=np.int64)
 
     def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
-        """Columns ``positions`` as floats when all are numeric dtypes (not bool) holding
-        values the per-cell path takes unchanged; None otherwise."""
+        """See :meth:`ColumnarBody.numeric`: here the columns must be of numeric dtypes (not
+        bool), their values within ``MAX_ABS`` and finite where ``finite`` says."""
         pd = require_pandas("reading a DataFrame")
         columns = [self.frame.iloc[:, k] for k in positions]
         if not len(self.frame) or any(pd.api.types.is_bool_dtype(c) or not pd.api.types.is_numeric_dtype(c) or
@@ -56,20 +55,12 @@ class FrameBody(Sequence):
             return None  # a missing value of a nullable integer column: left to the per-cell path
         return values
 
-    @cached_property
     def _records(self) -> list[tuple[int, list]]:
+        """Python objects per cell (numbers, text, None for a missing value), as the per-cell
+        rules of a spreadsheet take them."""
         pd = require_pandas("reading a DataFrame")
         cells = self.frame.astype(object).to_numpy().tolist()
         return [(i, [None if c is pd.NA or c is pd.NaT else c for c in row]) for i, row in enumerate(cells)]
-
-    def __len__(self) -> int:
-        return len(self.frame)
-
-    def __getitem__(self, index):
-        return self._records[index]
-
-    def __iter__(self):
-        return iter(self._records)
 
 
 def read_frame(

@@ -118,7 +118,37 @@ def _arrow():
     return pyarrow
 
 
-class DelimitedBody(Sequence):
+class ColumnarBody(Sequence):
+    """Rows of a table with two readings: ``(row_number, cells)`` records for the per-cell
+    path, built on first use, and :meth:`numeric`, which :func:`numeric_columns` tries first."""
+
+    #: Row numbers of the records :meth:`numeric` answers for.
+    rows: np.ndarray
+
+    def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
+        """Columns ``positions`` as floats (one row per :attr:`rows`) when every cell is one the
+        per-cell rules take with the same value; None for the per-cell path to name a bad cell.
+        ``finite``: per position, whether NaN / infinity are refused."""
+        raise NotImplementedError
+
+    def _records(self) -> list[tuple[int, list]]:
+        raise NotImplementedError
+
+    @cached_property
+    def records(self) -> list[tuple[int, list]]:
+        return self._records()
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index):
+        return self.records[index]
+
+    def __iter__(self):
+        return iter(self.records)
+
+
+class DelimitedBody(ColumnarBody):
     """The data rows of a delimited text: a sequence of ``(row_number, cells)`` records (split by
     :func:`csv.reader` on first use, as :func:`split_delimited` always did), and numeric columns
     read by pyarrow's columnar CSV reader (:meth:`numeric`) without splitting a row in Python.
@@ -163,20 +193,10 @@ class DelimitedBody(Sequence):
             return None  # csv.reader refuses over-long fields; a blank first line is the empty-file error
         return cls(text, data, delimiter, path, newlines, rest)
 
-    # -- the records, as the per-cell path sees them
-    @cached_property
-    def records(self) -> list[tuple[int, list[str]]]:
+    def _records(self) -> list[tuple[int, list[str]]]:
+        """The records as the per-cell path has always split them."""
         lines = _records(self.text, self.delimiter, self.path)
         return [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
-
-    def __len__(self) -> int:
-        return len(self.records)
-
-    def __getitem__(self, index):
-        return self.records[index]
-
-    def __iter__(self):
-        return iter(self.records)
 
     # -- the columnar reader
     @cached_property
@@ -199,10 +219,8 @@ class DelimitedBody(Sequence):
         return None if pa is None else self._read({str(i): pa.string() for i in range(self.n_columns)})
 
     def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
-        """Columns ``positions`` as floats, shape ``(len(rows), len(positions))``, when every cell
-        is a number the per-cell path takes with the same value (finite, within ``MAX_ABS``);
-        None otherwise, for the per-cell path to name the bad cell. (``finite``, which columns
-        must be finite, is moot: an empty or NaN cell always goes to the per-cell path.)"""
+        """See :meth:`ColumnarBody.numeric`: here every cell must be finite and within
+        ``MAX_ABS`` (an empty or NaN cell always goes to the per-cell path, ``finite`` or not)."""
         if self.number_bytes_only[bool(decimal_comma)] and not self.padded:
             out = self._floats(positions, decimal_comma)  # every cell of the body is made of number bytes
         else:
@@ -409,8 +427,7 @@ def numeric_columns(
     for i, name in enumerate(header):
         first.setdefault(name, i)
     position = [first[name] for name in wanted]
-    numeric = getattr(body, "numeric", None)  # a columnar body: DelimitedBody, FrameBody
-    fast = numeric(position, decimal_comma, [name not in allow_nonfinite for name in wanted]) if numeric else None
+    fast = body.numeric(position, decimal_comma, [name not in allow_nonfinite for name in wanted]) if isinstance(body, ColumnarBody) else None
     if fast is not None:
         return fast, body.rows.copy(), []
     if not body:
