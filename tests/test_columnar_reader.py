@@ -261,3 +261,18 @@ def test_decimal_comma_files_take_the_columnar_path(tmp_path, monkeypatch):
     d = read_ipa(tmp_path / "ipa.csv", measurement="position")
     np.testing.assert_array_equal(d.q[:, 0], [0.05, 1.05, 2.05, 3.05, 4.05])
     np.testing.assert_array_equal(d.t, np.arange(5.0))
+
+
+def test_reading_a_file_does_not_import_pandas(tmp_path):
+    """pyarrow's ``to_numpy`` imports pandas when installed (~0.4 s): the reader must not call it."""
+    import subprocess
+    import sys
+
+    (tmp_path / "a.csv").write_text("q1,q2,L\n10,20,30\n40,50,60\n")
+    (tmp_path / "b.csv").write_text("q1,q2,L,operator\n 10 ,20,30,ann\n40,50,60,bob\n")  # text column, padded cells
+    (tmp_path / "c.csv").write_text(IPA_HEADER + "\n" + ";".join(["20200714163904"] + ["1,5"] * 13) + "\n")
+    code = ("import sys, robocal.data as d; d.load(sys.argv[1]); d.load(sys.argv[2]); d.read_ipa(sys.argv[3], measurement='position'); "
+            "print('pyarrow' in sys.modules, 'pandas' in sys.modules)")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code, *(str(tmp_path / n) for n in ("a.csv", "b.csv", "c.csv"))],
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    assert out.stdout.split() == ["True", "False"]

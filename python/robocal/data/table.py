@@ -264,7 +264,8 @@ class DelimitedBody(ColumnarBody):
         table = self._read({str(p): pa.float64() for p in dict.fromkeys(positions)}, decimal_point="," if decimal_comma else ".")
         if table is None:
             return None
-        return np.column_stack([table.column(str(p)).to_numpy() for p in positions])
+        columns = [_float_values(table.column(str(p))) for p in positions]
+        return None if any(c is None for c in columns) else np.column_stack(columns)
 
     def _cast(self, positions: Sequence[int], decimal_comma: bool) -> Optional[np.ndarray]:
         """The columns as text, each checked for number bytes, trimmed, then cast to float64."""
@@ -290,9 +291,12 @@ class DelimitedBody(ColumnarBody):
             if any(_chunk_has_empty(chunk) for chunk in column.chunks):
                 return None
             try:
-                out[:, k] = pc.cast(column, pa.float64()).to_numpy()
+                values = _float_values(pc.cast(column, pa.float64()))
             except (pa.ArrowException, ValueError):
                 return None
+            if values is None:
+                return None
+            out[:, k] = values
         return out
 
 
@@ -305,6 +309,15 @@ def text_column(body, position: int, rows: np.ndarray) -> list[str]:
             return [cell.strip() for cell in column]
     kept = {int(r) for r in rows}
     return [cells[position].strip() for number, cells in body if number in kept]
+
+
+def _float_values(column) -> Optional[np.ndarray]:
+    """A pyarrow float64 column without nulls as one NumPy array. From the buffers: pyarrow's
+    ``to_numpy`` imports pandas when it is installed (~0.4 s on a first call)."""
+    if column.null_count:  # not produced (null_values=[], no text nulls); were it, the per-cell path
+        return None
+    parts = [np.frombuffer(c.buffers()[1], dtype=np.float64)[c.offset : c.offset + len(c)] for c in column.chunks]
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def _offsets(chunk) -> np.ndarray:
