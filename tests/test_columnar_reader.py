@@ -271,8 +271,24 @@ def test_reading_a_file_does_not_import_pandas(tmp_path):
     (tmp_path / "a.csv").write_text("q1,q2,L\n10,20,30\n40,50,60\n")
     (tmp_path / "b.csv").write_text("q1,q2,L,operator\n 10 ,20,30,ann\n40,50,60,bob\n")  # text column, padded cells
     (tmp_path / "c.csv").write_text(IPA_HEADER + "\n" + ";".join(["20200714163904"] + ["1,5"] * 13) + "\n")
-    code = ("import sys, robocal.data as d; d.load(sys.argv[1]); d.load(sys.argv[2]); d.read_ipa(sys.argv[3], measurement='position'); "
-            "print('pyarrow' in sys.modules, 'pandas' in sys.modules)")  # fmt: skip
+    code = ("import sys, robocal.data as d; d.table.COLUMNAR_MIN_BYTES = 0; d.load(sys.argv[1]); d.load(sys.argv[2]); "
+            "d.read_ipa(sys.argv[3], measurement='position'); print('pyarrow' in sys.modules, 'pandas' in sys.modules)")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code, *(str(tmp_path / n) for n in ("a.csv", "b.csv", "c.csv"))],
                          capture_output=True, text=True, check=True)  # fmt: skip
     assert out.stdout.split() == ["True", "False"]
+
+
+def test_small_files_do_not_pay_for_importing_pyarrow(tmp_path):
+    """A fresh process reading a small file stays on the per-cell path (importing pyarrow would
+    cost more); a file past COLUMNAR_MIN_BYTES loads pyarrow."""
+    import subprocess
+    import sys
+
+    (tmp_path / "small.csv").write_text("q1,q2,L\n10,20,30\n40,50,60\n")
+    rng = np.random.default_rng(0)
+    write_canonical(Dataset(q=rng.uniform(-3, 3, (12000, 6)), y=rng.normal(900, 9, 12000), measurement="cable"), tmp_path / "big.csv")
+    assert (tmp_path / "big.csv").stat().st_size > table.COLUMNAR_MIN_BYTES
+    code = "import sys, robocal.data as d; d.load(sys.argv[1]); print('pyarrow' in sys.modules)"
+    seen = [subprocess.run([sys.executable, "-c", code, str(tmp_path / n)], capture_output=True, text=True, check=True).stdout.strip()
+            for n in ("small.csv", "big.csv")]  # fmt: skip
+    assert seen == ["False", "True"]

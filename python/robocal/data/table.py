@@ -23,6 +23,7 @@ import csv
 import difflib
 import math
 import re
+import sys
 from functools import cached_property
 from pathlib import Path
 from typing import Iterable, Optional, Sequence
@@ -37,6 +38,10 @@ MAX_ABS = 1e12
 #: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
 #: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
 COLUMNAR = True
+#: Below this size (bytes of text), and while pyarrow is not yet imported, a file is read cell by
+#: cell: importing pyarrow (~0.1 s) costs more than the per-cell path on ~1 MB of cells
+#: (benches/bench_loading.py). Once pyarrow is loaded, every file takes the columnar reader.
+COLUMNAR_MIN_BYTES = 1 << 20
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
 #: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
@@ -169,7 +174,7 @@ class DelimitedBody(ColumnarBody):
     @classmethod
     def of(cls, text: str, delimiter: str, path) -> Optional["DelimitedBody"]:
         """A body for ``text``, or None where only the per-cell path splits it exactly."""
-        if not COLUMNAR:
+        if not COLUMNAR or ("pyarrow" not in sys.modules and len(text) < COLUMNAR_MIN_BYTES):
             return None
         data = text.encode("utf-8")
         if len(delimiter) != 1 or not delimiter.isascii() or delimiter == '"':
