@@ -38,12 +38,13 @@ class NotPositiveDefiniteError(RobocalError, np.linalg.LinAlgError):
 class DataError(RobocalError, ValueError):
     """A data file cannot be read as asked: the message names the file, row and column.
 
-    Attributes ``path``, ``row`` (1-based line in the file, the header is row 1) and ``column``
+    Attributes ``path``, ``row`` (1-based line in the file, the header is row 1; a DataFrame's
+    0-based position) and ``column``
     (a name) are set where known; ``message`` is the text without the location.
     """
 
     def __init__(self, message: str, path=None, row: int | None = None, column: str | None = None):
-        where = ", ".join(p for p in (str(path) if path else "", f"row {row}" if row else "", f"column {column!r}" if column else "") if p)
+        where = ", ".join(p for p in (str(path) if path else "", f"row {row}" if row is not None else "", f"column {column!r}" if column else "") if p)
         super().__init__(f"{where}: {message}" if where else message)
         self.message, self.path, self.row, self.column = message, path, row, column
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core import covariance
 from .metrics import metrics
-from ..data.dataset import Dataset
+from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
 from .problem import PLAUSIBLE, Problem, is_kinematic
 
@@ -97,6 +97,25 @@ class CalibrationResult:
             {"name": n, "unit": u, "nominal": float(nom), "value": float(v), "std": std.get(k)}
             for k, (n, u, nom, v) in enumerate(zip(robot.param_names, robot.param_units, robot.params, full))
         ]
+
+    def parameters_frame(self):
+        """:meth:`parameters` as a pandas DataFrame, one row per robot parameter, indexed by
+        position: columns ``name``, ``value``, ``nominal``, ``deviation`` (value − nominal),
+        ``std`` (NaN where not estimated), ``unit`` (mm or rad) and ``estimated`` (bool).
+        pandas is optional: needed only here."""
+        pd = require_pandas("CalibrationResult.parameters_frame")
+        rows = self.parameters()
+        estimated = np.zeros(len(rows), dtype=bool)
+        estimated[self.problem.free] = True
+        return pd.DataFrame({
+            "name": [p["name"] for p in rows],
+            "value": np.array([p["value"] for p in rows], dtype=np.float64),
+            "nominal": np.array([p["nominal"] for p in rows], dtype=np.float64),
+            "deviation": np.array([p["value"] - p["nominal"] for p in rows], dtype=np.float64),
+            "std": np.array([np.nan if p["std"] is None else p["std"] for p in rows], dtype=np.float64),
+            "unit": [p["unit"] for p in rows],
+            "estimated": estimated,
+        })  # fmt: skip
 
     def implausible(self) -> list[dict]:
         """Kinematic parameters that moved further from nominal than :data:`PLAUSIBLE`: the data

@@ -4,6 +4,7 @@ datasets (:func:`load` detects the format), splits, and the validation report in
 
 from .canonical import read_canonical, write_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset
+from .frame import read_frame
 from .public import FORMATS, detect_format, load, read_hsr, read_ipa, read_robotcali
 from .splits import chronological, kfold, paper_split, random_split
 
@@ -18,6 +19,7 @@ __all__ = [
     "paper_split",
     "random_split",
     "read_canonical",
+    "read_frame",
     "read_hsr",
     "read_ipa",
     "read_robotcali",

@@ -16,11 +16,9 @@ from typing import Optional
 import numpy as np
 
 from ..exceptions import DataError
-from .dataset import OBSERVATION_COLUMNS, Dataset
+from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset
 from .table import numeric_columns, read_text, require_columns, split_delimited
 
-ANGLE_UNITS = ("deg", "rad")
-OPTIONAL_COLUMNS = ("t", "temp", "sample")
 NUMERIC_OPTIONAL = ("t", "temp")
 
 
@@ -60,6 +58,12 @@ def read_canonical(
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
         sep = ";" if ";" in header[0] else "tab"
         raise DataError(f"the header has a single column containing '{sep}': canonical files are comma-separated", path, 1)
+    return canonical_dataset(header, body, path, angle_unit, measurement, robot, exclude_bad_rows)
+
+
+def canonical_dataset(header, body, path, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool) -> Dataset:
+    """The :class:`Dataset` of a canonical table, its ``header`` and ``(row, cells)`` ``body``
+    (from a file or a DataFrame); ``path`` names the source in errors."""
     joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
     expected = [f"q{i}" for i in range(1, len(joints) + 1)]
     if not joints or joints != expected:
@@ -100,15 +104,7 @@ def write_canonical(dataset: Dataset, path, angle_unit: str = "deg") -> Path:
     if angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
     path = Path(path)
-    q = np.degrees(dataset.q) if angle_unit == "deg" else dataset.q
-    columns = [f"q{i}" for i in range(1, dataset.n_joints + 1)] + list(OBSERVATION_COLUMNS[dataset.measurement])
-    blocks = [q, dataset.y]
-    for name in ("t", "temp"):
-        value = getattr(dataset, name)
-        if value is not None:
-            columns.append(name)
-            blocks.append(value[:, None])
-    table = np.hstack(blocks)
+    columns, table = dataset.canonical_columns(angle_unit)
     with path.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(columns)

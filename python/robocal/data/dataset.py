@@ -9,7 +9,7 @@ from typing import Optional
 import numpy as np
 
 from ..core import as_float_array
-from ..exceptions import ShapeError
+from ..exceptions import InvalidParameterError, ShapeError
 
 #: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).
 OBSERVATION_COLUMNS = {
@@ -17,6 +17,21 @@ OBSERVATION_COLUMNS = {
     "position": ("x", "y", "z"),
     "pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
 }
+
+
+#: Units of the joint columns of canonical tables (files and DataFrames).
+ANGLE_UNITS = ("deg", "rad")
+#: Columns of a canonical table beside ``q1..qN`` and the observations.
+OPTIONAL_COLUMNS = ("t", "temp", "sample")
+
+
+def require_pandas(what: str):
+    """The pandas module, or an ImportError saying which feature needs it (pandas is optional)."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError(f"{what} needs pandas, an optional dependency: pip install pandas") from None
+    return pandas
 
 
 #: |q| above this (rad) cannot be a joint angle in rad: the unit is probably deg.
@@ -66,7 +81,8 @@ class Dataset:
     temp : ndarray, shape (m,), optional
         Temperature in deg C.
     rows : ndarray of int, shape (m,)
-        Each sample's row in the source file (1-based, the header is row 1).
+        Each sample's row in the source file (1-based, the header is row 1); for a DataFrame,
+        its position in the frame (0-based, as ``frame.iloc``).
     source : str, optional
         The file the samples came from.
     excluded : list of dict
@@ -132,6 +148,46 @@ class Dataset:
         return replace(self, q=self.q[idx], y=self.y[idx], t=pick(self.t), temp=pick(self.temp), rows=self.rows[idx],
                        excluded=list(self.excluded), notes=list(self.notes),
                        extra={k: v[idx] for k, v in self.extra.items()})  # fmt: skip
+
+    def canonical_columns(self, angle_unit: str = "deg") -> tuple[list[str], np.ndarray]:
+        """Column names and values (m, k) of the canonical table: ``q1..qN`` in ``angle_unit``,
+        the observation columns, then ``t`` and ``temp`` where present (docs/data-format.md)."""
+        if angle_unit not in ANGLE_UNITS:
+            raise InvalidParameterError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}")
+        q = np.degrees(self.q) if angle_unit == "deg" else self.q
+        columns = [f"q{i}" for i in range(1, self.n_joints + 1)] + list(OBSERVATION_COLUMNS[self.measurement])
+        blocks = [q, self.y]
+        for name in ("t", "temp"):
+            value = getattr(self, name)
+            if value is not None:
+                columns.append(name)
+                blocks.append(value[:, None])
+        return columns, np.hstack(blocks)
+
+    def to_frame(self, angle_unit: str = "rad"):
+        """The samples as a pandas DataFrame with the canonical columns (those
+        :func:`~robocal.data.write_canonical` writes; ``extra`` side columns are left out).
+
+        ``frame.attrs`` records ``angle_unit`` and ``robot``, so that ``robocal.load(frame)``
+        gives back an equal dataset (its ``rows`` become the frame's positions, 0-based).
+
+        Parameters
+        ----------
+        angle_unit : {"rad", "deg"}
+            Unit of the ``q`` columns: radians (exact round trip) by default; ``"deg"`` for the
+            values a canonical file holds (``load`` reads the unit from ``attrs``).
+
+        Returns
+        -------
+        pandas.DataFrame, shape (m, N + 1 | 3 | 7 [+ t] [+ temp])
+        """
+        pd = require_pandas("Dataset.to_frame")
+        columns, values = self.canonical_columns(angle_unit)
+        frame = pd.DataFrame(values, columns=columns)
+        frame.attrs["angle_unit"] = angle_unit
+        if self.robot is not None:
+            frame.attrs["robot"] = self.robot
+        return frame
 
     def __repr__(self) -> str:
         where = f" from {self.source}" if self.source else ""

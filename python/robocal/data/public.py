@@ -31,7 +31,9 @@ import numpy as np
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
-from .table import check_header, numeric_columns, read_text, require_columns, split_delimited
+from .frame import SOURCE as FRAME
+from .frame import is_frame, read_frame
+from .table import check_header, numeric_columns, read_text, require_columns, shown, split_delimited, text_column
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -47,6 +49,8 @@ IPA_STD = [f"measurement_std_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")]
 IPA_GOAL = ["Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw"]
 
 XLSX_SIGNATURE = b"PK\x03\x04"
+#: ``text.splitlines()[0]`` without splitting the rest: everything up to a line boundary.
+_FIRST_LINE = re.compile("[^\n\r\x0b\x0c\x1c-\x1e\x85\u2028\u2029]*")
 
 
 # -- tables ------------------------------------------------------------------------------------
@@ -231,22 +235,49 @@ def _quaternions(euler_deg: np.ndarray) -> np.ndarray:
     return wxyz * np.where(wxyz[:, :1] < 0, -1.0, 1.0)
 
 
+def _clock(stamps: list[str]) -> Optional[np.ndarray]:
+    """``datetime.strptime(s, "%Y%m%d%H%M%S").timestamp()`` of every stamp, without parsing
+    each: the fields by array arithmetic, the local UTC offset once per distinct minute (time
+    zone changes fall on whole minutes). None unless every stamp is 14 ASCII digits with each
+    field in its two-digit range (then strptime reads exactly those fields) and a real date."""
+    if not stamps or {len(s) for s in stamps} != {14}:
+        return None
+    joined = "".join(stamps)
+    if not (joined.isascii() and joined.isdigit()):
+        return None
+    d = np.frombuffer(joined.encode(), dtype=np.uint8).reshape(-1, 14).astype(np.int64) - 48
+    two = lambda k: 10 * d[:, k] + d[:, k + 1]  # noqa: E731
+    year, month, day, hour, minute, second = 100 * two(0) + two(2), two(4), two(6), two(8), two(10), two(12)
+    if not ((year >= 1) & (month >= 1) & (month <= 12) & (day >= 1) & (day <= 31) & (hour <= 23) & (minute <= 59) & (second <= 59)).all():
+        return None
+    minutes, index = np.unique(((year * 100 + month) * 100 + day) * 10000 + hour * 100 + minute, return_inverse=True)
+    start = np.empty(len(minutes))
+    for k, key in enumerate(minutes.tolist()):
+        try:
+            start[k] = datetime(key // 10**8, key // 10**6 % 100, key // 10**4 % 100, key // 100 % 100, key % 100).timestamp()
+        except ValueError:  # 31 April, 29 February of a common year
+            return None
+    return start[index.ravel()] + second
+
+
 def _timestamps(stamps: list[str], rows: np.ndarray, path):
     """``(t, notes)`` from the ``Timestamp`` cells: seconds since the earliest sample when every
     stamp is ``yyyymmddHHMMSS``; ``None`` with an explanatory note otherwise."""
-    if all(re.fullmatch(r"\d{14}", s) for s in stamps):
-        clock = []
-        for s, row in zip(stamps, rows):
-            try:
-                clock.append(datetime.strptime(s, "%Y%m%d%H%M%S").timestamp())
-            except ValueError:
-                raise DataError(f"expected a time yyyymmddHHMMSS; got {s!r}", path, int(row), "Timestamp") from None
+    clock = _clock(stamps)
+    if clock is not None or all(re.fullmatch(r"\d{14}", s) for s in stamps):
+        if clock is None:  # a field out of range somewhere: strptime stamp by stamp names the row
+            clock = []
+            for s, row in zip(stamps, rows):
+                try:
+                    clock.append(datetime.strptime(s, "%Y%m%d%H%M%S").timestamp())
+                except ValueError:
+                    raise DataError(f"expected a time yyyymmddHHMMSS; got {s!r}", path, int(row), "Timestamp") from None
         t = np.array(clock) - min(clock)
         back = np.flatnonzero(np.diff(t) < 0) + 1
         notes = []
         if back.size:
-            shown = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
-            notes.append(f"the clock goes backwards at {back.size} rows ({shown}): file order is not acquisition order; sort by `t`")
+            listed = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
+            notes.append(f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; sort by `t`")
         return t, notes
     if all(re.fullmatch(r"[-+]?\d+([.,]\d*)?[eE][-+]?\d+", s) for s in stamps):
         return None, [
@@ -298,8 +329,7 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         y = np.hstack([y, _quaternions(values[:, 9:12])])
     notes, t = [], None
     if "Timestamp" in header:
-        kept = {int(r) for r in rows}
-        stamps = [cells[header.index("Timestamp")].strip() for number, cells in body if number in kept]
+        stamps = text_column(body, header.index("Timestamp"), rows)
         t, notes = _timestamps(stamps, rows, path)
     extra = {}
     if all(c in column for c in IPA_GOAL):
@@ -339,7 +369,7 @@ def detect_format(path) -> str:
             return "hsr"
         raise DataError(f"an .xlsx workbook whose first sheet's header {header} is neither D1 ({HSR_COLUMNS}) nor D2 ({ROBOTCALI_COLUMNS})", path, 1)
     text = read_text(path)
-    first = text.splitlines()[0] if text.strip() else ""
+    first = _FIRST_LINE.match(text).group() if text.strip() else ""
     if not first.strip():
         raise DataError("the file is empty (a header row is expected)", path, 1)
     fields = {sep: [c.strip() for c in first.split(sep)] for sep in (";", ",")}
@@ -389,7 +419,11 @@ def load(
 
     Parameters
     ----------
-    path : str or Path
+    path : str, Path or pandas.DataFrame
+        A file, or a DataFrame with the canonical columns (read by
+        :func:`~robocal.data.frame.read_frame` as the CSV with the same content; rows are its
+        positions, 0-based; ``robot`` and ``angle_unit`` default to ``frame.attrs``, where
+        :meth:`Dataset.to_frame` records them).
     format : {"canonical", "hsr", "robotcali", "ipa"}, optional
         Detected from the content by default (:func:`detect_format`).
     measurement : {"cable", "position", "pose"}, optional
@@ -417,23 +451,30 @@ def load(
         On an unknown format, a mismatching robot, measurement or unit, implausible joint
         values for the unit, or any bad content.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise DataError(f"`path` must be a file path (str or Path); got {type(path).__name__} {path!r}")
-    path = Path(path)
+    frame = is_frame(path)
+    if not frame and not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"`path` must be a file path (str or Path) or a pandas DataFrame; got {type(path).__name__} {shown(path)}")
+    source, path = (path, FRAME) if frame else (None, Path(path))
     if format is not None and format not in FORMATS:
         raise DataError(f"`format` must be one of {FORMATS}; got {format!r}", path)
+    if frame:  # what Dataset.to_frame recorded, unless given
+        robot = robot if robot is not None else source.attrs.get("robot")
+        angle_unit = angle_unit if angle_unit is not None else source.attrs.get("angle_unit")
     if angle_unit is not None and angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
     if measurement is not None and (not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS):
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
-    fmt = format or detect_format(path)
+    if frame and format not in (None, "canonical"):
+        raise DataError(f"a DataFrame is read as a canonical table; got format={format!r}", path)
+    fmt = "canonical" if frame else format or detect_format(path)
     native_unit = {"hsr": "deg", "robotcali": "deg", "ipa": "rad"}.get(fmt)
     if native_unit and angle_unit not in (None, native_unit):
         raise DataError(f"{fmt} files give joint angles in {native_unit}; got angle_unit={angle_unit!r}", path)
     if fmt in ("hsr", "robotcali") and measurement not in (None, "cable"):
         raise DataError(f"{fmt} files hold cable measurements; got measurement={measurement!r}", path)
     if fmt == "canonical":
-        dataset = read_canonical(path, angle_unit or "deg", measurement, None, exclude_bad_rows)
+        read = read_frame if frame else read_canonical
+        dataset = read(source if frame else path, angle_unit or "deg", measurement, None, exclude_bad_rows)
         if sheet is not None:
             raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
     elif fmt == "hsr":

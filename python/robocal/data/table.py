@@ -5,6 +5,16 @@ numbers 1-based with the header as row 1. Cells are strings (CSV) or numbers / `
 (spreadsheets). Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and
 column — or, when the caller asks for it, an entry of the excluded-rows list. Nothing is dropped
 silently.
+
+Delimited text is read twice over only when it must be: :func:`split_delimited` hands out a
+:class:`DelimitedBody`, whose numeric columns come from pyarrow's columnar CSV reader (all cells
+read as text, checked and converted column by column in C++). That fast path *accepts* a column
+only when every cell is one the per-cell rules take with the same value (ASCII digits, sign,
+point, exponent; no empty cell, no NaN / infinity, within ``MAX_ABS``) and the file's line
+structure is one it reproduces exactly (no quotes, no lone CR, no Unicode line separator, no
+over-long line). Anything else — or pyarrow missing — falls back to the per-cell path over
+:func:`csv.reader` records, which names the bad file, row and column: errors are the same either
+way, because the fast path never raises.
 """
 
 from __future__ import annotations
@@ -13,8 +23,10 @@ import csv
 import difflib
 import math
 import re
+import sys
+from functools import cached_property
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -23,6 +35,13 @@ from ..exceptions import DataError
 #: Largest magnitude a cell may hold: beyond ±1e12 mm / rad the core's squares overflow (the
 #: core refuses such inputs too, but here the error can name the file, row and column).
 MAX_ABS = 1e12
+#: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
+#: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
+COLUMNAR = True
+#: Below this size (bytes of text), and while pyarrow is not yet imported, a file is read cell by
+#: cell: importing pyarrow (~0.1 s) costs more than the per-cell path on ~1 MB of cells
+#: (benches/bench_loading.py). Once pyarrow is loaded, every file takes the columnar reader.
+COLUMNAR_MIN_BYTES = 1 << 20
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
 #: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
@@ -38,8 +57,8 @@ def shown(value, limit: int = 40) -> str:
 def read_text(path) -> str:
     """The file's text (UTF-8, an optional BOM removed), or a :class:`DataError`."""
     path = Path(path)
-    try:
-        return path.read_text(encoding="utf-8-sig")
+    try:  # bytes then decode: no newline translation to pay for (str.splitlines reads CRLF and CR alike)
+        return path.read_bytes().decode("utf-8-sig")
     except OSError as exc:
         raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
     except UnicodeDecodeError as exc:
@@ -47,17 +66,277 @@ def read_text(path) -> str:
 
 
 def split_delimited(text: str, delimiter: str, path):
-    """Header and ``(row_number, cells)`` records of a delimited text (blank lines skipped)."""
-    try:
-        lines = list(csv.reader(text.splitlines(), delimiter=delimiter))
-    except csv.Error as exc:
-        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+    """Header and ``(row_number, cells)`` records of a delimited text (blank lines skipped).
+
+    The records are a :class:`DelimitedBody` (split on first use; numeric columns by the
+    columnar reader) when the text's structure allows it, else a list.
+    """
+    body = DelimitedBody.of(text, delimiter, path)
+    lines = [] if body is None else [next(csv.reader([body.first_line], delimiter=delimiter))]
+    if body is None:
+        lines = _records(text, delimiter, path)
     if not lines or not any(cell.strip() for cell in lines[0]):
         raise DataError("the file is empty (a header row is expected)", path, 1)
     header = [h.strip() for h in lines[0]]
     check_header(header, path)
-    body = [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
-    return header, body
+    if body is not None:
+        body.n_columns = len(header)
+        return header, body
+    return header, [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+
+
+def _records(text: str, delimiter: str, path) -> list[list[str]]:
+    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path)."""
+    try:
+        return list(csv.reader(text.splitlines(), delimiter=delimiter))
+    except csv.Error as exc:
+        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+
+
+#: Bytes a text may hold for the columnar reader to split it exactly as :func:`csv.reader`
+#: over ``str.splitlines()`` does: tab, LF, CR (only as CRLF, checked apart), printable ASCII but
+#: the quote (deleted by ``bytes.translate``; what is left is refused), and the bytes of
+#: multi-byte UTF-8 characters (U+0085, U+2028 and U+2029, where ``splitlines`` breaks lines,
+#: are checked apart). The other controls (VT, FF, FS, GS, RS also break lines; NUL) are left to
+#: the per-cell path.
+_TEXT_BYTES = bytes([9, 10, 13, *(c for c in range(32, 127) if c != ord('"')), *range(128, 256)])
+_UNICODE_BREAKS = ("\x85", "\u2028", "\u2029")
+#: Bytes of a numeric cell on the fast path: ASCII digits, sign, point, exponent, and the spaces
+#: / tabs ``str.strip()`` removes around them (a comma too, for a decimal comma).
+_NUMBER_BYTES = b"0123456789+-.eE \t"
+
+
+def _only_number_bytes(cells: bytes, decimal_comma: bool) -> bool:
+    rest = cells.translate(None, _NUMBER_BYTES)
+    return not (rest.translate(None, b",") if decimal_comma else rest)
+
+
+def _arrow():
+    """pyarrow, with its ``csv`` and ``compute`` modules loaded, or None where it is missing
+    (then every cell takes the per-cell path). Imported on first use: ``import robocal`` stays light."""
+    try:
+        import pyarrow
+        import pyarrow.compute
+        import pyarrow.csv  # noqa: F401
+    except ImportError:
+        return None
+    return pyarrow
+
+
+class ColumnarBody(Sequence):
+    """Rows of a table with two readings: ``(row_number, cells)`` records for the per-cell
+    path, built on first use, and :meth:`numeric`, which :func:`numeric_columns` tries first."""
+
+    #: Row numbers of the records :meth:`numeric` answers for.
+    rows: np.ndarray
+
+    def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
+        """Columns ``positions`` as floats (one row per :attr:`rows`) when every cell is one the
+        per-cell rules take with the same value; None for the per-cell path to name a bad cell.
+        ``finite``: per position, whether NaN / infinity are refused."""
+        raise NotImplementedError
+
+    def _records(self) -> list[tuple[int, list]]:
+        raise NotImplementedError
+
+    @cached_property
+    def records(self) -> list[tuple[int, list]]:
+        return self._records()
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index):
+        return self.records[index]
+
+    def __iter__(self):
+        return iter(self.records)
+
+
+class DelimitedBody(ColumnarBody):
+    """The data rows of a delimited text: a sequence of ``(row_number, cells)`` records (split by
+    :func:`csv.reader` on first use, as :func:`split_delimited` always did), and numeric columns
+    read by pyarrow's columnar CSV reader (:meth:`numeric`) without splitting a row in Python.
+
+    Built by :meth:`of` only for texts whose line structure the columnar reader reproduces.
+    """
+
+    def __init__(self, text: str, data: bytes, delimiter: str, path, newlines: np.ndarray, rest: bytes):
+        self.text, self.data, self.delimiter, self.path = text, data, delimiter, path
+        self.newlines = newlines
+        first = newlines[0] if newlines.size else len(data)
+        self.first_line = data[:first].rstrip(b"\r").decode("utf-8")
+        self.n_columns = 0
+        # ``rest``: the body's bytes beside number bytes, delimiters and line ends
+        self.number_bytes_only = {False: not rest, True: not rest.translate(None, b",")}
+        self.padded = data.find(b" ", first) >= 0 or data.find(b"\t", first) >= 0
+
+    @classmethod
+    def of(cls, text: str, delimiter: str, path) -> Optional["DelimitedBody"]:
+        """A body for ``text``, or None where only the per-cell path splits it exactly."""
+        if not COLUMNAR or ("pyarrow" not in sys.modules and len(text) < COLUMNAR_MIN_BYTES):
+            return None
+        data = text.encode("utf-8")
+        if len(delimiter) != 1 or not delimiter.isascii() or delimiter == '"':
+            return None
+        first = data.find(b"\n")
+        first = len(data) if first < 0 else first
+        # one pass over the body: what is left beside number bytes must be text bytes too
+        rest = data[first:].translate(None, b"\r\n" + delimiter.encode() + _NUMBER_BYTES)
+        if data[:first].translate(None, _TEXT_BYTES) or rest.translate(None, _TEXT_BYTES):
+            return None
+        if not data.isascii() and any(c in text for c in _UNICODE_BREAKS):
+            return None
+        buf = np.frombuffer(data, dtype=np.uint8)
+        if b"\r" in data:  # CR only in CRLF, which both readers take as one line end
+            cr = np.flatnonzero(buf == 13)
+            if cr[-1] + 1 == len(buf) or (buf[cr + 1] != 10).any():
+                return None
+        newlines = np.flatnonzero(buf == 10)
+        longest = np.diff(newlines, prepend=-1, append=len(data)).max() if data else 0
+        if longest > csv.field_size_limit() or not data[:first].strip():
+            return None  # csv.reader refuses over-long fields; a blank first line is the empty-file error
+        return cls(text, data, delimiter, path, newlines, rest)
+
+    def _records(self) -> list[tuple[int, list[str]]]:
+        """The records as the per-cell path has always split them."""
+        lines = _records(self.text, self.delimiter, self.path)
+        return [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+
+    # -- the columnar reader
+    @cached_property
+    def rows(self) -> np.ndarray:
+        """Row numbers (header = 1) of the non-empty lines after the header."""
+        ends = np.append(self.newlines, len(self.data))
+        starts = np.concatenate([[0], self.newlines + 1])
+        buf = np.frombuffer(self.data, dtype=np.uint8)
+        cr = np.zeros(len(ends), dtype=np.int64)
+        inside = ends > starts
+        cr[inside] = buf[ends[inside] - 1] == 13
+        lines = np.flatnonzero(ends - starts - cr > 0)
+        return lines[lines > 0] + 1
+
+    @cached_property
+    def columns(self):
+        """The cells as a pyarrow Table of text columns, or None (pyarrow missing, a row with
+        another cell count than the header — anything the per-cell path must look at)."""
+        pa = _arrow()
+        return None if pa is None else self._read({str(i): pa.string() for i in range(self.n_columns)})
+
+    def numeric(self, positions: Sequence[int], decimal_comma: bool = False, finite=None) -> Optional[np.ndarray]:
+        """See :meth:`ColumnarBody.numeric`: here every cell must be finite and within
+        ``MAX_ABS`` (an empty or NaN cell always goes to the per-cell path, ``finite`` or not)."""
+        if self.number_bytes_only[bool(decimal_comma)] and not self.padded:
+            out = self._floats(positions, decimal_comma)  # every cell of the body is made of number bytes
+        else:
+            out = self._cast(positions, decimal_comma)
+        if out is None or not np.isfinite(out).all() or (np.abs(out) > MAX_ABS).any():
+            return None
+        return out
+
+    def _read(self, column_types: dict, **convert):
+        """pyarrow's ``read_csv`` of the body with ``column_types`` (name = position), or None."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        pacsv = pa.csv
+        names = [str(i) for i in range(self.n_columns)]
+        try:
+            table = pacsv.read_csv(
+                pa.py_buffer(self.data),
+                read_options=pacsv.ReadOptions(column_names=names, skip_rows=1),
+                parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False, escape_char=False, ignore_empty_lines=True),
+                convert_options=pacsv.ConvertOptions(column_types=column_types, null_values=[], strings_can_be_null=False,
+                                                     include_columns=list(column_types), check_utf8=False, **convert),
+            )  # fmt: skip
+        except (pa.ArrowException, ValueError):
+            return None
+        return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
+
+    def text_column(self, position: int) -> Optional[list[str]]:
+        """The raw cells of column ``position`` for every row of :attr:`rows`, or None."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        table = self.columns if "columns" in vars(self) else self._read({str(position): pa.string()})
+        return None if table is None else table.column(str(position)).to_pylist()
+
+    def _floats(self, positions: Sequence[int], decimal_comma: bool) -> Optional[np.ndarray]:
+        """The columns parsed to float64 by the CSV reader itself (no text columns built)."""
+        pa = _arrow()
+        if pa is None:
+            return None
+        table = self._read({str(p): pa.float64() for p in dict.fromkeys(positions)}, decimal_point="," if decimal_comma else ".")
+        if table is None:
+            return None
+        columns = [_float_values(table.column(str(p))) for p in positions]
+        return None if any(c is None for c in columns) else np.column_stack(columns)
+
+    def _cast(self, positions: Sequence[int], decimal_comma: bool) -> Optional[np.ndarray]:
+        """The columns as text, each checked for number bytes, trimmed, then cast to float64."""
+        table = self.columns
+        if table is None:
+            return None
+        pa = _arrow()
+        pc = pa.compute
+
+        out = np.empty((table.num_rows, len(positions)), dtype=np.float64)
+        for k, position in enumerate(positions):
+            column = table.column(position)
+            padded = self.padded
+            if not self.number_bytes_only[bool(decimal_comma)]:
+                cells = b"".join(_chunk_bytes(chunk) for chunk in column.chunks)
+                if not _only_number_bytes(cells, decimal_comma):
+                    return None
+                padded = b" " in cells or b"\t" in cells
+            if padded:
+                column = pc.utf8_trim(column, characters=" \t")
+            if decimal_comma:
+                column = pc.replace_substring(column, ",", ".")
+            if any(_chunk_has_empty(chunk) for chunk in column.chunks):
+                return None
+            try:
+                values = _float_values(pc.cast(column, pa.float64()))
+            except (pa.ArrowException, ValueError):
+                return None
+            if values is None:
+                return None
+            out[:, k] = values
+        return out
+
+
+def text_column(body, position: int, rows: np.ndarray) -> list[str]:
+    """The cells of column ``position`` (stripped) in the records numbered ``rows``: from the
+    columnar table when those are all its rows, else record by record."""
+    if isinstance(body, DelimitedBody) and np.array_equal(rows, body.rows):
+        column = body.text_column(position)
+        if column is not None:
+            return [cell.strip() for cell in column]
+    kept = {int(r) for r in rows}
+    return [cells[position].strip() for number, cells in body if number in kept]
+
+
+def _float_values(column) -> Optional[np.ndarray]:
+    """A pyarrow float64 column without nulls as one NumPy array. From the buffers: pyarrow's
+    ``to_numpy`` imports pandas when it is installed (~0.4 s on a first call)."""
+    if column.null_count:  # not produced (null_values=[], no text nulls); were it, the per-cell path
+        return None
+    parts = [np.frombuffer(c.buffers()[1], dtype=np.float64)[c.offset : c.offset + len(c)] for c in column.chunks]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _offsets(chunk) -> np.ndarray:
+    return np.frombuffer(chunk.buffers()[1], dtype=np.int32)[chunk.offset : chunk.offset + len(chunk) + 1]
+
+
+def _chunk_bytes(chunk) -> bytes:
+    """The UTF-8 bytes of a pyarrow string array's cells, one after the other."""
+    offsets, data = _offsets(chunk), chunk.buffers()[2]
+    return b"" if data is None or not len(chunk) else data.to_pybytes()[offsets[0] : offsets[-1]]
+
+
+def _chunk_has_empty(chunk) -> bool:
+    return bool((np.diff(_offsets(chunk)) == 0).any())
 
 
 def check_header(header: Sequence[str], path) -> None:
@@ -162,12 +441,15 @@ def numeric_columns(
     DataError
         On the first bad row unless ``exclude_bad_rows``; when no row is left.
     """
-    if not body:
-        raise DataError("the file has a header but no data rows", path, 2)
     first = {}
     for i, name in enumerate(header):
         first.setdefault(name, i)
     position = [first[name] for name in wanted]
+    fast = body.numeric(position, decimal_comma, [name not in allow_nonfinite for name in wanted]) if isinstance(body, ColumnarBody) else None
+    if fast is not None:
+        return fast, body.rows.copy(), []
+    if not body:
+        raise DataError("the file has a header but no data rows", path, 2)
     values, rows, excluded = [], [], []
     for row_number, cells in body:
         try:
