@@ -554,7 +554,7 @@ def _budget_section(report: dict) -> str:
     if prior:
         if prior.get("accepted"):
             part += (f'<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
-                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get('rmse_heldout_unconstrained'), 4)} mm.</p>")  # fmt: skip
+                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get(_held(report) + '_unconstrained'), 4)} mm.</p>")  # fmt: skip
         else:
             part += f'<p class="warn">No physical model: a tolerance prior (±{_esc(prior["sigma_mm"])} mm, ±{_esc(prior["sigma_deg"])}°) was tried; {_esc(prior.get("reason", ""))}.</p>'
     if f.get("implausible"):

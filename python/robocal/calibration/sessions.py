@@ -79,7 +79,9 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask) -> list[Proble
     for s, (d, b) in enumerate(zip(datasets, bases)):
         free = [c for i, c in enumerate(private) if kept[s * p + i]] + [c for i, c in enumerate(shared) if kept[n * p + i]]
         fixed = {robot.param_names[c]: "redundant with the set-ups of the sessions" for c in cols if c not in free}
-        out.append(replace(b, free=np.array(sorted(free), dtype=int), fixed=fixed))
+        start = b.start.copy()
+        start[shared] = bases[0].start[shared]  # one robot: a shared parameter held fixed holds one value
+        out.append(replace(b, free=np.array(sorted(free), dtype=int), fixed=fixed, start=start))
     return out
 
 

@@ -39,21 +39,27 @@ def summary(report: dict) -> str:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(f"  + {e['kind']}{where}: {_quantities(e['params'])}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm")
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
-    prior = f.get("tolerance_prior")
-    if prior and prior["accepted"]:
-        lines.append(f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
-                     f"where the data leave it undetermined; unconstrained held-out RMSE {f['rmse_heldout_unconstrained']:.4f} mm")  # fmt: skip
-    elif prior:
-        lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
-    if f.get("implausible"):
-        meaning = CONTRADICTED if prior and not prior["accepted"] else UNDETERMINED
-        lines.append("  warning: final model: " + describe_implausible(f["implausible"], meaning=meaning))
+    lines += _physical_lines(f, "rmse_heldout")
     if "floor_mm" in f:
         lines.append(f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
                      f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
     return "\n".join(lines)
+
+
+def _physical_lines(final: dict, key: str) -> list[str]:
+    """The final model's tolerance prior (kept or why not) and its implausible parameters."""
+    lines, prior = [], final.get("tolerance_prior")
+    if prior and prior["accepted"]:
+        lines.append(f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
+                     f"where the data leave it undetermined; unconstrained held-out RMSE {final[key + '_unconstrained']:.4f} mm")  # fmt: skip
+    elif prior:
+        lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
+    if final.get("implausible"):
+        meaning = CONTRADICTED if prior and not prior["accepted"] else UNDETERMINED
+        lines.append("  warning: final model: " + describe_implausible(final["implausible"], meaning=meaning))
+    return lines
 
 
 def sessions_summary(report: dict) -> str:
@@ -76,8 +82,7 @@ def sessions_summary(report: dict) -> str:
         if s["causes"]:
             lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
     lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
-    if f["implausible"]:
-        lines.append("  warning: final model: " + describe_implausible(f["implausible"]))
+    lines += _physical_lines(f, "rmse_loso")
     return "\n".join(lines)
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import inspect
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import PLAUSIBLE, is_kinematic, start_parameters
+from ..calibration.problem import PLAUSIBLE, TOLERANCE, is_kinematic, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
@@ -34,7 +34,7 @@ from ..robot import Robot
 from . import structure
 from .candidates import library
 from .model import ExtendedProblem
-from .select import Diagnosis, baseline_mask, diagnose
+from .select import PRIOR_COST, Diagnosis, baseline_mask, diagnose
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -60,6 +60,7 @@ class _Model:
 
     structures: tuple = ()
     causes: tuple = ()
+    prior: tuple = ()  # (name, (mean, sigma)) of a tolerance prior on the kinematics
 
     @property
     def conventions(self) -> tuple:
@@ -68,8 +69,16 @@ class _Model:
 
     def plus(self, candidate) -> "_Model":
         if isinstance(candidate, structure.Structure):
-            return _Model(self.structures + (candidate,), self.causes)
-        return _Model(self.structures, self.causes + (candidate,))
+            return replace(self, structures=self.structures + (candidate,))
+        return replace(self, causes=self.causes + (candidate,))
+
+    def stacked(self, problems: list) -> Sessions:
+        """The sessions' problems stacked, the prior (if any) on the first one only: it acts on
+        the shared parameters once."""
+        if self.prior:
+            first = problems[0]
+            problems = [ExtendedProblem(replace(first.base, prior=dict(self.prior)), first.causes, first.full_data, first.idx)] + list(problems[1:])
+        return Sessions(problems)
 
 
 class _Evaluator:
@@ -100,7 +109,7 @@ class _Evaluator:
     def fit(self, model: _Model):
         """The model fitted on every session (once per model): the stacked problem and its fit."""
         if model not in self._fits:
-            stacked = Sessions(self.problems(model))
+            stacked = model.stacked(self.problems(model))
             key = (model.conventions, "all")
             fit = levenberg_marquardt(stacked, x0=self._warm(key, stacked.names, stacked.x0), method="diagnose")
             self._starts[key] = dict(zip(stacked.names, fit.x))
@@ -117,7 +126,7 @@ class _Evaluator:
         problems = self.problems(model)
         errors = []
         for h, held in enumerate(problems):
-            train = Sessions([p for s, p in enumerate(problems) if s != h])
+            train = model.stacked([p for s, p in enumerate(problems) if s != h])
             key = (model.conventions, h)  # a smaller model's fits on the same readings start it
             fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose")
             self._starts[(*key, "train")] = dict(zip(train.names, fit.x))
@@ -277,6 +286,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         model, current = model.plus(candidate), errors
         del pending[label]
 
+    unconstrained = _rmse(current)
+    model, current, physical = _physical(evaluator, model, current)
     problems = evaluator.problems(model)
     joint, fit = evaluator.fit(model)
     values = {n: float(v) for n, v in zip(joint.names, fit.x) if not is_private(n, kind)}
@@ -286,14 +297,37 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if s is not None:
             described = problems[s].describe_causes(joint.session_x(fit.x, s), None if fit.std is None else joint.session_x(fit.std, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
-    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": _implausible(rob, parameters),
+    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": _implausible(rob, parameters), "tolerance_prior": physical,
+             "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
     return SessionsDiagnosis(
         robot=rob, measurement=kind, sessions=sessions, baseline=baseline, effects=effects, rejected=rejected, final=final,
         model={"structure": [s.label for s in model.structures], "causes": list(model.causes), "parameters": parameters,
+               "kinematic_prior": [physical["sigma_mm"], physical["sigma_deg"]] if physical and physical["accepted"] else None,
                "sessions": [{"source": s.data.source, "causes": [c.label for c in s.terms]} for s in sessions]},
         time_s=time.perf_counter() - t0,
     )  # fmt: skip
+
+
+def _physical(evaluator: _Evaluator, model: _Model, current: list):
+    """The selected model with a manufacturing-tolerance prior on the kinematics where its fit on
+    every session is implausible, kept if it costs at most :data:`PRIOR_COST` of the pooled
+    held-out RMSE (as :func:`~robocal.diagnosis.select.diagnose` does within one session).
+    Returns the model, its held-out errors and the prior's report entry (None if not tried)."""
+    stacked, _ = evaluator.fit(model)
+    if not evaluator.implausible(model):
+        return model, current, None
+    robot = evaluator.robot
+    prior = {n: (float(robot.params[robot.index(n)]), TOLERANCE[robot.param_units[robot.index(n)]]) for n in stacked.names
+             if n in robot.param_names and is_kinematic(n) and robot.param_units[robot.index(n)] in TOLERANCE}  # fmt: skip
+    trial = replace(model, prior=tuple(sorted(prior.items())))
+    errors = evaluator.held_out(trial)
+    entry = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"])), "rmse_loso": _rmse(errors), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
+    if not entry["accepted"]:
+        entry["reason"] = (f"the prior raises the leave-one-session-out RMSE from {_rmse(current):.4g} to {_rmse(errors):.4g} mm: the data contradict "
+                           "a geometry within the tolerances; the unconstrained model is kept")  # fmt: skip
+        return model, current, entry
+    return trial, errors, entry
 
 
 def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
