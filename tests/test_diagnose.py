@@ -23,7 +23,7 @@ import robocal
 from robocal.calibration import Problem
 from robocal.data import Dataset
 from robocal.diagnosis import LIMITS, diagnose
-from robocal.effects import DEG
+from robocal.physics import DEG
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, simulate
 

@@ -12,7 +12,8 @@ import pytest
 import robocal
 from robocal import simulation as sim
 from robocal.data.canonical import read_canonical
-from robocal.effects import GRAVITY, MASS_MODELS, gravity_torques, parse_effect
+from robocal.effects import parse_effect
+from robocal.physics import GRAVITY, MASS_MODELS, gravity_torques
 from robocal.exceptions import InvalidParameterError
 
 M = 60  # samples of the per-effect tests

@@ -74,7 +74,6 @@ import argparse
 import csv
 import json
 import math
-import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Optional, Sequence
@@ -84,6 +83,7 @@ import numpy as np
 from .core import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
+from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_exp, so3_log
 from .robot import Joint, Robot
 
 FORMATS = ("dh", "mdh", "urdf")
@@ -292,8 +292,6 @@ def robot_from_table(rows: Sequence[dict], name: str = "exported") -> Robot:
 # URDF
 # ---------------------------------------------------------------------------------------------
 def _elementary(rotation_op: bool, axis: int, value: float) -> np.ndarray:
-    from .reference import rotation
-
     T = np.eye(4)
     if rotation_op:
         T[:3, :3] = rotation(axis, value)
@@ -318,8 +316,6 @@ def urdf_segments(robot: Robot) -> tuple[np.ndarray, list[np.ndarray], np.ndarra
         What follows the last joint variable up to the flange.
     tool : ndarray, shape (4, 4)
     """
-    from .reference import chain_ops, frame_transform
-
     ops, flange_end = chain_ops([j.convention for j in robot.joints], [j.kind for j in robot.joints])
     p = robot.params
     base = frame_transform(p[_frame_slice(robot, "base")])
@@ -335,18 +331,9 @@ def urdf_segments(robot: Robot) -> tuple[np.ndarray, list[np.ndarray], np.ndarra
     return base, origins, pending, tool
 
 
-def _rpy(R: np.ndarray) -> np.ndarray:
-    """Fixed-axis roll, pitch, yaw with ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``."""
-    from scipy.spatial.transform import Rotation
-
-    with warnings.catch_warnings():  # gimbal lock: scipy sets roll 0, still exact
-        warnings.simplefilter("ignore", UserWarning)
-        return Rotation.from_matrix(R).as_euler("xyz")
-
-
 def _origin(parent: ET.Element, T: Optional[np.ndarray] = None, xyz_mm=None, rpy=None) -> None:
     xyz_mm = T[:3, 3] if xyz_mm is None else xyz_mm
-    rpy = _rpy(T[:3, :3]) if rpy is None else rpy
+    rpy = frame_params(T)[3:] if rpy is None else rpy  # URDF's rpy is robocal's rx, ry, rz
     ET.SubElement(parent, "origin", xyz=" ".join(repr(float(v) / 1000.0) for v in xyz_mm), rpy=" ".join(repr(float(v)) for v in rpy))
 
 
@@ -410,14 +397,6 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
-    Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return Rz @ Ry @ Rx
-
-
 def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
     """Forward kinematics read from a URDF text alone (an independent check of the export).
 
@@ -460,10 +439,7 @@ def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
         origin = joint.find("origin")
         xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
         rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-        O = np.eye(4)
-        O[:3, :3] = _rpy_matrix(*rpy)
-        O[:3, 3] = np.array(xyz) * 1000.0  # m -> mm
-        T = T @ O
+        T = T @ frame_transform(np.concatenate([np.array(xyz) * 1000.0, rpy]))  # m -> mm
         kind = joint.get("type")
         if kind == "fixed":
             continue
@@ -474,9 +450,7 @@ def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
         k += 1
         M = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
         if kind in ("revolute", "continuous"):
-            K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-            s, c = np.sin(value)[:, None, None], np.cos(value)[:, None, None]
-            M[:, :3, :3] = np.eye(3) + s * K + (1.0 - c) * (K @ K)  # Rodrigues
+            M[:, :3, :3] = so3_exp(value[:, None] * axis)
         elif kind == "prismatic":
             M[:, :3, 3] = value[:, None] * axis
         else:
@@ -524,8 +498,6 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
         ``max_position_error_mm``, ``max_rotation_error_rad`` (angle of ``R_robot^T R_export``),
         ``samples`` and ``representation`` (``table`` / ``urdf``).
     """
-    from .reference import so3_log
-
     samples = as_count(samples, "samples", most=MAX_SAMPLES)
     rng = seeded_rng(seed)
     lo = np.array([j.limits[0] for j in robot.joints])

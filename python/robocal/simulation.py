@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 from contextlib import nullcontext
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence, Union
 
@@ -25,8 +25,10 @@ from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError
+from .geometry import matrix_from_quaternion, quaternion_from_matrix, so3_exp
 from .outputs import Staged, check_outputs
 from .robot import MEASUREMENTS, Robot, robot as load_robot, setup_names
+from .sensors import DEFAULT_NOISE, SensorNoise
 
 #: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
 CABLE_SENSOR = "HY150-2000"
@@ -43,34 +45,6 @@ ANGLE_ERROR_DEG = 0.05
 STEP_DEG = 5.0
 CANDIDATES = 64
 ROUNDS = 50
-
-
-@dataclass(frozen=True)
-class SensorNoise:
-    """Sensor noise.
-
-    Attributes
-    ----------
-    sigma : float
-        Standard deviation of a length (cable) or of each position coordinate, mm.
-    sigma_rotation : float
-        Standard deviation of each rotation-vector component of a pose, rad.
-    resolution : float
-        Quantisation step of the reading, mm (0: none).
-    """
-
-    sigma: float = 0.0
-    sigma_rotation: float = 0.0
-    resolution: float = 0.0
-
-
-#: Defaults: cable HY150-2000 (0.004 mm resolution, ~0.03 mm repeatability); laser tracker
-#: (~0.02 mm, ~1e-5 rad for a 6-DoF probe).
-DEFAULT_NOISE = {
-    "cable": SensorNoise(sigma=0.03, resolution=0.004),
-    "position": SensorNoise(sigma=0.02),
-    "pose": SensorNoise(sigma=0.02, sigma_rotation=1e-5),
-}
 
 
 def sensor_noise(measurement: str, noise=None) -> SensorNoise:
@@ -209,8 +183,6 @@ def _add_noise(measurement: str, y: np.ndarray, noise: SensorNoise, rng: np.rand
     width = 1 if measurement == "cable" else 3
     y[:, :width] += rng.normal(0.0, 1.0, (len(y), width)) * noise.sigma
     if measurement == "pose" and noise.sigma_rotation > 0:
-        from .reference import matrix_from_quaternion, quaternion_from_matrix, so3_exp  # scipy only when needed
-
         phi = rng.normal(0.0, 1.0, (len(y), 3)) * noise.sigma_rotation
         y[:, 3:] = quaternion_from_matrix(so3_exp(phi) @ matrix_from_quaternion(y[:, 3:]))
     return y
