@@ -70,7 +70,6 @@ MoveIt's ``joint_limits.yaml``).
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -527,34 +526,18 @@ def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name
     return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
 
 
-# ---------------------------------------------------------------------------------------------
-# Command line: robocal export
-# ---------------------------------------------------------------------------------------------
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Arguments of ``robocal export``."""
-    parser.add_argument("result", help="calibration result JSON (robocal calibrate --out)")
-    parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, or urdf")
-    parser.add_argument("--table-format", choices=TABLE_FORMATS, default=None,
-                        help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)")  # fmt: skip
-    parser.add_argument("--out", required=True, help="file to write")
-    parser.add_argument("--name", default=None, help="robot name in the export (default: the result's robot)")
-    parser.add_argument("--samples", type=int, default=200, help="joint vectors of the round-trip check (default 200)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the round-trip check (default 0)")
+def export_checked(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0) -> tuple[dict, list[str]]:
+    """:func:`export` then :func:`roundtrip_check` of what it wrote: the check and the tolerances
+    it breaks (then nothing is written).
 
-
-def run(args: argparse.Namespace) -> int:
-    """Runs ``robocal export``: writes the file, then checks its round trip; returns the exit code."""
-    from .results import load_result
-
-    robot, _ = load_result(args.result)
-    as_count(args.samples, "--samples", most=MAX_SAMPLES)  # before anything is written
-    kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
-    # The file is written to a temporary beside --out and replaces it only once its round trip
-    # passes: a failed export never overwrites a previous good one.
-    table_format = _table_format(Path(args.out), args.table_format) if args.format != "urdf" else args.table_format
-    with Staged(args.out) as stage:
-        export(robot, args.format, stage.tmp, table_format=table_format, name=args.name)
-        check = roundtrip_check(robot, stage.tmp, samples=args.samples, seed=args.seed)
+    The file is written to a temporary beside ``out`` and replaces it only once its round trip
+    passes: a failed export never overwrites a previous good one.
+    """
+    samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
+    table_format = _table_format(Path(out), table_format) if fmt != "urdf" else table_format
+    with Staged(out) as stage:
+        export(robot, fmt, stage.tmp, table_format=table_format, name=name)
+        check = roundtrip_check(robot, stage.tmp, samples=samples, seed=seed)
         failed = []
         if not check["max_position_error_mm"] <= POSITION_TOL:
             failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
@@ -562,11 +545,4 @@ def run(args: argparse.Namespace) -> int:
             failed.append(f"rotation error {check['max_rotation_error_rad']:.3g} rad > {ROTATION_TOL:g} rad")
         if failed:
             stage.discard()
-    print(f"round trip over {check['samples']} joint vectors within limits: max tool position error "
-          f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad")  # fmt: skip
-    if failed:
-        print(f"robocal export: the {kind} does not reproduce the calibrated kinematics, {args.out} not written: " + "; ".join(failed))
-        return 1
-    article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
-    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
-    return 0
+    return check, failed
