@@ -10,10 +10,8 @@ the HTML report when ``robocal.report`` is available.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 
