@@ -29,7 +29,7 @@ from pathlib import Path
 from machine import cpu_model
 
 import robocal
-from robocal.calibration.fleet import calibrate_many, calibrate_one
+from robocal.fleet import calibrate_many, calibrate_one
 from robocal.data import write_canonical
 
 

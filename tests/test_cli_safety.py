@@ -179,7 +179,7 @@ def test_outputs_get_the_usual_file_mode(tmp_path):
 
 
 def test_os_errors_anywhere_are_exit_2_naming_the_path(inputs, tmp_path, capsys, monkeypatch):
-    import robocal.data.inspect as ins
+    import robocal.cli.inspect as ins
 
     def broken(*_args, **_kw):
         raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "x"))

@@ -23,7 +23,7 @@ import robocal
 from robocal.calibration import Problem
 from robocal.data import Dataset
 from robocal.diagnosis import LIMITS, diagnose
-from robocal.effects import DEG
+from robocal.physics import DEG
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, simulate
 
@@ -361,7 +361,7 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     implausible without a 10 % held-out gain is rejected with its numbers, in the same record
     shape as every other rejected cause (the command-line summary prints them)."""
     from robocal.diagnosis import structure
-    from robocal.diagnosis.cli import summary
+    from robocal.cli.diagnose import summary
 
     data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
     fit = lambda d, max_nfev=None: (1.0, 5) if np.array_equal(d.q[:, :2], data.q[:len(d), :2]) else (0.85, 3)  # noqa: E731

@@ -15,6 +15,7 @@ import pytest
 
 import robocal
 from robocal import export as ex
+from robocal.cli import export as export_cli
 from robocal.exceptions import InvalidParameterError
 from robocal.results import load_result
 from robocal.robot import Joint, Robot
@@ -52,7 +53,7 @@ def calibrated(request, ur10_file, hsr_file):
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="robocal export")
-    ex.add_arguments(parser)
+    export_cli.add_arguments(parser)
     return parser
 
 
@@ -174,7 +175,7 @@ def test_round_trip_catches_a_dropped_theta_offset(hsr_file):
 def test_run_fails_when_the_export_is_wrong(hsr_file, tmp_path, monkeypatch, capsys):
     good = ex.export_urdf
     monkeypatch.setattr(ex, "export_urdf", lambda robot, name=None: good(robot.with_params(a2=robot.params[robot.index("a2")] + 1e-3), name))
-    code = ex.run(_parser().parse_args([hsr_file, "--format", "urdf", "--out", str(tmp_path / "r.urdf")]))
+    code = export_cli.run(_parser().parse_args([hsr_file, "--format", "urdf", "--out", str(tmp_path / "r.urdf")]))
     assert code == 1
     assert "does not reproduce" in capsys.readouterr().out
 
@@ -186,7 +187,7 @@ def test_run_fails_when_the_export_is_wrong(hsr_file, tmp_path, monkeypatch, cap
 def test_cli_writes_a_csv_table(calibrated, fmt, tmp_path, capsys):
     path, robot = calibrated
     out = tmp_path / f"robot_{fmt}.csv"
-    assert ex.run(_parser().parse_args([path, "--format", fmt, "--out", str(out)])) == 0
+    assert export_cli.run(_parser().parse_args([path, "--format", fmt, "--out", str(out)])) == 0
     printed = capsys.readouterr().out
     assert str(out) in printed and "round trip over 200 joint vectors" in printed
     with out.open(newline="") as f:
@@ -201,14 +202,14 @@ def test_cli_writes_a_csv_table(calibrated, fmt, tmp_path, capsys):
 
 def test_cli_json_table_and_urdf(ur10_file, tmp_path, capsys):
     out = tmp_path / "robot.json"
-    assert ex.run(_parser().parse_args([ur10_file, "--format", "mdh", "--out", str(out)])) == 0
+    assert export_cli.run(_parser().parse_args([ur10_file, "--format", "mdh", "--out", str(out)])) == 0
     doc = json.loads(out.read_text())
     assert doc["schema"] == ex.TABLE_SCHEMA and doc["convention"] == "mdh" and len(doc["rows"]) == 8
     out = tmp_path / "robot.txt"
-    assert ex.run(_parser().parse_args([ur10_file, "--format", "dh", "--table-format", "json", "--out", str(out)])) == 0
+    assert export_cli.run(_parser().parse_args([ur10_file, "--format", "dh", "--table-format", "json", "--out", str(out)])) == 0
     assert json.loads(out.read_text())["convention"] == "dh"
     out = tmp_path / "ur10.urdf"
-    assert ex.run(_parser().parse_args([ur10_file, "--format", "urdf", "--name", "my_ur10", "--out", str(out)])) == 0
+    assert export_cli.run(_parser().parse_args([ur10_file, "--format", "urdf", "--name", "my_ur10", "--out", str(out)])) == 0
     assert ET.parse(out).getroot().get("name") == "my_ur10"
     assert "URDF" in capsys.readouterr().out
 
@@ -220,11 +221,11 @@ def test_cli_bad_input(ur10_file, tmp_path):
     with pytest.raises(SystemExit):
         parser.parse_args([ur10_file, "--format", "dh", "--table-format", "xlsx", "--out", str(tmp_path / "x")])
     with pytest.raises(InvalidParameterError, match="table-format"):
-        ex.run(parser.parse_args([ur10_file, "--format", "urdf", "--table-format", "csv", "--out", str(tmp_path / "x.urdf")]))
+        export_cli.run(parser.parse_args([ur10_file, "--format", "urdf", "--table-format", "csv", "--out", str(tmp_path / "x.urdf")]))
     not_a_result = tmp_path / "other.json"
     not_a_result.write_text("{}")
     with pytest.raises(InvalidParameterError, match="not a robocal result file"):
-        ex.run(parser.parse_args([str(not_a_result), "--format", "dh", "--out", str(tmp_path / "x.csv")]))
+        export_cli.run(parser.parse_args([str(not_a_result), "--format", "dh", "--out", str(tmp_path / "x.csv")]))
     mdh = robocal.robot("ur10").to_mdh()
     with pytest.raises(InvalidParameterError, match="modified DH only"):
         ex.export_table(mdh, "dh")

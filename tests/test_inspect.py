@@ -10,7 +10,8 @@ import pytest
 
 import robocal
 from robocal.data import Dataset, write_canonical
-from robocal.data.inspect import add_arguments, format_report, inspect, run
+from robocal.cli.inspect import add_arguments, format_report, run
+from robocal.inspection import inspect
 
 ABB = robocal.robot("abb-irb120")
 

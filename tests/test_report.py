@@ -12,6 +12,7 @@ import pytest
 
 import robocal
 from robocal import report as report_module
+from robocal.cli import report as report_cli
 from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.report import report
@@ -98,9 +99,9 @@ def test_cli_with_a_diagnosis(calibrated, tmp_path, capsys):
     diag_path = tmp_path / "diag.json"
     diag_path.write_text(json.dumps(diagnosis))
     parser = argparse.ArgumentParser()
-    report_module.add_arguments(parser)
+    report_cli.add_arguments(parser)
     args = parser.parse_args([str(path), "--out", str(tmp_path / "html"), "--diagnosis", str(diag_path)])
-    assert report_module.run(args) == 0
+    assert report_cli.run(args) == 0
     page = tmp_path / "html" / "index.html"
     assert capsys.readouterr().out.strip() == f"wrote {page}"
     text = page.read_text()

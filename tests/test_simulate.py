@@ -11,8 +11,10 @@ import pytest
 
 import robocal
 from robocal import simulation as sim
+from robocal.cli import simulate as simulate_cli
 from robocal.data.canonical import read_canonical
-from robocal.effects import GRAVITY, MASS_MODELS, gravity_torques, parse_effect
+from robocal.effects import parse_effect
+from robocal.physics import GRAVITY, MASS_MODELS, gravity_torques
 from robocal.exceptions import InvalidParameterError
 
 M = 60  # samples of the per-effect tests
@@ -286,10 +288,10 @@ def test_bad_arguments():
 # -- files and command line -----------------------------------------------------------------------
 def test_write_simulation_and_cli(tmp_path):
     parser = argparse.ArgumentParser()
-    sim.add_arguments(parser)
+    simulate_cli.add_arguments(parser)
     args = parser.parse_args(["--robot", "abb-irb120", "--samples", "30", "--seed", "4", "--effect", "temperature",
                               "--effect", "backlash:joint=2", "--out", str(tmp_path / "d.csv"), "--truth", str(tmp_path / "t.json")])  # fmt: skip
-    assert sim.run(args) == 0
+    assert simulate_cli.run(args) == 0
     back = read_canonical(tmp_path / "d.csv")
     data, truth = sim.simulate("abb-irb120", "cable", 30, 4, effects=["temperature", "backlash:joint=2"])
     np.testing.assert_allclose(back.q, data.q, rtol=1e-14)

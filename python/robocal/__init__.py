@@ -41,8 +41,8 @@ __all__ = [
 _LAZY = {
     "load": ("robocal.data", "load"),
     "simulate": ("robocal.simulation", "simulate"),
-    "calibrate": ("robocal.calibration", "calibrate"),
-    "calibrate_many": ("robocal.calibration", "calibrate_many"),
+    "calibrate": ("robocal.diagnosis.extended", "calibrate"),
+    "calibrate_many": ("robocal.fleet", "calibrate_many"),
     "diagnose": ("robocal.diagnosis", "diagnose"),
     "compensate": ("robocal.compensation", "compensate"),
     "load_result": ("robocal.results", "load_result"),

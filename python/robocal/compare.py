@@ -23,7 +23,6 @@ holds as well.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import json
@@ -36,7 +35,7 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, add_data_arguments, add_kinematic_prior_argument, held_out_residuals, load_inputs
+from .calibration.api import METHODS, held_out_residuals, load_inputs
 from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
@@ -616,30 +615,3 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     paths.append(out / "fig7_errors.png")
     save_figure(fig, paths[-1], dpi=110)
     return paths
-
-
-# -- command line --------------------------------------------------------------------------------
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_data_arguments(parser)
-    parser.add_argument("--protocol", choices=PROTOCOLS, default="paper",
-                        help="paper: 120 random samples -> 100 train / 20 test per repeat; kfold: REPEATS folds; "
-                             "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)")  # fmt: skip
-    parser.add_argument("--repeats", type=int, default=5, help="splits (paper, 80-20) or folds (kfold) (default 5)")
-    parser.add_argument("--methods", nargs="+", metavar="METHOD", help=f"default: M1..M9 and lm; any of {sorted(METHODS)}")
-    parser.add_argument("--subset", type=int, help="first draw this many samples at random (e.g. 200 of UR10 Series A)")
-    parser.add_argument("--seed", type=int, default=0)
-    add_kinematic_prior_argument(parser)
-    parser.add_argument("--out", required=True, help="output folder for the tables, figures and comparison.json")
-
-
-def run(args: argparse.Namespace) -> int:
-    result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
-                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior,
-                     angle_unit=args.angle_unit)  # fmt: skip
-    paths = result.write(args.out)
-    print(result.table_viii().markdown())
-    failed = [r for r in result.runs if r["status"] == "failed"]
-    if failed:
-        print(f"{len(failed)} of {len(result.runs)} runs failed (see the failures column and comparison.json)")
-    print(f"wrote {len(paths)} files to {args.out}")
-    return 0

@@ -25,7 +25,6 @@ the reach rate and time with scipy's ``least_squares(bounds=...)``.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import os
 from dataclasses import dataclass
@@ -266,22 +265,3 @@ def write_joints(rows: list[dict], path, n_joints: int) -> Path:
         for r in rows:
             w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["status"]])
     return stage.path
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("result", help="a result file of robocal calibrate (--out)")
-    parser.add_argument("targets", help="CSV with x,y,z [qw,qx,qy,qz] [q1..qN in deg, the nominal commands]")
-    parser.add_argument("--out", required=True, help="joints CSV: one row per target, joints in deg, corrections, residual, status")
-    parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q1..qN seed columns of the targets (default deg)")
-
-
-def run(args: argparse.Namespace) -> int:
-    rows = compensate(args.result, args.targets, args.angle_unit)
-    n_joints = len(rows[0]["q"]) if rows else 0
-    write_joints(rows, args.out, n_joints)
-    bad = [r for r in rows if not r["status"].startswith("ok")]
-    print(f"{len(rows) - len(bad)} of {len(rows)} targets reached (largest residual "
-          f"{max((r['residual_mm'] for r in rows if r['status'] == 'ok'), default=float('nan')):.2g} mm); written to {args.out}")  # fmt: skip
-    for r in bad[:10]:
-        print(f"  row {r['row']}: {r['status']}")
-    return 0 if not bad else 1

@@ -70,11 +70,9 @@ MoveIt's ``joint_limits.yaml``).
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
-import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Optional, Sequence
@@ -84,6 +82,7 @@ import numpy as np
 from .core import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
+from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_exp, so3_log
 from .robot import Joint, Robot
 
 FORMATS = ("dh", "mdh", "urdf")
@@ -292,8 +291,6 @@ def robot_from_table(rows: Sequence[dict], name: str = "exported") -> Robot:
 # URDF
 # ---------------------------------------------------------------------------------------------
 def _elementary(rotation_op: bool, axis: int, value: float) -> np.ndarray:
-    from .reference import rotation
-
     T = np.eye(4)
     if rotation_op:
         T[:3, :3] = rotation(axis, value)
@@ -318,8 +315,6 @@ def urdf_segments(robot: Robot) -> tuple[np.ndarray, list[np.ndarray], np.ndarra
         What follows the last joint variable up to the flange.
     tool : ndarray, shape (4, 4)
     """
-    from .reference import chain_ops, frame_transform
-
     ops, flange_end = chain_ops([j.convention for j in robot.joints], [j.kind for j in robot.joints])
     p = robot.params
     base = frame_transform(p[_frame_slice(robot, "base")])
@@ -335,18 +330,9 @@ def urdf_segments(robot: Robot) -> tuple[np.ndarray, list[np.ndarray], np.ndarra
     return base, origins, pending, tool
 
 
-def _rpy(R: np.ndarray) -> np.ndarray:
-    """Fixed-axis roll, pitch, yaw with ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``."""
-    from scipy.spatial.transform import Rotation
-
-    with warnings.catch_warnings():  # gimbal lock: scipy sets roll 0, still exact
-        warnings.simplefilter("ignore", UserWarning)
-        return Rotation.from_matrix(R).as_euler("xyz")
-
-
 def _origin(parent: ET.Element, T: Optional[np.ndarray] = None, xyz_mm=None, rpy=None) -> None:
     xyz_mm = T[:3, 3] if xyz_mm is None else xyz_mm
-    rpy = _rpy(T[:3, :3]) if rpy is None else rpy
+    rpy = frame_params(T)[3:] if rpy is None else rpy  # URDF's rpy is robocal's rx, ry, rz
     ET.SubElement(parent, "origin", xyz=" ".join(repr(float(v) / 1000.0) for v in xyz_mm), rpy=" ".join(repr(float(v)) for v in rpy))
 
 
@@ -410,14 +396,6 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
-    Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return Rz @ Ry @ Rx
-
-
 def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
     """Forward kinematics read from a URDF text alone (an independent check of the export).
 
@@ -460,10 +438,7 @@ def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
         origin = joint.find("origin")
         xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
         rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-        O = np.eye(4)
-        O[:3, :3] = _rpy_matrix(*rpy)
-        O[:3, 3] = np.array(xyz) * 1000.0  # m -> mm
-        T = T @ O
+        T = T @ frame_transform(np.concatenate([np.array(xyz) * 1000.0, rpy]))  # m -> mm
         kind = joint.get("type")
         if kind == "fixed":
             continue
@@ -474,9 +449,7 @@ def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
         k += 1
         M = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
         if kind in ("revolute", "continuous"):
-            K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-            s, c = np.sin(value)[:, None, None], np.cos(value)[:, None, None]
-            M[:, :3, :3] = np.eye(3) + s * K + (1.0 - c) * (K @ K)  # Rodrigues
+            M[:, :3, :3] = so3_exp(value[:, None] * axis)
         elif kind == "prismatic":
             M[:, :3, 3] = value[:, None] * axis
         else:
@@ -524,8 +497,6 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
         ``max_position_error_mm``, ``max_rotation_error_rad`` (angle of ``R_robot^T R_export``),
         ``samples`` and ``representation`` (``table`` / ``urdf``).
     """
-    from .reference import so3_log
-
     samples = as_count(samples, "samples", most=MAX_SAMPLES)
     rng = seeded_rng(seed)
     lo = np.array([j.limits[0] for j in robot.joints])
@@ -555,34 +526,18 @@ def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name
     return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
 
 
-# ---------------------------------------------------------------------------------------------
-# Command line: robocal export
-# ---------------------------------------------------------------------------------------------
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Arguments of ``robocal export``."""
-    parser.add_argument("result", help="calibration result JSON (robocal calibrate --out)")
-    parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, or urdf")
-    parser.add_argument("--table-format", choices=TABLE_FORMATS, default=None,
-                        help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)")  # fmt: skip
-    parser.add_argument("--out", required=True, help="file to write")
-    parser.add_argument("--name", default=None, help="robot name in the export (default: the result's robot)")
-    parser.add_argument("--samples", type=int, default=200, help="joint vectors of the round-trip check (default 200)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the round-trip check (default 0)")
+def export_checked(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0) -> tuple[dict, list[str]]:
+    """:func:`export` then :func:`roundtrip_check` of what it wrote: the check and the tolerances
+    it breaks (then nothing is written).
 
-
-def run(args: argparse.Namespace) -> int:
-    """Runs ``robocal export``: writes the file, then checks its round trip; returns the exit code."""
-    from .results import load_result
-
-    robot, _ = load_result(args.result)
-    as_count(args.samples, "--samples", most=MAX_SAMPLES)  # before anything is written
-    kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
-    # The file is written to a temporary beside --out and replaces it only once its round trip
-    # passes: a failed export never overwrites a previous good one.
-    table_format = _table_format(Path(args.out), args.table_format) if args.format != "urdf" else args.table_format
-    with Staged(args.out) as stage:
-        export(robot, args.format, stage.tmp, table_format=table_format, name=args.name)
-        check = roundtrip_check(robot, stage.tmp, samples=args.samples, seed=args.seed)
+    The file is written to a temporary beside ``out`` and replaces it only once its round trip
+    passes: a failed export never overwrites a previous good one.
+    """
+    samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
+    table_format = _table_format(Path(out), table_format) if fmt != "urdf" else table_format
+    with Staged(out) as stage:
+        export(robot, fmt, stage.tmp, table_format=table_format, name=name)
+        check = roundtrip_check(robot, stage.tmp, samples=samples, seed=seed)
         failed = []
         if not check["max_position_error_mm"] <= POSITION_TOL:
             failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
@@ -590,11 +545,4 @@ def run(args: argparse.Namespace) -> int:
             failed.append(f"rotation error {check['max_rotation_error_rad']:.3g} rad > {ROTATION_TOL:g} rad")
         if failed:
             stage.discard()
-    print(f"round trip over {check['samples']} joint vectors within limits: max tool position error "
-          f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad")  # fmt: skip
-    if failed:
-        print(f"robocal export: the {kind} does not reproduce the calibrated kinematics, {args.out} not written: " + "; ".join(failed))
-        return 1
-    article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
-    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
-    return 0
+    return check, failed

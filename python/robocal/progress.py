@@ -3,12 +3,12 @@
 
 from __future__ import annotations
 
-from tqdm import tqdm
-
 #: Set by ``robocal --quiet``.
 QUIET = False
 
 
 def progress(iterable=None, **options):
     """``tqdm(iterable, **options)``, disabled when :data:`QUIET` or not on a terminal."""
+    from tqdm import tqdm  # on first use: the CLI imports this module before it knows the command
+
     return tqdm(iterable, disable=True if QUIET else None, leave=False, **options)

@@ -18,6 +18,7 @@ from . import _robocal
 from .catalog import BUILTIN
 from .core import as_float, as_float_array, as_str
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
+from .geometry import frame_params, frame_transform, rotation
 
 MEASUREMENTS = ("cable", "position", "pose")
 
@@ -305,8 +306,6 @@ class Robot:
         Ry(beta_N)`` moves into the tool frame. The flange frame therefore differs; the tool frame
         does not.
         """
-        from .reference import frame_params, frame_transform, rotation  # not at import time: it loads scipy
-
         if any(j.convention != "dh" for j in self.joints):
             raise InvalidParameterError("to_mdh converts a chain whose joints are all standard DH")
         n = self.n_joints

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 from contextlib import nullcontext
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence, Union
 
@@ -25,8 +25,10 @@ from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError
+from .geometry import matrix_from_quaternion, quaternion_from_matrix, so3_exp
 from .outputs import Staged, check_outputs
 from .robot import MEASUREMENTS, Robot, robot as load_robot, setup_names
+from .sensors import DEFAULT_NOISE, SensorNoise
 
 #: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
 CABLE_SENSOR = "HY150-2000"
@@ -43,34 +45,6 @@ ANGLE_ERROR_DEG = 0.05
 STEP_DEG = 5.0
 CANDIDATES = 64
 ROUNDS = 50
-
-
-@dataclass(frozen=True)
-class SensorNoise:
-    """Sensor noise.
-
-    Attributes
-    ----------
-    sigma : float
-        Standard deviation of a length (cable) or of each position coordinate, mm.
-    sigma_rotation : float
-        Standard deviation of each rotation-vector component of a pose, rad.
-    resolution : float
-        Quantisation step of the reading, mm (0: none).
-    """
-
-    sigma: float = 0.0
-    sigma_rotation: float = 0.0
-    resolution: float = 0.0
-
-
-#: Defaults: cable HY150-2000 (0.004 mm resolution, ~0.03 mm repeatability); laser tracker
-#: (~0.02 mm, ~1e-5 rad for a 6-DoF probe).
-DEFAULT_NOISE = {
-    "cable": SensorNoise(sigma=0.03, resolution=0.004),
-    "position": SensorNoise(sigma=0.02),
-    "pose": SensorNoise(sigma=0.02, sigma_rotation=1e-5),
-}
 
 
 def sensor_noise(measurement: str, noise=None) -> SensorNoise:
@@ -209,8 +183,6 @@ def _add_noise(measurement: str, y: np.ndarray, noise: SensorNoise, rng: np.rand
     width = 1 if measurement == "cable" else 3
     y[:, :width] += rng.normal(0.0, 1.0, (len(y), width)) * noise.sigma
     if measurement == "pose" and noise.sigma_rotation > 0:
-        from .reference import matrix_from_quaternion, quaternion_from_matrix, so3_exp  # scipy only when needed
-
         phi = rng.normal(0.0, 1.0, (len(y), 3)) * noise.sigma_rotation
         y[:, 3:] = quaternion_from_matrix(so3_exp(phi) @ matrix_from_quaternion(y[:, 3:]))
     return y
@@ -400,33 +372,3 @@ def write_simulation(dataset: Dataset, truth: Mapping, out_csv, truth_json=None)
         if truth_stage is not None:
             truth_stage.tmp.write_text(json.dumps(truth, indent=2) + "\n")
     return Path(out_csv), None if truth_json is None else Path(truth_json)
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line: robocal simulate
-# ---------------------------------------------------------------------------------------------
-def add_arguments(parser) -> None:
-    """Arguments of ``robocal simulate``."""
-    parser.add_argument("--robot", default="hsr-jr680", help="built-in robot or robot file (default hsr-jr680)")
-    parser.add_argument("--measurement", default="cable", choices=MEASUREMENTS, help="observation type (default cable)")
-    parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
-    parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    parser.add_argument("--session", type=int, default=0, help="another session of the same robot: new path, noise and set-up (default 0)")
-    parser.add_argument("--effect", action="append", default=[], metavar="KIND[:key=value,...]",
-                        help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}")  # fmt: skip
-    parser.add_argument("--noise", type=float, default=None, metavar="MM", help="sensor noise sigma in mm (0: noiseless; default: the sensor's)")
-    parser.add_argument("--outliers", type=float, default=0.0, metavar="FRACTION", help="fraction of gross outliers (default 0)")
-    parser.add_argument("--no-geometric-error", dest="geometric_error", action="store_false", help="true geometry = nominal")
-    parser.add_argument("--out", required=True, help="output CSV (canonical format)")
-    parser.add_argument("--truth", default=None, help="output JSON with the ground truth")
-
-
-def run(args) -> int:
-    """Runs ``robocal simulate``; returns the exit code."""
-    dataset, truth = simulate(args.robot, args.measurement, args.samples, args.seed, args.effect, noise=args.noise,
-                              geometric_error=args.geometric_error, outliers=args.outliers, session=args.session)  # fmt: skip
-    csv_path, json_path = write_simulation(dataset, truth, args.out, args.truth)
-    effects = ", ".join(e["spec"] for e in truth["effects"]) or "none"
-    print(f"wrote {len(dataset)} {args.measurement} samples of {truth['robot']} to {csv_path}" + (f" and the truth to {json_path}" if json_path else ""))
-    print(f"effects: {effects}")
-    return 0

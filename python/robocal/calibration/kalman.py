@@ -14,7 +14,7 @@ Defaults (the paper states none of them):
 * ``P0 = diag(σ_p²)`` with ``σ_p`` = 1 mm for lengths, 0.1° for angles and 1e-3 for unitless
   parameters (``problem.robot.param_units``) — about twice the geometric errors the simulator
   draws (0.5 mm, 0.05°), i.e. a realistic prior uncertainty of nominal kinematics.
-* ``R = diag(σ_y²)`` from the sensor's default noise (:data:`robocal.simulation.DEFAULT_NOISE`):
+* ``R = diag(σ_y²)`` from the sensor's default noise (:data:`robocal.sensors.DEFAULT_NOISE`):
   (0.03 mm)² for the cable sensor, (0.02 mm)² per coordinate for a laser tracker and
   (1e-5 rad)² per rotation-vector component of a pose.
 * ``Q = 1e-12 · P0`` per sample: the parameters are constant; this only keeps ``P``
@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core import as_count, as_float, as_float_array
 from ..exceptions import InvalidParameterError
-from ..simulation import DEFAULT_NOISE
+from ..sensors import DEFAULT_NOISE
 from .problem import Problem, initial_x
 from .result import CalibrationResult
 

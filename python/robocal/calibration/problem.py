@@ -16,9 +16,9 @@ import numpy as np
 from ..core import as_float_array, cable_initial_guess, identifiability, solve_damped
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError, NonFiniteError
-from ..reference import frame_params
+from ..geometry import frame_params, kabsch
 from ..robot import RESIDUAL_WIDTH, Robot
-from ..simulation import DEFAULT_NOISE
+from ..sensors import DEFAULT_NOISE
 
 
 #: Parameter-name prefixes of the kinematic (joint) parameters, as opposed to the set-up (base,
@@ -37,17 +37,6 @@ TOLERANCE = {"mm": 1.0, "rad": np.radians(0.1)}
 def is_kinematic(name: str) -> bool:
     """True for a joint parameter (``alpha3``, ``d6``, ...), False for base, tool and sensor."""
     return name.rstrip("0123456789") in KINEMATIC
-
-
-def _kabsch(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Rigid transform (4x4) best mapping ``points`` onto ``targets`` (both (m, 3))."""
-    pc, tc = points.mean(axis=0), targets.mean(axis=0)
-    u, _, vt = np.linalg.svd((points - pc).T @ (targets - tc))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, tc - R @ pc
-    return T
 
 
 def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
@@ -70,7 +59,7 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
         p_no_base = p.copy()
         p_no_base[base] = 0.0
         local = robot.fkine(data.q, params=p_no_base, tool=True)[:, :3, 3]
-        p[base] = frame_params(_kabsch(local, data.y[:, :3]))
+        p[base] = frame_params(kabsch(local, data.y[:, :3]))
         setup = base
     cols = setup + [robot.index(n) for n in ("tool_x", "tool_y", "tool_z")]
     for _ in range(20):
@@ -156,7 +145,7 @@ class Problem:
             Rank tolerance of the identifiability analysis.
         prior : dict, optional
             ``name -> (mean, sigma)`` priors (mm / rad) on estimated parameters; the rows are
-            scaled by the sensor's default noise (:data:`robocal.simulation.DEFAULT_NOISE`).
+            scaled by the sensor's default noise (:data:`robocal.sensors.DEFAULT_NOISE`).
         bounds : dict, optional
             ``name -> (lower, upper)`` hard limits (mm / rad) on estimated parameters; the start
             is moved inside them.

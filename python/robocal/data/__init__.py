@@ -1,6 +1,6 @@
 """Measured data in: the :class:`Dataset`, the canonical CSV format, the readers of the public
-datasets (:func:`load` detects the format), splits, and the validation report in
-:mod:`robocal.data.inspect` (not re-exported: the function would shadow its module)."""
+datasets (:func:`load` detects the format) and splits. The validation report of a file, which
+fits the set-up, sits above the calibration: :mod:`robocal.inspection`."""
 
 from .canonical import read_canonical, write_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset

@@ -212,7 +212,7 @@ def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = F
     -------
     Dataset
         ``robot="abb-irb120"``, ``measurement="cable"``; ``extra["controller_xyz"]`` (m, 3) holds
-        the controller's x, y, z for the cross-check in :func:`robocal.data.inspect.inspect`.
+        the controller's x, y, z for the cross-check in :func:`robocal.inspection.inspect`.
     """
     header, body, notes = _read_table(path, sheet)
     _check_joint_columns(header, 6, "abb-irb120", path)

@@ -12,7 +12,7 @@ Every candidate is linear in its coefficients ``c`` and acts at one stage of the
     parameters of the robot's own vector that the baseline leaves out (``cable_scale``, Hayati
     ``beta_j`` on a plain-DH baseline, base / tool / anchor terms).
 
-The models are those of the simulator (:mod:`robocal.effects`), so a hidden effect is found as
+The models are the simulator's (:mod:`robocal.effects`, on the shared :mod:`robocal.physics`), so a hidden effect is found as
 the physical quantity it was simulated with. Bases are computed once on the whole dataset in
 acquisition order (backlash needs each sample's predecessor) and sliced for the folds.
 """
@@ -26,7 +26,7 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..effects import DEG, MASS_MODELS, Backlash, gravity_torques
+from ..physics import DEG, MASS_MODELS, approach_directions, gravity_torques
 from ..core import as_float_array
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -171,7 +171,7 @@ def joint_basis(robot: Robot, q: np.ndarray, kind: str, joint: int, detail: dict
     if kind == "joint_coupling":
         return q[:, detail["source"] - 1 : detail["source"]].copy()
     if kind == "backlash":
-        return Backlash.directions(qj)[:, None]
+        return approach_directions(qj)[:, None]
     raise InvalidParameterError(f"{kind!r} is not a joint cause")
 
 

@@ -32,7 +32,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..effects import DEG
+from ..physics import DEG
 from ..exceptions import InvalidParameterError
 
 #: The kinds of reading convention.

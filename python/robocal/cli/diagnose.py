@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration.api import add_data_arguments
 from ..calibration.result import CONTRADICTED, UNDETERMINED, describe_implausible
+from ..diagnosis import diagnose
+from ..diagnosis.select import Diagnosis
 from ..outputs import make_folder, save_figure, write_text
-from . import diagnose
-from .select import Diagnosis
+from .arguments import add_data_arguments
 
 
 def _quantities(params: dict) -> str:

@@ -22,15 +22,14 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
-from ..data.dataset import Dataset
-from ..exceptions import InvalidParameterError, RobocalError
+from .data.dataset import Dataset
+from .diagnosis.extended import calibrate
+from .exceptions import InvalidParameterError, RobocalError
 
 
 def calibrate_one(data: Union[str, Path, Dataset], **options) -> dict:
     """:func:`robocal.calibrate` of one dataset as its result document, or ``{"error", "data"}``
     if it fails with a robocal error (bad data, a problem that cannot be set up)."""
-    from .api import calibrate
-
     try:
         return calibrate(data, **options).to_dict()
     except RobocalError as exc:

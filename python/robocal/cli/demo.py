@@ -10,27 +10,24 @@ the HTML report when ``robocal.report`` is available.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .outputs import make_folder, write_json
+from .. import __version__
+from ..calibration import calibrate
+from ..calibration.problem import is_kinematic
+from ..diagnosis import diagnose
+from ..outputs import make_folder, write_json
+from ..simulation import simulate, write_simulation
+from .diagnose import write_figures
 
 #: The effect the demo hides: backlash of 0.03 deg on joint 2 (about 0.5 mm at the tool).
 EFFECT = "backlash:joint=2,width=0.03"
 
 
 def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
-    from .calibration import calibrate
-    from .calibration.problem import is_kinematic
-    from .diagnosis import diagnose
-    from .diagnosis.cli import write_figures
-    from .simulation import simulate, write_simulation
-
     folder = make_folder(out)
     t0 = time.perf_counter()
     data, truth = simulate("hsr-jr680", "cable", samples=samples, seed=seed, effects=[EFFECT])
@@ -67,7 +64,7 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
         print("  nothing beyond the geometric model was found")
     written = [csv.name, "truth.json", "result.json", "diagnosis.json"] + [f.name for f in figures]
     try:
-        from .report import report as html_report
+        from ..report import report as html_report
 
         written.append(html_report(folder / "result.json", folder, diagnosis=folder / "diagnosis.json").name)
     except ImportError:

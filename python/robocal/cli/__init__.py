@@ -1,0 +1,102 @@
+"""The ``robocal`` command line: one subcommand per module ``robocal.cli.NAME``, each providing
+``add_arguments(parser)`` and ``run(args) -> exit code``.
+
+Only the module of the subcommand that runs is imported (with it NumPy's and SciPy's share of the
+package): the top-level parser is built from :data:`COMMANDS` alone, so that ``robocal --version``
+and ``robocal --help`` start fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from dataclasses import dataclass
+
+from .. import __version__, progress
+from ..exceptions import RobocalError
+from ..outputs import check_outputs
+
+
+@dataclass(frozen=True)
+class Paths:
+    """Which arguments of a subcommand name files it reads, files it writes and folders it
+    writes into: :func:`robocal.outputs.check_outputs` refuses a clash before any work."""
+
+    inputs: tuple = ()
+    files: tuple = ()
+    folders: tuple = ()
+
+
+#: subcommand -> (help, paths); its arguments and its work are in ``robocal.cli.<subcommand>``.
+COMMANDS = {
+    "demo": ("run the core on a built-in simulated robot (no files needed)", Paths(folders=("out",))),
+    "inspect": ("validate a measurement file (canonical CSV or a public dataset)", Paths(("path", "robot"), ("json",))),
+    "calibrate": ("identify a robot's kinematic parameters from measurements", Paths(("data", "robot", "causes"), ("out",))),
+    "simulate": ("simulate measurements of a robot with known truth and injectable effects", Paths(("robot",), ("out", "truth"))),
+    "compare": ("run the paper's comparison of calibrators and write its tables and figures", Paths(("data", "robot"), (), ("out",))),
+    "diagnose": ("show what the geometric model gets wrong, name the cause, measure the held-out gain", Paths(("data", "robot"), ("json",), ("out",))),
+    "verify": ("evaluate a calibration result on new measurements, re-fitting only the session set-up", Paths(("result", "data"), ("json",))),
+    "compensate": ("joint commands that make the calibrated robot reach desired tool positions", Paths(("result", "targets"), ("out",))),
+    "report": ("an HTML page with figures of a calibration result (and its diagnosis)", Paths(("result", "data", "diagnosis"), (), ("out",))),
+    "export": ("write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip", Paths(("result",), ("out",))),
+}
+
+
+def command_module(name: str):
+    """The module of subcommand ``name`` (imported now)."""
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+def _global_options(parser: argparse.ArgumentParser, default) -> None:
+    # Added to the main parser and to every subparser so that they work on either side of the
+    # subcommand; the subparsers' default SUPPRESS keeps a value given before it.
+    parser.add_argument("--debug", action="store_true", default=default, help="show tracebacks")
+    parser.add_argument("--quiet", action="store_true", default=default, help="no progress bars")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser; only subcommand ``command`` gets its arguments (the others are listed with
+    their help and are never parsed in the same run)."""
+    parser = argparse.ArgumentParser(prog="robocal", description="Fast, honest kinematic calibration of industrial robots.")
+    parser.add_argument("--version", action="version", version=f"robocal {__version__}")
+    _global_options(parser, False)
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name, (help_text, paths) in COMMANDS.items():
+        parser_of = sub.add_parser(name, help=help_text, description=help_text)
+        if name == command:
+            command_module(name).add_arguments(parser_of)
+        _global_options(parser_of, argparse.SUPPRESS)
+        if paths.folders:
+            parser_of.add_argument("--force", action="store_true", help="write into an existing, non-empty output folder (its files are overwritten)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    # The options before the subcommand are flags without values: the first word that is not an
+    # option names it.
+    command = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(command).parse_args(argv)
+    progress.QUIET = args.quiet
+    paths = COMMANDS[args.command][1]
+    try:
+        check_outputs(
+            inputs=[getattr(args, a, None) for a in paths.inputs],
+            files=[getattr(args, a, None) for a in paths.files],
+            folders=[getattr(args, a, None) for a in paths.folders],
+            force=getattr(args, "force", False),
+        )
+        return command_module(args.command).run(args)
+    except BrokenPipeError:
+        # The reader went away (`robocal ... | head`): stop quietly, as Unix tools do.
+        sys.stdout = open(os.devnull, "w")
+        return 0
+    except (RobocalError, OSError) as exc:
+        if args.debug:
+            raise
+        if isinstance(exc, OSError):  # a file error no reader turned into a RobocalError
+            exc = f"{exc.filename}: {exc.strerror or exc}" if exc.filename else (exc.strerror or str(exc))
+        print("robocal: error: " + " ".join(str(exc).split()), file=sys.stderr)  # one line, whatever the message holds
+        return 2

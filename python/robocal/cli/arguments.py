@@ -1,0 +1,35 @@
+"""Arguments shared by the subcommands that read measurements."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _mm_deg(text: str) -> tuple[float, float]:
+    try:
+        length, angle = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected MM,DEG (e.g. 10,1); got {text!r}") from None
+    return length, angle
+
+
+def add_kinematic_prior_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--kinematic-prior", type=_mm_deg, metavar="MM,DEG",
+                        help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles")  # fmt: skip
+
+
+def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) -> None:
+    """The arguments of every command that calibrates on a measurement file (``sessions``: on
+    one or more, each a session of one robot)."""
+    if sessions:
+        parser.add_argument("data", nargs="+", help="measurement file(s); several files are sessions of one robot (judged leave-one-session-out)")
+    else:
+        parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
+    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
+    parser.add_argument("--measurement", choices=["cable", "position", "pose"])
+    add_angle_unit_argument(parser)
+
+
+def add_angle_unit_argument(parser: argparse.ArgumentParser, what: str = "q columns of a canonical file") -> None:
+    parser.add_argument("--angle-unit", choices=("deg", "rad"),
+                        help=f"unit of the {what} (default deg; values implausible for the default are refused)")  # fmt: skip

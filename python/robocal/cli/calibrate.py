@@ -1,0 +1,65 @@
+"""``robocal calibrate``: :func:`robocal.calibrate` on a measurement file, a summary or the result JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from ..calibration.api import METHODS
+from ..calibration.result import describe_implausible
+from ..diagnosis.extended import calibrate
+from ..results import save_result
+from .arguments import add_data_arguments, add_kinematic_prior_argument
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_data_arguments(parser)
+    parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
+    parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
+    parser.add_argument("--seed", type=int, default=0)
+    add_kinematic_prior_argument(parser)
+    parser.add_argument("--loss", choices=["linear", "huber", "cauchy"], default="linear",
+                        help="robust loss of method lm; outlying rows are reported (default linear)")  # fmt: skip
+    parser.add_argument("--causes", nargs="+", metavar="CAUSE",
+                        help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them")  # fmt: skip
+    parser.add_argument("--out", help="write the result JSON here")
+    parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
+                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior, angle_unit=args.angle_unit,
+                       causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None,
+                       **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
+    doc = result.to_dict()
+    if args.out:
+        save_result(doc, args.out)
+    if args.json:
+        print(json.dumps(doc, indent=2))
+        return 0
+    train, test = doc["metrics"]["train"], doc["metrics"]["test"]
+    print(f"{doc['method']} on {doc['robot']} ({doc['measurement']}, {train['n']} training samples): "
+          f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms")  # fmt: skip
+    print(f"  train: RMSE {train['rmse']:.4f}  MAE {train['mae']:.4f}  MAX {train['max']:.4f} mm")
+    if test:
+        print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
+    print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
+    for cause in doc.get("causes", []):
+        shown = ", ".join(f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"
+                          for k, v in cause["params"].items() if v["value"] == v["value"])  # fmt: skip
+        print(f"  cause {cause['label']}: {shown}")
+    if "robust" in doc:
+        rows = doc["robust"]["outlying_rows"]
+        print(f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows" + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else ""))
+    for note in result.problem.data.notes:  # what the reader noticed, e.g. angles kept in an unlikely unit as asked
+        print(f"  note: {note}")
+    if doc["implausible"]:
+        print("  warning: " + describe_implausible(doc["implausible"]))
+    if doc["undetermined"]:
+        widest = max(doc["undetermined"], key=lambda u: u["std"])
+        combination = " ".join(f"{w:+.2f}·{n}" for n, w in widest["combination"].items())
+        print(f"  {len(doc['undetermined'])} parameter combinations are undetermined (standard deviation beyond 10 mm / 2 deg); "
+              f"the widest, {widest['std']:.3g} limits: {combination}")  # fmt: skip
+    if args.out:
+        print(f"  result written to {args.out}")
+    return 0

@@ -1,0 +1,47 @@
+"""``robocal verify``: :func:`robocal.verify` of a result file on new measurements, a summary or the JSON report."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from ..outputs import write_text
+from ..verification import verify
+from .arguments import add_angle_unit_argument
+
+
+def summary(report: dict) -> str:
+    m, n = report["metrics"], report["nominal"]["metrics"]
+    applied = report["applied"]["structure"] + report["applied"]["causes"]
+    lines = [
+        f"{report['robot']} on {report['samples']} new {report['measurement']} samples ({report['data'] or 'data'}), "
+        f"session set-up re-fitted ({', '.join(report['refit'])}):",
+        f"  calibrated: RMSE {m['rmse']:.4f}  MAE {m['mae']:.4f}  MAX {m['max']:.4f} mm",
+        f"  nominal:    RMSE {n['rmse']:.4f}  MAE {n['mae']:.4f}  MAX {n['max']:.4f} mm",
+    ]
+    if applied:
+        lines.append("  applied: " + "; ".join(applied))
+    for item in report["not_applied"]:
+        lines.append(f"  not applied: {item['label']} ({item['reason']})")
+    return "\n".join(lines)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("result", help="a result file of robocal calibrate (--out)")
+    parser.add_argument("data", help="new measurements of the same robot (canonical CSV or a public dataset)")
+    parser.add_argument("--measurement", choices=["cable", "position", "pose"], help="default: the result's")
+    add_angle_unit_argument(parser)
+    parser.add_argument("--json", metavar="FILE", help="write the JSON report here ('-' for standard output)")
+
+
+def run(args: argparse.Namespace) -> int:
+    report = verify(args.result, args.data, measurement=args.measurement, angle_unit=args.angle_unit)
+    text = json.dumps(report, indent=2)
+    if args.json == "-":
+        print(text)
+        return 0
+    print(summary(report))
+    if args.json:
+        write_text(args.json, text + "\n")
+        print(f"  report written to {args.json}")
+    return 0
