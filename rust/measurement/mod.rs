@@ -16,7 +16,7 @@ pub mod so3;
 pub use cable_init::cable_initial_guess;
 
 use crate::error::{check_kinematic_input, CoreError, CoreResult};
-use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, LANES};
+use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, BLOCK, LANES};
 use crate::parallel::for_each_group;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -119,13 +119,13 @@ impl<'a> Batch<'a> {
     }
 
     /// Scratch lanes for one group's joint vectors.
-    fn q_scratch(&self) -> Vec<Lane> {
+    fn q_scratch<const L: usize>(&self) -> Vec<Lane<L>> {
         vec![splat(0.0); self.chain.n_joints()]
     }
 
     /// Tool frames of samples `first .. first+count` (unused lanes repeat the last sample).
     #[inline(always)]
-    fn tool_frames(&self, first: usize, count: usize, ql: &mut [Lane]) -> Frames {
+    fn tool_frames<const L: usize>(&self, first: usize, count: usize, ql: &mut [Lane<L>]) -> Frames<L> {
         gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
         self.chain.forward(&self.prepared, ql, true)
     }
@@ -174,7 +174,7 @@ impl<'a> Batch<'a> {
     pub fn predict(&self) -> Vec<f64> {
         let w = self.measurement.obs_width();
         let mut out = vec![0.0; self.m * w];
-        for_each_group(&mut out, w, || self.q_scratch(), |first, count, rows, ql| {
+        for_each_group::<BLOCK, _, _, _>(&mut out, w, || self.q_scratch::<BLOCK>(), #[inline(always)] |first, count, rows, ql| {
             let f = self.tool_frames(first, count, ql);
             for (l, row) in rows.chunks_exact_mut(w).enumerate() {
                 self.predict_row(&f.lane(l), row);
@@ -190,7 +190,7 @@ impl<'a> Batch<'a> {
         self.observed()?;
         let k = self.measurement.res_width();
         let mut out = vec![0.0; self.m * k];
-        for_each_group(&mut out, k, || self.q_scratch(), |first, count, rows, ql| {
+        for_each_group::<BLOCK, _, _, _>(&mut out, k, || self.q_scratch::<BLOCK>(), #[inline(always)] |first, count, rows, ql| {
             let f = self.tool_frames(first, count, ql);
             for (l, row) in rows.chunks_exact_mut(k).enumerate() {
                 self.residual_row(first + l, &f.lane(l), row);
@@ -220,9 +220,9 @@ impl<'a> Batch<'a> {
         cols.iter().for_each(|&c| wanted[c] = true);
         let scratch = || {
             let zero: Vec3L = [splat(0.0); 3];
-            (self.q_scratch(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
+            (self.q_scratch::<LANES>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
         };
-        for_each_group(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
+        for_each_group::<LANES, _, _, _>(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
             gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
             let orientation = self.measurement == Measurement::Pose;
             let f = self.chain.forward_with_jacobian(&self.prepared, ql, &wanted, orientation, axes, dp, dw);
