@@ -128,8 +128,9 @@ impl<const L: usize> Frames<L> {
     /// kept in a register instead of being spread over a lane array).
     #[inline(always)]
     pub fn apply<V: PerLane>(&mut self, op: &Op, v: V, s: V, c: V) {
-        // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; spelled out per axis so
-        // the indices are constants.
+        // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; a translation adds column
+        // k. Spelled out per axis so the indices are constants (a frame indexed at run time
+        // cannot live in registers).
         match (op.rotation, op.axis) {
             (true, 0) => self.rotate::<1, 2, V>(s, c),
             (true, 1) => self.rotate::<2, 0, V>(s, c),
