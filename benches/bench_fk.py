@@ -8,7 +8,8 @@ from Python (conversion, allocation and the GIL release included). The D1 rows t
 residual evaluation of the calibration problem on the 2017 cable samples of HSR-RobotCali
 (``Problem.residuals``, what the least-squares solvers call, and the bare ``Chain.residuals``).
 
-Each build runs in its own subprocess; the builds alternate for ``--rounds`` rounds and every
+``--baseline-so`` runs under a copy of this checkout's Python package (the .so must match its
+bindings). Each build runs in its own subprocess; the builds alternate for ``--rounds`` rounds and every
 figure is the median over rounds of per-round medians, so that a load change on the machine
 hits both builds alike. Ratios are within one process (NumPy / robocal) or between the builds.
 
