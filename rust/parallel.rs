@@ -22,7 +22,7 @@ where
     // Wide groups (`BLOCK` plain poses) run 1.5x faster compiled for AVX2, chosen at run time
     // since a wheel targets baseline x86-64. Results are bit-identical: Rust never fuses a
     // multiply and an add (no FMA), and every operation is elementwise across lanes. 4-lane
-    // groups measured 10 % slower with it (their frames spill either way), so they keep SSE2.
+    // groups measured 10 % slower with it, so they keep SSE2.
     #[cfg(target_arch = "x86_64")]
     let avx2 = G >= 16 && std::is_x86_feature_detected!("avx2");
     let run = |(c, chunk): (usize, &mut [f64])| {

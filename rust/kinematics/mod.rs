@@ -16,7 +16,7 @@ mod lanes;
 mod layout;
 
 pub use frame::Frame;
-pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, BLOCK, LANES};
+pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, BLOCK, LANES, SMALL_BATCH};
 use lanes::sin_cos;
 pub use layout::Layout;
 
@@ -379,9 +379,15 @@ impl Chain {
         check_len("out", out.len(), m * 16)?;
         let n = self.n_joints();
         let pre = self.prepare(params);
-        for_each_group::<BLOCK, _, _, _>(out, 16, || vec![splat::<BLOCK>(0.0); n], #[inline(always)] |first, count, rows, ql| {
-            self.fk_rows(&pre, q, tool, first, count, rows, ql)
-        });
+        if m < SMALL_BATCH {
+            for_each_group::<LANES, _, _, _>(out, 16, || vec![splat::<LANES>(0.0); n], |first, count, rows, ql| {
+                self.fk_rows(&pre, q, tool, first, count, rows, ql)
+            });
+        } else {
+            for_each_group::<BLOCK, _, _, _>(out, 16, || vec![splat::<BLOCK>(0.0); n], #[inline(always)] |first, count, rows, ql| {
+                self.fk_rows(&pre, q, tool, first, count, rows, ql)
+            });
+        }
         Ok(())
     }
 
@@ -478,4 +484,3 @@ mod tests {
         }
     }
 }
-

@@ -305,8 +305,9 @@ proptest! {
         }
     }
 
-    /// A sample's residual and Jacobian rows do not depend on the batch (lanes, group padding),
-    /// and `sigma_residuals` row s is the residual vector at parameter set s.
+    /// A sample's residual and Jacobian rows do not depend on the batch (lanes, group padding,
+    /// 4-lane groups or 64-lane blocks), and `sigma_residuals` row s is the residual vector at
+    /// parameter set s.
     #[test]
     fn batching_and_sigma_points_are_consistent(case in case(), scale in 0.9..1.1f64) {
         let chain = case.chain();
@@ -321,6 +322,12 @@ proptest! {
             prop_assert_eq!(&one.residuals().unwrap()[..], &r_all[i * k..(i + 1) * k], "sample {}", i);
             prop_assert_eq!(&one.jacobian(&cols).unwrap()[..], &j_all[i * k * n_params..(i + 1) * k * n_params], "sample {}", i);
         }
+        // The batch tiled past SMALL_BATCH runs in 64-lane blocks: the same rows, bit for bit.
+        let tiles = 70;
+        let (q_big, y_big) = (case.q.repeat(tiles), y.repeat(tiles));
+        let big = Batch::new(&chain, case.measurement, &case.params, &q_big, Some(&y_big)).unwrap();
+        prop_assert!(big.residuals().unwrap() == r_all.repeat(tiles), "residuals in blocks differ");
+        prop_assert!(big.predict() == batch.predict().repeat(tiles), "predictions in blocks differ");
         let other: Vec<f64> = case.params.iter().map(|v| v * scale).collect();
         let mut sigmas = case.params.clone();
         sigmas.extend_from_slice(&other);
