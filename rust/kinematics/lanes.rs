@@ -1,25 +1,36 @@
-//! `LANES` samples evaluated in lockstep (structure of arrays), so that every elementary
-//! transform is one SIMD operation across samples, and a polynomial sine/cosine that
-//! vectorises the same way (libm's `sin_cos` is a scalar call per angle).
+//! `L` samples evaluated in lockstep (structure of arrays), so that every elementary
+//! transform is one loop across samples that the compiler vectorises, and a polynomial
+//! sine/cosine that vectorises the same way (libm's `sin_cos` is a scalar call per angle).
+//!
+//! Two widths are used: `LANES` (4) where each sample carries much more state than its frame
+//! (the Jacobian's per-parameter derivatives, the sigma points of a filter update), and
+//! `BLOCK` (64) for plain poses, where a block of frames (6 KiB) stays in L1 and each op is a
+//! long vector loop: with 4 lanes the twelve frame values do not fit in the 16 SSE2 registers
+//! and every op spills, and the per-op dispatch is paid every 4 samples instead of every 64.
 
 use super::{Frame, Op};
 use nalgebra::Vector3;
 
-/// Samples per group.
+/// Samples per group where each sample carries a lot of state.
 pub const LANES: usize = 4;
+/// Samples per group for plain poses.
+pub const BLOCK: usize = 64;
+/// Batches smaller than this run in `LANES` groups: a block would be mostly padding (one pose:
+/// 3.8 µs per Python `fk` call in a block, 1.6 µs in 4 lanes; 64 poses: 4.0 µs vs 7.3 µs).
+pub const SMALL_BATCH: usize = 16;
 /// One value per sample of a group.
-pub type Lane = [f64; LANES];
+pub type Lane<const L: usize = LANES> = [f64; L];
 /// A 3-vector per sample: `v[row][lane]`.
-pub type Vec3L = [Lane; 3];
+pub type Vec3L<const L: usize = LANES> = [Lane<L>; 3];
 
 #[inline(always)]
-fn lanewise(f: impl Fn(usize) -> f64) -> Lane {
+fn lanewise<const L: usize>(f: impl Fn(usize) -> f64) -> Lane<L> {
     std::array::from_fn(f)
 }
 
 #[inline(always)]
-pub fn splat(v: f64) -> Lane {
-    [v; LANES]
+pub fn splat<const L: usize>(v: f64) -> Lane<L> {
+    [v; L]
 }
 
 /// Angles beyond this go through libm (the two-term π/2 reduction below is exact to ~1e-16
@@ -29,7 +40,7 @@ const REDUCTION_LIMIT: f64 = 1.0e5;
 /// Sine and cosine of every lane: Cody–Waite reduction to [−π/4, π/4] and fdlibm's kernel
 /// polynomials (error ≲ 2 ulp for |x| < 1e5).
 #[inline(always)]
-pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
+pub fn sin_cos<const L: usize>(x: &Lane<L>) -> (Lane<L>, Lane<L>) {
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17;
     const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
     const S: [f64; 6] = [
@@ -53,15 +64,15 @@ pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
     // selects: (sin, cos) = (s, c), (c, −s), (−s, −c), (−c, s) for k mod 4 = 0, 1, 2, 3.
     // Each stage is its own loop over lanes so that the compiler vectorises it.
     const SHIFT: f64 = 6_755_399_441_055_744.0;
-    let shifted = lanewise(|l| x[l] * std::f64::consts::FRAC_2_PI + SHIFT);
-    let k = lanewise(|l| shifted[l] - SHIFT);
-    let r = lanewise(|l| (x[l] - k[l] * PIO2_1) - k[l] * PIO2_1T);
-    let z = lanewise(|l| r[l] * r[l]);
-    let sr = lanewise(|l| r[l] + r[l] * z[l] * (S[0] + z[l] * (S[1] + z[l] * (S[2] + z[l] * (S[3] + z[l] * (S[4] + z[l] * S[5]))))));
-    let cr = lanewise(|l| 1.0 - 0.5 * z[l] + z[l] * z[l] * (C[0] + z[l] * (C[1] + z[l] * (C[2] + z[l] * (C[3] + z[l] * (C[4] + z[l] * C[5]))))));
-    let mut s = [0.0; LANES];
-    let mut c = [0.0; LANES];
-    for l in 0..LANES {
+    let shifted = lanewise::<L>(|l| x[l] * std::f64::consts::FRAC_2_PI + SHIFT);
+    let k = lanewise::<L>(|l| shifted[l] - SHIFT);
+    let r = lanewise::<L>(|l| (x[l] - k[l] * PIO2_1) - k[l] * PIO2_1T);
+    let z = lanewise::<L>(|l| r[l] * r[l]);
+    let sr = lanewise::<L>(|l| r[l] + r[l] * z[l] * (S[0] + z[l] * (S[1] + z[l] * (S[2] + z[l] * (S[3] + z[l] * (S[4] + z[l] * S[5]))))));
+    let cr = lanewise::<L>(|l| 1.0 - 0.5 * z[l] + z[l] * z[l] * (C[0] + z[l] * (C[1] + z[l] * (C[2] + z[l] * (C[3] + z[l] * (C[4] + z[l] * C[5]))))));
+    let mut s = [0.0; L];
+    let mut c = [0.0; L];
+    for l in 0..L {
         let q = shifted[l].to_bits();
         let swap = 0u64.wrapping_sub(q & 1);
         let (sb, cb) = (sr[l].to_bits(), cr[l].to_bits());
@@ -71,7 +82,7 @@ pub fn sin_cos(x: &Lane) -> (Lane, Lane) {
         c[l] = f64::from_bits(b ^ ((((q + 1) >> 1) & 1) << 63));
     }
     if x.iter().any(|v| v.abs() > REDUCTION_LIMIT) {
-        for l in 0..LANES {
+        for l in 0..L {
             if x[l].abs() > REDUCTION_LIMIT {
                 (s[l], c[l]) = x[l].sin_cos();
             }
@@ -92,21 +103,21 @@ impl PerLane for f64 {
     }
 }
 
-impl PerLane for &Lane {
+impl<const L: usize> PerLane for &Lane<L> {
     #[inline(always)]
     fn at(self, l: usize) -> f64 {
         self[l]
     }
 }
 
-/// `LANES` rigid frames: rotation columns `cols[c][row][lane]` and origins `t[row][lane]`.
+/// `L` rigid frames: rotation columns `cols[c][row][lane]` and origins `t[row][lane]`.
 #[derive(Debug, Clone, Copy)]
-pub struct Frames {
-    pub cols: [Vec3L; 3],
-    pub t: Vec3L,
+pub struct Frames<const L: usize = LANES> {
+    pub cols: [Vec3L<L>; 3],
+    pub t: Vec3L<L>,
 }
 
-impl Frames {
+impl<const L: usize> Frames<L> {
     pub fn identity() -> Self {
         let mut cols = [[splat(0.0); 3]; 3];
         for (k, col) in cols.iter_mut().enumerate() {
@@ -120,18 +131,24 @@ impl Frames {
     /// kept in a register instead of being spread over a lane array).
     #[inline(always)]
     pub fn apply<V: PerLane>(&mut self, op: &Op, v: V, s: V, c: V) {
-        // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; spelled out per axis so
-        // the indices are constants.
+        // R·R_k mixes the two other columns (i, j) = (k+1, k+2) mod 3; a translation adds column
+        // k. Spelled out per axis so the indices are constants (a frame indexed at run time
+        // cannot live in registers).
         match (op.rotation, op.axis) {
             (true, 0) => self.rotate::<1, 2, V>(s, c),
             (true, 1) => self.rotate::<2, 0, V>(s, c),
             (true, _) => self.rotate::<0, 1, V>(s, c),
-            (false, k) => {
-                for r in 0..3 {
-                    for l in 0..LANES {
-                        self.t[r][l] += self.cols[k][r][l] * v.at(l);
-                    }
-                }
+            (false, 0) => self.translate::<0, V>(v),
+            (false, 1) => self.translate::<1, V>(v),
+            (false, _) => self.translate::<2, V>(v),
+        }
+    }
+
+    #[inline(always)]
+    fn translate<const K: usize, V: PerLane>(&mut self, v: V) {
+        for r in 0..3 {
+            for l in 0..L {
+                self.t[r][l] += self.cols[K][r][l] * v.at(l);
             }
         }
     }
@@ -139,7 +156,7 @@ impl Frames {
     #[inline(always)]
     fn rotate<const I: usize, const J: usize, V: PerLane>(&mut self, s: V, c: V) {
         for r in 0..3 {
-            for l in 0..LANES {
+            for l in 0..L {
                 let (ci, cj) = (self.cols[I][r][l], self.cols[J][r][l]);
                 self.cols[I][r][l] = ci * c.at(l) + cj * s.at(l);
                 self.cols[J][r][l] = cj * c.at(l) - ci * s.at(l);
@@ -149,14 +166,14 @@ impl Frames {
 
     /// The frame of lane `l`.
     pub fn lane(&self, l: usize) -> Frame {
-        let v = |a: &Vec3L| Vector3::new(a[0][l], a[1][l], a[2][l]);
+        let v = |a| lane_vec(a, l);
         Frame { cols: [v(&self.cols[0]), v(&self.cols[1]), v(&self.cols[2])], t: v(&self.t) }
     }
 }
 
 /// Lane `l` of a 3-vector.
 #[inline(always)]
-pub fn lane_vec(a: &Vec3L, l: usize) -> Vector3<f64> {
+pub fn lane_vec<const L: usize>(a: &Vec3L<L>, l: usize) -> Vector3<f64> {
     Vector3::new(a[0][l], a[1][l], a[2][l])
 }
 

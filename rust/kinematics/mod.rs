@@ -16,7 +16,7 @@ mod lanes;
 mod layout;
 
 pub use frame::Frame;
-pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, LANES};
+pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, BLOCK, LANES, SMALL_BATCH};
 use lanes::sin_cos;
 pub use layout::Layout;
 
@@ -96,8 +96,8 @@ pub struct PreparedLanes {
 /// Copies joint vectors `first .. first+count` of `q` ((m, n) row-major) into lanes
 /// `out[j][lane]`, repeating the last one in unused lanes.
 #[inline(always)]
-pub fn gather_lanes(q: &[f64], n: usize, first: usize, count: usize, out: &mut [Lane]) {
-    for l in 0..LANES {
+pub fn gather_lanes<const L: usize>(q: &[f64], n: usize, first: usize, count: usize, out: &mut [Lane<L>]) {
+    for l in 0..L {
         let i = first + l.min(count - 1);
         for (j, lane) in out.iter_mut().enumerate() {
             lane[l] = q[i * n + j];
@@ -232,7 +232,7 @@ impl Chain {
     /// Post-multiplies `f` by op `k` for a group of joint vectors (`q[j][lane]`): constant ops
     /// with their prepared value, joint ops with the joint variable added per lane.
     #[inline(always)]
-    fn apply_op(&self, k: usize, pre: &Prepared, q: &[Lane], f: &mut Frames) {
+    fn apply_op<const L: usize>(&self, k: usize, pre: &Prepared, q: &[Lane<L>], f: &mut Frames<L>) {
         let [v, s, c] = pre.ops[k];
         let op = &self.ops[k];
         match op.joint {
@@ -246,10 +246,10 @@ impl Chain {
         }
     }
 
-    /// Poses of the flange (`tool = false`) or of the tool frame for `LANES` joint vectors
+    /// Poses of the flange (`tool = false`) or of the tool frame for `L` joint vectors
     /// `q[j][lane]`. Inputs are assumed validated (`check_inputs`).
     #[inline(always)]
-    pub fn forward(&self, pre: &Prepared, q: &[Lane], tool: bool) -> Frames {
+    pub fn forward<const L: usize>(&self, pre: &Prepared, q: &[Lane<L>], tool: bool) -> Frames<L> {
         let end = if tool { self.ops.len() } else { self.flange_end };
         let mut f = Frames::identity();
         for k in 0..end {
@@ -336,7 +336,7 @@ impl Chain {
                 continue;
             }
             if op.rotation {
-                let mut d = [splat(0.0); 3];
+                let mut d = [splat::<LANES>(0.0); 3];
                 for r in 0..3 {
                     for l in 0..LANES {
                         d[r][l] = f.t[r][l] - o[r][l];
@@ -365,18 +365,42 @@ impl Chain {
     ///
     /// Errors: `Shape`, `NonFinite`.
     pub fn fk_batch(&self, params: &[f64], q: &[f64], tool: bool) -> CoreResult<Vec<f64>> {
+        let mut out = vec![0.0; q.len() / self.n_joints() * 16];
+        self.fk_into(params, q, tool, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Chain::fk_batch`] into a caller's buffer `out` ((m, 4, 4) row-major, every value
+    /// written), so that the Python binding fills the NumPy array in place.
+    ///
+    /// Errors: `Shape` (also when `out` does not hold m·16 values), `NonFinite`.
+    pub fn fk_into(&self, params: &[f64], q: &[f64], tool: bool, out: &mut [f64]) -> CoreResult<()> {
         let m = self.check_inputs(params, q)?;
+        check_len("out", out.len(), m * 16)?;
         let n = self.n_joints();
         let pre = self.prepare(params);
-        let mut out = vec![0.0; m * 16];
-        for_each_group(&mut out, 16, || vec![splat(0.0); n], |first, count, rows, ql| {
-            gather_lanes(q, n, first, count, ql);
-            let f = self.forward(&pre, ql, tool);
-            for (l, row) in rows.chunks_exact_mut(16).enumerate() {
-                f.lane(l).write_homogeneous(row);
-            }
-        });
-        Ok(out)
+        if m < SMALL_BATCH {
+            for_each_group::<LANES, _, _, _>(out, 16, || vec![splat::<LANES>(0.0); n], |first, count, rows, ql| {
+                self.fk_rows(&pre, q, tool, first, count, rows, ql)
+            });
+        } else {
+            for_each_group::<BLOCK, _, _, _>(out, 16, || vec![splat::<BLOCK>(0.0); n], #[inline(always)] |first, count, rows, ql| {
+                self.fk_rows(&pre, q, tool, first, count, rows, ql)
+            });
+        }
+        Ok(())
+    }
+
+    /// The (4, 4) rows of samples `first .. first+count` of `q` into `rows`, `L` at a time
+    /// (`ql`: scratch of N lanes).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn fk_rows<const L: usize>(&self, pre: &Prepared, q: &[f64], tool: bool, first: usize, count: usize, rows: &mut [f64], ql: &mut [Lane<L>]) {
+        gather_lanes(q, self.n_joints(), first, count, ql);
+        let f = self.forward(pre, ql, tool);
+        for (l, row) in rows.chunks_exact_mut(16).enumerate() {
+            f.lane(l).write_homogeneous(row);
+        }
     }
 }
 
@@ -393,7 +417,7 @@ mod tests {
     }
 
     fn single(chain: &Chain, p: &[f64], q: &[f64], tool: bool) -> Frame {
-        let mut ql = vec![splat(0.0); q.len()];
+        let mut ql = vec![splat::<LANES>(0.0); q.len()];
         gather_lanes(q, q.len(), 0, 1, &mut ql);
         chain.forward(&chain.prepare(p), &ql, tool).lane(0)
     }
@@ -439,7 +463,7 @@ mod tests {
         let mut dpl = vec![[splat(0.0); 3]; n];
         let mut dwl = vec![[splat(0.0); 3]; n];
         let mut axes = vec![([splat(0.0); 3], [splat(0.0); 3]); chain.n_ops()];
-        let mut ql = vec![splat(0.0); 6];
+        let mut ql = vec![splat::<LANES>(0.0); 6];
         gather_lanes(&q, 6, 0, 1, &mut ql);
         let f0 = chain.forward_with_jacobian(&chain.prepare(&p), &ql, &vec![true; n], true, &mut axes, &mut dpl, &mut dwl).lane(0);
         let dp: Vec<Vector3<f64>> = dpl.iter().map(|v| lane_vec(v, 0)).collect();

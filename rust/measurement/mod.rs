@@ -16,7 +16,7 @@ pub mod so3;
 pub use cable_init::cable_initial_guess;
 
 use crate::error::{check_kinematic_input, CoreError, CoreResult};
-use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, LANES};
+use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, BLOCK, LANES, SMALL_BATCH};
 use crate::parallel::for_each_group;
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -119,13 +119,13 @@ impl<'a> Batch<'a> {
     }
 
     /// Scratch lanes for one group's joint vectors.
-    fn q_scratch(&self) -> Vec<Lane> {
+    fn q_scratch<const L: usize>(&self) -> Vec<Lane<L>> {
         vec![splat(0.0); self.chain.n_joints()]
     }
 
     /// Tool frames of samples `first .. first+count` (unused lanes repeat the last sample).
     #[inline(always)]
-    fn tool_frames(&self, first: usize, count: usize, ql: &mut [Lane]) -> Frames {
+    fn tool_frames<const L: usize>(&self, first: usize, count: usize, ql: &mut [Lane<L>]) -> Frames<L> {
         gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
         self.chain.forward(&self.prepared, ql, true)
     }
@@ -172,15 +172,7 @@ impl<'a> Batch<'a> {
 
     /// Model predictions, (m, obs_width) row-major.
     pub fn predict(&self) -> Vec<f64> {
-        let w = self.measurement.obs_width();
-        let mut out = vec![0.0; self.m * w];
-        for_each_group(&mut out, w, || self.q_scratch(), |first, count, rows, ql| {
-            let f = self.tool_frames(first, count, ql);
-            for (l, row) in rows.chunks_exact_mut(w).enumerate() {
-                self.predict_row(&f.lane(l), row);
-            }
-        });
-        out
+        self.per_sample(self.measurement.obs_width(), false)
     }
 
     /// Residuals `y − h`, (m, res_width) row-major.
@@ -188,15 +180,35 @@ impl<'a> Batch<'a> {
     /// Errors: `InvalidParameter` when the batch has no observations.
     pub fn residuals(&self) -> CoreResult<Vec<f64>> {
         self.observed()?;
-        let k = self.measurement.res_width();
-        let mut out = vec![0.0; self.m * k];
-        for_each_group(&mut out, k, || self.q_scratch(), |first, count, rows, ql| {
-            let f = self.tool_frames(first, count, ql);
-            for (l, row) in rows.chunks_exact_mut(k).enumerate() {
+        Ok(self.per_sample(self.measurement.res_width(), true))
+    }
+
+    /// Residuals (`residual`) or predictions of every sample, `width` values each.
+    fn per_sample(&self, width: usize, residual: bool) -> Vec<f64> {
+        let mut out = vec![0.0; self.m * width];
+        if self.m < SMALL_BATCH {
+            for_each_group::<LANES, _, _, _>(&mut out, width, || self.q_scratch::<LANES>(), |first, count, rows, ql| {
+                self.sample_rows(residual, first, count, rows, ql)
+            });
+        } else {
+            for_each_group::<BLOCK, _, _, _>(&mut out, width, || self.q_scratch::<BLOCK>(), #[inline(always)] |first, count, rows, ql| {
+                self.sample_rows(residual, first, count, rows, ql)
+            });
+        }
+        out
+    }
+
+    /// Rows of samples `first .. first+count` (see `per_sample`), `L` at a time.
+    #[inline(always)]
+    fn sample_rows<const L: usize>(&self, residual: bool, first: usize, count: usize, rows: &mut [f64], ql: &mut [Lane<L>]) {
+        let f = self.tool_frames(first, count, ql);
+        for (l, row) in rows.chunks_exact_mut(rows.len() / count).enumerate() {
+            if residual {
                 self.residual_row(first + l, &f.lane(l), row);
+            } else {
+                self.predict_row(&f.lane(l), row);
             }
-        });
-        Ok(out)
+        }
     }
 
     /// Identification Jacobian `∂h/∂params[cols]`, (m·res_width, cols.len()) row-major.
@@ -220,9 +232,9 @@ impl<'a> Batch<'a> {
         cols.iter().for_each(|&c| wanted[c] = true);
         let scratch = || {
             let zero: Vec3L = [splat(0.0); 3];
-            (self.q_scratch(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
+            (self.q_scratch::<LANES>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
         };
-        for_each_group(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
+        for_each_group::<LANES, _, _, _>(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
             gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
             let orientation = self.measurement == Measurement::Pose;
             let f = self.chain.forward_with_jacobian(&self.prepared, ql, &wanted, orientation, axes, dp, dw);

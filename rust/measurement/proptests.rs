@@ -9,7 +9,9 @@
 //! - the analytic identification Jacobian equals central differences of the residual kernel
 //!   (`J = −∂r/∂θ`) on well-conditioned inputs;
 //! - a sample's residual does not depend on the batch it is computed in (lanes, chunking), and
-//!   `sigma_residuals` row s equals the residuals at parameter set s.
+//!   `sigma_residuals` row s equals the residuals at parameter set s;
+//! - forward kinematics in wide blocks (SSE2 and AVX2 builds, parallel chunks) gives bit for bit
+//!   the poses of the 4-lane kernel that the Jacobian runs.
 //!
 //! 64 cases per property; the seed is fixed so that CI runs are reproducible
 //! (`PROPTEST_RNG_SEED=<u64>` explores others, `PROPTEST_CASES=<n>` runs more).
@@ -303,8 +305,9 @@ proptest! {
         }
     }
 
-    /// A sample's residual and Jacobian rows do not depend on the batch (lanes, group padding),
-    /// and `sigma_residuals` row s is the residual vector at parameter set s.
+    /// A sample's residual and Jacobian rows do not depend on the batch (lanes, group padding,
+    /// 4-lane groups or 64-lane blocks), and `sigma_residuals` row s is the residual vector at
+    /// parameter set s.
     #[test]
     fn batching_and_sigma_points_are_consistent(case in case(), scale in 0.9..1.1f64) {
         let chain = case.chain();
@@ -319,6 +322,12 @@ proptest! {
             prop_assert_eq!(&one.residuals().unwrap()[..], &r_all[i * k..(i + 1) * k], "sample {}", i);
             prop_assert_eq!(&one.jacobian(&cols).unwrap()[..], &j_all[i * k * n_params..(i + 1) * k * n_params], "sample {}", i);
         }
+        // The batch tiled past SMALL_BATCH runs in 64-lane blocks: the same rows, bit for bit.
+        let tiles = 70;
+        let (q_big, y_big) = (case.q.repeat(tiles), y.repeat(tiles));
+        let big = Batch::new(&chain, case.measurement, &case.params, &q_big, Some(&y_big)).unwrap();
+        prop_assert!(big.residuals().unwrap() == r_all.repeat(tiles), "residuals in blocks differ");
+        prop_assert!(big.predict() == batch.predict().repeat(tiles), "predictions in blocks differ");
         let other: Vec<f64> = case.params.iter().map(|v| v * scale).collect();
         let mut sigmas = case.params.clone();
         sigmas.extend_from_slice(&other);
@@ -326,6 +335,45 @@ proptest! {
         prop_assert_eq!(&s[..r_all.len()], &r_all[..]);
         let r_other = Batch::new(&chain, case.measurement, &other, &case.q, Some(&y)).unwrap().residuals().unwrap();
         prop_assert_eq!(&s[r_all.len()..], &r_other[..]);
+    }
+
+    /// `fk_batch` (64-lane blocks, AVX2 when the CPU has it, parallel chunks and a padded tail)
+    /// and both builds of a block equal the 4-lane kernel bit for bit.
+    #[test]
+    fn wide_blocks_match_four_lanes_bit_for_bit(case in case(), tool in any::<bool>()) {
+        use crate::kinematics::{splat, BLOCK, LANES};
+        use crate::parallel::fill_chunk;
+        let chain = case.chain();
+        let n = case.n();
+        let m = 601;
+        let q: Vec<f64> = (0..m * n).map(|k| case.q[k % case.q.len()] + (k as f64) * 1e-3).collect();
+        let pre = chain.prepare(&case.params);
+        let mut lanes4 = vec![0.0; m * 16];
+        fill_chunk::<LANES, _, _>(0, &mut lanes4, 16, &mut vec![splat(0.0); n], &|first, count, rows: &mut [f64], ql: &mut Vec<_>| {
+            chain.fk_rows::<LANES>(&pre, &q, tool, first, count, rows, ql)
+        });
+        /// One chunk in 64-lane blocks, compiled for AVX2 if `avx2` (`fill` is inlined into it).
+        fn blocks(avx2: bool, m: usize, n: usize, fill: impl Fn(usize, usize, &mut [f64], &mut Vec<[f64; BLOCK]>)) -> Vec<f64> {
+            let mut out = vec![0.0; m * 16];
+            let scratch = &mut vec![splat(0.0); n];
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: only called when the CPU has AVX2.
+                unsafe { crate::parallel::fill_chunk_avx2::<BLOCK, _, _>(0, &mut out, 16, scratch, &fill) };
+                return out;
+            }
+            fill_chunk::<BLOCK, _, _>(0, &mut out, 16, scratch, &fill);
+            out
+        }
+        #[cfg(target_arch = "x86_64")]
+        let builds = [false, std::is_x86_feature_detected!("avx2")];
+        #[cfg(not(target_arch = "x86_64"))]
+        let builds = [false];
+        for avx2 in builds {
+            let block = blocks(avx2, m, n, #[inline(always)] |first, count, rows, ql| chain.fk_rows::<BLOCK>(&pre, &q, tool, first, count, rows, ql));
+            prop_assert!(lanes4 == block, "blocks (AVX2: {}) differ from 4 lanes", avx2);
+        }
+        prop_assert!(lanes4 == chain.fk_batch(&case.params, &q, tool).unwrap(), "fk_batch differs from 4 lanes");
     }
 }
 

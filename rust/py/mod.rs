@@ -88,8 +88,14 @@ impl PyChain {
     fn fk<'py>(&self, py: Python<'py>, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
         let (q, m, _) = array2(q, "q", Some(self.inner.n_joints()))?;
-        let out = py.detach(|| self.inner.fk_batch(&params, &q, tool)).map_err(core_err)?;
-        PyArray1::from_vec(py, out).reshape([m, 4, 4])
+        // Filled in place: a zeroed Vec handed over with `from_vec` costs a pass over the whole
+        // output (calloc's memset, or page faults on fresh pages) before the kernel writes it.
+        // SAFETY: the array is new and not yet visible to Python; `fk_into` either writes every
+        // element or fails before the array is returned.
+        let out = unsafe { PyArray3::<f64>::new(py, [m, 4, 4], false) };
+        let slice = unsafe { out.as_slice_mut() }.map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        py.detach(|| self.inner.fk_into(&params, &q, tool, slice)).map_err(core_err)?;
+        Ok(out)
     }
 
     /// Model predictions, (m, obs_width).
