@@ -13,7 +13,8 @@ the model needs:
     ``−q_j``: the joint counts the other way.
 ``joint_reference``
     ``q_j + c·q_s`` with ``c = ±1``: joint ``j`` read relative to joint ``s`` (the J2/J3
-    "interaction" of parallelogram arms and many controllers).
+    "interaction" of parallelogram arms and many controllers; tried for neighbouring joints and
+    within the wrist, :func:`coupled`).
 
 They are not small, so each hypothesis is judged by full nonlinear re-fits, never by a
 linearisation: a screening fit of every hypothesis on a subsample (capped), then the most
@@ -158,12 +159,20 @@ def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
     return replace(data, q=to_model(data.q, structures))
 
 
+def coupled(j: int, s: int, n_joints: int) -> bool:
+    """Joints whose readings a controller may report relative to each other: neighbours (the
+    J2/J3 interaction of parallelogram arms) and any two of the wrist's last three (wrist axis
+    coupling). Reading joint 4 relative to joint 1 is no convention in use."""
+    wrist = n_joints - 3
+    return abs(j - s) == 1 or (j >= wrist and s >= wrist and j != s)
+
+
 def hypotheses(data: Dataset) -> list[Structure]:
     """Every single-joint hypothesis on the joints that move in ``data``."""
     moving = [j for j in range(data.n_joints) if np.ptp(data.q[:, j]) > MOVING_DEG * DEG]
     out = [Structure("joint_zero", j, z * DEG) for j in moving for z in ZERO_OFFSETS]
     out += [Structure("joint_sign", j) for j in moving]
-    out += [Structure("joint_reference", j, c, s) for j in moving for s in moving if s != j for c in (1.0, -1.0)]
+    out += [Structure("joint_reference", j, c, s) for j in moving for s in moving if coupled(j, s, data.n_joints) for c in (1.0, -1.0)]
     return out
 
 
