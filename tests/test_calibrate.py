@@ -184,3 +184,15 @@ def test_bounds_errors(cable_data):
     data, _ = cable_data
     with pytest.raises(InvalidParameterError, match="bounds on 'a2' needs lower < upper"):
         Problem.build(robocal.robot("hsr-jr680"), data, bounds={"a2": (901.0, 899.0)})
+
+
+def test_result_speaks_scipys_vocabulary_and_gives_the_calibrated_robot():
+    data, truth = robocal.simulate("abb-irb120", "position", samples=200, seed=2)
+    result = robocal.calibrate(data)
+    assert result.status in (1, 2, 3) and result.success
+    assert np.allclose(result.fun, result.problem.residuals(result.x)) and 0.5 * result.fun @ result.fun == pytest.approx(result.cost)
+    robot = result.robot
+    assert isinstance(robot, robocal.Robot) and np.array_equal(robot.params, result.params)
+    assert np.allclose(robot.predict("position", data.q[:5]), result.problem.robot.predict("position", data.q[:5], result.params))
+    stopped = robocal.calibrate(data, max_nfev=2)
+    assert stopped.status == 0 and not stopped.success

@@ -13,6 +13,7 @@ from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
 from .problem import PLAUSIBLE, Problem, is_kinematic
+from ..robot import Robot
 
 
 #: What implausible parameters usually mean, and the remedy.
@@ -87,6 +88,28 @@ class CalibrationResult:
     def params(self) -> np.ndarray:
         """The full calibrated parameter vector."""
         return self.problem.full(self.x)
+
+    @property
+    def robot(self) -> Robot:
+        """The calibrated robot: its joints with the calibrated parameters. (Causes of an
+        extended model and reading conventions are not part of a :class:`Robot`; ``compensate``
+        and ``verify`` apply them from :meth:`to_dict`.)"""
+        robot = self.problem.robot
+        return Robot(robot.name, robot.joints, self.params)
+
+    @property
+    def fun(self) -> np.ndarray:
+        """The residuals ``y − h`` at the solution (scipy's ``fun``), prior rows included."""
+        return self.problem.residuals(self.x)
+
+    @property
+    def status(self) -> int:
+        """scipy ``least_squares``'s termination code: 0 the evaluation budget ran out, 1 gtol,
+        2 ftol (also the stop at the noise level: the cost cannot fall meaningfully), 3 xtol,
+        -1 any other failure."""
+        if self.success:
+            return 1 if "gtol" in self.message else 3 if "xtol" in self.message else 2
+        return 0 if "function evaluations" in self.message else -1
 
     def parameters(self) -> list[dict]:
         """``{name, unit, nominal, value, std}`` for every parameter of the robot (``std`` is
