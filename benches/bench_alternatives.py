@@ -160,7 +160,9 @@ def scipy_lm(jac_kind: str):
 
         def solve():
             f = Tracked(fun, rows, args.target_rmse, args.budget_s)
-            out, stop = f.run(lambda: scipy.optimize.least_squares(f, problem.x0, method="lm", jac=jac if jac_kind == "analytic" else "2-point", ftol=TOL, xtol=TOL, gtol=TOL))
+            out, stop = f.run(
+                lambda: scipy.optimize.least_squares(f, problem.x0, method="lm", jac=jac if jac_kind == "analytic" else "2-point", ftol=TOL, xtol=TOL, gtol=TOL)
+            )
             x = f.best_x if out is None else out.x
             status = stop if out is None else (out.message if out.success else f"NOT CONVERGED: {out.message}")
             return dict(x=x, rmse=rmse(problem.residuals(x)), hit_s=f.hit, note=f"{f.calls} residual calls; {status}")
@@ -327,7 +329,20 @@ def worker(args) -> None:
     x = out.pop("x")
     if "nfev" in out:
         out["note"] += f"{best / out['nfev']:.3f} s per residual evaluation"
-    print(json.dumps(dict(out, time_s=best, first_s=first, rss_peak_kib=peak, traced_peak_b=traced, n_free=len(problem.free), samples=len(problem.data), x=None if x is None else np.asarray(x).tolist())))
+    print(
+        json.dumps(
+            dict(
+                out,
+                time_s=best,
+                first_s=first,
+                rss_peak_kib=peak,
+                traced_peak_b=traced,
+                n_free=len(problem.free),
+                samples=len(problem.data),
+                x=None if x is None else np.asarray(x).tolist(),
+            )
+        )
+    )
 
 
 def run_case(problem: str, solver: str, args, extra=()) -> dict:
@@ -348,7 +363,9 @@ def table(title: str, intro: str, problem: str, solvers: list[str], args, refere
     import numpy as np
 
     print(f"### {title}\n\n{intro}\n")
-    print("| solver | wall time | × robocal | time to robocal's final RMSE | × robocal | final RMSE (mm) | max abs(x − x_robocal) | peak RSS of the solve | tracemalloc peak | notes |")
+    print(
+        "| solver | wall time | × robocal | time to robocal's final RMSE | × robocal | final RMSE (mm) | max abs(x − x_robocal) | peak RSS of the solve | tracemalloc peak | notes |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     ref = run_case(problem, reference, args, extra)
     hit = [f"--target-rmse={ref['rmse']!r}"] if "rmse" in ref else []
@@ -368,7 +385,9 @@ def table(title: str, intro: str, problem: str, solvers: list[str], args, refere
             reach = ("not reached", "—") if "hit_s" in out else ("n/a", "—")
         else:
             reach = f"{out['hit_s']:.3f} s", f"{out['hit_s'] / ref['time_s']:.1f}×"
-        print(f"| {label} | {out['time_s']:.3f} s | {ratio:.1f}× | {reach[0]} | {reach[1]} | {out['rmse']:.6f} | {dx} | {mib(out['rss_peak_kib'])} | {traced} | {out['note']} |")
+        print(
+            f"| {label} | {out['time_s']:.3f} s | {ratio:.1f}× | {reach[0]} | {reach[1]} | {out['rmse']:.6f} | {dx} | {mib(out['rss_peak_kib'])} | {traced} | {out['note']} |"
+        )
     print()
     return results
 
@@ -383,16 +402,20 @@ def target(name: str, results: dict, fast: str, slow: str, factor: float) -> Non
         # Only a lower bound on the ratio: it decides the target only if it already reaches it.
         bound = b["time_s"] / a["time_s"]
         verdict = "MET" if bound >= factor else f"NOT SHOWN (the lower bound {bound:.0f}× is below {factor:g}×)"
-        print(f"**Target {name}: {verdict}** — {slow} never reached robocal's final RMSE {a['rmse']:.6f} mm "
-              f"within {b['time_s']:.1f} s (≥ {bound:.0f}× robocal's {a['time_s']:.3f} s); its best {b['rmse']:.6f} mm.\n")
+        print(
+            f"**Target {name}: {verdict}** — {slow} never reached robocal's final RMSE {a['rmse']:.6f} mm "
+            f"within {b['time_s']:.1f} s (≥ {bound:.0f}× robocal's {a['time_s']:.3f} s); its best {b['rmse']:.6f} mm.\n"
+        )
         return
     ratio = b["hit_s"] / a["time_s"]
     met = ratio >= factor
-    print(f"**Target {name}: {'MET' if met else 'MISSED'}** — scipy reaches robocal's final RMSE ({a['rmse']:.6f} mm) after "
-          f"{b['hit_s']:.3f} s vs robocal's {a['time_s']:.3f} s for its whole solve = {ratio:.1f}× (target ≥ {factor:g}×: "
-          f"{'exceeded by ' + format(ratio / factor, '.2f') + '×' if met else 'short by ' + format(factor / ratio, '.2f') + '×'}). "
-          f"Run to its own stop, scipy ends at {b['rmse']:.6f} mm after {b['time_s']:.3f} s ({b['time_s'] / a['time_s']:.1f}×); "
-          f"{'equal final RMSE to 1e-6 relative' if abs(a['rmse'] - b['rmse']) <= 1e-6 * a['rmse'] else 'the final RMSEs differ (see the notes)'}.\n")
+    print(
+        f"**Target {name}: {'MET' if met else 'MISSED'}** — scipy reaches robocal's final RMSE ({a['rmse']:.6f} mm) after "
+        f"{b['hit_s']:.3f} s vs robocal's {a['time_s']:.3f} s for its whole solve = {ratio:.1f}× (target ≥ {factor:g}×: "
+        f"{'exceeded by ' + format(ratio / factor, '.2f') + '×' if met else 'short by ' + format(factor / ratio, '.2f') + '×'}). "
+        f"Run to its own stop, scipy ends at {b['rmse']:.6f} mm after {b['time_s']:.3f} s ({b['time_s'] / a['time_s']:.1f}×); "
+        f"{'equal final RMSE to 1e-6 relative' if abs(a['rmse'] - b['rmse']) <= 1e-6 * a['rmse'] else 'the final RMSEs differ (see the notes)'}.\n"
+    )
 
 
 def main() -> None:
@@ -440,16 +463,29 @@ def main() -> None:
     except Exception:  # noqa: BLE001 - not installed
         pyb = "not installed"
     print("## robocal vs the alternatives\n")
-    print(f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
-    print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}")
+    print(
+        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
+    )
+    print(
+        f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}"
+    )
     print(f"* command: `python benches/bench_alternatives.py {' '.join(sys.argv[1:])}`".rstrip())
-    print("* each solver in a fresh subprocess, one after another; wall time of the solve only (best of "
-          f"{args.repeats} when under {args.repeat_below_s:g} s); ftol = xtol = gtol = {TOL:g} for every least-squares solver; "
-          "peak RSS = VmHWM − VmRSS around the solve after resetting the peak (all allocations); tracemalloc peak = "
-          "Python-visible allocations of a second run (NumPy buffers, Python objects; not Rust's)\n")
+    print(
+        "* each solver in a fresh subprocess, one after another; wall time of the solve only (best of "
+        f"{args.repeats} when under {args.repeat_below_s:g} s); ftol = xtol = gtol = {TOL:g} for every least-squares solver; "
+        "peak RSS = VmHWM − VmRSS around the solve after resetting the peak (all allocations); tracemalloc peak = "
+        "Python-visible allocations of a second run (NumPy buffers, Python objects; not Rust's)\n"
+    )
     start = time.perf_counter()
     lm = ["robocal-lm", "scipy-lm-fd", "scipy-lm-jac", "pybotics-lm"]
-    d1 = table("D1 (HSR-RobotCali, cable), least squares", "HSR JR680, D1 training split (1614 samples), robocal's default mask → 24 free parameters, start `problem.x0`.", "D1", lm, args, "robocal-lm")
+    d1 = table(
+        "D1 (HSR-RobotCali, cable), least squares",
+        "HSR JR680, D1 training split (1614 samples), robocal's default mask → 24 free parameters, start `problem.x0`.",
+        "D1",
+        lm,
+        args,
+        "robocal-lm",
+    )
     target("robocal's production LM ≥ 100× faster than scipy with finite differences on D1, at equal final RMSE", d1, "robocal-lm", "scipy-lm-fd", 100)
     table("D3 (UR10 Series B, laser-tracker position), least squares",
           "UR10, 1495 samples, default mask → 27 free parameters; pybotics fits its own MDH model (20 link + 3 tool + 6 world = 29 parameters, redundant ones included) from its own start; its solve is stopped at a wall-time budget (`--pybotics-budget-s`), so its row is a time per evaluation and the RMSE reached by then, not a converged fit.",
@@ -464,9 +500,11 @@ def main() -> None:
                "D1", ["robocal-m9", "numpy-m9"], args, "robocal-m9")  # fmt: skip
     if "time_s" in m9.get("robocal-m9", {}) and "time_s" in m9.get("numpy-m9", {}):
         ratio = m9["numpy-m9"]["time_s"] / m9["robocal-m9"]["time_s"]
-        print(f"**Target M9 ≥ 20× faster than its NumPy twin: {'MET' if ratio >= 20 else 'MISSED'}** — "
-              f"{m9['numpy-m9']['time_s']:.3f} s / {m9['robocal-m9']['time_s']:.3f} s = {ratio:.1f}× "
-              f"({'by ' + format(ratio / 20, '.2f') + '×' if ratio >= 20 else 'short by ' + format(20 / ratio, '.2f') + '×'}).\n")
+        print(
+            f"**Target M9 ≥ 20× faster than its NumPy twin: {'MET' if ratio >= 20 else 'MISSED'}** — "
+            f"{m9['numpy-m9']['time_s']:.3f} s / {m9['robocal-m9']['time_s']:.3f} s = {ratio:.1f}× "
+            f"({'by ' + format(ratio / 20, '.2f') + '×' if ratio >= 20 else 'short by ' + format(20 / ratio, '.2f') + '×'}).\n"
+        )
     print(f"total {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}\n")
 
 

@@ -114,7 +114,9 @@ def part_lm(args) -> None:
 
     rows = []
     x_lm, rmse_lm = res.x, rmse(problem.residuals(res.x))
-    rows.append(("robocal `levenberg_marquardt` (Rust core)", "analytic (Rust)", t_lm, lm_nres, lm_njac, f"nit {res.nit}, nfev {res.nfev}", res.message, rmse_lm, 0.0))
+    rows.append(
+        ("robocal `levenberg_marquardt` (Rust core)", "analytic (Rust)", t_lm, lm_nres, lm_njac, f"nit {res.nit}, nfev {res.nfev}", res.message, rmse_lm, 0.0)
+    )
     for method in ("lm", "trf"):
         for jac_kind in ("2-point", "analytic"):
             nfev["n"] = 0
@@ -128,16 +130,32 @@ def part_lm(args) -> None:
             label = f"scipy `least_squares(method={method!r})` ({'MINPACK' if method == 'lm' else 'TRF'})"
             jl = "2-point finite differences of the NumPy residuals" if jac_kind == "2-point" else "analytic NumPy `reference.jacobian`"
             msg = out.message if out.success else f"NOT CONVERGED: {out.message}"
-            rows.append((label, jl, elapsed, nfev["n"], njev, f"nfev {out.nfev}, njev {out.njev}", msg, rmse(problem.residuals(out.x)), float(np.max(np.abs(out.x - x_lm)))))
+            rows.append(
+                (
+                    label,
+                    jl,
+                    elapsed,
+                    nfev["n"],
+                    njev,
+                    f"nfev {out.nfev}, njev {out.njev}",
+                    msg,
+                    rmse(problem.residuals(out.x)),
+                    float(np.max(np.abs(out.x - x_lm))),
+                )
+            )
 
     print(f"## 1. Production LM vs scipy.optimize.least_squares — simulated cable, {len(data):,} samples\n")
-    print(f"HSR JR680, `simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)`, `Problem.build` → {len(free)} free parameters; "
-          f"all start at `problem.x0` (RMSE {rmse(problem.residuals(x0)):.4f} mm); "
-          f"ftol = xtol = gtol = {args.tol:g} for every solver{'' if not args.fd_max_nfev else f'; finite-difference runs capped at max_nfev={args.fd_max_nfev}'}. "
-          f"robocal: best of {args.lm_repeats} runs, wall time of the whole `levenberg_marquardt()` call (incl. the result's "
-          f"covariance/metrics); scipy: one run each, wall time of `least_squares()`. Objective / Jacobian calls are counted in the "
-          f"functions themselves (robocal's include the one extra r and J of the result; scipy 'trf' leaves finite-difference calls out of its own nfev).\n")
-    print("| solver | Jacobian | wall time | × robocal | objective calls | Jacobian calls | solver's own counts | final RMSE (mm) | max abs(x − x_robocal) | status |")
+    print(
+        f"HSR JR680, `simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)`, `Problem.build` → {len(free)} free parameters; "
+        f"all start at `problem.x0` (RMSE {rmse(problem.residuals(x0)):.4f} mm); "
+        f"ftol = xtol = gtol = {args.tol:g} for every solver{'' if not args.fd_max_nfev else f'; finite-difference runs capped at max_nfev={args.fd_max_nfev}'}. "
+        f"robocal: best of {args.lm_repeats} runs, wall time of the whole `levenberg_marquardt()` call (incl. the result's "
+        f"covariance/metrics); scipy: one run each, wall time of `least_squares()`. Objective / Jacobian calls are counted in the "
+        f"functions themselves (robocal's include the one extra r and J of the result; scipy 'trf' leaves finite-difference calls out of its own nfev).\n"
+    )
+    print(
+        "| solver | Jacobian | wall time | × robocal | objective calls | Jacobian calls | solver's own counts | final RMSE (mm) | max abs(x − x_robocal) | status |"
+    )
     print("|---|---|---:|---:|---:|---:|---|---:|---:|---|")
     for label, jl, t, nr, nj, own, msg, e, dx in rows:
         print(f"| {label} | {jl} | {t:.3f} s | {t / t_lm:.1f}× | {nr} | {nj} | {own} | {e:.6f} | {dx:.2e} | {msg} |")
@@ -146,11 +164,13 @@ def part_lm(args) -> None:
     fastest_fd = min(fd, key=lambda row: row[2])
     same = all(abs(row[7] - rmse_lm) <= 1e-6 * rmse_lm for row in fd)
     met = fastest_fd[2] / t_lm >= 30 and same
-    print(f"\n**Target robocal ≥ 30× faster than scipy with finite differences at the same final RMSE: "
-          f"{'MET' if met else 'NOT MET'}** — the faster finite-difference scipy run ({fastest_fd[0]}) takes "
-          f"{fastest_fd[2]:.3f} s = {fastest_fd[2] / t_lm:.1f}× robocal's {t_lm:.3f} s; final RMSE "
-          f"{', '.join(f'{row[7]:.6f}' for row in fd)} (finite differences) vs {rmse_lm:.6f} mm (robocal)"
-          f"{'' if same else ' — NOT the same RMSE to 1e-6 relative'}.\n")
+    print(
+        f"\n**Target robocal ≥ 30× faster than scipy with finite differences at the same final RMSE: "
+        f"{'MET' if met else 'NOT MET'}** — the faster finite-difference scipy run ({fastest_fd[0]}) takes "
+        f"{fastest_fd[2]:.3f} s = {fastest_fd[2] / t_lm:.1f}× robocal's {t_lm:.3f} s; final RMSE "
+        f"{', '.join(f'{row[7]:.6f}' for row in fd)} (finite differences) vs {rmse_lm:.6f} mm (robocal)"
+        f"{'' if same else ' — NOT the same RMSE to 1e-6 relative'}.\n"
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -292,14 +312,18 @@ def part_m9(args) -> None:
     vslm_nit_rc = res.nit - args.sweeps
 
     print(f"## 2. M9 UKF-VSLM on D1 — robocal vs the same cascade in NumPy\n")
-    print(f"D1 = `{args.d1}` ({len(d1)} samples), training split `random_split({len(d1)}, 0.2, seed=0)` → {m} samples; "
-          f"`Problem.build` → {n} free parameters ({2 * n + 1} sigma points). Options (identical for both): sweeps={args.sweeps}, "
-          f"P0 = `prior_covariance(problem)`, Q = {Q_FRACTION:g}·P0, R = `sensor_covariance('cable')` = {opts['R'][0, 0]:g} mm², "
-          f"alpha=0.1, beta=2, kappa=0, lam={LAMBDA:g}, delta0=0.8, mu=0.95, max_iter=200, ftol=xtol=1e-10. "
-          f"robocal: best of {args.m9_repeats}; NumPy: one run.\n")
+    print(
+        f"D1 = `{args.d1}` ({len(d1)} samples), training split `random_split({len(d1)}, 0.2, seed=0)` → {m} samples; "
+        f"`Problem.build` → {n} free parameters ({2 * n + 1} sigma points). Options (identical for both): sweeps={args.sweeps}, "
+        f"P0 = `prior_covariance(problem)`, Q = {Q_FRACTION:g}·P0, R = `sensor_covariance('cable')` = {opts['R'][0, 0]:g} mm², "
+        f"alpha=0.1, beta=2, kappa=0, lam={LAMBDA:g}, delta0=0.8, mu=0.95, max_iter=200, ftol=xtol=1e-10. "
+        f"robocal: best of {args.m9_repeats}; NumPy: one run.\n"
+    )
     print("| implementation | wall time | × robocal | UKF updates | VSLM iterations | RMSE after UKF (mm) | final RMSE (mm) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
-    print(f"| robocal `ukf_vslm` (UKF sweeps in Rust, VSLM over Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |")
+    print(
+        f"| robocal `ukf_vslm` (UKF sweeps in Rust, VSLM over Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |"
+    )
     print(f"| NumPy/scipy twin (`robocal.reference`), this file | {t_np:.3f} s | {t_np / t_rc:.1f}× | {updates:,} | {nit_np} | {rm_ukf_np:.6f} | {rm_np:.6f} |")
     print(f"| paper, Table IX, M9 on D1 (their machine and protocol) | {PAPER_M9_D1_S:.0f} s | {PAPER_M9_D1_S / t_rc:,.0f}× | | | | |")
     print()
@@ -308,21 +332,31 @@ def part_m9(args) -> None:
     rel = np.abs(hist_rc[:k] - hn[:k]) / hist_rc[:k]
     u = args.sweeps + 1  # history entries of the UKF stage (start + one per sweep)
     apart = np.flatnonzero(rel[u:] > 1e-6)
-    print(f"* UKF stage: max abs(Δx_ukf) = {np.max(np.abs(first.x - x_ukf_np)):.3e} (mm / rad), "
-          f"max relative difference of the per-sweep costs = {np.max(rel[:u]):.3e}.")
-    print(f"* VSLM stage: relative cost difference after VSLM iterations 1, 2, 5, 10: "
-          f"{', '.join(f'{rel[u + i - 1]:.1e}' for i in (1, 2, 5, 10) if u + i - 1 < k)}; first iteration with > 1e-6: "
-          f"{'none' if apart.size == 0 else int(apart[0]) + 1}. Final max abs(Δx) = {np.max(np.abs(res.x - x_np)):.3e}, "
-          f"final RMSE {rm_rc:.6f} vs {rm_np:.6f} mm.")
-    print(f"* robocal stages measured separately: UKF {t_ukf_stage:.3f} s ({t_ukf_stage / updates * 1e6:.1f} µs per sample update), "
-          f"VSLM {t_vslm_stage:.3f} s ({t_vslm_stage / max(vslm_nit_rc, 1) * 1e3:.2f} ms per iteration).")
-    print(f"* NumPy twin stages (inside the same run): UKF {t_ukf_np:.3f} s ({t_ukf_np / updates * 1e6:.1f} µs per sample update, "
-          f"{t_ukf_np / t_ukf_stage:.1f}× robocal's), VSLM {t_vslm_np:.3f} s ({t_vslm_np / max(nit_np, 1) * 1e3:.2f} ms per iteration, "
-          f"{t_vslm_np / t_vslm_stage:.1f}× robocal's).")
+    print(
+        f"* UKF stage: max abs(Δx_ukf) = {np.max(np.abs(first.x - x_ukf_np)):.3e} (mm / rad), "
+        f"max relative difference of the per-sweep costs = {np.max(rel[:u]):.3e}."
+    )
+    print(
+        f"* VSLM stage: relative cost difference after VSLM iterations 1, 2, 5, 10: "
+        f"{', '.join(f'{rel[u + i - 1]:.1e}' for i in (1, 2, 5, 10) if u + i - 1 < k)}; first iteration with > 1e-6: "
+        f"{'none' if apart.size == 0 else int(apart[0]) + 1}. Final max abs(Δx) = {np.max(np.abs(res.x - x_np)):.3e}, "
+        f"final RMSE {rm_rc:.6f} vs {rm_np:.6f} mm."
+    )
+    print(
+        f"* robocal stages measured separately: UKF {t_ukf_stage:.3f} s ({t_ukf_stage / updates * 1e6:.1f} µs per sample update), "
+        f"VSLM {t_vslm_stage:.3f} s ({t_vslm_stage / max(vslm_nit_rc, 1) * 1e3:.2f} ms per iteration)."
+    )
+    print(
+        f"* NumPy twin stages (inside the same run): UKF {t_ukf_np:.3f} s ({t_ukf_np / updates * 1e6:.1f} µs per sample update, "
+        f"{t_ukf_np / t_ukf_stage:.1f}× robocal's), VSLM {t_vslm_np:.3f} s ({t_vslm_np / max(nit_np, 1) * 1e3:.2f} ms per iteration, "
+        f"{t_vslm_np / t_vslm_stage:.1f}× robocal's)."
+    )
     print(f"* robocal's M9 result: {res.message}")
-    print(f"* Cost → RMSE along the cascade (robocal): start {np.sqrt(2 * hist_rc[0] / m):.4f}, after each UKF sweep "
-          f"{', '.join(f'{v:.4f}' for v in np.sqrt(2 * hist_rc[1 : args.sweeps + 1] / m))}, first VSLM iterations "
-          f"{', '.join(f'{v:.2f}' for v in np.sqrt(2 * hist_rc[args.sweeps + 1 : args.sweeps + 6] / m))}, final {np.sqrt(2 * hist_rc[-1] / m):.4f} mm.")
+    print(
+        f"* Cost → RMSE along the cascade (robocal): start {np.sqrt(2 * hist_rc[0] / m):.4f}, after each UKF sweep "
+        f"{', '.join(f'{v:.4f}' for v in np.sqrt(2 * hist_rc[1 : args.sweeps + 1] / m))}, first VSLM iterations "
+        f"{', '.join(f'{v:.2f}' for v in np.sqrt(2 * hist_rc[args.sweeps + 1 : args.sweeps + 6] / m))}, final {np.sqrt(2 * hist_rc[-1] / m):.4f} mm."
+    )
     ratio = t_np / t_rc
     print(f"\n**Target robocal ≥ 20× faster than the NumPy twin: {'MET' if ratio >= 20 else 'NOT MET'}** ({ratio:.1f}×).\n")
 
@@ -386,7 +420,9 @@ def main() -> None:
 
     threads = args.threads or os.cpu_count()
     print("# robocal calibration benchmark\n")
-    print(f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
+    print(
+        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
+    )
     print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
     print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
     start = time.perf_counter()

@@ -58,7 +58,9 @@ def main() -> None:
     args = parser.parse_args()
     print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
           f"load average {os.getloadavg()[0]:.2f} at the start")  # fmt: skip
-    print(f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n")
+    print(
+        f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n"
+    )
     print("| data | samples | candidates screened (first round) | found | held-out RMSE (mm) | median time (s) | runs (s) |")
     print("|---|---|---|---|---|---|---|")
     for measurement, effects in CASES:

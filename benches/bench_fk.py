@@ -74,7 +74,7 @@ def worker(sizes, repeats: int, d1: str | None) -> dict:
     # A calibrated robot: every DH parameter off nominal (no zero link parameter left to skip).
     dh = np.flatnonzero([n.rstrip("0123456789") in ("alpha", "a", "d", "theta") for n in r.param_names])
     params[dh] += np.random.default_rng(1).normal(0.0, 1e-3, dh.size)
-    assert not params[4 : 30 : 5].any(), "the NumPy FK assumes beta = 0"
+    assert not params[4:30:5].any(), "the NumPy FK assumes beta = 0"
     rng = np.random.default_rng(0)
     out = {"module": robocal._robocal.__file__, "fk": {}}
     for m in sizes:

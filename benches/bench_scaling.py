@@ -63,17 +63,25 @@ def part_samples(args) -> None:
         t_lm, res = best_of(lambda: levenberg_marquardt(problem), reps)
         t_ukf, first = best_of(lambda: ukf(problem, sweeps=args.sweeps), reps)
         t_vslm, second = best_of(lambda: vslm(problem, x0=first.x, max_iter=args.vslm_iter, ftol=0.0, xtol=0.0), reps)
-        rows.append((m, len(problem.free), t_lm, res.nit, res.nfev, rmse(problem.residuals(res.x)), t_ukf, t_vslm, second.nit, rmse(problem.residuals(second.x))))
+        rows.append(
+            (m, len(problem.free), t_lm, res.nit, res.nfev, rmse(problem.residuals(res.x)), t_ukf, t_vslm, second.nit, rmse(problem.residuals(second.x)))
+        )
         print(f"  M={m}: LM {t_lm:.3f} s, UKF {t_ukf:.3f} s, VSLM {t_vslm:.3f} s", file=sys.stderr)
 
     print(f"## 1. Time against samples M (HSR JR680, cable, default mask)\n")
-    print(f"LM: to its default tolerances (1e-10). M9: T3 = {args.sweeps} UKF sweeps, T9 = {args.vslm_iter} VSLM iterations (fixed). "
-          f"Best of {args.repeats} up to M = 10 000, one run above.\n")
-    print("| M | free params | LM time | LM iterations (nfev) | LM time / evaluation | LM RMSE (mm) | UKF stage | µs per sample update | VSLM stage | ms per VSLM iteration | M9 cascade (UKF + VSLM) | M9 RMSE (mm) |")
+    print(
+        f"LM: to its default tolerances (1e-10). M9: T3 = {args.sweeps} UKF sweeps, T9 = {args.vslm_iter} VSLM iterations (fixed). "
+        f"Best of {args.repeats} up to M = 10 000, one run above.\n"
+    )
+    print(
+        "| M | free params | LM time | LM iterations (nfev) | LM time / evaluation | LM RMSE (mm) | UKF stage | µs per sample update | VSLM stage | ms per VSLM iteration | M9 cascade (UKF + VSLM) | M9 RMSE (mm) |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for m, n, t_lm, nit, nfev, e_lm, t_ukf, t_vslm, vnit, e_m9 in rows:
-        print(f"| {m:,} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {e_lm:.6f} | {t_ukf:.4f} s | {t_ukf / (args.sweeps * m) * 1e6:.2f} | "
-              f"{t_vslm:.4f} s | {t_vslm / vnit * 1e3:.3f} | {t_ukf + t_vslm:.4f} s | {e_m9:.6f} |")
+        print(
+            f"| {m:,} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {e_lm:.6f} | {t_ukf:.4f} s | {t_ukf / (args.sweeps * m) * 1e6:.2f} | "
+            f"{t_vslm:.4f} s | {t_vslm / vnit * 1e3:.3f} | {t_ukf + t_vslm:.4f} s | {e_m9:.6f} |"
+        )
     ms = [row[0] for row in rows]
     big = [i for i, m in enumerate(ms) if m >= 1000]
     series = {
@@ -88,11 +96,15 @@ def part_samples(args) -> None:
     for name, t in series.items():
         a = slope(ms, t)
         b = slope([ms[i] for i in big], [t[i] for i in big]) if len(big) >= 2 else float("nan")
-        print(f"| {name} | {a:.2f} | {b:.2f} | {'≈ linear, Θ(M)' if 0.85 <= b <= 1.15 else 'sub-linear (fixed costs dominate)' if b < 0.85 else 'super-linear'} |")
+        print(
+            f"| {name} | {a:.2f} | {b:.2f} | {'≈ linear, Θ(M)' if 0.85 <= b <= 1.15 else 'sub-linear (fixed costs dominate)' if b < 0.85 else 'super-linear'} |"
+        )
     m9 = slope([ms[i] for i in big], [series["M9 cascade (fixed T3 + T9)"][i] for i in big]) if len(big) >= 2 else float("nan")
     ok = 0.85 <= m9 <= 1.15
-    print(f"\n**Paper eq. (27), M9 = Θ((T3 + T9)·M), i.e. exponent 1 in M at fixed T3, T9: "
-          f"{'CONSISTENT' if ok else 'NOT CONSISTENT'}** (fitted {m9:.2f} for M ≥ 1 000).\n")
+    print(
+        f"\n**Paper eq. (27), M9 = Θ((T3 + T9)·M), i.e. exponent 1 in M at fixed T3, T9: "
+        f"{'CONSISTENT' if ok else 'NOT CONSISTENT'}** (fitted {m9:.2f} for M ≥ 1 000).\n"
+    )
 
 
 def part_params(args) -> None:
@@ -125,15 +137,23 @@ def part_params(args) -> None:
 
     m = args.param_samples
     print(f"## 2. Time against parameter count n (simulated cable, M = {m:,})\n")
-    print("| robot / mask | joints | free params n | LM time | LM iterations (nfev) | LM per evaluation | UKF sweep | µs per sample update | VSLM per iteration |")
+    print(
+        "| robot / mask | joints | free params n | LM time | LM iterations (nfev) | LM per evaluation | UKF sweep | µs per sample update | VSLM per iteration |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, j, n, t_lm, nit, nfev, t_ukf, t_it in rows:
-        print(f"| {label} | {j} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {t_ukf:.4f} s | {t_ukf / m * 1e6:.2f} | {t_it * 1e3:.3f} ms |")
+        print(
+            f"| {label} | {j} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {t_ukf:.4f} s | {t_ukf / m * 1e6:.2f} | {t_it * 1e3:.3f} ms |"
+        )
     ns = [row[2] for row in rows]
     print("\n| quantity | exponent in n | expected |")
     print("|---|---:|---|")
-    print(f"| LM per evaluation | {slope(ns, [row[3] / row[5] for row in rows]):.2f} | J: M·n, JᵀJ: M·n², solve: n³ — 1 to 2 once those dominate; per-sample kinematics (joints, not n) and call overheads lower it |")
-    print(f"| UKF per sample update | {slope(ns, [row[6] for row in rows]):.2f} | 2n+1 sigma points × a kinematic chain, plus n×n covariance updates: between 1 and 2 (n³ Cholesky negligible at n ≤ 30) |")
+    print(
+        f"| LM per evaluation | {slope(ns, [row[3] / row[5] for row in rows]):.2f} | J: M·n, JᵀJ: M·n², solve: n³ — 1 to 2 once those dominate; per-sample kinematics (joints, not n) and call overheads lower it |"
+    )
+    print(
+        f"| UKF per sample update | {slope(ns, [row[6] for row in rows]):.2f} | 2n+1 sigma points × a kinematic chain, plus n×n covariance updates: between 1 and 2 (n³ Cholesky negligible at n ≤ 30) |"
+    )
     print(f"| VSLM per iteration | {slope(ns, [row[7] for row in rows]):.2f} | as LM per evaluation |")
     print()
 

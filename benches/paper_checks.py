@@ -42,7 +42,9 @@ def main() -> None:
     fit = levenberg_marquardt(p)
     print(f"D1 80 % training: {len(p.free)} free parameters, scaled condition number at the LM optimum {scaled_condition(p.jacobian(fit.x)):.2g}")
     flags = sorted(fit.implausible(), key=lambda f: -abs(f["deviation"]) / f["limit"])
-    shown = [f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.0f} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in flags[:6]]
+    shown = [
+        f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.0f} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in flags[:6]
+    ]
     print(f"  {len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal; largest: " + ", ".join(shown))
 
     tr, te = paper_split(len(d1), seed=0)

@@ -41,7 +41,10 @@ def main() -> None:
                 continue
             geo, ext = robocal.verify(geometric, data[test]), robocal.verify(extended, data[test])
             carried = ", ".join(ext["applied"]["structure"] + ext["applied"]["causes"]) or "none"
-            print(f"| {train} → {test} | {carried} | {geo['nominal']['metrics']['rmse']:.4f} | {geo['metrics']['rmse']:.4f} | {ext['metrics']['rmse']:.4f} |", flush=True)
+            print(
+                f"| {train} → {test} | {carried} | {geo['nominal']['metrics']['rmse']:.4f} | {geo['metrics']['rmse']:.4f} | {ext['metrics']['rmse']:.4f} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

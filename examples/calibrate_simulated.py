@@ -1,6 +1,6 @@
 """Calibrate a simulated robot, save the result file and load it back.
 
-    python examples/calibrate_simulated.py [OUT_DIR]
+python examples/calibrate_simulated.py [OUT_DIR]
 """
 
 import json
@@ -20,8 +20,10 @@ data, truth = robocal.simulate("hsr-jr680", "cable", samples=400, seed=1)
 for method in ("lm", "ukf-vslm"):
     result = robocal.calibrate(data, method=method)
     test = result.metrics["test"]
-    print(f"{method:>8s}: held-out RMSE {test['rmse']:.4f} mm, MAE {test['mae']:.4f} mm, MAX {test['max']:.4f} mm "
-          f"({len(result.problem.names)} parameters, {result.time_s * 1e3:.0f} ms)")
+    print(
+        f"{method:>8s}: held-out RMSE {test['rmse']:.4f} mm, MAE {test['mae']:.4f} mm, MAX {test['max']:.4f} mm "
+        f"({len(result.problem.names)} parameters, {result.time_s * 1e3:.0f} ms)"
+    )
 
 path = out / "result.json"
 path.write_text(json.dumps(result.to_dict(), indent=1))

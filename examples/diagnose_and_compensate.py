@@ -1,6 +1,6 @@
 """Find a hidden non-geometric effect, fit the extended model, compensate target positions.
 
-    python examples/diagnose_and_compensate.py [OUT_DIR]
+python examples/diagnose_and_compensate.py [OUT_DIR]
 """
 
 import json
@@ -21,8 +21,10 @@ diagnosis = robocal.diagnose(data)
 report = diagnosis.to_dict()
 for effect in report["effects"]:
     amplitude = effect["params"].get("amplitude", {})
-    print(f"found {effect['label']} ({amplitude.get('value', float('nan')):.4f} deg); held-out RMSE "
-          f"{effect['rmse_heldout_before']:.4f} -> {effect['rmse_heldout_after']:.4f} mm")
+    print(
+        f"found {effect['label']} ({amplitude.get('value', float('nan')):.4f} deg); held-out RMSE "
+        f"{effect['rmse_heldout_before']:.4f} -> {effect['rmse_heldout_after']:.4f} mm"
+    )
 
 geometric = robocal.calibrate(data)
 extended = robocal.calibrate(data, causes=report)

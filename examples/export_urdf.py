@@ -1,6 +1,6 @@
 """Export a calibrated robot as a DH table and a URDF, each checked by a forward-kinematics round trip.
 
-    python examples/export_urdf.py [OUT_DIR]
+python examples/export_urdf.py [OUT_DIR]
 """
 
 import json

@@ -19,5 +19,7 @@ print(data)
 result = robocal.calibrate(data, method="lm")
 print(f"geometric calibration: held-out RMSE {result.metrics['test']['rmse']:.3f} mm")
 report = robocal.diagnose(data).to_dict()
-print(f"diagnosis: baseline {report['baseline']['rmse_heldout']:.3f} mm -> {report['final']['rmse_heldout']:.3f} mm with "
-      + (", ".join(e["label"] for e in report["effects"]) or "no cause"))
+print(
+    f"diagnosis: baseline {report['baseline']['rmse_heldout']:.3f} mm -> {report['final']['rmse_heldout']:.3f} mm with "
+    + (", ".join(e["label"] for e in report["effects"]) or "no cause")
+)

@@ -35,7 +35,7 @@ def _float_text(x: float, style: int) -> str:
 
 
 finite = st.floats(min_value=-1e12, max_value=1e12, allow_nan=False, allow_infinity=False)
-number_cell = st.builds(_float_text, finite, st.integers(0, 5)) | st.integers(-10**12, 10**12).map(str)
+number_cell = st.builds(_float_text, finite, st.integers(0, 5)) | st.integers(-(10**12), 10**12).map(str)
 cell = st.one_of(number_cell, number_cell, number_cell, st.sampled_from(NASTY), st.sampled_from(QUOTED),
                  st.text(alphabet=st.characters(codec="utf-8"), max_size=4))  # fmt: skip
 
@@ -223,7 +223,9 @@ def test_blank_and_padded_lines_keep_their_row_numbers(tmp_path):
 
 
 digits14 = st.text(alphabet="0123456789", min_size=14, max_size=14)
-stamp = st.datetimes(min_value=__import__("datetime").datetime(1971, 1, 2), max_value=__import__("datetime").datetime(2099, 12, 30)).map(lambda d: d.strftime("%Y%m%d%H%M%S"))
+stamp = st.datetimes(min_value=__import__("datetime").datetime(1971, 1, 2), max_value=__import__("datetime").datetime(2099, 12, 30)).map(
+    lambda d: d.strftime("%Y%m%d%H%M%S")
+)
 
 
 @settings(max_examples=300)

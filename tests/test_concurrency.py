@@ -75,7 +75,9 @@ def data():
 # -- (a) equal seeds, equal results -----------------------------------------------------------
 @pytest.mark.parametrize("measurement", ["cable", "pose"])
 def test_simulate_is_deterministic(measurement):
-    runs = [robocal.simulate("hsr-jr680" if measurement == "cable" else "ur10", measurement, samples=40, seed=7, effects=["backlash:joint=2"]) for _ in range(2)]
+    runs = [
+        robocal.simulate("hsr-jr680" if measurement == "cable" else "ur10", measurement, samples=40, seed=7, effects=["backlash:joint=2"]) for _ in range(2)
+    ]
     (d1, t1), (d2, t2) = runs
     assert_identical(d1.q, d2.q, "q")
     assert_identical(d1.y, d2.y, "y")

@@ -132,9 +132,7 @@ def test_sigma_residuals(case, measurement, n_sigmas):
 
 
 # --- unscented transform ----------------------------------------------------------------------
-sigma_settings = st.tuples(
-    seeds, st.integers(1, 10), st.sampled_from([1e-3, 0.1, 0.5, 1.0]), st.floats(0.0, 3.0), st.floats(0.0, 3.0)
-)
+sigma_settings = st.tuples(seeds, st.integers(1, 10), st.sampled_from([1e-3, 0.1, 0.5, 1.0]), st.floats(0.0, 3.0), st.floats(0.0, 3.0))
 
 
 @given(sigma_settings)
@@ -348,10 +346,7 @@ class Entry:
 ENTRIES = [
     Entry("fk", "fk", {"params": PARAMS, "q": Q}, method=True, tool=True),
     Entry("predict", "predict", {"params": PARAMS, "q": Q}, method=True, measurement="pose"),
-    *[
-        Entry(f"residuals[{meas}]", "residuals", {"params": PARAMS, "q": Q, "y": Y[meas]}, method=True, measurement=meas)
-        for meas in MEASUREMENTS
-    ],
+    *[Entry(f"residuals[{meas}]", "residuals", {"params": PARAMS, "q": Q, "y": Y[meas]}, method=True, measurement=meas) for meas in MEASUREMENTS],
     Entry("jacobian[pose]", "jacobian", {"params": PARAMS, "q": Q, "y": Y["pose"]}, method=True, measurement="pose"),
     Entry(
         "sigma_residuals",

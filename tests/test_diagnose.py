@@ -302,7 +302,9 @@ def test_hidden_reading_convention_is_named(robot, measurement, kind):
     first = found[0]
     alternatives = first["significance"]["undetermined_between"]
     named = (first["kind"], first["joint"]) == (kind, j) and all(first["params"][k]["value"] == pytest.approx(v) for k, v in expected.items())
-    assert named or any(label.startswith(f"{kind} joint {j}") for label in alternatives), f"{kind} joint {j} {expected}: found {first['label']} (alternatives {alternatives})"
+    assert named or any(label.startswith(f"{kind} joint {j}") for label in alternatives), (
+        f"{kind} joint {j} {expected}: found {first['label']} (alternatives {alternatives})"
+    )
     # Either the geometry could not fit the readings at all, or it fitted them only with
     # implausible parameters (a 90° zero is a θ offset, a reversed joint flips α's): the
     # convention makes it plausible at an equal or better held-out error.
@@ -364,7 +366,7 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     from robocal.cli.diagnose import summary
 
     data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
-    fit = lambda d, max_nfev=None: (1.0, 5) if np.array_equal(d.q[:, :2], data.q[:len(d), :2]) else (0.85, 3)  # noqa: E731
+    fit = lambda d, max_nfev=None: (1.0, 5) if np.array_equal(d.q[:, :2], data.q[: len(d), :2]) else (0.85, 3)  # noqa: E731
     cross_validate = lambda d: {"random": 1.0, "blocked": 1.2} if np.array_equal(d.q, data.q) else {"random": 0.97, "blocked": 1.19}  # noqa: E731
     accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], 1.0, 5))
     assert accepted == [] and effects == [] and rejected

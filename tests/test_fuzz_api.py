@@ -135,7 +135,9 @@ JOINT_SPEC = st.fixed_dictionaries(
     optional={"limits": st.one_of(st.lists(JOINT_VALUES, max_size=3), JUNK), "hayati": st.one_of(st.booleans(), JUNK)},
 )
 ROBOT_SPEC = st.one_of(
-    st.fixed_dictionaries({"joints": st.lists(st.one_of(JOINT_SPEC, JUNK), max_size=4)}, optional={"convention": st.one_of(st.sampled_from(["dh", "mdh"]), JUNK), "name": JUNK}),
+    st.fixed_dictionaries(
+        {"joints": st.lists(st.one_of(JOINT_SPEC, JUNK), max_size=4)}, optional={"convention": st.one_of(st.sampled_from(["dh", "mdh"]), JUNK), "name": JUNK}
+    ),
     JUNK,
 )
 
@@ -161,8 +163,12 @@ def test_robot_files(tmp_path_factory, spec, suffix, raw):
 
 
 def test_robot_file_errors_name_the_file(tmp_path):
-    for text, why in [("{", "not a robot file"), ('{"joints": 5}', "key 'joints': input should be a valid list"),
-                      ('{"joints": [7]}', "joint 1: input should be a valid dictionary"), ("[]", "input should be a valid dictionary")]:
+    for text, why in [
+        ("{", "not a robot file"),
+        ('{"joints": 5}', "key 'joints': input should be a valid list"),
+        ('{"joints": [7]}', "joint 1: input should be a valid dictionary"),
+        ("[]", "input should be a valid dictionary"),
+    ]:
         path = tmp_path / "r.json"
         path.write_text(text)
         with pytest.raises(InvalidParameterError, match=why) as info:
@@ -181,9 +187,18 @@ Y = {m: R.predict(m, Q) for m in robocal.MEASUREMENTS}
 @given(
     measurement=st.sampled_from(robocal.MEASUREMENTS),
     args=arguments(
-        valid={"q": layouts(Q), "params": st.one_of(st.none(), layouts(R.params)), "cols": st.one_of(st.none(), st.just([1, 6, 30]), st.just(["a2", "tool_x"]))},
-        bad={"q": st.one_of(nearly_valid(Q), malformed((8, 6))), "params": st.one_of(nearly_valid(R.params), malformed((R.n_params,))),
-             "cols": st.one_of(st.lists(st.integers(-2, 50), max_size=5), malformed((R.n_params,)), st.lists(st.sampled_from(R.param_names + ["zz"]), max_size=3))},
+        valid={
+            "q": layouts(Q),
+            "params": st.one_of(st.none(), layouts(R.params)),
+            "cols": st.one_of(st.none(), st.just([1, 6, 30]), st.just(["a2", "tool_x"])),
+        },
+        bad={
+            "q": st.one_of(nearly_valid(Q), malformed((8, 6))),
+            "params": st.one_of(nearly_valid(R.params), malformed((R.n_params,))),
+            "cols": st.one_of(
+                st.lists(st.integers(-2, 50), max_size=5), malformed((R.n_params,)), st.lists(st.sampled_from(R.param_names + ["zz"]), max_size=3)
+            ),
+        },
     ),
     bad_measurement=st.one_of(st.none(), JUNK, st.just("Cable")),
     bad_y=st.one_of(st.none(), malformed((8, 3))),
@@ -253,9 +268,20 @@ J0 = np.random.default_rng(1).normal(size=(6, 3))
 @FAST
 @given(
     args=arguments(
-        valid={"J": layouts(J0), "r": layouts(np.arange(6.0)), "lam": st.sampled_from([0.0, 1e-3, 1e9]), "tol": st.sampled_from([1e-9, 0.5]), "damping": st.sampled_from(["marquardt", "identity"])},
-        bad={"J": st.one_of(nearly_valid(J0), malformed((6, 3))), "r": st.one_of(nearly_valid(np.arange(6.0)), malformed((6,))), "lam": SCALARS, "tol": SCALARS,
-             "damping": st.one_of(st.just("Marquardt"), JUNK)},
+        valid={
+            "J": layouts(J0),
+            "r": layouts(np.arange(6.0)),
+            "lam": st.sampled_from([0.0, 1e-3, 1e9]),
+            "tol": st.sampled_from([1e-9, 0.5]),
+            "damping": st.sampled_from(["marquardt", "identity"]),
+        },
+        bad={
+            "J": st.one_of(nearly_valid(J0), malformed((6, 3))),
+            "r": st.one_of(nearly_valid(np.arange(6.0)), malformed((6,))),
+            "lam": SCALARS,
+            "tol": SCALARS,
+            "damping": st.one_of(st.just("Marquardt"), JUNK),
+        },
     )
 )
 def test_linear_algebra(args):
@@ -281,10 +307,24 @@ SIGMAS, WM, WC = robocal.merwe_sigma_points(np.zeros(3), np.eye(3))
 @FAST
 @given(
     args=arguments(
-        valid={"x": layouts(np.ones(3)), "P": layouts(np.diag([1.0, 2.0, 3.0])), "alpha": st.just(1e-3), "beta": st.just(2.0), "kappa": st.just(0.0),
-               "sigmas_y": layouts(SIGMAS[:, :2] ** 2), "Wc": layouts(WC)},
-        bad={"x": malformed((3,)), "P": st.one_of(nearly_valid(np.eye(3)), malformed((3, 3))), "alpha": SCALARS, "beta": SCALARS, "kappa": SCALARS,
-             "sigmas_y": st.one_of(nearly_valid(SIGMAS[:, :2]), malformed((7, 2))), "Wc": st.one_of(nearly_valid(WC), malformed((7,)))},
+        valid={
+            "x": layouts(np.ones(3)),
+            "P": layouts(np.diag([1.0, 2.0, 3.0])),
+            "alpha": st.just(1e-3),
+            "beta": st.just(2.0),
+            "kappa": st.just(0.0),
+            "sigmas_y": layouts(SIGMAS[:, :2] ** 2),
+            "Wc": layouts(WC),
+        },
+        bad={
+            "x": malformed((3,)),
+            "P": st.one_of(nearly_valid(np.eye(3)), malformed((3, 3))),
+            "alpha": SCALARS,
+            "beta": SCALARS,
+            "kappa": SCALARS,
+            "sigmas_y": st.one_of(nearly_valid(SIGMAS[:, :2]), malformed((7, 2))),
+            "Wc": st.one_of(nearly_valid(WC), malformed((7,))),
+        },
     )
 )
 def test_sigma_points(args):
@@ -296,14 +336,30 @@ def test_sigma_points(args):
 @SLOW
 @given(
     args=arguments(
-        valid={"robot": st.sampled_from(["ur10", "abb-irb120"]), "measurement": st.sampled_from(robocal.MEASUREMENTS), "samples": st.integers(1, 6),
-               "seed": st.integers(0, 2**64), "noise": st.sampled_from([None, 0, 0.1, {"sigma": 0.5}]), "dt": st.sampled_from([0.1, 2.0]),
-               "outliers": st.sampled_from([0.0, 0.5]), "tool": st.sampled_from([None, (0.0, 0.0, 100.0)]),
-               "effects": st.sampled_from([(), ["backlash:joint=2"], ["joint_periodic:joint=3,amplitude=0.01"]])},
-        bad={"robot": JUNK, "measurement": st.one_of(JUNK, st.just("Pose")), "samples": st.one_of(st.integers(-1, 0), JUNK), "seed": st.one_of(st.integers(-5, -1), JUNK),
-             "noise": st.one_of(SCALARS, st.dictionaries(st.sampled_from(["sigma", "resolution", "x"]), SCALARS, min_size=1, max_size=2)),
-             "dt": SCALARS, "outliers": SCALARS, "tool": malformed((3,)),
-             "effects": st.one_of(st.lists(st.sampled_from(["backlash:joint=9", "drift:rate=nan", "joint_scale:joint=2,scale=1e300", "x", ""]), min_size=1, max_size=2), JUNK)},
+        valid={
+            "robot": st.sampled_from(["ur10", "abb-irb120"]),
+            "measurement": st.sampled_from(robocal.MEASUREMENTS),
+            "samples": st.integers(1, 6),
+            "seed": st.integers(0, 2**64),
+            "noise": st.sampled_from([None, 0, 0.1, {"sigma": 0.5}]),
+            "dt": st.sampled_from([0.1, 2.0]),
+            "outliers": st.sampled_from([0.0, 0.5]),
+            "tool": st.sampled_from([None, (0.0, 0.0, 100.0)]),
+            "effects": st.sampled_from([(), ["backlash:joint=2"], ["joint_periodic:joint=3,amplitude=0.01"]]),
+        },
+        bad={
+            "robot": JUNK,
+            "measurement": st.one_of(JUNK, st.just("Pose")),
+            "samples": st.one_of(st.integers(-1, 0), JUNK),
+            "seed": st.one_of(st.integers(-5, -1), JUNK),
+            "noise": st.one_of(SCALARS, st.dictionaries(st.sampled_from(["sigma", "resolution", "x"]), SCALARS, min_size=1, max_size=2)),
+            "dt": SCALARS,
+            "outliers": SCALARS,
+            "tool": malformed((3,)),
+            "effects": st.one_of(
+                st.lists(st.sampled_from(["backlash:joint=9", "drift:rate=nan", "joint_scale:joint=2,scale=1e300", "x", ""]), min_size=1, max_size=2), JUNK
+            ),
+        },
     )
 )
 def test_simulate(args):
@@ -360,7 +416,11 @@ def test_calibrate_dataset(case, options, method):
 
 
 @SLOW
-@given(q=nearly_valid(DATA.q), y=nearly_valid(DATA.y), robot=st.one_of(st.sampled_from(["abb-irb120", "ur10"]), JUNK, st.just(robocal.Robot.from_dh("three", [(0, 100, 0, 0)] * 3)), st.just(FLAT)))
+@given(
+    q=nearly_valid(DATA.q),
+    y=nearly_valid(DATA.y),
+    robot=st.one_of(st.sampled_from(["abb-irb120", "ur10"]), JUNK, st.just(robocal.Robot.from_dh("three", [(0, 100, 0, 0)] * 3)), st.just(FLAT)),
+)
 def test_calibrate_special_values(q, y, robot):
     try:
         dataset = _dataset(q, y)  # a container: it may hold NaN, the calibration may not
@@ -382,17 +442,28 @@ COVARIANCE = st.one_of(SCALARS, malformed((3,)))
 #: Per method: cheap valid options, and malformed ones.
 METHOD_OPTIONS = {
     "ekf": ({"sweeps": st.just(1), "R": st.none()}, {"sweeps": COUNT, "R": COVARIANCE}),
-    "ukf": ({"sweeps": st.just(1), "P0": st.none(), "Q": st.none(), "alpha": st.just(0.1), "x0": st.none()},
-            {"sweeps": COUNT, "P0": COVARIANCE, "Q": COVARIANCE, "alpha": SCALARS, "x0": malformed((27,))}),
+    "ukf": (
+        {"sweeps": st.just(1), "P0": st.none(), "Q": st.none(), "alpha": st.just(0.1), "x0": st.none()},
+        {"sweeps": COUNT, "P0": COVARIANCE, "Q": COVARIANCE, "alpha": SCALARS, "x0": malformed((27,))},
+    ),
     "ukf-vslm": ({"sweeps": st.just(1), "max_iter": st.just(3), "mu": st.just(0.95)}, {"sweeps": COUNT, "max_iter": COUNT, "mu": SCALARS}),
-    "vslm": ({"max_iter": st.just(3), "delta0": st.just(0.8), "lam": st.just(1e-6), "ftol": st.just(1e-10)},
-             {"max_iter": COUNT, "delta0": SCALARS, "lam": SCALARS, "ftol": SCALARS}),
+    "vslm": (
+        {"max_iter": st.just(3), "delta0": st.just(0.8), "lam": st.just(1e-6), "ftol": st.just(1e-10)},
+        {"max_iter": COUNT, "delta0": SCALARS, "lam": SCALARS, "ftol": SCALARS},
+    ),
     "lm-paper": ({"max_iter": st.just(3), "lam": st.just(1e-6)}, {"max_iter": COUNT, "lam": SCALARS}),
-    "pso": ({"population": st.just(6), "max_iter": st.just(3), "w": st.just((0.9, 0.4)), "c1": st.just(2.0), "vmax": st.just(0.2)},
-            {"population": COUNT, "max_iter": st.one_of(st.just(-1), JUNK), "w": st.one_of(SCALARS, malformed((2,))), "c1": SCALARS, "vmax": SCALARS}),
-    "de": ({"population": st.just(6), "max_iter": st.just(3), "F": st.just(0.5), "CR": st.just(0.9)},
-           {"population": st.one_of(st.integers(0, 3), JUNK), "max_iter": st.one_of(st.just(-1), JUNK), "F": SCALARS, "CR": SCALARS}),
-    "bas": ({"max_iter": st.just(5), "step": st.just(0.5), "antenna_ratio": st.just(0.5)}, {"max_iter": st.one_of(st.just(-1), JUNK), "step": SCALARS, "antenna_ratio": SCALARS}),
+    "pso": (
+        {"population": st.just(6), "max_iter": st.just(3), "w": st.just((0.9, 0.4)), "c1": st.just(2.0), "vmax": st.just(0.2)},
+        {"population": COUNT, "max_iter": st.one_of(st.just(-1), JUNK), "w": st.one_of(SCALARS, malformed((2,))), "c1": SCALARS, "vmax": SCALARS},
+    ),
+    "de": (
+        {"population": st.just(6), "max_iter": st.just(3), "F": st.just(0.5), "CR": st.just(0.9)},
+        {"population": st.one_of(st.integers(0, 3), JUNK), "max_iter": st.one_of(st.just(-1), JUNK), "F": SCALARS, "CR": SCALARS},
+    ),
+    "bas": (
+        {"max_iter": st.just(5), "step": st.just(0.5), "antenna_ratio": st.just(0.5)},
+        {"max_iter": st.one_of(st.just(-1), JUNK), "step": SCALARS, "antenna_ratio": SCALARS},
+    ),
     "rbf": ({"n_centers": st.just(3), "ridge": st.just(1e-6)}, {"n_centers": COUNT, "ridge": SCALARS}),
 }
 
@@ -429,8 +500,14 @@ def test_calibrate_options_name_the_problem():
     case=st.sampled_from(["one pose", "joint 2 constant", "three samples", "y far away"]),
     args=arguments(
         valid={"folds": st.just(2), "alpha": st.just(0.05), "max_effects": st.just(1), "min_gain": st.just(0.005), "groups": st.none(), "seed": st.just(0)},
-        bad={"folds": st.one_of(st.integers(-1, 1), JUNK), "alpha": SCALARS, "max_effects": st.one_of(st.integers(-1, 0), JUNK), "min_gain": SCALARS,
-             "groups": st.one_of(JUNK, st.just(np.arange(5))), "seed": st.one_of(st.integers(-2, -1), JUNK)},
+        bad={
+            "folds": st.one_of(st.integers(-1, 1), JUNK),
+            "alpha": SCALARS,
+            "max_effects": st.one_of(st.integers(-1, 0), JUNK),
+            "min_gain": SCALARS,
+            "groups": st.one_of(JUNK, st.just(np.arange(5))),
+            "seed": st.one_of(st.integers(-2, -1), JUNK),
+        },
     ),
 )
 def test_diagnose(case, args):
@@ -476,7 +553,9 @@ def test_load_result_wrong_schema(doc):
 
 
 @FAST
-@given(text=st.one_of(st.binary(max_size=60), mangled(RESULT).map(lambda d: json.dumps(d).encode()), st.just(b"NaN"), st.just(b'{"schema": "robocal.result/1"}')))
+@given(
+    text=st.one_of(st.binary(max_size=60), mangled(RESULT).map(lambda d: json.dumps(d).encode()), st.just(b"NaN"), st.just(b'{"schema": "robocal.result/1"}'))
+)
 def test_load_result_corrupt_files(tmp_path_factory, text):
     path = tmp_path_factory.mktemp("res") / "result.json"
     path.write_bytes(text)
@@ -484,7 +563,11 @@ def test_load_result_corrupt_files(tmp_path_factory, text):
 
 
 @FAST
-@given(result=st.one_of(mangled(RESULT), mangled(EXTENDED["causes"]).map(lambda causes: {**EXTENDED, "causes": causes}), JUNK), y=st.one_of(malformed((2, 3)), nearly_valid(R.fkine(Q[:2], tool=True)[:, :3, 3])), seeds=st.one_of(st.none(), malformed((2, 6))))
+@given(
+    result=st.one_of(mangled(RESULT), mangled(EXTENDED["causes"]).map(lambda causes: {**EXTENDED, "causes": causes}), JUNK),
+    y=st.one_of(malformed((2, 3)), nearly_valid(R.fkine(Q[:2], tool=True)[:, :3, 3])),
+    seeds=st.one_of(st.none(), malformed((2, 6))),
+)
 def test_compensate(result, y, seeds):
     try:
         targets = Targets(y, seeds, np.arange(2, 4))
@@ -505,7 +588,9 @@ def test_compensate_target_files(tmp_path_factory, body):
 @FAST
 @given(
     path=st.one_of(JUNK, st.sampled_from(["/nonexistent.csv", "/", ""])),
-    options=st.fixed_dictionaries({}, optional={"format": st.one_of(st.sampled_from(["canonical", "x"]), JUNK), "measurement": JUNK, "angle_unit": JUNK, "robot": JUNK, "sheet": JUNK}),
+    options=st.fixed_dictionaries(
+        {}, optional={"format": st.one_of(st.sampled_from(["canonical", "x"]), JUNK), "measurement": JUNK, "angle_unit": JUNK, "robot": JUNK, "sheet": JUNK}
+    ),
 )
 def test_load_paths_and_options(tmp_path_factory, path, options):
     outcome(robocal.load, path, **options)
@@ -529,7 +614,9 @@ def test_calibrate_many(items, workers, backend):
             assert "error" in doc or doc["schema"] == "robocal.result/1"
 
 
-@pytest.mark.parametrize("kwargs", [{"datasets": 5}, {"datasets": None}, {"datasets": "abc"}, {"datasets": [DATA], "workers": "x"}, {"datasets": [DATA], "workers": 2.5}])
+@pytest.mark.parametrize(
+    "kwargs", [{"datasets": 5}, {"datasets": None}, {"datasets": "abc"}, {"datasets": [DATA], "workers": "x"}, {"datasets": [DATA], "workers": 2.5}]
+)
 def test_calibrate_many_arguments_name_the_problem(kwargs):
     with pytest.raises(InvalidParameterError):
         robocal.calibrate_many(backend="serial", max_nfev=5, **kwargs)

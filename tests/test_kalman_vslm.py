@@ -47,7 +47,9 @@ def test_methods_registry():
     assert all(callable(v[2]) and v[1] for v in METHODS.values())
 
 
-@pytest.mark.parametrize("method, options, budget", [("lm-paper", {"max_iter": 20}, 20), ("vslm", {"max_iter": 60}, 60), ("ukf-vslm", {"sweeps": 5, "max_iter": 40}, 45)])
+@pytest.mark.parametrize(
+    "method, options, budget", [("lm-paper", {"max_iter": 20}, 20), ("vslm", {"max_iter": 60}, 60), ("ukf-vslm", {"sweeps": 5, "max_iter": 40}, 45)]
+)
 def test_lm_type_methods_reach_the_noise_floor(case, method, options, budget):
     kind, problem, reference = case
     result = METHODS[method][2](problem, **options)

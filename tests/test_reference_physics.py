@@ -57,9 +57,7 @@ def dh_textbook(alpha, a, d, theta) -> np.ndarray:
 def mdh_textbook(alpha, a, d, theta) -> np.ndarray:
     """Modified DH link (Craig, eq. 3.6)."""
     ct, st_, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-    return np.array(
-        [[ct, -st_, 0, a], [st_ * ca, ct * ca, -sa, -sa * d], [st_ * sa, ct * sa, ca, ca * d], [0, 0, 0, 1.0]]
-    )
+    return np.array([[ct, -st_, 0, a], [st_ * ca, ct * ca, -sa, -sa * d], [st_ * sa, ct * sa, ca, ca * d], [0, 0, 0, 1.0]])
 
 
 def rpy_textbook(x, y, z, rx, ry, rz) -> np.ndarray:

@@ -109,7 +109,11 @@ def test_cli_with_a_diagnosis(calibrated, tmp_path, capsys):
     # Labels are escaped, the cause's parameters shown.
     assert "joint_periodic joint 2 &lt;harmonic=1&gt;" in text and "<harmonic=1>" not in text
     assert "amplitude 0.01 ± 0.001 deg" in text
-    assert [s[0] for s in report_module._diagnosis_steps(diagnosis)] == ["geometric, outliers kept", "geometric baseline (outliers removed)", "+ joint_periodic joint 2 <harmonic=1>"]
+    assert [s[0] for s in report_module._diagnosis_steps(diagnosis)] == [
+        "geometric, outliers kept",
+        "geometric baseline (outliers removed)",
+        "+ joint_periodic joint 2 <harmonic=1>",
+    ]
     with pytest.raises(SystemExit):
         parser.parse_args([str(path)])  # --out is required
 

@@ -401,7 +401,7 @@ class ComparisonResult:
         columns += [("train RMSE (mm)", "train_rmse_mean"), ("failures", "failures")]
         notes = [
             self._protocol_note(),
-            "Held-out samples; mean ± sample std over the splits. MAE is the mean per-sample error, which the paper calls \"STD\" (eq. 28).",
+            'Held-out samples; mean ± sample std over the splits. MAE is the mean per-sample error, which the paper calls "STD" (eq. 28).',
             "Before (start): nominal kinematics with the measurement set-up (cable anchor and zero, or base frame and tool) fitted on the training samples.",
             "M5 RBF is a corrector of the nominal model, evaluated with its corrected prediction.",
         ] + self.config["notes"]
@@ -471,7 +471,7 @@ class ComparisonResult:
 
     def table_xii(self) -> Table:
         columns = [("Joint i", "joint")] + [(f"{sym}i ({unit})", prefix) for prefix, (sym, unit) in DH_PARAMETERS.items()]
-        notes = [self._protocol_note(), "Identified value − nominal, mean over the splits; \"fixed\": not estimated (not identifiable, or outside the mask)."]
+        notes = [self._protocol_note(), 'Identified value − nominal, mean over the splits; "fixed": not estimated (not identifiable, or outside the mask).']
         rows = []
         if self.runs_of(REFERENCE, ok=True):
             deviations = self._mean_deviations(REFERENCE)
@@ -481,7 +481,7 @@ class ComparisonResult:
         return Table("table_XII", f"Table XII: DH deviations identified by {method_label(REFERENCE)}", columns, rows, notes)
 
     def table_xiii(self) -> Table:
-        shown, notes = [], [self._protocol_note(), "Identified value − nominal, mean over the splits; \"fixed\": not estimated."]
+        shown, notes = [], [self._protocol_note(), 'Identified value − nominal, mean over the splits; "fixed": not estimated.']
         for m in self.methods:
             runs = self.runs_of(m, ok=True)
             if not runs:
@@ -605,7 +605,9 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     errors = first["before_errors"]
     for r in result.runs:
         if r["split"] == 0 and r["status"] == "ok":
-            ax.plot(np.arange(1, len(r["test_errors"]) + 1), r["test_errors"], marker="o", markersize=3, color=color[r["method"]], label=method_label(r["method"]))
+            ax.plot(
+                np.arange(1, len(r["test_errors"]) + 1), r["test_errors"], marker="o", markersize=3, color=color[r["method"]], label=method_label(r["method"])
+            )
             errors = errors + r["test_errors"]
     _log_if_wide(ax, errors)
     ax.set_xlabel(f"held-out sample of split 1 ({len(first['test'])} samples, in file-row order)")

@@ -254,7 +254,9 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         q, error, status = solve_joints(calibrated, target, structure.to_model(seed[None, :], conventions)[0], offsets=offsets)
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
-        out.append({"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status})
+        out.append(
+            {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
+        )
     return out
 
 

@@ -34,6 +34,7 @@ from .exceptions import InvalidParameterError
 from .physics import DEG, MASS_MODELS, approach_directions, gravity_torques
 from .robot import MEASUREMENTS, Robot
 
+
 # ---------------------------------------------------------------------------------------------
 # The acquisition effects act on
 # ---------------------------------------------------------------------------------------------
@@ -541,7 +542,10 @@ class Outliers(ObservationEffect):
         return record
 
 
-EFFECTS = {cls.kind: cls for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Step, Temperature, CableScale, AxisMisalignment, Outliers)}
+EFFECTS = {
+    cls.kind: cls
+    for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Step, Temperature, CableScale, AxisMisalignment, Outliers)
+}
 
 
 def parse_effect(spec: str) -> Effect:

@@ -526,7 +526,9 @@ def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name
     return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
 
 
-def export_checked(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0) -> tuple[dict, list[str]]:
+def export_checked(
+    robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0
+) -> tuple[dict, list[str]]:
     """:func:`export` then :func:`roundtrip_check` of what it wrote: the check and the tolerances
     it breaks (then nothing is written).
 

@@ -210,8 +210,7 @@ def chain_ops(conventions: Sequence[str], kinds: Sequence[str]) -> tuple[list[Op
     conventions, kinds = list(conventions), list(kinds)
     if not conventions or len(conventions) != len(kinds):
         raise ValueError(
-            f"`kinds` must have one entry per joint of `conventions` (at least one joint); "
-            f"got {len(kinds)} kinds for {len(conventions)} conventions"
+            f"`kinds` must have one entry per joint of `conventions` (at least one joint); got {len(kinds)} kinds for {len(conventions)} conventions"
         )
     n = len(conventions)
 

@@ -219,6 +219,14 @@ def cross_check(dataset: Dataset, robot) -> dict:
     return {
         "rows_checked": len(dataset),
         "median_mm": float(np.median(np.linalg.norm(diff, axis=1))),
-        "inconsistent": [{"row": int(dataset.rows[i]), "difference_mm": diff[i].round(3).tolist(), "norm_mm": float(np.linalg.norm(diff[i])),
-                          "bound_mm": bound[i].round(3).tolist(), "ratio": float(ratio[i])} for i in bad],  # fmt: skip
+        "inconsistent": [
+            {
+                "row": int(dataset.rows[i]),
+                "difference_mm": diff[i].round(3).tolist(),
+                "norm_mm": float(np.linalg.norm(diff[i])),
+                "bound_mm": bound[i].round(3).tolist(),
+                "ratio": float(ratio[i]),
+            }
+            for i in bad
+        ],  # fmt: skip
     }

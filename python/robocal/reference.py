@@ -383,8 +383,7 @@ def chain_ops(conventions: Sequence[str], kinds: Sequence[str]) -> tuple[list[Op
     conventions, kinds = list(conventions), list(kinds)
     if not conventions or len(conventions) != len(kinds):
         raise ValueError(
-            f"`kinds` must have one entry per joint of `conventions` (at least one joint); "
-            f"got {len(kinds)} kinds for {len(conventions)} conventions"
+            f"`kinds` must have one entry per joint of `conventions` (at least one joint); got {len(kinds)} kinds for {len(conventions)} conventions"
         )
     n = len(conventions)
 
@@ -1005,8 +1004,7 @@ def cable_initial_guess(p, L) -> tuple[np.ndarray, float]:
     if not s.min() > CABLE_CONDITION_MIN * s.max():
         condition = s.max() / s.min() if s.min() > 0 else np.inf
         raise np.linalg.LinAlgError(
-            f"the {m} tool positions and lengths do not determine the cable anchor "
-            f"(condition number {condition:.3e}); use configurations spread over 3-D space"
+            f"the {m} tool positions and lengths do not determine the cable anchor (condition number {condition:.3e}); use configurations spread over 3-D space"
         )
     sol = np.linalg.lstsq(A, b, rcond=None)[0]
     return sol[:3] + centre, float(sol[3])

@@ -89,7 +89,9 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None) -> _Data:
         return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
     recorded = str(recorded)
     if not Path(recorded).is_file():
-        return _Data(path=recorded, notes=[f"the measurement file {recorded} is not on this machine: the figures that need the data are left out (pass --data FILE)"])
+        return _Data(
+            path=recorded, notes=[f"the measurement file {recorded} is not on this machine: the figures that need the data are left out (pass --data FILE)"]
+        )
     # A result file may come from someone else and name any local file: it is read only when it
     # is, byte for byte, the file the result was calibrated on, and its content is never shown.
     if not _same_file(doc, recorded):
@@ -394,7 +396,11 @@ def _table(header: list[str], rows: list[list[str]], numeric: set = frozenset(),
         rc = row_classes[i] if row_classes else ""
         cells = "".join(f'<td class="n">{c}</td>' if j in numeric else f"<td>{c}</td>" for j, c in enumerate(row))
         body.append(f'<tr class="{rc}">{cells}</tr>' if rc else f"<tr>{cells}</tr>")
-    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>' if cls else f'<table><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>'
+    return (
+        f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>'
+        if cls
+        else f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    )
 
 
 def _header(doc: dict, data: _Data) -> str:
@@ -409,7 +415,10 @@ def _header(doc: dict, data: _Data) -> str:
         ("sha256", ds.get("sha256") or "not recorded"),
         ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
         ("figures computed on", _data_row(data)),
-        ("solver", f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} ({conv.get('nit', '?')} iterations, {conv.get('nfev', '?')} evaluations, {_num(conv.get('time_s'), 3)} s)"),
+        (
+            "solver",
+            f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} ({conv.get('nit', '?')} iterations, {conv.get('nfev', '?')} evaluations, {_num(conv.get('time_s'), 3)} s)",
+        ),
     ]
     body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
     return f'<table class="meta"><tbody>{body}</tbody></table>'
@@ -527,7 +536,10 @@ def _structure_section(report: dict) -> str:
     tried = [r for r in report.get("rejected", []) if r.get("kind") in STRUCTURAL]
     if not found and not tried:
         return ""
-    rows = [[_esc(e["label"]), _quantities(e.get("params")), _esc(", ".join((e.get("significance") or {}).get("undetermined_between") or []) or "none")] for e in found]
+    rows = [
+        [_esc(e["label"]), _quantities(e.get("params")), _esc(", ".join((e.get("significance") or {}).get("undetermined_between") or []) or "none")]
+        for e in found
+    ]
     part = ("<h3>Structure</h3><p>How the controller reports its joints (a zero 90° away or re-mastered, a reversed sign, a joint read "
             "relative to another) and steps of the sensor's zero or the tracker's position: not small corrections but a different reading "
             "of the data, each judged by full re-fits.</p>")  # fmt: skip
@@ -628,27 +640,47 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
             notes.append("the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
                          if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
         if doc.get("causes"):
-            notes.append("the figures use the calibrated geometric parameters only: the fitted causes' contribution is not in the result file, so the errors may exceed the metrics above")
+            notes.append(
+                "the figures use the calibrated geometric parameters only: the fitted causes' contribution is not in the result file, so the errors may exceed the metrics above"
+            )
         if doc.get("method") == "rbf":
             notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
     paths_residuals = _fig_residuals(ev, meas, out) if ev is not None else []
     if paths_residuals:
         before_rms, after_rms = _rms(ev.before), _rms(ev.after)
-        figures.append(_figure(paths_residuals[0], f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated."))
-        figures.append(_figure(paths_residuals[1], "The same errors in the order of the measurement file" + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else ".")))
+        figures.append(
+            _figure(
+                paths_residuals[0],
+                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated.",
+            )
+        )
+        figures.append(
+            _figure(
+                paths_residuals[1],
+                "The same errors in the order of the measurement file"
+                + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else "."),
+            )
+        )
     p = _fig_parameters(doc, out)
     if p is not None:
         figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
                                   "base, tool and sensor parameters, fitted from scratch, are in the table below."))  # fmt: skip
     else:
-        figures.append('<p class="note">No joint parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>')
+        figures.append(
+            '<p class="note">No joint parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>'
+        )
     p = _fig_convergence(doc, out)
     if p is not None:
         figures.append(_figure(p, "Cost ½‖r‖² of the training residuals after each iteration of the solver."))
     p = _fig_identifiability(ev, out) if ev is not None else None
     if p is not None:
         kappa = _condition(ev.singular)
-        figures.append(_figure(p, f"Singular values of the identification Jacobian at the calibrated parameters, columns scaled to unit norm: condition number {kappa:.4g} (large values mean weakly determined parameter combinations)."))
+        figures.append(
+            _figure(
+                p,
+                f"Singular values of the identification Jacobian at the calibrated parameters, columns scaled to unit norm: condition number {kappa:.4g} (large values mean weakly determined parameter combinations).",
+            )
+        )
     diag_html = ""
     if diag is not None:
         p = _fig_diagnosis(diag, out)

@@ -24,6 +24,8 @@ MEASUREMENTS = ("cable", "position", "pose")
 
 #: Residual rows per sample: the cable length; x, y, z; x, y, z and the rotation vector.
 RESIDUAL_WIDTH = {"cable": 1, "position": 3, "pose": 6}
+
+
 def setup_names(robot: "Robot", measurement: str) -> list[str]:
     """The set-up a new session places anew: the tracker's base frame and the tool point
     (position; pose adds the tool's orientation), the cable's anchor and zero (cable: the hook

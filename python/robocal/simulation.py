@@ -367,7 +367,7 @@ def write_simulation(dataset: Dataset, truth: Mapping, out_csv, truth_json=None)
     JSON; returns both paths."""
     # Both staged before either is renamed: a bad truth path leaves no CSV behind.
     check_outputs(files=[out_csv, truth_json])
-    with Staged(out_csv) as data_stage, (Staged(truth_json) if truth_json is not None else nullcontext()) as truth_stage:
+    with Staged(out_csv) as data_stage, Staged(truth_json) if truth_json is not None else nullcontext() as truth_stage:
         write_canonical(dataset, data_stage.tmp)
         if truth_stage is not None:
             truth_stage.tmp.write_text(json.dumps(truth, indent=2) + "\n")

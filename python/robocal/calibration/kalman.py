@@ -102,7 +102,9 @@ def ekf_sweep(problem: Problem, x: np.ndarray, P0: np.ndarray, Q: np.ndarray, R:
     return x, P
 
 
-def ukf_sweep(problem: Problem, x: np.ndarray, P0: np.ndarray, Q: np.ndarray, R: np.ndarray, alpha: float = 0.1, beta: float = 2.0, kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def ukf_sweep(
+    problem: Problem, x: np.ndarray, P0: np.ndarray, Q: np.ndarray, R: np.ndarray, alpha: float = 0.1, beta: float = 2.0, kappa: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """One UKF pass over the training samples (eq. 8-12), run entirely in the Rust core.
 
     Per sample the Merwe sigma points ``X'`` of ``(x, P)`` pass through ``Φ = I`` (eq. 8), so

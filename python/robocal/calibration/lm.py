@@ -212,7 +212,7 @@ def _minimise(
         cost_new, w_new = objective(r_new)
         downhill = cost_new < cost
         # An uphill step is taken when it continues the previous direction (cos β near 1).
-        uphill = (not downhill and previous is not None and cost_new * (1.0 - _cosine(v, previous, d)) <= cost)
+        uphill = not downhill and previous is not None and cost_new * (1.0 - _cosine(v, previous, d)) <= cost
         small_step = np.linalg.norm(step) < xtol * (xtol + np.linalg.norm(x))
         if downhill or uphill:
             nit += 1

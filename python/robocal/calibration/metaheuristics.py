@@ -243,7 +243,9 @@ def pso(
         if _converged(p_cost, tol):
             converged = True
             break
-    return _result(method, f, p_best[g], history, nit, converged, f"{max_iter} iterations", f"the personal-best costs agree to tol={tol:g} after {nit} iterations", t0)
+    return _result(
+        method, f, p_best[g], history, nit, converged, f"{max_iter} iterations", f"the personal-best costs agree to tol={tol:g} after {nit} iterations", t0
+    )
 
 
 def de(
@@ -315,7 +317,17 @@ def de(
         if _converged(cost, tol):
             converged = True
             break
-    return _result(method, f, x[int(np.argmin(cost))], history, nit, converged, f"{max_iter} generations", f"the population's costs agree to tol={tol:g} after {nit} generations", t0)
+    return _result(
+        method,
+        f,
+        x[int(np.argmin(cost))],
+        history,
+        nit,
+        converged,
+        f"{max_iter} generations",
+        f"the population's costs agree to tol={tol:g} after {nit} generations",
+        t0,
+    )
 
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)

@@ -127,9 +127,7 @@ class Problem:
     bounds: dict = field(default_factory=dict)
 
     @classmethod
-    def build(
-        cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None, bounds=None, kinematic_prior=None
-    ) -> "Problem":
+    def build(cls, robot: Robot, data: Dataset, mask=None, params=None, tol: float = 1e-9, prior=None, bounds=None, kinematic_prior=None) -> "Problem":
         """The identifiable subset of ``mask`` (default: ``robot.default_mask``) at the start point.
 
         Parameters

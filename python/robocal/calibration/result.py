@@ -186,27 +186,29 @@ class CalibrationResult:
         return result_document(self._core(), self.problem.robot, self.problem.data, self.held_out)
 
     def _core(self) -> dict:
-        return self._with_causes({
-            "method": self.method,
-            "robot": self.problem.robot.name,
-            "measurement": self.problem.data.measurement,
-            "parameters": self.parameters(),
-            "free": self.problem.names,
-            "fixed": self.problem.fixed,
-            "implausible": self.implausible(),
-            "undetermined": self.undetermined(),
-            "metrics": self.metrics,
-            "convergence": {
-                "success": bool(self.success),
-                "message": self.message,
-                "nit": int(self.nit),
-                "nfev": int(self.nfev),
-                "njev": None if self.njev is None else int(self.njev),
-                "cost": float(self.cost),
-                "history": [float(c) for c in self.history],
-                "time_s": float(self.time_s),
-            },
-        })
+        return self._with_causes(
+            {
+                "method": self.method,
+                "robot": self.problem.robot.name,
+                "measurement": self.problem.data.measurement,
+                "parameters": self.parameters(),
+                "free": self.problem.names,
+                "fixed": self.problem.fixed,
+                "implausible": self.implausible(),
+                "undetermined": self.undetermined(),
+                "metrics": self.metrics,
+                "convergence": {
+                    "success": bool(self.success),
+                    "message": self.message,
+                    "nit": int(self.nit),
+                    "nfev": int(self.nfev),
+                    "njev": None if self.njev is None else int(self.njev),
+                    "cost": float(self.cost),
+                    "history": [float(c) for c in self.history],
+                    "time_s": float(self.time_s),
+                },
+            }
+        )
 
     def _with_causes(self, doc: dict) -> dict:
         """An extended model (:class:`robocal.diagnosis.ExtendedProblem`) adds its causes."""

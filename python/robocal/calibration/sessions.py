@@ -21,6 +21,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH, Robot
 from .problem import Problem
+
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
 SESSION_KINDS = ("drift", "step", "temperature", "outliers")
 

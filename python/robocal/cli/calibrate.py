@@ -50,7 +50,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"  cause {cause['label']}: {shown}")
     if "robust" in doc:
         rows = doc["robust"]["outlying_rows"]
-        print(f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows" + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else ""))
+        print(
+            f"  {doc['robust']['loss']} loss, scale {doc['robust']['f_scale']:.3g} mm: {len(rows)} outlying rows"
+            + (f" {rows[:12]}" + (" ..." if len(rows) > 12 else "") if rows else "")
+        )
     for note in result.problem.data.notes:  # what the reader noticed, e.g. angles kept in an unlikely unit as asked
         print(f"  note: {note}")
     if doc["implausible"]:

@@ -41,8 +41,10 @@ def summary(report: dict) -> str:
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
     lines += _physical_lines(f, "rmse_heldout")
     if "floor_mm" in f:
-        lines.append(f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
-                     f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it")
+        lines.append(
+            f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
+            f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it"
+        )
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
     return "\n".join(lines)
@@ -69,7 +71,9 @@ def sessions_summary(report: dict) -> str:
     lines = [f"{report['robot']}, {report['measurement']} data, {len(report['sessions'])} sessions:"]
     for i, s in enumerate(report["sessions"], start=1):
         own = [e["label"] for e in s["diagnosis"]["effects"]]
-        lines.append(f"  session {i} ({s['source'] or 'data'}, {s['samples']} samples) on its own: " + ("; ".join(own) if own else "nothing beyond the geometry"))
+        lines.append(
+            f"  session {i} ({s['source'] or 'data'}, {s['samples']} samples) on its own: " + ("; ".join(own) if own else "nothing beyond the geometry")
+        )
     lines.append(f"  geometric model, leave-one-session-out RMSE {b['rmse_loso']:.4f} mm (per session {rmse(b['per_session'])})")
     if b["implausible"]:
         lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))

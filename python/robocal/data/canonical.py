@@ -33,9 +33,7 @@ def _measurement_from_header(header: list[str], path) -> str:
     raise DataError(f"no measurement columns: expected 'L' (cable), 'x,y,z' (position) or 'x,y,z,qw,qx,qy,qz' (pose); got {header}", path, 1)
 
 
-def read_canonical(
-    path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False
-) -> Dataset:
+def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
     """Reads a canonical CSV file into a :class:`Dataset` (joint angles converted to rad).
 
     Parameters

@@ -63,9 +63,7 @@ class FrameBody(ColumnarBody):
         return [(i, [None if c is pd.NA or c is pd.NaT else c for c in row]) for i, row in enumerate(cells)]
 
 
-def read_frame(
-    frame, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False
-) -> Dataset:
+def read_frame(frame, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
     """Reads a DataFrame with the canonical columns into a :class:`Dataset`, as
     :func:`~robocal.data.read_canonical` reads the same table from a CSV file.
 

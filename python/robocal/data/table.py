@@ -455,9 +455,7 @@ def numeric_columns(
         try:
             if len(cells) != len(header):
                 raise DataError(f"expected {len(header)} cells like the header; got {len(cells)}", path, row_number)
-            values.append(
-                [parse_number(cells[i], path, row_number, name, decimal_comma, name not in allow_nonfinite) for i, name in zip(position, wanted)]
-            )
+            values.append([parse_number(cells[i], path, row_number, name, decimal_comma, name not in allow_nonfinite) for i, name in zip(position, wanted)])
             rows.append(row_number)
         except DataError as exc:
             if not exclude_bad_rows:

@@ -81,6 +81,10 @@ def floor(robot: Robot, data: Dataset, params: np.ndarray) -> dict:
         "sensor_resolution_mm": sensor_step,
         "sensor_std_recorded": recorded is not None,
         # Noise finer than the reading's grid is invisible in the data unless the file records it.
-        "note": "joint and sensor rounding" + (" and the per-reading standard deviations the file records" if recorded is not None
-                                               else "; sensor noise finer than its grid is not in the data and not counted"),
+        "note": "joint and sensor rounding"
+        + (
+            " and the per-reading standard deviations the file records"
+            if recorded is not None
+            else "; sensor noise finer than its grid is not in the data and not counted"
+        ),
     }

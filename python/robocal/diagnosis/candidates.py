@@ -106,7 +106,11 @@ class Candidate:
         if kind == "joint_periodic":
             amp, phase = math.hypot(c[0], c[1]), math.atan2(c[1], c[0])
             sd = math.hypot(s[0], s[1]) / math.sqrt(2.0) if np.all(np.isfinite(s)) else np.nan
-            out = {"amplitude": q(amp / DEG, sd / DEG, "deg"), "phase": q(phase / DEG, np.nan, "deg"), "harmonic": q(self.detail["harmonic"], np.nan, "cycles/rev")}
+            out = {
+                "amplitude": q(amp / DEG, sd / DEG, "deg"),
+                "phase": q(phase / DEG, np.nan, "deg"),
+                "harmonic": q(self.detail["harmonic"], np.nan, "cycles/rev"),
+            }
             return out, (f"amplitude {amp / DEG:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg" if amp > LIMITS["angle"] else None)
         if kind in ("joint_scale", "joint_coupling"):
             name = "scale" if kind == "joint_scale" else "coefficient"
@@ -314,4 +318,3 @@ def joint_offsets(robot: Robot, causes: list[dict], kinds: tuple = COMPENSABLE):
         return dq
 
     return offsets
-

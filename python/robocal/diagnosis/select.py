@@ -388,7 +388,17 @@ def diagnose(
                 break
             if c.stage == "joints":
                 if joint_trials >= MAX_TRIALS:
-                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round"))
+                    rejected.append(
+                        _record(
+                            c,
+                            gain,
+                            gains,
+                            p_value,
+                            tests_of(c),
+                            None,
+                            f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round",
+                        )
+                    )
                     continue
                 joint_trials += 1
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
@@ -403,7 +413,9 @@ def diagnose(
             new_cv = {name: err for name, (err, _) in refits.items()}
             lost = [name for name in schemes if _rmse(new_cv[name]) >= _rmse(current_cv[name])]
             if lost:
-                rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"))
+                rejected.append(
+                    _record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)")
+                )
                 continue
             accepted = (c, fit, p_value, gains, physical, trial, new_cv, {name: xs for name, (_, xs) in refits.items()})
             break
@@ -512,6 +524,7 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
     """The joint-reading conventions (:mod:`.structure`) that make an implausible geometric fit
     plausible: the data with them applied, their report entries and the alternatives rejected.
     Searched only when the geometric fit of the data as read is implausible."""
+
     def geometric(d: Dataset, max_nfev=None):
         return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
 

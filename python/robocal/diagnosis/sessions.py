@@ -205,7 +205,11 @@ def _implausible(robot: Robot, values: dict) -> list[dict]:
 
 
 #: The options of a single-session diagnosis, with their defaults: a multi-session one takes them.
-OPTIONS = {n: p.default for n, p in inspect.signature(diagnose).parameters.items() if p.default is not inspect.Parameter.empty and n not in ("robot", "measurement", "angle_unit", "groups")}
+OPTIONS = {
+    n: p.default
+    for n, p in inspect.signature(diagnose).parameters.items()
+    if p.default is not inspect.Parameter.empty and n not in ("robot", "measurement", "angle_unit", "groups")
+}
 
 
 @threadpool_limits.wrap(limits=1, user_api="blas")
@@ -272,7 +276,11 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 reasons[label] = f"pooled held-out RMSE {rmse:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm"
             elif worse:
                 reasons[label] = f"held-out error on session(s) {worse} rises"
-            elif isinstance(candidate, structure.Structure) and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current) and evaluator.implausible(model.plus(candidate)):
+            elif (
+                isinstance(candidate, structure.Structure)
+                and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current)
+                and evaluator.implausible(model.plus(candidate))
+            ):
                 # A convention is no small correction: as within one session, it must make the
                 # geometry plausible or gain REAL_GAIN.
                 reasons[label] = (f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
@@ -322,7 +330,12 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
              if n in robot.param_names and is_kinematic(n) and robot.param_units[robot.index(n)] in TOLERANCE}  # fmt: skip
     trial = replace(model, prior=tuple(sorted(prior.items())))
     errors = evaluator.held_out(trial)
-    entry = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"])), "rmse_loso": _rmse(errors), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
+    entry = {
+        "sigma_mm": TOLERANCE["mm"],
+        "sigma_deg": float(np.degrees(TOLERANCE["rad"])),
+        "rmse_loso": _rmse(errors),
+        "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current),
+    }
     if not entry["accepted"]:
         entry["reason"] = (f"the prior raises the leave-one-session-out RMSE from {_rmse(current):.4g} to {_rmse(errors):.4g} mm: the data contradict "
                            "a geometry within the tolerances; the unconstrained model is kept")  # fmt: skip

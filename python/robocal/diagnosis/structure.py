@@ -229,8 +229,12 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
             current.heldout = cross_validate(apply_all(data, accepted))
         for t in trials:
             t.heldout = cross_validate(apply_all(data, t.structures))
-        good = [t for t in trials if (t.implausible == 0 and all(t.heldout[k] <= (1.0 + EQUAL) * current.heldout[k] for k in current.heldout))
-                or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)]
+        good = [
+            t
+            for t in trials
+            if (t.implausible == 0 and all(t.heldout[k] <= (1.0 + EQUAL) * current.heldout[k] for k in current.heldout))
+            or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
+        ]
         if not good:
             rejected += [{"kind": t.structures[-1].kind, "joint": t.structures[-1].joint + 1, "label": t.structures[-1].label,
                           "gain_mm": current.heldout["random"] - t.heldout["random"],
