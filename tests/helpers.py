@@ -3,7 +3,9 @@ reports where and by how much two arrays differ."""
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
+import sys
+import types
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,18 +14,19 @@ from hypothesis import strategies as st
 
 
 def _load_reference():
-    """The twin from this checkout's ``python/robocal/reference.py``, loaded from its file: it
-    needs only NumPy and SciPy, while importing the ``robocal`` package needs the compiled core
-    (and an installed copy may be stale). Falls back to ``robocal.reference`` without a checkout."""
-    path = Path(__file__).resolve().parents[1] / "python" / "robocal" / "reference.py"
-    if not path.exists():
+    """The twin from this checkout's ``python/robocal/reference.py`` with the pure-NumPy
+    ``geometry.py`` beside it, loaded from their files as a package of their own: importing the
+    ``robocal`` package needs the compiled core (and an installed copy may be stale). Falls back
+    to ``robocal.reference`` without a checkout."""
+    folder = Path(__file__).resolve().parents[1] / "python" / "robocal"
+    if not (folder / "reference.py").exists():
         from robocal import reference
 
         return reference
-    spec = importlib.util.spec_from_file_location("robocal_reference_twin", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    package = types.ModuleType("robocal_twin")
+    package.__path__ = [str(folder)]  # submodules from the checkout; robocal/__init__.py never runs
+    sys.modules.setdefault("robocal_twin", package)
+    return importlib.import_module("robocal_twin.reference")
 
 
 ref = _load_reference()
