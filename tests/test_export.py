@@ -231,3 +231,24 @@ def test_cli_bad_input(ur10_file, tmp_path):
         ex.export_table(mdh, "dh")
     with pytest.raises(InvalidParameterError, match="convention"):
         ex.export_table(mdh, "xyz")
+
+
+@pytest.mark.parametrize("convention", ["dh", "mdh"])
+@pytest.mark.parametrize("table_format", ["csv", "json"])
+def test_robot_reads_what_export_writes(calibrated, convention, table_format, tmp_path):
+    """``robocal.robot(path)`` takes an exported table back: the same tool poses as the
+    calibrated robot; a robot file (JSON) is still read as one, and a JSON that is neither is
+    refused by name."""
+    _, robot = calibrated
+    path = ex.write_table(ex.export_table(robot, convention), tmp_path / f"robot.{table_format}")
+    back = robocal.robot(str(path))
+    q = np.random.default_rng(3).uniform(-2.0, 2.0, (30, robot.n_joints))
+    assert np.allclose(back.fkine(q, tool=True), robot.fkine(q, tool=True), atol=1e-9)
+    assert {j.convention for j in back.joints} == {convention}
+    (tmp_path / "file.json").write_text(
+        json.dumps({"name": "two", "joints": [{"alpha": 90, "a": 0, "d": 100, "theta": 0}, {"alpha": 0, "a": 300, "d": 0, "theta": 0}]})
+    )
+    assert robocal.robot(str(tmp_path / "file.json")).n_joints == 2
+    (tmp_path / "other.json").write_text(json.dumps({"schema": "something/1"}))
+    with pytest.raises(InvalidParameterError, match="other.json"):
+        robocal.robot(str(tmp_path / "other.json"))

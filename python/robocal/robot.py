@@ -331,11 +331,21 @@ class Robot:
 
 
 def robot(name: str) -> Robot:
-    """A built-in robot by name (``hsr-jr680``, ``abb-irb120``, ``ur10``) or a JSON/YAML file."""
+    """A built-in robot by name (``hsr-jr680``, ``abb-irb120``, ``ur10``), a robot file (JSON or
+    YAML, :meth:`Robot.from_file`) or a parameter table ``robocal export --format dh|mdh`` wrote
+    (CSV, or JSON with the table's schema: :mod:`robocal.robot_table`)."""
     if not isinstance(name, (str, Path)):
-        raise InvalidParameterError(f"`robot` must be a robot name or a .json/.yaml file; got {type(name).__name__} {name!r}")
+        raise InvalidParameterError(f"`robot` must be a robot name or a .json/.yaml/.csv file; got {type(name).__name__} {name!r}")
     if name in BUILTIN:
         return Robot.from_dh(name, BUILTIN[name]["dh"])
-    if Path(name).suffix.lower() in (".json", ".yaml", ".yml"):
+    suffix = Path(name).suffix.lower()
+    if suffix in (".csv", ".json"):
+        from . import robot_table  # the table module builds on this one
+
+        if robot_table.is_table(name):
+            return robot_table.robot_from_table(robot_table.read_table(name), name=Path(name).stem)
+    if suffix in (".json", ".yaml", ".yml"):
         return Robot.from_file(name)
-    raise InvalidParameterError(f"unknown robot {name!r}; built-in robots are {sorted(BUILTIN)} (or give a .json/.yaml file)")
+    raise InvalidParameterError(
+        f"unknown robot {name!r}; built-in robots are {sorted(BUILTIN)} (or give a .json/.yaml robot file or an exported .csv/.json table)"
+    )

@@ -1,0 +1,168 @@
+"""The parameter table of a robot: one row per joint, then the base and the tool frames.
+
+What ``robocal export --format dh|mdh`` writes (CSV, or JSON with schema
+:data:`TABLE_SCHEMA`) and what :func:`robocal.robot` reads back: angles in degrees, lengths in mm,
+joint limits in degrees (mm for a prismatic joint). Columns :data:`TABLE_COLUMNS`; a joint row has
+the DH/MDH values and Hayati ``beta``, a frame row ``x, y, z, rx, ry, rz`` (``Tx Ty Tz Rz Ry Rx``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .exceptions import InvalidParameterError
+from .robot import Joint, Robot
+
+TABLE_SCHEMA = "robocal.export.table/1"
+
+JOINT_COLUMNS = ("alpha_deg", "a_mm", "d_mm", "theta_deg", "beta_deg")
+FRAME_COLUMNS = ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
+#: Columns of the parameter table, in file order.
+TABLE_COLUMNS = ("frame", "kind", "convention", "hayati") + JOINT_COLUMNS + ("lower", "upper") + FRAME_COLUMNS
+_ANGLE_JOINT = {"alpha_deg", "theta_deg", "beta_deg"}
+
+
+def is_table(path) -> bool:
+    """True for a file :func:`read_table` reads: a CSV, or a JSON document with the table's
+    schema (a robot file is JSON too)."""
+    path = Path(path)
+    if path.suffix.lower() == ".csv":
+        return True
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False  # the robot-file reader names what is wrong with it
+    return isinstance(doc, dict) and doc.get("schema") == TABLE_SCHEMA
+
+
+def frame_slice(robot: Robot, prefix: str) -> slice:
+    """Where the base or tool frame's six parameters sit in the robot's vector."""
+    start = robot.index(f"{prefix}_x")
+    return slice(start, start + 6)
+
+
+def _table_robot(robot: Robot, convention: str) -> Robot:
+    """``robot`` in ``convention`` (``dh`` or ``mdh``), converting DH → MDH when asked."""
+    if convention not in ("dh", "mdh"):
+        raise InvalidParameterError(f"`convention` must be 'dh' or 'mdh'; got {convention!r}")
+    have = {j.convention for j in robot.joints}
+    if have == {convention}:
+        return robot
+    if convention == "mdh" and have == {"dh"}:
+        return robot.to_mdh()
+    raise InvalidParameterError(
+        f"cannot export robot {robot.name!r} (joint conventions {sorted(have)}) as {convention!r}: "
+        f"robocal converts standard DH to modified DH only; export it as 'urdf' or in its own convention"
+    )
+
+
+def export_table(robot: Robot, convention: str = "dh") -> list[dict]:
+    """The robot's kinematic parameter table, one dict per row (see the module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+        Typically the calibrated robot of :func:`robocal.results.load_result`.
+    convention : {"dh", "mdh"}
+        ``mdh`` converts a standard-DH robot with :meth:`Robot.to_mdh` (exact for the tool frame).
+
+    Returns
+    -------
+    list of dict
+        ``N`` joint rows, then ``base`` and ``tool``; keys :data:`TABLE_COLUMNS`, ``None`` where
+        a column does not apply. Angles in degrees, lengths in mm.
+
+    Raises
+    ------
+    InvalidParameterError
+        Unknown ``convention``, or a conversion robocal does not do (MDH → DH).
+    """
+    r = _table_robot(robot, convention)
+    empty = dict.fromkeys(TABLE_COLUMNS)
+    rows = []
+    for j, joint in enumerate(r.joints, start=1):
+        values = r.params[5 * (j - 1) : 5 * j]  # alpha, a, d, theta, beta
+        row = dict(empty, frame=f"joint{j}", kind=joint.kind, convention=joint.convention, hayati=bool(joint.hayati))
+        for col, v in zip(JOINT_COLUMNS, values):
+            row[col] = math.degrees(v) if col in _ANGLE_JOINT else float(v)
+        to_unit = math.degrees if joint.kind == "revolute" else float
+        row["lower"], row["upper"] = (to_unit(float(v)) for v in joint.limits)
+        rows.append(row)
+    for prefix in ("base", "tool"):
+        values = r.params[frame_slice(r, prefix)]
+        row = dict(empty, frame=prefix)
+        for k, (col, v) in enumerate(zip(FRAME_COLUMNS, values)):
+            row[col] = math.degrees(v) if k >= 3 else float(v)
+        rows.append(row)
+    return rows
+
+
+def read_table(path) -> list[dict]:
+    """Rows of a table written by :func:`write_table` (CSV or JSON, told apart by content).
+
+    Numbers come back as float, ``hayati`` as bool, empty cells as ``None``.
+    """
+    path = Path(path)
+    text = path.read_text()
+    if text.lstrip().startswith("{"):
+        doc = json.loads(text)
+        if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:
+            raise InvalidParameterError(f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r})")
+        return [dict(r) for r in doc["rows"]]
+    rows = []
+    for i, raw in enumerate(csv.DictReader(text.splitlines()), start=2):
+        row = {}
+        for col in TABLE_COLUMNS:
+            cell = (raw.get(col) or "").strip()
+            if cell == "":
+                row[col] = None
+            elif col in ("frame", "kind", "convention"):
+                row[col] = cell
+            elif col == "hayati":
+                row[col] = cell.lower() in ("true", "1", "yes")
+            else:
+                try:
+                    row[col] = float(cell)
+                except ValueError:
+                    raise InvalidParameterError(f"{path}, row {i}, column {col!r}: not a number: {cell!r}") from None
+        rows.append(row)
+    return rows
+
+
+def robot_from_table(rows: Sequence[dict], name: str = "exported") -> Robot:
+    """A :class:`Robot` rebuilt from table rows alone (sensor parameters at their neutral values:
+    anchor 0, ``cable_offset`` 0, ``cable_scale`` 1).
+
+    Raises
+    ------
+    InvalidParameterError
+        A row lacks a value it needs, or the base / tool row is missing.
+    """
+    joint_rows = [r for r in rows if str(r.get("frame", "")).startswith("joint")]
+    frames = {r.get("frame"): r for r in rows if r.get("frame") in ("base", "tool")}
+    if not joint_rows or set(frames) != {"base", "tool"}:
+        raise InvalidParameterError("a parameter table needs joint rows and one 'base' and one 'tool' row")
+
+    def need(row, col):
+        value = row.get(col)
+        if value is None:
+            raise InvalidParameterError(f"table row {row.get('frame')!r} lacks {col!r}")
+        return float(value)
+
+    joints, values = [], []
+    for row in joint_rows:
+        kind = row.get("kind") or "revolute"
+        to_internal = math.radians if kind == "revolute" else float
+        limits = (to_internal(need(row, "lower")), to_internal(need(row, "upper")))
+        joints.append(Joint(row.get("convention") or "dh", kind, bool(row.get("hayati")), limits))
+        values += [math.radians(need(row, c)) if c in _ANGLE_JOINT else need(row, c) for c in JOINT_COLUMNS]
+    for prefix in ("base", "tool"):
+        values += [math.radians(need(frames[prefix], c)) if k >= 3 else need(frames[prefix], c) for k, c in enumerate(FRAME_COLUMNS)]
+    values += [0.0, 0.0, 0.0, 0.0, 1.0]  # anchor, cable_offset, cable_scale
+    return Robot(name, joints, np.array(values))
