@@ -64,6 +64,12 @@ def _physical_lines(final: dict, key: str) -> list[str]:
     return lines
 
 
+def _origin(entry: dict) -> str:
+    """Where a multi-session candidate came from: sessions whose own diagnosis found it, or the
+    robot's mass model (gravity compliance is always judged)."""
+    return f"found in sessions {entry['found_in_sessions']}" if entry["found_in_sessions"] else "from the mass model"
+
+
 def sessions_summary(report: dict) -> str:
     """A few lines for the terminal on a multi-session report."""
     b, f = report["baseline"], report["final"]
@@ -78,10 +84,10 @@ def sessions_summary(report: dict) -> str:
     if b["implausible"]:
         lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))
     for e in report["effects"]:
-        lines.append(f"  + {e['label']} (found in sessions {e['found_in_sessions']}): {_quantities(e['params'])}; held-out "
+        lines.append(f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}; held-out "
                      f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})")  # fmt: skip
     for r in report["rejected"]:
-        lines.append(f"  not carried: {r['label']} (found in sessions {r['found_in_sessions']}): {r['reason']}")
+        lines.append(f"  not carried: {r['label']} ({_origin(r)}): {r['reason']}")
     for i, s in enumerate(report["model"]["sessions"], start=1):
         if s["causes"]:
             lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")

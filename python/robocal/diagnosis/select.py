@@ -404,7 +404,7 @@ def diagnose(
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
             fit = _fit(trial, x0=_extended_start(x, ext, trial))
             physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
-            why = f"implausible: {why}" if why else _undetermined(trial.coefficients(fit.x, c) - _reference(c, rob), _std(trial, fit, c))
+            why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), _std(trial, fit, c))
             if why is not None:
                 rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, why))
                 continue
@@ -428,7 +428,7 @@ def diagnose(
             break
         c, fit, p_value, gains, physical, trial, new_cv, fold_x = accepted
         # For the report's plot: the residual the cause was found in, against its fitted signature.
-        signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - _reference(c, rob))
+        signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - coefficient_reference(c, rob))
         plots[c.label] = {"residual": r, "signature": signature, "k": k}
         causes.append(c)
         pool = [o for o in pool if o is not c]
@@ -557,14 +557,14 @@ def _extended_start(x: np.ndarray, ext: ExtendedProblem, trial: ExtendedProblem)
     return np.concatenate([x[:f], new_params, x[f:], new_coefs])
 
 
-def _reference(cause: Candidate, robot: Robot) -> np.ndarray:
+def coefficient_reference(cause: Candidate, robot: Robot) -> np.ndarray:
     """What a cause's coefficients are measured from: zero, or nominal for parameters."""
     if cause.stage == "parameters":
         return robot.params[[robot.index(n) for n in cause.params]]
     return np.zeros(cause.size)
 
 
-def _undetermined(values: np.ndarray, std: Optional[np.ndarray]) -> Optional[str]:
+def undetermined(values: np.ndarray, std: Optional[np.ndarray]) -> Optional[str]:
     """A reason if the fitted values are not distinguishable from zero (|value| < 2 std): the
     data then cannot say how large the cause is, whatever the fit gained."""
     if std is None:

@@ -34,7 +34,7 @@ from ..robot import Robot
 from . import structure
 from .candidates import library
 from .model import ExtendedProblem
-from .select import PRIOR_COST, Diagnosis, baseline_mask, diagnose
+from .select import PRIOR_COST, Diagnosis, baseline_mask, coefficient_reference, diagnose, undetermined
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -92,15 +92,20 @@ class _Evaluator:
         self._starts: dict = {}
         self._fits: dict = {}
 
-    def problems(self, model: _Model) -> list[ExtendedProblem]:
+    def bases(self, model: _Model) -> list[tuple]:
+        """Per session, under the model's conventions: its base problem, its data and its
+        candidate library (by label)."""
         key = model.conventions
         if key not in self._bases:
             datas = [structure.apply_all(session.data, list(model.structures)) for session in self.sessions]
             bases = session_problems(self.robot, datas, self.mask)
             pools = [{c.label: c for c in library(self.robot, d, list(b.names) + list(b.fixed), hayati=self.hayati)} for d, b in zip(datas, bases)]
             self._bases[key] = list(zip(bases, datas, pools))
+        return self._bases[key]
+
+    def problems(self, model: _Model) -> list[ExtendedProblem]:
         out = []
-        for session, (base, data, pool) in zip(self.sessions, self._bases[key]):
+        for session, (base, data, pool) in zip(self.sessions, self.bases(model)):
             # a cause whose joint does not move in a session does not act there
             shared = [pool[label] for label in model.causes if label in pool]
             out.append(ExtendedProblem(base, session.terms + shared, data, session.keep))
@@ -115,6 +120,21 @@ class _Evaluator:
             self._starts[key] = dict(zip(stacked.names, fit.x))
             self._fits[model] = (stacked, fit)
         return self._fits[model]
+
+    def cause_check(self, model: _Model, label: str) -> Optional[str]:
+        """Why the cause ``label`` of ``model``, fitted on every session, is implausible or its
+        size undetermined (the checks of a single-session diagnosis), or None."""
+        stacked, fit = self.fit(model)
+        spread = fit.std if fit.std is not None else _pseudo_std(stacked, fit.x)
+        for s, problem in enumerate(stacked.problems):
+            cause = next((c for c in problem.causes if c.label == label), None)
+            if cause is None:
+                continue
+            values = problem.coefficients(stacked.session_x(fit.x, s), cause)
+            std = problem.coefficients(stacked.session_x(spread, s), cause)
+            _, why = cause.physical(values, std, self.robot, self.robot.params)
+            return f"implausible: {why}" if why else undetermined(values - coefficient_reference(cause, self.robot), std)
+        return None
 
     def implausible(self, model: _Model) -> list[dict]:
         """Kinematic parameters beyond the limits when ``model`` is fitted on every session."""
@@ -153,6 +173,19 @@ class _Evaluator:
         """``x0`` with the entries a previous fit of the same fold found (a smaller model's)."""
         previous = self._starts.get(key, {})
         return np.array([previous.get(n, v) for n, v in zip(names, x0)])
+
+
+def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
+    """Standard deviations from ``σ̂²(JᵀJ)⁺`` with scaled columns: stacked sessions can leave a
+    few combinations of shared and set-up parameters near-redundant (a full-rank covariance is
+    then not defined), while a cause's own coefficient is still determined."""
+    J, r = stacked.jacobian(x), stacked.residuals(x)
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    U, sv, Vt = np.linalg.svd(J / scale, full_matrices=False)
+    keep = sv > 1e-10 * sv[0]
+    sigma2 = float(r @ r) / max(len(r) - int(keep.sum()), 1)
+    return np.sqrt(sigma2 * np.sum((Vt[keep] / sv[keep, None]) ** 2, axis=0)) / scale
 
 
 def _rmse(errors: list[np.ndarray]) -> float:
@@ -256,6 +289,13 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         for c in session.diagnosis.model.causes:
             if c.kind not in SESSION_TERMS:
                 found.setdefault(c.label, (c.label, []))[1].append(s)
+    # Gravity compliance is the cause with a physical model of how it carries to other poses;
+    # within one session a harmonic may fit its shape better and win the selection, so every
+    # compliance the robot's mass model offers is judged across sessions too.
+    for base, _, pool in evaluator.bases(_Model()):
+        for label in pool:
+            if label.startswith("joint_compliance"):
+                found.setdefault(label, (label, []))
 
     model = _Model()
     current = evaluator.held_out(model)
@@ -276,6 +316,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 reasons[label] = f"pooled held-out RMSE {rmse:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm"
             elif worse:
                 reasons[label] = f"held-out error on session(s) {worse} rises"
+            elif not isinstance(candidate, structure.Structure) and (why := evaluator.cause_check(model.plus(candidate), label)):
+                reasons[label] = why  # implausible or undetermined, as within one session
             elif (
                 isinstance(candidate, structure.Structure)
                 and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current)
@@ -299,11 +341,12 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     problems = evaluator.problems(model)
     joint, fit = evaluator.fit(model)
     values = {n: float(v) for n, v in zip(joint.names, fit.x) if not is_private(n, kind)}
+    spread = fit.std if fit.std is not None else _pseudo_std(joint, fit.x)
     parameters = {n: v for n, v in values.items() if n in rob.param_names}
     for e in effects:  # physical size from the fit on every session
         s = next(i for i, p in enumerate(problems) if any(c.label == e["label"] for c in p.causes)) if e["kind"] not in structure.KINDS else None
         if s is not None:
-            described = problems[s].describe_causes(joint.session_x(fit.x, s), None if fit.std is None else joint.session_x(fit.std, s))
+            described = problems[s].describe_causes(joint.session_x(fit.x, s), joint.session_x(spread, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": _implausible(rob, parameters), "tolerance_prior": physical,
              "rmse_loso_unconstrained": unconstrained,
