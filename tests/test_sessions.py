@@ -81,7 +81,8 @@ def test_cli_diagnoses_several_files(tmp_path, capsys):
         paths.append(tmp_path / f"s{s}.csv")
         write_canonical(data, paths[-1])
     out = tmp_path / "report.json"
-    assert main(["diagnose", *map(str, paths), "--robot", "ur10", "--json", str(out), "--quiet"]) == 0
+    assert main(["diagnose", *map(str, paths), "--robot", "ur10", "--json", str(out), "--out", str(tmp_path / "figures"), "--quiet"]) == 0
+    assert (tmp_path / "figures" / "heldout_rmse.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = capsys.readouterr().out
     assert "3 sessions" in text and "leave-one-session-out" in text
     report = json.loads(out.read_text())

@@ -354,7 +354,9 @@ def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
     return steps
 
 
-def _fig_diagnosis(report: dict, out: Path) -> Path:
+def diagnosis_figure(report: dict, path: Path) -> Path:
+    """A bar chart of the held-out RMSE of a diagnose report (one session or several) as its
+    causes are added, written to ``path``."""
     plt = _pyplot()
     steps = _diagnosis_steps(report)
     names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
@@ -370,7 +372,7 @@ def _fig_diagnosis(report: dict, out: Path) -> Path:
     how = ", leave-one-session-out" if "sessions" in report else (f", {folds}-fold cross-validation" if folds else "")
     ax.set(xlabel=f"held-out RMSE (mm){how}", title="Held-out error as the diagnosed causes are added")
     fig.tight_layout()
-    return _save(fig, out / "diagnosis.png")
+    return _save(fig, Path(path))
 
 
 # -- the page ---------------------------------------------------------------------------------
@@ -683,7 +685,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         )
     diag_html = ""
     if diag is not None:
-        p = _fig_diagnosis(diag, out)
+        p = diagnosis_figure(diag, out / "diagnosis.png")
         diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
                      + _diagnosis_table(diag) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
 

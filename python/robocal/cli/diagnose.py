@@ -10,8 +10,8 @@ import numpy as np
 
 from ..calibration.result import CONTRADICTED, UNDETERMINED, describe_implausible
 from ..diagnosis import diagnose
-from ..diagnosis.select import Diagnosis
 from ..outputs import make_folder, save_figure, write_text
+from ..report import diagnosis_figure
 from .arguments import add_data_arguments
 
 
@@ -96,9 +96,10 @@ def sessions_summary(report: dict) -> str:
     return "\n".join(lines)
 
 
-def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
-    """One PNG per accepted cause (residual against the cause's fitted signature) and one of the
-    held-out RMSE along the selection."""
+def write_figures(diagnosis, out: Path) -> list[Path]:
+    """One PNG per accepted cause of a single-session diagnosis (residual against the cause's
+    fitted signature) and one of the held-out RMSE along the selection (for several sessions,
+    leave-one-session-out: that one only)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,7 +107,7 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
 
     make_folder(out)
     paths = []
-    for i, (label, d) in enumerate(diagnosis.plots.items(), start=1):
+    for i, (label, d) in enumerate(getattr(diagnosis, "plots", {}).items(), start=1):
         fig, ax = plt.subplots(figsize=(5.5, 4.5))
         sig, res = d["signature"], d["residual"]
         ax.scatter(sig, res, s=4, alpha=0.25, color="0.6", label="residual components")
@@ -128,17 +129,7 @@ def write_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
         path = save_figure(fig, out / f"cause_{i}.png", dpi=120)
         plt.close(fig)
         paths.append(path)
-    report = diagnosis.to_dict()
-    steps = ["geometric"] + [f"+ {e['kind']}" + (f" j{e['joint']}" if e["joint"] else "") for e in report["effects"] if e["kind"] != "outliers"]
-    rmse = [report["baseline"]["rmse_heldout"]] + [e["rmse_heldout_after"] for e in report["effects"] if e["kind"] != "outliers"]
-    fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(steps)), 3.8))
-    ax.bar(range(len(steps)), rmse, color="tab:blue")
-    ax.set_xticks(range(len(steps)), steps, rotation=20, ha="right")
-    ax.set(ylabel="held-out RMSE (mm), 5-fold", title="held-out error as causes are added")
-    fig.tight_layout()
-    path = save_figure(fig, out / "heldout_rmse.png", dpi=120)
-    plt.close(fig)
-    return paths + [path]
+    return paths + [diagnosis_figure(diagnosis.to_dict(), Path(out) / "heldout_rmse.png")]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -165,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         out = make_folder(args.out)
         write_text(out / "report.json", text)
-        paths = write_figures(d, out) if isinstance(d, Diagnosis) else []
+        paths = write_figures(d, out)
         if args.json != "-":
             print(f"  wrote report.json and {len(paths)} figures to {out}")
     return 0
