@@ -32,7 +32,7 @@ import numpy as np
 from ._robocal import __version__
 from .calibration.metrics import sample_errors
 from .calibration.problem import is_kinematic, start_parameters
-from .calibration.result import CONTRADICTED, UNDETERMINED, describe_implausible
+from .calibration.result import describe_implausible, implausible_meaning
 from .data.dataset import Dataset
 from .diagnosis import structure
 from .exceptions import InvalidParameterError, RobocalError
@@ -571,8 +571,7 @@ def _budget_section(report: dict) -> str:
         else:
             part += f'<p class="warn">No physical model: a tolerance prior (±{_esc(prior["sigma_mm"])} mm, ±{_esc(prior["sigma_deg"])}°) was tried; {_esc(prior.get("reason", ""))}.</p>'
     if f.get("implausible"):
-        meaning = CONTRADICTED if prior and not prior.get("accepted") else UNDETERMINED
-        part += '<p class="warn">Final model: ' + _esc(describe_implausible(f["implausible"], meaning=meaning)) + ".</p>"
+        part += '<p class="warn">Final model: ' + _esc(describe_implausible(f["implausible"], meaning=implausible_meaning(prior))) + ".</p>"
     return part
 
 

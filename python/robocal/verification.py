@@ -13,6 +13,7 @@ re-fitted the same way: what the calibration gains where it was not fitted.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Optional, Union
 
@@ -40,7 +41,7 @@ def _with_joint_causes(robot: Robot, data: Dataset, causes: list[dict]) -> Datas
     order = acquisition_order(data)
     q = data.q.copy()
     q[order] += offsets(data.q[order])
-    return Dataset(q=q, y=data.y, measurement=data.measurement, robot=data.robot, t=data.t, temp=data.temp, rows=data.rows, source=data.source)
+    return replace(data, q=q)
 
 
 def _refit_setup(robot: Robot, data: Dataset) -> tuple[dict, dict, list[str]]:

@@ -39,6 +39,26 @@ def is_kinematic(name: str) -> bool:
     return name.rstrip("0123456789") in KINEMATIC
 
 
+def kinematic_prior_pairs(robot: Robot, names, means: dict, sigma: dict) -> dict:
+    """``name -> (mean, sigma[unit])`` for the kinematic parameters among ``names`` whose unit
+    ``sigma`` gives (mm, rad); ``means`` maps each name to its prior mean."""
+    units = dict(zip(robot.param_names, robot.param_units))
+    return {n: (float(means[n]), sigma[units[n]]) for n in names if n in units and is_kinematic(n) and units[n] in sigma}
+
+
+def implausible_parameters(robot: Robot, values: dict) -> list[dict]:
+    """The kinematic parameters of ``values`` (``name -> value``) further from nominal than
+    :data:`PLAUSIBLE`: ``{name, unit, deviation, limit}`` each."""
+    flagged = []
+    for name, value in values.items():
+        if name in robot.param_names and is_kinematic(name):
+            k = robot.index(name)
+            unit, deviation = robot.param_units[k], float(value - robot.params[k])
+            if unit in PLAUSIBLE and abs(deviation) > PLAUSIBLE[unit]:
+                flagged.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
+    return flagged
+
+
 def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
     """Nominal kinematics plus a fitted measurement set-up.
 
@@ -182,11 +202,8 @@ class Problem:
                 raise InvalidParameterError(f"`kinematic_prior` must be (mm, deg); got {kinematic_prior!r}") from None
             if not (length > 0 and angle > 0 and np.isfinite(length) and np.isfinite(angle)):
                 raise InvalidParameterError(f"`kinematic_prior` needs finite sigmas > 0; got ({length}, {angle})")
-            sigma = {"mm": length, "rad": np.radians(angle)}
-            for k in free:
-                name = robot.param_names[k]
-                if is_kinematic(name) and name not in prior and robot.param_units[k] in sigma:
-                    prior[name] = (start[k], sigma[robot.param_units[k]])
+            start_of = dict(zip(robot.param_names, start))
+            prior = {**kinematic_prior_pairs(robot, [robot.param_names[k] for k in free], start_of, {"mm": length, "rad": np.radians(angle)}), **prior}
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])

@@ -12,7 +12,7 @@ from ..core import covariance
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
-from .problem import PLAUSIBLE, Problem, is_kinematic
+from .problem import PLAUSIBLE, Problem, implausible_parameters
 from ..robot import Robot
 
 
@@ -20,6 +20,12 @@ from ..robot import Robot
 UNDETERMINED = "the data do not determine them; a kinematic prior or more varied poses are needed"
 #: ... and when a geometry within the tolerances was tried and fits worse.
 CONTRADICTED = "the data demand them (a geometry within the tolerances fits worse): they describe the measured region, not the robot"
+
+
+def implausible_meaning(tolerance_prior) -> str:
+    """What a final model's implausible parameters mean, given the report's ``tolerance_prior``
+    entry: demanded by the data if the prior was tried and not kept, undetermined otherwise."""
+    return CONTRADICTED if tolerance_prior and not tolerance_prior.get("accepted") else UNDETERMINED
 
 
 def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDETERMINED) -> str:
@@ -144,13 +150,8 @@ class CalibrationResult:
         """Kinematic parameters that moved further from nominal than :data:`PLAUSIBLE`: the data
         did not determine them (a narrow workspace lets weak directions absorb other errors);
         a ``kinematic_prior`` or more varied poses are the remedies."""
-        robot, full, flagged = self.problem.robot, self.params, []
-        for k in self.problem.free:
-            name, unit = robot.param_names[k], robot.param_units[k]
-            deviation = float(full[k] - robot.params[k])
-            if is_kinematic(name) and unit in PLAUSIBLE and abs(deviation) > PLAUSIBLE[unit]:
-                flagged.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
-        return flagged
+        robot, full = self.problem.robot, self.params
+        return implausible_parameters(robot, {robot.param_names[k]: full[k] for k in self.problem.free})
 
     def undetermined(self, shown: int = 4) -> list[dict]:
         """Parameter combinations the data leave wider than :data:`PLAUSIBLE`.

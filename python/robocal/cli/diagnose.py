@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration.result import CONTRADICTED, UNDETERMINED, describe_implausible
+from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..outputs import make_folder, save_figure, write_text
 from ..report import diagnosis_figure
@@ -59,8 +59,7 @@ def _physical_lines(final: dict, key: str) -> list[str]:
     elif prior:
         lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
     if final.get("implausible"):
-        meaning = CONTRADICTED if prior and not prior["accepted"] else UNDETERMINED
-        lines.append("  warning: final model: " + describe_implausible(final["implausible"], meaning=meaning))
+        lines.append("  warning: final model: " + describe_implausible(final["implausible"], meaning=implausible_meaning(prior)))
     return lines
 
 

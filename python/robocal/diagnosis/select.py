@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
+from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import kfold
@@ -484,6 +484,15 @@ def diagnose(
 PRIOR_COST = 0.05
 
 
+#: The tolerance prior's sigmas as the report states them.
+TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"]))}
+
+
+def prior_rejected(what: str, before: float, after: float) -> str:
+    """Why a tolerance prior that raised ``what`` RMSE from ``before`` to ``after`` is not kept."""
+    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} mm: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+
+
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict):
     """The final model made physical where the data leave the geometry undetermined.
 
@@ -502,19 +511,17 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     fit = _fit(model, x0=x)
     if not fit.implausible() and not fit.undetermined():
         return model, fit, current_cv, None
-    robot, start = model.robot, model.base.start
-    prior = {robot.param_names[k]: (float(start[k]), TOLERANCE[robot.param_units[k]]) for k in model.free
-             if is_kinematic(robot.param_names[k]) and robot.param_units[k] in TOLERANCE}  # fmt: skip
+    robot = model.robot
+    prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
     physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
     x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
-    entry = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"])), "accepted": False}
+    entry = {**TOLERANCE_SIGMAS, "accepted": False}
     cv = {}
     for name, folds in schemes.items():  # random, blocked, then groups
         cv[name] = _nonlinear_cv(physical, folds)[0]
         entry[f"rmse_heldout_{name}"] = _rmse(cv[name])
         if _rmse(cv[name]) > (1.0 + PRIOR_COST) * _rmse(current_cv[name]):
-            entry["reason"] = (f"the prior raises the {name}-fold held-out RMSE from {_rmse(current_cv[name]):.4g} to {_rmse(cv[name]):.4g} mm: "
-                               "the data contradict a geometry within the tolerances; the unconstrained model is kept")  # fmt: skip
+            entry["reason"] = prior_rejected(f"{name}-fold held-out", _rmse(current_cv[name]), _rmse(cv[name]))
             return model, fit, current_cv, entry
     entry["accepted"] = True
     return physical, _fit(physical, x0=x0), {**current_cv, **cv}, entry

@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import PLAUSIBLE, TOLERANCE, is_kinematic, start_parameters
+from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
@@ -34,7 +34,7 @@ from ..robot import Robot
 from . import structure
 from .candidates import library
 from .model import ExtendedProblem
-from .select import PRIOR_COST, Diagnosis, baseline_mask, coefficient_reference, diagnose, undetermined
+from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -68,9 +68,11 @@ class _Model:
         return tuple(c.label for c in self.structures)
 
     def plus(self, candidate) -> "_Model":
+        """With one more convention (a :class:`Structure`) or cause (a :class:`Candidate` of any
+        session's library: causes are kept by label, each session has its own bases)."""
         if isinstance(candidate, structure.Structure):
             return replace(self, structures=self.structures + (candidate,))
-        return replace(self, causes=self.causes + (candidate,))
+        return replace(self, causes=self.causes + (candidate.label,))
 
     def stacked(self, problems: list) -> Sessions:
         """The sessions' problems stacked, the prior (if any) on the first one only: it acts on
@@ -139,7 +141,7 @@ class _Evaluator:
     def implausible(self, model: _Model) -> list[dict]:
         """Kinematic parameters beyond the limits when ``model`` is fitted on every session."""
         stacked, fit = self.fit(model)
-        return _implausible(self.robot, dict(zip(stacked.names, fit.x)))
+        return implausible_parameters(self.robot, dict(zip(stacked.names, fit.x)))
 
     def held_out(self, model: _Model) -> list[np.ndarray]:
         """Per session, the squared errors of its samples under the model fitted on the others."""
@@ -225,18 +227,6 @@ class SessionsDiagnosis:
         }
 
 
-def _implausible(robot: Robot, values: dict) -> list[dict]:
-    """Kinematic parameters of ``values`` beyond :data:`PLAUSIBLE` from nominal."""
-    out = []
-    for name, value in values.items():
-        if name in robot.param_names and is_kinematic(name):
-            k = robot.index(name)
-            unit, deviation = robot.param_units[k], float(value - robot.params[k])
-            if unit in PLAUSIBLE and abs(deviation) > PLAUSIBLE[unit]:
-                out.append({"name": name, "unit": unit, "deviation": deviation, "limit": float(PLAUSIBLE[unit])})
-    return out
-
-
 #: The options of a single-session diagnosis, with their defaults: a multi-session one takes them.
 OPTIONS = {
     n: p.default
@@ -288,20 +278,20 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
             found.setdefault(label, (structure.parse(label, rob.n_joints), []))[1].append(s)
         for c in session.diagnosis.model.causes:
             if c.kind not in SESSION_TERMS:
-                found.setdefault(c.label, (c.label, []))[1].append(s)
+                found.setdefault(c.label, (c, []))[1].append(s)
     # Gravity compliance is the cause with a physical model of how it carries to other poses;
     # within one session a harmonic may fit its shape better and win the selection, so every
     # compliance the robot's mass model offers is judged across sessions too.
-    for base, _, pool in evaluator.bases(_Model()):
-        for label in pool:
-            if label.startswith("joint_compliance"):
-                found.setdefault(label, (label, []))
+    for _, _, pool in evaluator.bases(_Model()):
+        for label, c in pool.items():
+            if c.kind == "joint_compliance":
+                found.setdefault(label, (c, []))
 
     model = _Model()
     current = evaluator.held_out(model)
     geometric, geometric_fit = evaluator.fit(model)
     baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
-                "implausible": _implausible(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
+                "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
     pending = dict(found)
     while pending and len(effects) < max_effects:
@@ -348,7 +338,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if s is not None:
             described = problems[s].describe_causes(joint.session_x(fit.x, s), joint.session_x(spread, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
-    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": _implausible(rob, parameters), "tolerance_prior": physical,
+    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
     return SessionsDiagnosis(
@@ -369,27 +359,19 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
     if not evaluator.implausible(model):
         return model, current, None
     robot = evaluator.robot
-    prior = {n: (float(robot.params[robot.index(n)]), TOLERANCE[robot.param_units[robot.index(n)]]) for n in stacked.names
-             if n in robot.param_names and is_kinematic(n) and robot.param_units[robot.index(n)] in TOLERANCE}  # fmt: skip
+    prior = kinematic_prior_pairs(robot, stacked.names, dict(zip(robot.param_names, robot.params)), TOLERANCE)
     trial = replace(model, prior=tuple(sorted(prior.items())))
     errors = evaluator.held_out(trial)
-    entry = {
-        "sigma_mm": TOLERANCE["mm"],
-        "sigma_deg": float(np.degrees(TOLERANCE["rad"])),
-        "rmse_loso": _rmse(errors),
-        "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current),
-    }
+    entry = {**TOLERANCE_SIGMAS, "rmse_loso": _rmse(errors), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
     if not entry["accepted"]:
-        entry["reason"] = (f"the prior raises the leave-one-session-out RMSE from {_rmse(current):.4g} to {_rmse(errors):.4g} mm: the data contradict "
-                           "a geometry within the tolerances; the unconstrained model is kept")  # fmt: skip
+        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current), _rmse(errors))
         return model, current, entry
     return trial, errors, entry
 
 
 def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
-    kind = candidate.kind if isinstance(candidate, structure.Structure) else label.split(" ")[0]
-    joint = candidate.joint + 1 if isinstance(candidate, structure.Structure) else (int(label.split(" ")[2]) if " joint " in label else None)
-    entry = {"kind": kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
+    joint = None if candidate.joint is None else candidate.joint + 1
+    entry = {"kind": candidate.kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
              "found_in_sessions": where, "rmse_loso_before": _rmse(before), "rmse_loso_after": _rmse(after),
              "per_session_before": _per_session(before), "per_session_after": _per_session(after)}  # fmt: skip
     if reason is not None:
