@@ -339,6 +339,10 @@ def robot(name: str) -> Robot:
     if name in BUILTIN:
         return Robot.from_dh(name, BUILTIN[name]["dh"])
     suffix = Path(name).suffix.lower()
+    if suffix == ".urdf":
+        from .urdf import read_urdf  # the URDF module builds on this one (and loads yourdfpy)
+
+        return read_urdf(name)
     if suffix in (".csv", ".json"):
         from . import robot_table  # the table module builds on this one
 
