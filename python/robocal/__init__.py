@@ -24,6 +24,7 @@ __all__ = [
     "covariance",
     "diagnose",
     "exceptions",
+    "from_roboticstoolbox",
     "identifiability",
     "load",
     "load_result",
@@ -47,6 +48,7 @@ _LAZY = {
     "compensate": ("robocal.compensation", "compensate"),
     "load_result": ("robocal.results", "load_result"),
     "verify": ("robocal.verification", "verify"),
+    "from_roboticstoolbox": ("robocal.rtb", "from_roboticstoolbox"),
 }
 
 

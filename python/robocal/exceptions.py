@@ -58,6 +58,11 @@ class NoConvergenceError(RobocalError, RuntimeError):
     """An iterative routine failed (results normally report non-convergence instead)."""
 
 
+class MissingDependencyError(RobocalError, ImportError):
+    """A feature needs an optional dependency that is not installed: the message says which
+    and the ``pip install`` that brings it."""
+
+
 __all__ = [
     "RobocalError",
     "ShapeError",
@@ -68,4 +73,5 @@ __all__ = [
     "NoConvergenceError",
     "DataError",
     "OutputError",
+    "MissingDependencyError",
 ]

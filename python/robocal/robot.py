@@ -326,6 +326,20 @@ class Robot:
         joints = [Joint("mdh", j.kind, j.hayati, j.limits) for j in self.joints]
         return Robot(self.name, joints, params)
 
+    def to_roboticstoolbox(self, length_unit: str = "m"):
+        """This robot as a ``roboticstoolbox.DHRobot`` (optional extra ``robocal[rtb]``; lengths in
+        metres by default): :func:`robocal.rtb.to_roboticstoolbox`."""
+        from .rtb import to_roboticstoolbox  # the bridge builds on this module (and loads the toolbox)
+
+        return to_roboticstoolbox(self, length_unit)
+
+    @classmethod
+    def from_roboticstoolbox(cls, dhrobot, length_unit: str = "m") -> "Robot":
+        """A robot from a ``roboticstoolbox.DHRobot``: :func:`robocal.rtb.from_roboticstoolbox`."""
+        from .rtb import from_roboticstoolbox
+
+        return from_roboticstoolbox(dhrobot, length_unit)
+
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, {self.n_joints} joints, {self.n_params} parameters)"
 

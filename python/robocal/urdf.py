@@ -37,7 +37,7 @@ from typing import Optional
 
 import numpy as np
 
-from .exceptions import InvalidParameterError
+from .exceptions import InvalidParameterError, MissingDependencyError
 from .geometry import X, Y, Z, frame_params, homogeneous, rotation
 from .robot import Joint, Robot
 
@@ -65,7 +65,7 @@ def _parse(path: Path):
     try:
         import yourdfpy
     except ImportError:
-        raise InvalidParameterError(f"{path}: reading URDF needs the optional dependency yourdfpy: pip install 'robocal[urdf]'") from None
+        raise MissingDependencyError(f"{path}: reading URDF needs yourdfpy, an optional dependency: pip install 'robocal[urdf]'") from None
     try:
         return yourdfpy.URDF.load(str(path), build_scene_graph=False, build_collision_scene_graph=False, load_meshes=False, load_collision_meshes=False)
     except Exception as exc:  # yourdfpy reports a missing attribute as a bare KeyError / AttributeError
