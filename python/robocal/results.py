@@ -7,9 +7,10 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 ``schema``, ``robocal_version``
     What wrote it.
 ``robot``, ``robot_model``
-    The robot's name and its definition: joints (``convention``, ``kind``, ``hayati``,
-    ``limits`` in rad) and the nominal parameter vector — enough to rebuild it without the
-    catalog.
+    The robot's name and its definition: the nominal robot as a robot document (schema
+    ``robocal.robot/1``, angles in rad: :mod:`robocal.robot_file`), plus ``nominal``, the same
+    values as the parameter vector — enough to rebuild it without the catalog. Files written
+    before the robot schema hold joints without values and ``nominal``; both forms read.
 ``measurement``, ``method``
 ``parameters``
     Every parameter: ``name, unit, nominal, value`` (= calibrated), ``deviation, std``
@@ -33,23 +34,18 @@ import os
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 
 from ._robocal import __version__
 from .exceptions import InvalidParameterError
 from .outputs import write_json
-from .robot import Joint, Robot
-
-SCHEMA = "robocal.result/1"
+from .robot import Robot
+from .robot_file import RESULT_SCHEMA as SCHEMA
+from .robot_file import calibrated_robot, not_a_result, robot_document
 
 
 def robot_model(robot: Robot) -> dict:
-    """The robot's definition: joints and nominal parameters."""
-    return {
-        "name": robot.name,
-        "joints": [{"convention": j.convention, "kind": j.kind, "hayati": j.hayati, "limits": [float(v) for v in j.limits]} for j in robot.joints],
-        "nominal": [float(v) for v in robot.params],
-    }
+    """The robot's definition: its robot document (angles in rad) and the nominal parameter vector."""
+    return {**robot_document(robot), "nominal": [float(v) for v in robot.params]}
 
 
 def file_sha256(path) -> Optional[str]:
@@ -87,10 +83,6 @@ def save_result(document: dict, path) -> Path:
     return write_json(path, document)
 
 
-def _fail(where: str, why: str):
-    raise InvalidParameterError(f"{where}: not a robocal result file ({why})")
-
-
 def load_result(source) -> tuple[Robot, dict]:
     """The calibrated robot and the document of a result file (path or dict).
 
@@ -111,23 +103,5 @@ def load_result(source) -> tuple[Robot, dict]:
         except OSError as exc:
             raise InvalidParameterError(f"{where}: cannot read it ({exc.strerror or exc})") from None
         except ValueError as exc:
-            _fail(where, f"invalid JSON: {exc}")
-    if not isinstance(doc, dict):
-        _fail(where, "the top level is not an object")
-    if doc.get("schema") != SCHEMA:
-        _fail(where, f"schema {doc.get('schema')!r}, expected {SCHEMA!r}")
-    from .schemas import ResultSpec, validate  # pydantic loads only when a result is read
-
-    spec = validate(ResultSpec, doc, where)
-    model = spec.robot_model
-    joints = [Joint(j.convention, j.kind, j.hayati, tuple(j.limits)) for j in model.joints]
-    nominal = np.array(model.nominal, dtype=np.float64)
-    calibrated = {p.name: p.value for p in spec.parameters}
-    robot = Robot(model.name, joints, nominal)
-    missing = [n for n in robot.param_names if n not in calibrated]
-    if missing:
-        _fail(where, f"parameters lack {missing[:5]}")
-    values = np.array([calibrated[n] for n in robot.param_names])
-    if not np.all(np.isfinite(values)):
-        _fail(where, "a parameter value is not finite")
-    return Robot(model.name, joints, values), doc
+            not_a_result(where, f"invalid JSON: {exc}")
+    return calibrated_robot(doc, where), doc

@@ -6,7 +6,6 @@ Units inside are mm and radians; degrees appear only where a table is read or wr
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -129,33 +128,28 @@ class Robot:
 
     @classmethod
     def from_file(cls, path: str | Path) -> "Robot":
-        """Reads a robot from JSON or YAML.
+        """Reads a robot document (schema ``robocal.robot/1``, JSON or YAML): a robot file, a
+        result file (its calibrated robot) or a result's ``robot_model``.
 
-        The file holds ``name``, optional ``convention`` (``dh``/``mdh``, default ``dh``) and
-        ``joints``: a list of mappings with ``alpha`` (deg), ``a`` (mm), ``d`` (mm), ``theta`` (deg)
-        and optional ``limits`` ``[lower, upper]`` (deg; mm for a prismatic joint), ``hayati``
-        (bool) and ``kind`` (``revolute``/``prismatic``). Checked strictly
+        The document holds ``joints`` (each ``alpha``, ``a``, ``d``, ``theta`` and optional
+        ``beta``, ``convention``, ``kind``, ``hayati``, ``limits``) and optional ``name``,
+        ``units`` (lengths mm; angles ``deg`` by default or ``rad``), ``convention`` (the joints'
+        default, ``dh``), ``base``, ``tool`` (``x, y, z, rx, ry, rz``) and ``sensor``: see
+        :mod:`robocal.robot_file` and docs/data-format.md. Checked strictly
         (:class:`robocal.schemas.RobotSpec`): an unknown key, a wrong type or a bad value is an
         :class:`InvalidParameterError` naming the file, the joint and the key.
         """
-        path = Path(path)
-        if path.suffix.lower() in (".yaml", ".yml"):
-            import yaml
+        from .robot_file import read_robot_file  # the document module builds on this one
 
-            parse, malformed = yaml.safe_load, yaml.YAMLError
-        else:
-            parse, malformed = json.loads, ValueError
-        try:
-            spec = parse(path.read_text())
-        except OSError as exc:
-            raise InvalidParameterError(f"{path}: cannot read the robot file ({exc.strerror or exc})") from None
-        except (UnicodeDecodeError, malformed) as exc:
-            raise InvalidParameterError(f"{path}: not a robot file ({type(exc).__name__}: {exc})") from None
-        from .schemas import RobotSpec, validate  # pydantic loads only when a robot file is read
+        return read_robot_file(path)
 
-        spec = validate(RobotSpec, spec, str(path))
-        rows = [(j.alpha, j.a, j.d, j.theta, j.limits, j.hayati, j.kind) for j in spec.joints]
-        return cls.from_dh(spec.name or path.stem, rows, convention=spec.convention)
+    def to_file(self, path: str | Path, degrees: bool = False) -> Path:
+        """Writes every field of the robot as a robot document (YAML for ``.yaml``/``.yml``,
+        JSON otherwise) that :meth:`from_file` reads back exactly (angles in rad; ``degrees``
+        writes degrees, back to within one unit in the last place)."""
+        from .robot_file import write_robot_file
+
+        return write_robot_file(self, path, degrees)
 
     # -- the vector ---------------------------------------------------------------------------
     @property
@@ -346,10 +340,12 @@ class Robot:
 
 def robot(name: str) -> Robot:
     """A built-in robot by name (``hsr-jr680``, ``abb-irb120``, ``ur10``), a robot file (JSON or
-    YAML, :meth:`Robot.from_file`) or a parameter table ``robocal export --format dh|mdh`` wrote
-    (CSV, or JSON with the table's schema: :mod:`robocal.robot_table`)."""
+    YAML, :meth:`Robot.from_file`; a result file gives its calibrated robot), a parameter table
+    ``robocal export --format dh|mdh`` wrote (CSV, or JSON with the table's schema:
+    :mod:`robocal.robot_table`) or a URDF (:func:`robocal.urdf.read_urdf`, what
+    ``export --format urdf`` writes too)."""
     if not isinstance(name, (str, Path)):
-        raise InvalidParameterError(f"`robot` must be a robot name or a .json/.yaml/.csv file; got {type(name).__name__} {name!r}")
+        raise InvalidParameterError(f"`robot` must be a robot name or a .json/.yaml/.csv/.urdf file; got {type(name).__name__} {name!r}")
     if name in BUILTIN:
         return Robot.from_dh(name, BUILTIN[name]["dh"])
     suffix = Path(name).suffix.lower()
@@ -365,5 +361,5 @@ def robot(name: str) -> Robot:
     if suffix in (".json", ".yaml", ".yml"):
         return Robot.from_file(name)
     raise InvalidParameterError(
-        f"unknown robot {name!r}; built-in robots are {sorted(BUILTIN)} (or give a .json/.yaml robot file or an exported .csv/.json table)"
+        f"unknown robot {name!r}; built-in robots are {sorted(BUILTIN)} (or give a .json/.yaml robot or result file, an exported .csv/.json table or a .urdf)"
     )

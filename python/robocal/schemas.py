@@ -13,9 +13,9 @@ error carries the location as a tuple that is turned into words here.
 
 from __future__ import annotations
 
-from typing import Any, List, Literal, Optional
+from typing import Annotated, Any, List, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError
 
 from .exceptions import InvalidParameterError
 
@@ -26,26 +26,72 @@ Pair = List[float]
 
 
 class JointSpec(BaseModel):
-    """One joint of a robot file: DH values in deg / mm, limits in deg (mm if prismatic)."""
+    """One joint of a robot document: DH / MDH values (lengths mm, angles in the document's
+    ``units.angle``), limits (the angle unit; mm if prismatic)."""
 
     model_config = _STRICT
     alpha: float
     a: float
     d: float
     theta: float
+    beta: float = 0.0
     limits: Pair = Field(default=[-180.0, 180.0], min_length=2, max_length=2)
     hayati: bool = False
     kind: Literal["revolute", "prismatic"] = "revolute"
+    convention: Optional[Literal["dh", "mdh"]] = None
+
+
+class FrameSpec(BaseModel):
+    """The base or tool frame ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)``: mm and the angle unit."""
+
+    model_config = _STRICT
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    rx: float = 0.0
+    ry: float = 0.0
+    rz: float = 0.0
+
+
+class SensorSpec(BaseModel):
+    """The cable sensor's nominal set-up: anchor (mm), zero offset (mm) and scale."""
+
+    model_config = _STRICT
+    anchor_x: float = 0.0
+    anchor_y: float = 0.0
+    anchor_z: float = 0.0
+    cable_offset: float = 0.0
+    cable_scale: float = 1.0
+
+
+class Units(BaseModel):
+    model_config = _STRICT
+    length: Literal["mm"] = "mm"
+    angle: Literal["deg", "rad"] = "deg"
 
 
 class RobotSpec(BaseModel):
-    """A robot file (JSON or YAML)."""
+    """A robot document (schema ``robocal.robot/1``): a robot file (JSON or YAML) and the result
+    file's ``robot_model``. Every key but ``joints`` (and their DH values) is optional, so robot
+    files written before the schema had a name still read."""
 
     model_config = _STRICT
+    schema_: Optional[Literal["robocal.robot/1"]] = Field(default=None, alias="schema")
     name: Optional[str] = None
     description: Optional[str] = None
+    units: Units = Units()
     convention: Literal["dh", "mdh"] = "dh"
     joints: List[JointSpec] = Field(min_length=1)
+    base: FrameSpec = FrameSpec()
+    tool: FrameSpec = FrameSpec()
+    sensor: SensorSpec = SensorSpec()
+
+
+class ResultRobotSpec(RobotSpec):
+    """A result file's ``robot_model``: the robot document of the nominal robot, plus ``nominal``,
+    the same values as a parameter vector (the form ``robocal.result/1`` files always had)."""
+
+    nominal: Optional[List[float]] = None
 
 
 class ModelJoint(BaseModel):
@@ -57,10 +103,20 @@ class ModelJoint(BaseModel):
 
 
 class RobotModel(BaseModel):
+    """The ``robot_model`` of result files written before the robot schema: joints without
+    values and the nominal vector (limits in rad)."""
+
     model_config = _STRICT
     name: str
     joints: List[ModelJoint] = Field(min_length=1)
     nominal: List[float]
+
+
+def _model_form(value) -> str:
+    return "document" if isinstance(value, dict) and "units" in value else "vector"
+
+
+AnyRobotModel = Annotated[Union[Annotated[ResultRobotSpec, Tag("document")], Annotated[RobotModel, Tag("vector")]], Discriminator(_model_form)]
 
 
 class Parameter(BaseModel):
@@ -102,7 +158,7 @@ class ResultSpec(BaseModel):
     robot: Optional[str] = None
     measurement: Literal["cable", "position", "pose"]
     method: Optional[str] = None
-    robot_model: RobotModel
+    robot_model: AnyRobotModel
     parameters: List[Parameter]
     implausible: List[Implausible] = []
     metrics: dict[str, Optional[Metrics]] = {}
@@ -115,6 +171,7 @@ class ResultSpec(BaseModel):
 def _where(loc: tuple, document: str) -> str:
     """``('joints', 2, 'hayatti')`` as ``joint 3, key 'hayatti'``."""
     words, i = [], 0
+    loc = tuple(k for k in loc if k not in ("document", "vector"))  # the robot_model form's tag
     while i < len(loc):
         key = loc[i]
         if key in ("joints", "parameters", "implausible") and i + 1 < len(loc) and isinstance(loc[i + 1], int):
@@ -140,6 +197,9 @@ def validate(model: type[BaseModel], document, where: str) -> BaseModel:
         got = "" if e["type"] in ("missing", "extra_forbidden") else f"; got {repr(e.get('input'))[:60]}"
         what = "unknown key" if e["type"] == "extra_forbidden" else e["msg"][0].lower() + e["msg"][1:]
         if e["type"] == "extra_forbidden" and model is RobotSpec:
-            what += f" (allowed: {', '.join(JointSpec.model_fields if len(e['loc']) > 2 else RobotSpec.model_fields)})"
+            section = {"joints": JointSpec, "base": FrameSpec, "tool": FrameSpec, "sensor": SensorSpec, "units": Units}.get(
+                e["loc"][0] if len(e["loc"]) > 1 else None, RobotSpec
+            )
+            what += f" (allowed: {', '.join(f.alias or name for name, f in section.model_fields.items())})"
         more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
         raise InvalidParameterError(f"{where}: {_where(e['loc'], 'the top level')}: {what}{got}{more}") from None

@@ -38,7 +38,7 @@ from typing import Optional
 import numpy as np
 
 from .exceptions import InvalidParameterError, MissingDependencyError
-from .geometry import X, Y, Z, frame_params, homogeneous, rotation
+from .geometry import X, Y, frame_params, homogeneous, rotation
 from .robot import Joint, Robot
 
 #: Consecutive joint axes closer to parallel than this (degrees) get Hayati's ``beta`` instead of ``d``.

@@ -1,0 +1,163 @@
+"""The robot document (schema ``robocal.robot/1``): one shape for robot files (JSON or YAML,
+:meth:`Robot.to_file` / :meth:`Robot.from_file`) and the result file's ``robot_model``.
+
+Keys (docs/data-format.md, "Robot files"): ``schema``, ``name``, ``description``, ``units``
+(``length`` ``mm``; ``angle`` ``deg``, the default, or ``rad``), ``convention`` (the joints'
+default), ``joints`` (``convention, kind, alpha, a, d, theta, beta, hayati, limits``), ``base``
+and ``tool`` (``x, y, z, rx, ry, rz``: ``Tx Ty Tz Rz Ry Rx``) and ``sensor`` (``anchor_x,
+anchor_y, anchor_z, cable_offset, cable_scale``). Only ``joints`` and their ``alpha, a, d, theta``
+are required, so hand-written files stay short and the files written before this schema read.
+:func:`write_robot_file` writes every key, angles in rad by default: ``from_file(to_file(r))``
+gives ``r`` back bit for bit (in degrees the conversion may move a value by one unit in the last
+place). The export table (:mod:`robocal.robot_table`) holds the same fields, one row per joint.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import InvalidParameterError
+from .outputs import write_json, write_text
+from .robot import Joint, Robot
+
+SCHEMA = "robocal.robot/1"
+#: The result file's schema (:mod:`robocal.results`): :func:`read_robot_file` reads its calibrated robot.
+RESULT_SCHEMA = "robocal.result/1"
+FRAME_KEYS = ("x", "y", "z", "rx", "ry", "rz")
+SENSOR_KEYS = ("anchor_x", "anchor_y", "anchor_z", "cable_offset", "cable_scale")
+
+
+def robot_document(robot: Robot, degrees: bool = False) -> dict:
+    """Every field of ``robot`` as a robot document (lengths mm; angles rad, or deg when ``degrees``)."""
+    angle = math.degrees if degrees else float
+    p = robot.params
+    joints = []
+    for j, joint in enumerate(robot.joints):
+        alpha, a, d, theta, beta = (float(v) for v in p[5 * j : 5 * j + 5])
+        limit = angle if joint.kind == "revolute" else float
+        joints.append({
+            "convention": joint.convention, "kind": joint.kind, "alpha": angle(alpha), "a": a, "d": d, "theta": angle(theta),
+            "beta": angle(beta), "hayati": bool(joint.hayati), "limits": [limit(float(v)) for v in joint.limits],
+        })  # fmt: skip
+
+    def frame(prefix: str) -> dict:
+        start = robot.index(f"{prefix}_x")
+        return {k: (angle if k.startswith("r") else float)(float(v)) for k, v in zip(FRAME_KEYS, p[start : start + 6])}
+
+    return {
+        "schema": SCHEMA,
+        "name": robot.name,
+        "units": {"length": "mm", "angle": "deg" if degrees else "rad"},
+        "joints": joints,
+        "base": frame("base"),
+        "tool": frame("tool"),
+        "sensor": {k: float(p[robot.index(k)]) for k in SENSOR_KEYS},
+    }
+
+
+def robot_from_spec(spec, name: str) -> Robot:
+    """The :class:`Robot` of a validated :class:`robocal.schemas.RobotSpec`."""
+    to_rad = math.radians if spec.units.angle == "deg" else float
+    joints, values = [], []
+    for j in spec.joints:
+        kind = j.kind
+        limits = tuple(to_rad(v) if kind == "revolute" else float(v) for v in j.limits)
+        joints.append(Joint(j.convention or spec.convention, kind, j.hayati, limits))
+        values += [to_rad(j.alpha), j.a, j.d, to_rad(j.theta), to_rad(j.beta)]
+    for frame in (spec.base, spec.tool):
+        values += [to_rad(getattr(frame, k)) if k.startswith("r") else getattr(frame, k) for k in FRAME_KEYS]
+    values += [getattr(spec.sensor, k) for k in SENSOR_KEYS]
+    return Robot(spec.name or name, joints, np.array(values, dtype=np.float64))
+
+
+def robot_from_model(model) -> Robot:
+    """The nominal robot of a result's validated ``robot_model``: a robot document, or the older
+    form (joints without values and the ``nominal`` vector)."""
+    if hasattr(model, "units"):
+        return robot_from_spec(model, model.name or "robot")
+    joints = [Joint(j.convention, j.kind, j.hayati, tuple(j.limits)) for j in model.joints]
+    return Robot(model.name, joints, np.array(model.nominal, dtype=np.float64))
+
+
+def not_a_result(where: str, why: str):
+    raise InvalidParameterError(f"{where}: not a robocal result file ({why})")
+
+
+def calibrated_robot(doc: dict, where: str) -> Robot:
+    """The calibrated robot of a result document: its ``robot_model`` with every parameter at its
+    calibrated ``value``.
+
+    Raises
+    ------
+    InvalidParameterError
+        Naming ``where`` (the file) and what is wrong: another schema, missing or malformed keys,
+        a parameter missing or not finite.
+    """
+    if not isinstance(doc, dict):
+        not_a_result(where, "the top level is not an object")
+    if doc.get("schema") != RESULT_SCHEMA:
+        not_a_result(where, f"schema {doc.get('schema')!r}, expected {RESULT_SCHEMA!r}")
+    from .schemas import ResultSpec, validate  # pydantic loads only when a document is read
+
+    spec = validate(ResultSpec, doc, where)
+    robot = robot_from_model(spec.robot_model)
+    calibrated = {p.name: p.value for p in spec.parameters}
+    missing = [n for n in robot.param_names if n not in calibrated]
+    if missing:
+        not_a_result(where, f"parameters lack {missing[:5]}")
+    values = np.array([calibrated[n] for n in robot.param_names])
+    if not np.all(np.isfinite(values)):
+        not_a_result(where, "a parameter value is not finite")
+    return Robot(robot.name, robot.joints, values)
+
+
+def read_document(path) -> object:
+    """The parsed JSON or YAML (by suffix) of ``path``, or an error naming the file."""
+    path = Path(path)
+    if path.suffix.lower() in (".yaml", ".yml"):
+        import yaml
+
+        parse, malformed = yaml.safe_load, yaml.YAMLError
+    else:
+        parse, malformed = json.loads, ValueError
+    try:
+        return parse(path.read_text())
+    except OSError as exc:
+        raise InvalidParameterError(f"{path}: cannot read the robot file ({exc.strerror or exc})") from None
+    except (UnicodeDecodeError, malformed) as exc:
+        raise InvalidParameterError(f"{path}: not a robot file ({type(exc).__name__}: {exc})") from None
+
+
+def read_robot_file(path) -> Robot:
+    """The robot of a robot file (JSON or YAML), of a result file (the calibrated robot) or of a
+    result's ``robot_model`` section saved on its own.
+
+    Checked strictly (:class:`robocal.schemas.RobotSpec`): an unknown key, a wrong type or a bad
+    value is an :class:`InvalidParameterError` naming the file, the joint and the key.
+    """
+    path = Path(path)
+    doc = read_document(path)
+    if isinstance(doc, dict) and doc.get("schema") == RESULT_SCHEMA:
+        return calibrated_robot(doc, str(path))
+    from .schemas import RobotModel, RobotSpec, validate
+
+    if isinstance(doc, dict) and "nominal" in doc and "units" not in doc:  # an older result's robot_model
+        return robot_from_model(validate(RobotModel, doc, str(path)))
+    if isinstance(doc, dict) and "nominal" in doc:
+        doc = {k: v for k, v in doc.items() if k != "nominal"}  # a robot_model: its document is the robot
+    return robot_from_spec(validate(RobotSpec, doc, str(path)), path.stem)
+
+
+def write_robot_file(robot: Robot, path, degrees: bool = False) -> Path:
+    """Writes :func:`robot_document` as YAML (``.yaml``/``.yml``) or JSON (anything else)."""
+    path = Path(path)
+    doc = robot_document(robot, degrees)
+    if path.suffix.lower() in (".yaml", ".yml"):
+        import yaml
+
+        return write_text(path, yaml.safe_dump(doc, sort_keys=False))
+    return write_json(path, doc)
