@@ -148,3 +148,16 @@ def random_spd(rng: np.random.Generator, n: int, scales=None) -> np.ndarray:
     if scales is not None:
         P = P * np.outer(scales, scales)
     return (P + P.T) / 2
+
+
+def three_joint_robot(conventions, kinds, beta: bool = True, name: str = "custom"):
+    """A 3-joint robot off every default: skew links, base and tool frames, Hayati ``beta`` on
+    joints 2 and 3 unless ``beta`` is False; revolute limits ±3 rad, prismatic 0–400 mm."""
+    from robocal.robot import Joint, Robot
+
+    limits = {"revolute": (-3.0, 3.0), "prismatic": (0.0, 400.0)}
+    params = np.zeros(5 * 3 + 17)
+    params[:15] = [0.3, 120.0, 400.0, 0.2, 0.0, -1.2, 35.0, 80.0, 0.1, 0.01 * beta, 0.4, 20.0, 60.0, -0.3, 0.02 * beta]
+    params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
+    params[-1] = 1.0
+    return Robot(name, [Joint(c, k, False, limits[k]) for c, k in zip(conventions, kinds)], params)

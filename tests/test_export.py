@@ -18,8 +18,9 @@ from robocal import export as ex
 from robocal.cli import export as export_cli
 from robocal.exceptions import InvalidParameterError
 from robocal.results import load_result
-from robocal.robot import Joint, Robot
 from robocal.simulation import simulate
+
+from helpers import three_joint_robot
 
 POS_TOL, ROT_TOL = 1e-6, 1e-9  # mm, rad
 
@@ -132,18 +133,8 @@ def test_urdf_of_an_mdh_robot(calibrated):
     _assert_exact(ex.roundtrip_check(robot, ex.export_urdf(robot.to_mdh())))
 
 
-def _robot(conventions, kinds) -> Robot:
-    limits = {"revolute": (-3.0, 3.0), "prismatic": (0.0, 400.0)}
-    joints = [Joint(c, k, False, limits[k]) for c, k in zip(conventions, kinds)]
-    params = np.zeros(5 * 3 + 17)
-    params[:15] = [0.3, 120.0, 400.0, 0.2, 0.0, -1.2, 35.0, 80.0, 0.1, 0.01, 0.4, 20.0, 60.0, -0.3, 0.02]
-    params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
-    params[-1] = 1.0
-    return Robot("custom", joints, params)
-
-
 def test_prismatic_joint():
-    robot = _robot(["dh"] * 3, ["revolute", "prismatic", "revolute"])
+    robot = three_joint_robot(["dh"] * 3, ["revolute", "prismatic", "revolute"])
     urdf = ex.export_urdf(robot)
     _assert_exact(ex.roundtrip_check(robot, urdf))
     prismatic = [j for j in ET.fromstring(urdf).iter("joint") if j.get("type") == "prismatic"]
@@ -155,7 +146,7 @@ def test_prismatic_joint():
 
 
 def test_mixed_convention_chain():
-    robot = _robot(["dh", "mdh", "mdh"], ["revolute", "revolute", "prismatic"])
+    robot = three_joint_robot(["dh", "mdh", "mdh"], ["revolute", "revolute", "prismatic"])
     _assert_exact(ex.roundtrip_check(robot, ex.export_urdf(robot)))
     for convention in ("dh", "mdh"):
         with pytest.raises(InvalidParameterError, match="modified DH only"):

@@ -16,6 +16,8 @@ from robocal.catalog import BUILTIN
 from robocal.exceptions import InvalidParameterError
 from robocal.robot import Joint, Robot
 
+from helpers import three_joint_robot
+
 rtb = pytest.importorskip("roboticstoolbox")
 
 
@@ -60,12 +62,7 @@ def test_builtin_robots_agree_with_fkine(name, convention):
 
 
 def test_millimetres_and_prismatic_joints():
-    joints = [Joint("dh", "revolute", False, (-3.0, 3.0)), Joint("dh", "prismatic", False, (0.0, 400.0)), Joint("dh", "revolute", False, (-2.0, 2.0))]
-    params = np.zeros(5 * 3 + 17)
-    params[:15] = [0.3, 120.0, 400.0, 0.2, 0.0, -1.2, 35.0, 80.0, 0.1, 0.0, 0.4, 20.0, 60.0, -0.3, 0.0]
-    params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
-    params[-1] = 1.0
-    robot = Robot("rpr", joints, params)
+    robot = three_joint_robot(["dh"] * 3, ["revolute", "prismatic", "revolute"], beta=False, name="rpr")
     for unit in ("m", "mm"):
         dh = robot.to_roboticstoolbox(length_unit=unit)
         assert dh.links[1].isprismatic and dh.links[1].qlim[1] == pytest.approx(400.0 if unit == "mm" else 0.4)

@@ -18,6 +18,8 @@ from robocal.catalog import BUILTIN
 from robocal.exceptions import InvalidParameterError
 from robocal.robot import Joint, Robot
 
+from helpers import three_joint_robot
+
 pytest.importorskip("yourdfpy")
 from robocal.urdf import read_urdf  # noqa: E402
 
@@ -90,12 +92,7 @@ def test_calibrated_robot_round_trip(tmp_path):
 
 
 def test_prismatic_and_mixed_conventions(tmp_path):
-    joints = [Joint("dh", "revolute", False, (-3.0, 3.0)), Joint("mdh", "prismatic", False, (0.0, 400.0)), Joint("mdh", "revolute", False, (-2.0, 2.0))]
-    params = np.zeros(5 * 3 + 17)
-    params[:15] = [0.3, 120.0, 400.0, 0.2, 0.0, -1.2, 35.0, 80.0, 0.1, 0.01, 0.4, 20.0, 60.0, -0.3, 0.02]
-    params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
-    params[-1] = 1.0
-    r = Robot("custom", joints, params)
+    r = three_joint_robot(["dh", "mdh", "mdh"], ["revolute", "prismatic", "revolute"])
     back = _through_urdf(r, tmp_path)
     assert [j.kind for j in back.joints] == ["revolute", "prismatic", "revolute"]
     assert back.joints[1].limits == pytest.approx((0.0, 400.0))  # m in the URDF, mm here
