@@ -25,7 +25,7 @@ def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) 
         parser.add_argument("data", nargs="+", help="measurement file(s); several files are sessions of one robot (judged leave-one-session-out)")
     else:
         parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
-    parser.add_argument("--robot", help="robot name or .json/.yaml file (default: the one the data name)")
+    parser.add_argument("--robot", help="robot name, or a robot / result .json/.yaml, exported table or .urdf file (default: the one the data name)")
     parser.add_argument("--measurement", choices=["cable", "position", "pose"])
     add_angle_unit_argument(parser)
 

@@ -9,7 +9,9 @@ from ..simulation import simulate, write_simulation
 
 def add_arguments(parser) -> None:
     """Arguments of ``robocal simulate``."""
-    parser.add_argument("--robot", default="hsr-jr680", help="built-in robot or robot file (default hsr-jr680)")
+    parser.add_argument(
+        "--robot", default="hsr-jr680", help="built-in robot, or a robot / result .json/.yaml, exported table or .urdf file (default hsr-jr680)"
+    )
     parser.add_argument("--measurement", default="cable", choices=MEASUREMENTS, help="observation type (default cable)")
     parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
     parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
