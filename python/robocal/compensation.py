@@ -35,7 +35,7 @@ import numpy as np
 
 from .core import as_float_array, solve_damped
 from .diagnosis import structure
-from .diagnosis.candidates import COMPENSABLE, joint_offsets
+from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
@@ -228,7 +228,8 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
     -------
     list of dict
         Per target, in order: ``row``, ``q`` (deg), ``correction`` (deg, against the seed),
-        ``residual_mm`` (the calibrated model's distance to the target), ``status``.
+        ``residual_mm`` (the calibrated model's distance to the target), ``status`` (which says
+        when a joint lies beyond the range a joint map was fitted on).
     """
     calibrated, doc = load_result(result)
     nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])  # checked by load_result
@@ -252,8 +253,13 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         # Seeds and commands in the controller's convention; the model solves in its own.
         seed = targets.seeds[i] if targets.seeds is not None else structure.to_readings(nominal_seed(nominal, target)[None, :], conventions)[0]
         q, error, status = solve_joints(calibrated, target, structure.to_model(seed[None, :], conventions)[0], offsets=offsets)
+        beyond = [m for m in map_coverage_report(causes, q[None, :]) if m["outside"]]
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
+        if beyond:  # the map is held at its end value there: the user must know
+            status += "; extrapolated: " + ", ".join(
+                f"joint {m['joint']} beyond the map's range {m['range_deg'][0]:g}..{m['range_deg'][1]:g} deg" for m in beyond
+            )
         out.append(
             {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
         )

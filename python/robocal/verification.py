@@ -25,7 +25,7 @@ from .calibration.problem import Problem
 from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
 from .diagnosis import structure
-from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets
+from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_report
 from .results import load_result
 from .robot import Robot, setup_names
 
@@ -81,7 +81,9 @@ def verify(
         ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``refit`` (the set-up
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
         ``metrics``), ``applied`` (``structure`` and ``causes`` labels), ``not_applied``
-        (``{label, reason}``), ``robot``, ``measurement``, ``samples``, ``data`` (its source).
+        (``{label, reason}``), ``coverage`` (per joint map: the samples beyond its fitted range,
+        :func:`~robocal.diagnosis.candidates.map_coverage_report`), ``robot``, ``measurement``,
+        ``samples``, ``data`` (its source).
     """
     calibrated, doc = load_result(result)
     dataset, _ = load_inputs(data, calibrated, measurement or doc["measurement"], angle_unit)
@@ -108,4 +110,6 @@ def verify(
         "nominal": {"metrics": nominal_metrics},
         "applied": {"structure": list(doc.get("structure", [])), "causes": [c.get("label", c["kind"]) for c in carried]},
         "not_applied": not_applied,
+        # Joint maps are held at their end value beyond the range they were fitted on.
+        "coverage": map_coverage_report(carried, read.q, read.rows),
     }

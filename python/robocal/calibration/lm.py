@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from ..core import as_count, as_positive, as_tolerance, factor_damped
+from ..core import as_count, as_positive, as_tolerance, factor_damped, is_sparse
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
@@ -164,19 +164,19 @@ def _minimise(
     best_x, best_cost, previous, gains = x, cost, None, []
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
     J = problem.jacobian(x)
-    scale, fresh = np.sum(J * J, axis=0), True
+    scale, fresh = _column_squares(J), True
     weighted = objective.loss != "linear"  # least squares: the weights are all 1
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
-            Jw, rw = (J * w[:, None], r * w) if weighted else (J, r)
+            Jw, rw = (_scaled(J, rows=w), r * w) if weighted else (J, r)
             g = Jw.T @ rw
             if np.max(np.abs(g)) < gtol:
                 success, message = True, "`gtol` termination condition is satisfied"
                 break
-            scale = np.maximum(scale, np.sum(Jw * Jw, axis=0))
+            scale = np.maximum(scale, _column_squares(Jw))
             d = np.sqrt(np.where(scale > 0, scale, 1.0))
-            factored = factor_damped(Jw / d)
+            factored = factor_damped(_scaled(Jw, columns=1.0 / d))
             c = factored.project(rw)
             if statistical_stop:
                 noise = np.sqrt(2.0 * cost / dof)
@@ -242,6 +242,22 @@ def _minimise(
     result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start)
     result.njev = njev
     return result
+
+
+def _column_squares(J) -> np.ndarray:
+    """Squared column norms of a dense or a scipy.sparse ``J``."""
+    return np.asarray(J.multiply(J).sum(axis=0)).ravel() if is_sparse(J) else np.sum(J * J, axis=0)
+
+
+def _scaled(J, rows=None, columns=None):
+    """``diag(rows)·J·diag(columns)`` of a dense or a scipy.sparse ``J``."""
+    if is_sparse(J):
+        from scipy import sparse
+
+        J = J if rows is None else sparse.diags_array(rows) @ J
+        return (J if columns is None else J @ sparse.diags_array(columns)).tocsr()
+    J = J if rows is None else J * rows[:, None]
+    return J if columns is None else J * columns
 
 
 def _cosine(u: np.ndarray, v: np.ndarray, d: np.ndarray) -> float:

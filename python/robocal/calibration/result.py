@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core import covariance
+from ..core import covariance, is_sparse
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
@@ -162,13 +162,17 @@ class CalibrationResult:
         Each is ``{"std": σ̂/s (in limits), "combination": {name: weight}}`` with the ``shown``
         largest weights of ``v`` (unit norm; a parameter's move is weight · std · its limit).
         """
-        J = np.asarray(self.problem.jacobian(self.x), dtype=np.float64)
+        J = self.problem.jacobian(self.x)
         r = self.problem.residuals(self.x)
         if J.shape[0] <= J.shape[1] or J.shape[1] == 0:
             return []
         units = [self.problem.robot.param_units[k] for k in self.problem.free]
         limits = np.array([PLAUSIBLE.get(u, 0.01) for u in units] + [1.0] * (J.shape[1] - len(units)))
-        _, sv, Vt = np.linalg.svd(J * limits, full_matrices=False)
+        # The singular values and directions of J·diag(limits), from its normal equations (J may be sparse).
+        N = J.T @ J
+        N = (N.toarray() if is_sparse(N) else np.asarray(N)) * np.outer(limits, limits)
+        s2, V = np.linalg.eigh(N)
+        sv, Vt = np.sqrt(np.maximum(s2[::-1], 0.0)), V[:, ::-1].T  # largest first, as an SVD gives them
         noise = float(np.sqrt(r @ r / (J.shape[0] - J.shape[1])))
         names = list(self.problem.names)
         out = []

@@ -4,7 +4,7 @@ Every candidate is linear in its coefficients ``c`` and acts at one stage of the
 
 ``joints``
     the angle the link really takes, ``q_j + B(q, order)·c`` (compliance, periodic gear error,
-    scale, coupling, backlash). Its Jacobian columns are ``∂h/∂q_j · B`` — and ``∂h/∂q_j`` is the
+    scale, coupling, backlash, a joint error map). Its Jacobian columns are ``∂h/∂q_j · B`` — and ``∂h/∂q_j`` is the
     ``theta_j`` column of the identification Jacobian, since ``theta_j`` adds to ``q_j``.
 ``observations``
     the reading, ``h + B·c`` (drift, temperature, a step of the sensor's zero).
@@ -20,6 +20,7 @@ acquisition order (backlash needs each sample's predecessor) and sliced for the 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -30,12 +31,17 @@ from ..physics import DEG, MASS_MODELS, approach_directions, gravity_torques
 from ..core import as_float_array
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
+from ..stats import robust_sigma
 
 #: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).
 #: Compliance: joint stiffness above 1e3 N·m/rad; gear errors, backlash and misalignments below
 #: 1 deg; scale and coupling below 1 %; drift below 10 mm/h; expansion coefficients
 #: 0-100e-6/K (steel 12, aluminium 23, plastics up to ~100).
 LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h": 10.0, "alpha": 100e-6}
+
+#: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
+#: only describe it).
+LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -68,6 +74,8 @@ class Candidate:
     signal : ndarray, optional
         A per-sample signal the columns are built from at fit time (the temperature rise of
         ``temperature`` on the links, whose columns depend on the current parameters).
+    penalty : ndarray, optional
+        Rows ``P`` (mm) added to the residuals as ``P·c``: the roughness penalty of a joint map.
     """
 
     kind: str
@@ -77,11 +85,12 @@ class Candidate:
     params: list = field(default_factory=list)
     detail: dict = field(default_factory=dict)
     signal: Optional[np.ndarray] = None
+    penalty: Optional[np.ndarray] = None
 
     @property
     def label(self) -> str:
         where = f" joint {self.joint + 1}" if self.joint is not None else ""
-        extra = "".join(f" {k}={v}" for k, v in self.detail.items() if k not in ("unit", "axes"))
+        extra = "".join(f" {k}={v}" for k, v in self.detail.items() if k in LABELLED)
         return f"{self.kind}{where}{extra}"
 
     @property
@@ -112,6 +121,12 @@ class Candidate:
                 "harmonic": q(self.detail["harmonic"], np.nan, "cycles/rev"),
             }
             return out, (f"amplitude {amp / DEG:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg" if amp > LIMITS["angle"] else None)
+        if kind == "joint_map":
+            curve = map_curve(self.detail, c)
+            peak = float(np.max(np.abs(curve["value_deg"])))
+            out = {"peak": q(peak, np.nan, "deg"), "rms": q(float(np.sqrt(np.mean(np.square(curve["value_deg"])))), np.nan, "deg"),
+                   "spacing": q(self.detail["spacing"], np.nan, "deg"), "coefficients": q(len(c), np.nan, "")}  # fmt: skip
+            return out, (f"peak {peak:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg" if peak > LIMITS["angle"] / DEG else None)
         if kind in ("joint_scale", "joint_coupling"):
             name = "scale" if kind == "joint_scale" else "coefficient"
             out = {name: q(c[0], s[0], "1")}
@@ -176,7 +191,121 @@ def joint_basis(robot: Robot, q: np.ndarray, kind: str, joint: int, detail: dict
         return q[:, detail["source"] - 1 : detail["source"]].copy()
     if kind == "backlash":
         return approach_directions(qj)[:, None]
+    if kind == "joint_map":
+        return map_basis(qj, detail)
     raise InvalidParameterError(f"{kind!r} is not a joint cause")
+
+
+# -- joint error maps -------------------------------------------------------------------------
+#: Knot spacings (deg) and roughness scales (deg, the prior width of a second difference of the
+#: map's spline coefficients) a joint map is tried with; grouped cross-validation chooses.
+MAP_SPACINGS_DEG = (2.0, 5.0, 15.0)
+MAP_ROUGHNESS_DEG = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
+#: Cubic B-splines.
+MAP_DEGREE = 3
+
+
+def _map_knots(detail: dict) -> np.ndarray:
+    """Uniform knots of ``spacing`` from ``lo`` past ``hi`` (deg → rad), with the ``MAP_DEGREE``
+    extra knots each side a B-spline basis needs."""
+    lo, hi, h = (float(detail[k]) * DEG for k in ("lo", "hi", "spacing"))
+    spans = max(1, int(math.ceil((hi - lo) / h - 1e-9)))
+    return lo + h * np.arange(-MAP_DEGREE, spans + MAP_DEGREE + 1)
+
+
+def map_constraint(n: int) -> np.ndarray:
+    """``Z`` (n, n−1): spline coefficients ``Z·c`` that sum to zero. A constant map is the joint's
+    ``theta`` offset, which the geometry already fits; without the constant the two are separable."""
+    return np.vstack([np.eye(n - 1), -np.ones((1, n - 1))])
+
+
+def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
+    """``B·Z`` (m, n−1, scipy.sparse) of a joint map at angles ``qj`` (rad): cubic B-splines on
+    :func:`_map_knots`, constrained by :func:`map_constraint`. Angles beyond the map's range
+    ``[lo, hi]`` take the value at its end (the map is not extrapolated: :func:`map_coverage`)."""
+    from scipy.interpolate import BSpline  # imported on use: only maps need it
+
+    from scipy import sparse
+
+    t = _map_knots(detail)
+    x = np.clip(np.asarray(qj, dtype=np.float64), float(detail["lo"]) * DEG, float(detail["hi"]) * DEG)
+    B = sparse.csr_array(BSpline.design_matrix(x, t, MAP_DEGREE, extrapolate=True))
+    return (B @ sparse.csr_array(map_constraint(B.shape[1]))).tocsr()
+
+
+def map_penalty(detail: dict, weight: float) -> np.ndarray:
+    """Roughness rows ``weight·D₂·Z`` of a map: the second differences of its spline
+    coefficients, ``weight`` (mm/rad) the noise over the roughness scale."""
+    n = len(_map_knots(detail)) - MAP_DEGREE - 1
+    D2 = np.diff(np.eye(n), n=2, axis=0)
+    return weight * D2 @ map_constraint(n)
+
+
+def map_curve(detail: dict, c: np.ndarray, cov: Optional[np.ndarray] = None, points: int = 0) -> dict:
+    """The map as a table: angles (deg) over its range, the correction (deg) and, given the
+    coefficients' covariance ``cov``, its standard deviation (deg)."""
+    lo, hi = float(detail["lo"]), float(detail["hi"])
+    n = points or max(2, int(round((hi - lo) / (float(detail["spacing"]) / 4.0))) + 1)
+    angles = np.linspace(lo, hi, n)
+    B = map_basis(angles * DEG, detail).toarray()
+    out = {"angle_deg": angles, "value_deg": B @ np.asarray(c) / DEG}
+    if cov is not None:
+        out["std_deg"] = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", B, cov, B), 0.0)) / DEG
+    return out
+
+
+def map_coverage(qj: np.ndarray, detail: dict) -> np.ndarray:
+    """True where an angle lies within the range the map was fitted on."""
+    return (qj >= float(detail["lo"]) * DEG - 1e-9) & (qj <= float(detail["hi"]) * DEG + 1e-9)
+
+
+def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.ndarray] = None) -> list[dict]:
+    """For each joint map among a result file's ``causes``: how many of the joint angles ``q``
+    (m, N, rad) lie beyond the range it was fitted on (where the map is held at its end value:
+    an extrapolation), and the first rows (``rows``, default 0-based sample indices) that do."""
+    out = []
+    for cause in causes:
+        if cause.get("kind") != "joint_map":
+            continue
+        j, detail = cause["joint"] - 1, cause["detail"]
+        outside = np.flatnonzero(~map_coverage(q[:, j], detail))
+        where = outside if rows is None else np.asarray(rows)[outside]
+        out.append({"label": cause.get("label", cause["kind"]), "joint": j + 1, "range_deg": [detail["lo"], detail["hi"]],
+                    "outside": int(len(outside)), "rows": [int(v) for v in where[:20]]})  # fmt: skip
+    return out
+
+
+def map_noise(residuals: np.ndarray) -> float:
+    """Robust scale (mm) of one component of a fit's residuals (m, k): what weighs a map's roughness."""
+    return float(np.sqrt(np.mean(robust_sigma(np.asarray(residuals)) ** 2)))
+
+
+def map_candidate(data: Dataset, joint: int, spacing: float, roughness: float, noise: float, span: tuple) -> Candidate:
+    """The joint map of ``joint`` (0-based) with knots every ``spacing`` deg and second
+    differences of prior width ``roughness`` deg, over ``span`` = (lo, hi) rad, weighed against
+    residuals of scale ``noise`` mm."""
+    detail = {"spacing": float(spacing), "roughness": float(roughness), "lo": math.floor(span[0] / DEG * 1e6) / 1e6, "hi": math.ceil(span[1] / DEG * 1e6) / 1e6}
+    detail["weight"] = noise / (roughness * DEG)
+    return Candidate("joint_map", joint, "joints", map_basis(data.q[:, joint], detail), detail=detail, penalty=map_penalty(detail, detail["weight"]))
+
+
+#: A joint map's label, as :attr:`Candidate.label` writes it.
+MAP_LABEL = re.compile(r"joint_map joint (\d+) spacing=([0-9.]+) roughness=([0-9.eE+-]+)")
+
+
+def map_candidates(robot: Robot, data: Dataset, joints: list[int], noise: float, idx: Optional[np.ndarray] = None) -> list[Candidate]:
+    """Joint maps of every spacing and roughness in :data:`MAP_SPACINGS_DEG` ×
+    :data:`MAP_ROUGHNESS_DEG` for the revolute ``joints``, each over the joint's range in the
+    samples ``idx`` of ``data`` (default all)."""
+    q = data.q if idx is None else data.q[idx]
+    out = []
+    for j in joints:
+        span = (float(np.min(q[:, j])), float(np.max(q[:, j])))
+        if robot.joints[j].kind != "revolute":
+            continue
+        out += [map_candidate(data, j, spacing, roughness, noise, span) for spacing in MAP_SPACINGS_DEG if (span[1] - span[0]) / DEG >= 2.0 * spacing
+                for roughness in MAP_ROUGHNESS_DEG]  # fmt: skip
+    return out
 
 
 def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = True) -> list[Candidate]:
@@ -280,7 +409,7 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
 
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the
 #: approach direction, observation causes belong to the sensor, not the robot).
-COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling")
+COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling", "joint_map")
 #: Every cause acting on the joints: what a result carries to a new session of the same robot.
 JOINT_KINDS = COMPENSABLE + ("backlash",)
 
@@ -296,7 +425,8 @@ def _check_joint_cause(robot: Robot, cause: dict) -> None:
     except (KeyError, TypeError, IndexError) as exc:
         raise InvalidParameterError(f"{where}: malformed `detail` {detail!r} ({type(exc).__name__}: {exc})") from None
     coefficients = as_float_array(cause.get("coefficients"), f"{where} coefficients")
-    if coefficients.shape != (basis.shape[1],) or not (np.all(np.isfinite(coefficients)) and np.all(np.isfinite(basis))):
+    values = basis.data if hasattr(basis, "data") and not isinstance(basis, np.ndarray) else basis
+    if coefficients.shape != (basis.shape[1],) or not (np.all(np.isfinite(coefficients)) and np.all(np.isfinite(values))):
         raise InvalidParameterError(f"{where}: needs {basis.shape[1]} finite coefficients for a finite basis; got {cause.get('coefficients')!r}")
 
 

@@ -24,7 +24,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..robot import Robot
 from . import structure
-from .candidates import library, step_candidate
+from .candidates import MAP_LABEL, library, map_candidate, map_noise, step_candidate
 from .model import ExtendedProblem
 
 
@@ -143,10 +143,19 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
     """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
     ``dataset`` (bases such as backlash and drift need the whole sequence)."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
-    for label in causes:  # steps sit where diagnose found them: their label says where
+    noise = None
+    for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
         if step:
             pool[label] = step_candidate(dataset, int(step.group(1)))
+        joint_map = MAP_LABEL.fullmatch(label)
+        if joint_map and 1 <= int(joint_map.group(1)) <= problem.robot.n_joints:
+            if noise is None:  # the roughness is weighed against the geometric fit's residuals
+                geometric = levenberg_marquardt(problem)
+                noise = map_noise(problem.data_residuals(geometric.x).reshape(len(problem.data), -1))
+            j = int(joint_map.group(1)) - 1
+            span = (float(np.min(dataset.q[idx, j])), float(np.max(dataset.q[idx, j])))
+            pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, span)
     unknown = [c for c in causes if c not in pool]
     if unknown:
         raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..calibration.problem import Problem
+from ..core import is_sparse
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
 from .candidates import Candidate
@@ -121,7 +122,10 @@ class ExtendedProblem:
             if cause.stage == "parameters":
                 return parts["extra"]
         if cause.stage == "joints":
-            return parts["theta"][:, cause.joint][:, None] * np.repeat(cause.basis[self.idx], self.k, axis=0)
+            dh_dq = parts["theta"][:, cause.joint][:, None]
+            if is_sparse(cause.basis):  # a joint map: four spline coefficients per sample
+                return cause.basis[np.repeat(self.idx, self.k)].multiply(dh_dq).tocsr()
+            return dh_dq * np.repeat(cause.basis[self.idx], self.k, axis=0)
         if cause.stage == "observations":
             if cause.basis is None:  # thermal expansion of the links: Σ ∂h/∂ℓ · ℓ · ΔT
                 stretch = parts["lengths"] @ p[self._lengths]
@@ -129,13 +133,19 @@ class ExtendedProblem:
             return cause.basis[self.idx].reshape(len(self.idx) * self.k, -1)
         raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
 
+    @property
+    def _penalised(self) -> list:
+        return [(c.penalty, s) for c, s in zip(self.causes, self.slices) if c.penalty is not None]
+
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """:meth:`data_residuals` followed by the prior rows of the base problem."""
-        r = self.data_residuals(x)
-        if not self._prior:
-            return r
-        idx, mean, sigma = (np.array(v) for v in zip(*self._prior))
-        return np.concatenate([r, self.base.prior_scale * (mean - np.asarray(x)[idx]) / sigma])
+        """:meth:`data_residuals` followed by the prior rows of the base problem and the
+        roughness rows of the causes that have them (joint maps)."""
+        parts = [self.data_residuals(x)]
+        if self._prior:
+            idx, mean, sigma = (np.array(v) for v in zip(*self._prior))
+            parts.append(self.base.prior_scale * (mean - np.asarray(x)[idx]) / sigma)
+        parts += [-P @ x[s] for P, s in self._penalised]
+        return np.concatenate(parts)
 
     def data_residuals(self, x: np.ndarray) -> np.ndarray:
         """``y − h`` of every sample, flattened."""
@@ -151,13 +161,20 @@ class ExtendedProblem:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         J, p, parts = self._jacobian_columns(x, [])
         blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
-        J = np.hstack(blocks)
-        if not self._prior:
-            return J
-        rows = np.zeros((len(self._prior), J.shape[1]))
+        n = sum(b.shape[1] for b in blocks)
+        rows = np.zeros((len(self._prior), n))
         for row, (i, _, sigma) in enumerate(self._prior):
             rows[row, i] = self.base.prior_scale / sigma
-        return np.vstack([J, rows])
+        for P, s in self._penalised:
+            block = np.zeros((len(P), n))
+            block[:, s] = P
+            rows = np.vstack([rows, block])
+        if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
+            from scipy import sparse
+
+            return sparse.vstack([sparse.hstack(blocks), sparse.csr_array(rows)], format="csr")
+        J = np.hstack(blocks)
+        return np.vstack([J, rows]) if len(rows) else J
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)

@@ -44,6 +44,7 @@ from ..stats import robust_sigma
 from . import structure
 from .budget import floor as error_floor
 from .candidates import Candidate, acquisition_order, library, step_candidates
+from .maps import map_curves, map_stage
 from .model import ExtendedProblem
 
 
@@ -278,6 +279,7 @@ def diagnose(
     groups=None,
     seed: int = 0,
     angle_unit: Optional[str] = None,
+    maps: bool = True,
 ) -> Diagnosis:
     """Shows what the geometric model gets wrong on ``data``, names the causes, measures the gain.
 
@@ -305,6 +307,8 @@ def diagnose(
         Seeds the random folds.
     angle_unit : {"deg", "rad"}, optional
         Unit of a canonical file's joint columns (see :func:`robocal.data.load`).
+    maps : bool
+        After the named causes, try a joint error map per joint (:mod:`.maps`; default).
 
     Returns
     -------
@@ -444,9 +448,30 @@ def diagnose(
         current_cv = new_cv
 
     model = ExtendedProblem(base, causes, dataset, keep)
+    if maps:
+        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
+            model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
+        )
+        for m in accepted_maps:
+            c = m["candidate"]
+            effects.append({
+                "kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
+                "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
+                "significance": {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
+                                         "held-out gain of the penalised map required on every fold scheme",
+                                 "p_value": m["p_value"], "p_adjusted": m["p_adjusted"], "screening_gain_mm": m["gains_mm"],
+                                 "rmse_heldout_blocked_before": m["rmse_heldout_before"]["blocked"], "rmse_heldout_blocked_after": m["rmse_heldout_after"]["blocked"]},
+            })  # fmt: skip
+        for m in rejected_maps:
+            c = m["candidate"]
+            rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], 1, m.get("params"), m["reason"]) | {"p_adjusted": m["p_adjusted"]})
     unconstrained = _rmse(current_cv["random"])
     model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
     x = final_fit.x
+    curves = map_curves(model, x)
+    for effect in effects:
+        if effect["label"] in curves:
+            effect["curve"] = curves[effect["label"]]
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     if len(outliers) and causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause

@@ -1,0 +1,197 @@
+"""Joint error maps: the stage of a diagnosis that fits what the named causes leave on each joint.
+
+A harmonic-drive or RV reducer's transmission error is a fine, smooth function of the joint's own
+angle (energy at 10-30 cycles per revolution on the UR10), which a few harmonics cannot follow. A
+*joint map* is a cubic B-spline correction of one joint's angle over the range the data cover,
+with a second-difference roughness penalty (a P-spline, Eilers & Marx 1996); its constant is
+left to the geometry's ``theta`` offset (:func:`~.candidates.map_constraint`).
+
+The stage runs after the named causes. Each round screens, for every joint without a map, every
+knot spacing and roughness of :data:`~.candidates.MAP_SPACINGS_DEG` ×
+:data:`~.candidates.MAP_ROUGHNESS_DEG` against the current model, linearised, through the
+normal equations (cheap: a map's columns are sparse); the best variant per joint by held-out
+error summed over the fold schemes is checked by the extra-sum-of-squares F test of its
+unpenalised columns (Bonferroni over the variants tried) and then re-fitted (nonlinear) on every
+fold of every scheme: a map is accepted only if it lowers the held-out RMSE of every scheme
+(blocked folds and, with groups, held-out groups included) by :data:`min_gain` of it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import f as f_dist
+
+from ..core import covariance, is_sparse
+from .candidates import map_candidates, map_curve, map_noise
+from .model import ExtendedProblem
+
+#: Relative ridge of the screening's normal equations (directions the data leave free).
+RIDGE = 1e-10
+
+
+def _dense(A) -> np.ndarray:
+    return A.toarray() if is_sparse(A) else np.asarray(A)
+
+
+class _NormalScreen:
+    """Held-out errors of ``r ≈ J·δ + C·c`` (``C`` penalised by ``P``), fitted per fold through
+    the normal equations. ``J``'s rows beyond the data (priors, accepted maps' roughness) stay in
+    every training set."""
+
+    def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int):
+        self.k, self.n_data = k, n_data
+        self.J, self.r = J, r
+        self.JtJ, self.Jtr = _dense(J.T @ J), np.asarray(J.T @ r)
+        self.Jd, self.rd = J[:n_data], r[:n_data]  # the data rows, all a candidate's columns touch
+        self.folds = {name: [self._rows(test) for _, test in folds] for name, folds in schemes.items()}
+
+    def _rows(self, test: np.ndarray) -> tuple:
+        rows = (test[:, None] * self.k + np.arange(self.k)).ravel()
+        Jte = self.J[rows]
+        return test, rows, Jte, _dense(Jte.T @ Jte), np.asarray(Jte.T @ self.r[rows])
+
+    def errors(self, C=None, P=None) -> dict:
+        """Held-out squared error per sample, per scheme."""
+        if C is None:
+            CtC = CtJ = Ctr = None
+        else:
+            CtC, CtJ, Ctr = _dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd)
+            if P is not None:
+                CtC = CtC + P.T @ P
+        out = {}
+        for name, folds in self.folds.items():
+            err = np.zeros(self.n_data // self.k)
+            for test, rows, Jte, JteJte, Jter in folds:
+                N, b = self.JtJ - JteJte, self.Jtr - Jter
+                if C is not None:
+                    Cte = C[rows]
+                    CteJ, Cter = _dense(Cte.T @ Jte), np.asarray(Cte.T @ self.r[rows])
+                    CC = CtC - _dense(Cte.T @ Cte)
+                    CJ = CtJ - CteJ
+                    N = np.block([[N, CJ.T], [CJ, CC]])
+                    b = np.concatenate([b, Ctr - Cter])
+                delta = _solve(N, b)
+                e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
+                if C is not None:
+                    e = e - C[rows] @ delta[self.J.shape[1] :]
+                err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
+            out[name] = err
+        return out
+
+    def f_test(self, C) -> tuple[float, int]:
+        """p-value of the extra-sum-of-squares F test for adding ``C`` unpenalised (all data), and
+        the rank it adds."""
+        CtC, CtJ, Ctr = _dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd)
+        rss0, rank0 = _rss(self.JtJ, self.Jtr, float(self.r @ self.r))
+        rss1, rank1 = _rss(np.block([[self.JtJ, CtJ.T], [CtJ, CtC]]), np.concatenate([self.Jtr, Ctr]), float(self.r @ self.r))
+        extra, dof = rank1 - rank0, len(self.r) - rank1
+        if extra < 1 or dof < 1 or rss1 <= 0:
+            return 1.0, max(extra, 0)
+        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof)), extra
+
+
+def _scaled(N: np.ndarray) -> np.ndarray:
+    d = np.sqrt(np.maximum(np.diag(N), 1e-300))
+    return d
+
+
+def _solve(N: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``N⁻¹·b`` on unit-diagonal scaling with a relative ridge."""
+    d = _scaled(N)
+    Ns = N / np.outer(d, d) + RIDGE * np.eye(len(N))
+    return np.linalg.solve(Ns, b / d) / d
+
+
+def _rss(N: np.ndarray, b: np.ndarray, rr: float) -> tuple[float, int]:
+    """Residual sum of squares of the least-squares fit with normal equations ``N·δ = b``, and
+    its rank."""
+    d = _scaled(N)
+    s2, V = np.linalg.eigh(N / np.outer(d, d))
+    keep = s2 > 1e-12 * max(float(s2[-1]), 1e-300)
+    coef = V[:, keep].T @ (b / d)
+    return rr - float(coef @ (coef / s2[keep])), int(np.count_nonzero(keep))
+
+
+def _rmse(sq: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(sq)))
+
+
+def map_stage(
+    model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, fit, nonlinear_cv, *, alpha: float, min_gain: float, progress
+):
+    """Joint maps added to ``model`` (see the module notes).
+
+    ``fit(problem, x0)`` and ``nonlinear_cv(problem, folds, starts)`` are the diagnosis' own;
+    ``fold_x`` its per-scheme fold fits of ``model`` (warm starts). Returns the new model, its
+    ``x``, held-out errors and fold fits, the report entries of the maps accepted and of those
+    rejected (each with a ``candidate`` key: the :class:`Candidate`).
+    """
+    robot, data = model.robot, model.full_data
+    moving = [j for j in range(robot.n_joints) if np.ptp(data.q[model.idx, j]) > 1e-6]
+    pool = map_candidates(robot, data, moving, map_noise(model.data_residuals(x).reshape(len(model.idx), model.k)), model.idx)
+    accepted, rejected = [], []
+    while pool:
+        J, r = model.jacobian(x), model.residuals(x)
+        n_data = len(model.idx) * model.k
+        screen = _NormalScreen(J, r, schemes, model.k, n_data)
+        base_err = screen.errors()
+        best: dict = {}
+        for c in progress(pool, desc=f"diagnose: joint maps round {len(accepted) + 1}", unit="map"):
+            C = model.columns(x, c)
+            errs = screen.errors(C, c.penalty)
+            score = sum(np.mean(errs[name]) for name in schemes)
+            if c.joint not in best or score < best[c.joint][0]:
+                best[c.joint] = (score, c, errs)
+        ranked = sorted(best.values(), key=lambda v: v[0])
+        n_tests = len(pool)
+        chosen = None
+        for score, c, errs in ranked:
+            gains = {name: _rmse(base_err[name]) - _rmse(errs[name]) for name in schemes}
+            p_value, extra = screen.f_test(model.columns(x, c))
+            entry = {"candidate": c, "gains_mm": gains, "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests)}
+            if not all(g >= min_gain * _rmse(base_err[name]) for name, g in gains.items()) or p_value * n_tests >= alpha:
+                rejected.append(
+                    {**entry, "reason": "not significant" if p_value * n_tests >= alpha else f"held-out gain below {min_gain:.1%} on some fold scheme"}
+                )
+                continue
+            trial = ExtendedProblem(model.base, model.causes + [c], data, model.idx)
+            x0 = np.concatenate([x, np.zeros(c.size)])
+            trial_fit = fit(trial, x0)
+            coefficients = trial.coefficients(trial_fit.x, c)
+            physical, why = c.physical(coefficients, None, robot, robot.params)
+            if why is not None:
+                rejected.append({**entry, "params": physical, "reason": f"implausible: {why}"})
+                continue
+            refits = {
+                name: nonlinear_cv(trial, folds, [(setup, np.concatenate([xf, np.zeros(c.size)])) for setup, xf in fold_x[name]])
+                for name, folds in schemes.items()
+            }
+            new_cv = {name: err for name, (err, _) in refits.items()}
+            lost = [name for name in schemes if _rmse(new_cv[name]) > (1.0 - min_gain) * _rmse(current_cv[name])]
+            if lost:
+                rejected.append({**entry, "params": physical, "reason": f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"})
+                continue
+            chosen = (c, trial, trial_fit, new_cv, {name: xs for name, (_, xs) in refits.items()}, entry, physical)
+            break
+        if chosen is None:
+            break
+        c, model, trial_fit, new_cv, fold_x, entry, physical = chosen
+        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: _rmse(current_cv[n]) for n in schemes},
+                         "rmse_heldout_after": {n: _rmse(new_cv[n]) for n in schemes}})  # fmt: skip
+        x, current_cv = trial_fit.x, new_cv
+        pool = [o for o in pool if o.joint != c.joint]
+    return model, x, current_cv, fold_x, accepted, rejected
+
+
+def map_curves(model: ExtendedProblem, x: np.ndarray) -> dict:
+    """Each joint map of ``model`` at ``x`` as a curve with its standard deviation (from the fit's
+    covariance, roughness prior included), keyed by the cause's label."""
+    maps = [(c, s) for c, s in zip(model.causes, model.slices) if c.kind == "joint_map"]
+    if not maps:
+        return {}
+    cov, *_ = covariance(model.jacobian(x), model.residuals(x))
+    out = {}
+    for c, s in maps:
+        curve = map_curve(c.detail, x[s], cov[s, s])
+        out[c.label] = {k: [float(v) for v in values] for k, values in curve.items()}
+    return out

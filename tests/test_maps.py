@@ -1,0 +1,131 @@
+"""Joint error maps: a fine transmission error hidden in simulated data is found as a curve, clean
+data get none, and the map carries through ``calibrate --causes``, ``verify`` and ``compensate``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy import sparse
+
+import robocal
+from robocal.core import DampedNormal, factor_damped
+from robocal.diagnosis.candidates import map_basis, map_constraint, map_coverage, map_curve
+from robocal.physics import DEG
+from robocal.simulation import simulate
+
+#: A transmission error of joint 2 at 9 and 14 cycles per revolution: far beyond the harmonics
+#: 1-3 of the named causes, as a harmonic drive's is.
+GEAR = ["joint_periodic:joint=2,amplitude=0.01,harmonic=9", "joint_periodic:joint=2,amplitude=0.006,harmonic=14,phase=40"]
+
+
+def true_error_deg(q2: np.ndarray) -> np.ndarray:
+    return 0.01 * np.sin(9 * q2) + 0.006 * np.sin(14 * q2 + 40 * DEG)
+
+
+@pytest.fixture(scope="module")
+def geared():
+    data, _ = simulate("ur10", "position", samples=800, seed=5, effects=GEAR)
+    return data, robocal.diagnose(data)
+
+
+def test_a_hidden_transmission_error_is_found_as_a_curve_within_its_band(geared):
+    data, diagnosis = geared
+    report = diagnosis.to_dict()
+    maps = [e for e in report["effects"] if e["kind"] == "joint_map"]
+    assert [e["joint"] for e in maps] == [2], [e["label"] for e in report["effects"]]
+    assert report["final"]["rmse_heldout"] < 0.5 * report["baseline"]["rmse_heldout"]
+    assert report["final"]["rmse_heldout_blocked"] < 0.5 * report["baseline"]["rmse_heldout_blocked"]
+    curve = maps[0]["curve"]
+    angle, value, std = (np.asarray(curve[k]) for k in ("angle_deg", "value_deg", "std_deg"))
+    # The map's constant belongs to theta2: compare shapes, the offset removed.
+    diff = value - true_error_deg(angle * DEG)
+    diff -= np.mean(diff)
+    assert np.sqrt(np.mean(diff**2)) < 0.2 * np.sqrt(np.mean(true_error_deg(angle * DEG) ** 2))
+    assert np.mean(np.abs(diff) < 3.0 * std + 1e-4) > 0.9
+    assert np.all(std > 0)
+
+
+@pytest.mark.parametrize("robot, measurement, seed", [("ur10", "position", 11), ("abb-irb120", "cable", 12), ("hsr-jr680", "position", 13)])
+def test_clean_data_get_no_map(robot, measurement, seed):
+    data, _ = simulate(robot, measurement, samples=400, seed=seed)
+    report = robocal.diagnose(data).to_dict()
+    assert not [e for e in report["effects"] if e["kind"] == "joint_map"]
+
+
+def test_maps_can_be_left_out(geared):
+    data, _ = geared
+    report = robocal.diagnose(data, maps=False).to_dict()
+    assert not [e for e in report["effects"] + report["rejected"] if e["kind"] == "joint_map"]
+
+
+def test_calibrate_verify_and_compensate_apply_the_map(geared, tmp_path):
+    data, diagnosis = geared
+    report = diagnosis.to_dict()
+    label = next(e["label"] for e in report["effects"] if e["kind"] == "joint_map")
+    geometric = robocal.calibrate(data)
+    extended = robocal.calibrate(data, causes=report)
+    assert label in [c["label"] for c in extended.to_dict()["causes"]]
+    assert extended.metrics["test"]["rmse"] < 0.6 * geometric.metrics["test"]["rmse"]
+    # another session of the same robot: the tracker elsewhere, a new path
+    second, _ = simulate("ur10", "position", samples=800, seed=5, session=1, effects=GEAR)
+    carried = robocal.verify(extended.to_dict(), second)
+    plain = robocal.verify(geometric.to_dict(), second)
+    assert label in carried["applied"]["causes"]
+    assert carried["metrics"]["rmse"] < 0.6 * plain["metrics"]["rmse"]
+    assert [c["label"] for c in carried["coverage"]] == [label]
+    # compensation: the targets the calibrated model reaches, with the map in the joint angles
+    targets = extended.robot.predict("position", data.q[:5])
+    rows = robocal.compensate(extended.to_dict(), targets)
+    assert all(r["status"].startswith("ok") for r in rows)
+
+
+def test_coverage_names_samples_beyond_the_fitted_range(geared):
+    data, _ = geared
+    narrow = data.subset(np.flatnonzero(np.abs(data.q[:, 1] - np.median(data.q[:, 1])) < 40 * DEG))
+    fit = robocal.calibrate(narrow, causes=["joint_map joint 2 spacing=5.0 roughness=0.01"], test_fraction=0.0)
+    result = fit.to_dict()
+    (cause,) = [c for c in result["causes"] if c["kind"] == "joint_map"]
+    second, _ = simulate("ur10", "position", samples=800, seed=5, session=1, effects=GEAR)
+    inside = map_coverage(second.q[:, 1], cause["detail"])
+    (coverage,) = robocal.verify(result, second)["coverage"]
+    assert coverage["outside"] == int(np.count_nonzero(~inside)) > 0
+    assert coverage["rows"] == [int(r) for r in second.rows[~inside][:20]]
+    # compensating a target beyond the range says so
+    q = second.q[~inside][:1]
+    (row,) = robocal.compensate(result, fit.robot.predict("position", q))
+    assert "extrapolated: joint 2" in row["status"]
+
+
+@given(st.floats(-170, 0), st.floats(20, 300), st.sampled_from([2.0, 5.0, 15.0]))
+@settings(max_examples=40, deadline=None)
+def test_map_basis_has_no_constant_and_holds_its_end_values(lo, width, spacing):
+    detail = {"lo": lo, "hi": lo + width, "spacing": spacing}
+    q = np.radians(np.linspace(lo - 30, lo + width + 30, 301))
+    B = map_basis(q, detail).toarray()
+    # the cubic B-splines sum to one: constrained coefficients cannot add a constant
+    n = B.shape[1] + 1
+    assert np.allclose(map_constraint(n).sum(axis=0), 0.0)
+    c = np.random.default_rng(0).normal(size=n - 1)
+    inside = map_coverage(q, detail)
+    assert np.all(inside == ((q >= np.radians(lo) - 1e-9) & (q <= np.radians(lo + width) + 1e-9)))
+    values, ends = B @ c, map_basis(np.radians([lo, lo + width]), detail).toarray() @ c
+    assert np.allclose(values[q < np.radians(lo)], ends[0]) and np.allclose(values[q > np.radians(lo + width)], ends[1])
+    curve = map_curve(detail, c)
+    assert curve["angle_deg"][0] == lo and np.isclose(curve["angle_deg"][-1], lo + width)
+
+
+@given(st.integers(0, 2**31 - 1), st.floats(1e-8, 1e2))
+@settings(max_examples=30, deadline=None)
+def test_the_sparse_damped_solve_matches_the_dense_qr(seed, lam):
+    """The normal-equation factor of a sparse Jacobian gives the dense QR's damped steps and
+    the same norm of the explained part."""
+    rng = np.random.default_rng(seed)
+    J = rng.normal(size=(60, 8)) * rng.uniform(0.1, 10, size=8)
+    b = rng.normal(size=60)
+    dense, normal = factor_damped(J), factor_damped(sparse.csr_array(J))
+    assert isinstance(normal, DampedNormal)
+    assert np.isclose(np.linalg.norm(normal.project(b)), np.linalg.norm(dense.project(b)), rtol=1e-8)
+    expected = np.linalg.solve(J.T @ J + lam * np.eye(8), J.T @ b)
+    assert np.allclose(normal.solve(normal.project(b), lam), expected, rtol=1e-7, atol=1e-10)
+    assert np.allclose(dense.solve(dense.project(b), lam), expected, rtol=1e-7, atol=1e-10)
