@@ -129,3 +129,18 @@ def test_the_sparse_damped_solve_matches_the_dense_qr(seed, lam):
     expected = np.linalg.solve(J.T @ J + lam * np.eye(8), J.T @ b)
     assert np.allclose(normal.solve(normal.project(b), lam), expected, rtol=1e-7, atol=1e-10)
     assert np.allclose(dense.solve(dense.project(b), lam), expected, rtol=1e-7, atol=1e-10)
+
+
+def test_a_map_found_in_sessions_carries_across_them():
+    """Two sessions of one geared robot: the map fitted on one session lowers the other's
+    held-out error (leave-one-session-out), one map per joint, with its curve."""
+    first, _ = simulate("ur10", "position", samples=600, seed=5, effects=GEAR)
+    second, _ = simulate("ur10", "position", samples=600, seed=5, session=1, effects=GEAR)
+    report = robocal.diagnose([first, second]).to_dict()
+    maps = [e for e in report["effects"] if e["kind"] == "joint_map"]
+    assert [e["joint"] for e in maps] == [2], [e["label"] for e in report["effects"]]
+    assert all(a < 0.8 * b for a, b in zip(report["final"]["per_session"], report["baseline"]["per_session"]))
+    assert len(maps[0]["curve"]["std_deg"]) == len(maps[0]["curve"]["angle_deg"])
+    # once a map of joint 2 is carried, no other map of joint 2 is tried
+    tried = [r["label"] for r in report["rejected"] if r["kind"] == "joint_map" and r["joint"] == 2]
+    assert not tried, tried

@@ -375,6 +375,37 @@ def diagnosis_figure(report: dict, path: Path) -> Path:
     return _save(fig, Path(path))
 
 
+def map_figure(effect: dict, path: Path) -> Path:
+    """A joint map of a diagnose report (an effect with a ``curve``): the correction of the
+    joint's angle against its reading, with its ±2 std band, written to ``path``."""
+    plt = _pyplot()
+    curve = effect["curve"]
+    angle, value = np.asarray(curve["angle_deg"]), np.asarray(curve["value_deg"]) * 3600.0
+    fig, ax = plt.subplots(figsize=(7.0, 3.4))
+    if "std_deg" in curve:
+        band = 2.0 * np.asarray(curve["std_deg"]) * 3600.0
+        ax.fill_between(angle, value - band, value + band, color="tab:blue", alpha=0.25, lw=0, label="±2 std")
+    ax.plot(angle, value, color="tab:blue", lw=1.2, label="map")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set(xlabel=f"joint {effect['joint']} reading (deg)", ylabel="correction (arcsec)", title=effect["label"])
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return _save(fig, Path(path))
+
+
+def map_tables(report: dict) -> list[tuple[str, str]]:
+    """``(file name, CSV text)`` of every joint map of a diagnose report: angle, correction and
+    its standard deviation in degrees, one row per point of the curve."""
+    out = []
+    for e in report.get("effects", []):
+        if e.get("kind") == "joint_map" and "curve" in e:
+            c = e["curve"]
+            rows = zip(c["angle_deg"], c["value_deg"], c.get("std_deg", [float("nan")] * len(c["angle_deg"])))
+            text = "angle_deg,correction_deg,std_deg\n" + "".join(f"{a:.6f},{v:.9g},{sd:.9g}\n" for a, v, sd in rows)
+            out.append((f"map_joint{e['joint']}.csv", text))
+    return out
+
+
 # -- the page ---------------------------------------------------------------------------------
 _CSS = """
 body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; max-width: 980px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.45; }
@@ -685,8 +716,11 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     diag_html = ""
     if diag is not None:
         p = diagnosis_figure(diag, out / "diagnosis.png")
+        maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), f"Joint map of joint {e['joint']}: the correction of its angle against its reading "
+                        "(held at its end values beyond the range it was fitted on), with ±2 standard deviations.")
+                for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]  # fmt: skip
         diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
-                     + _diagnosis_table(diag) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
+                     + _diagnosis_table(diag) + "".join(maps) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
 
     title = f"robocal calibration report: {doc.get('robot', '')}"
     note_html = "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in notes)

@@ -18,6 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..core import is_sparse
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH, Robot
 from .problem import Problem
@@ -156,6 +157,12 @@ class Sessions:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         blocks = [(p.jacobian(self.session_x(x, s)), len(p.data) * RESIDUAL_WIDTH[p.data.measurement]) for s, p in enumerate(self.problems)]
+        if any(is_sparse(J) for J, _ in blocks):  # joint maps: stacked sparse, data rows first
+            from scipy import sparse
+
+            placed = [sparse.csr_array(J) @ sparse.csr_array((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), len(self.names)))
+                      for (J, _), cols in zip(blocks, self.maps)]  # fmt: skip
+            return sparse.vstack([J[:n] for J, (_, n) in zip(placed, blocks)] + [J[n:] for J, (_, n) in zip(placed, blocks)], format="csr")
         n_data, n_prior = sum(n for _, n in blocks), sum(J.shape[0] - n for J, n in blocks)
         J = np.zeros((n_data + n_prior, len(self.names)))
         at_data, at_prior = 0, n_data

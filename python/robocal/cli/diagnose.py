@@ -11,7 +11,7 @@ import numpy as np
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..outputs import make_folder, save_figure, write_text
-from ..report import diagnosis_figure
+from ..report import diagnosis_figure, map_figure, map_tables
 from .arguments import add_data_arguments
 
 
@@ -97,8 +97,9 @@ def sessions_summary(report: dict) -> str:
 
 def write_figures(diagnosis, out: Path) -> list[Path]:
     """One PNG per accepted cause of a single-session diagnosis (residual against the cause's
-    fitted signature) and one of the held-out RMSE along the selection (for several sessions,
-    leave-one-session-out: that one only)."""
+    fitted signature), one per joint map (its curve and band, and its table as
+    ``map_joint<j>.csv``) and one of the held-out RMSE along the selection (for several
+    sessions, leave-one-session-out: that one only)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -128,7 +129,13 @@ def write_figures(diagnosis, out: Path) -> list[Path]:
         path = save_figure(fig, out / f"cause_{i}.png", dpi=120)
         plt.close(fig)
         paths.append(path)
-    return paths + [diagnosis_figure(diagnosis.to_dict(), Path(out) / "heldout_rmse.png")]
+    report = diagnosis.to_dict()
+    for e in report["effects"]:
+        if e.get("kind") == "joint_map" and "curve" in e:
+            paths.append(map_figure(e, Path(out) / f"map_joint{e['joint']}.png"))
+    for name, text in map_tables(report):
+        write_text(Path(out) / name, text)
+    return paths + [diagnosis_figure(report, Path(out) / "heldout_rmse.png")]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -136,6 +143,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--folds", type=int, default=5, help="folds of the random and the blocked cross-validation (default 5)")
     parser.add_argument("--alpha", type=float, default=0.05, help="family-wise significance level per selection round (default 0.05)")
     parser.add_argument("--plain-dh", action="store_true", help="baseline without Hayati beta (makes axis_misalignment a candidate)")
+    parser.add_argument("--no-maps", action="store_true", help="do not try joint error maps after the named causes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="FILE", help="write the JSON report here ('-' for standard output)")
     parser.add_argument("--out", metavar="DIR", help="write report.json and the figures to this folder")
@@ -143,7 +151,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     d = diagnose(args.data[0] if len(args.data) == 1 else args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
-                 hayati=not args.plain_dh, seed=args.seed, angle_unit=args.angle_unit)  # fmt: skip
+                 hayati=not args.plain_dh, seed=args.seed, angle_unit=args.angle_unit, maps=not args.no_maps)  # fmt: skip
     report = d.to_dict()
     text = json.dumps(report, indent=2)
     if args.json == "-":

@@ -32,7 +32,9 @@ from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import Robot
 from . import structure
-from .candidates import library
+from ..core import covariance, is_sparse
+from ..physics import DEG
+from .candidates import library, map_candidate, map_curve
 from .model import ExtendedProblem
 from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
 
@@ -75,12 +77,19 @@ class _Model:
         return replace(self, causes=self.causes + (candidate.label,))
 
     def stacked(self, problems: list) -> Sessions:
-        """The sessions' problems stacked, the prior (if any) on the first one only: it acts on
-        the shared parameters once."""
+        """The sessions' problems stacked, the prior (if any) and the joint maps' roughness
+        penalties on the first one only: they act on the shared entries once."""
+        first, rest = problems[0], [_without_penalties(p) for p in problems[1:]]
         if self.prior:
-            first = problems[0]
-            problems = [ExtendedProblem(replace(first.base, prior=dict(self.prior)), first.causes, first.full_data, first.idx)] + list(problems[1:])
-        return Sessions(problems)
+            first = ExtendedProblem(replace(first.base, prior=dict(self.prior)), first.causes, first.full_data, first.idx)
+        return Sessions([first] + rest)
+
+
+def _without_penalties(problem: ExtendedProblem) -> ExtendedProblem:
+    if not any(c.penalty is not None for c in problem.causes):
+        return problem
+    causes = [replace(c, penalty=None) if c.penalty is not None else c for c in problem.causes]
+    return ExtendedProblem(problem.base, causes, problem.full_data, problem.idx)
 
 
 class _Evaluator:
@@ -93,6 +102,8 @@ class _Evaluator:
         self._bases: dict = {}
         self._starts: dict = {}
         self._fits: dict = {}
+        self.maps: dict = {}  # label -> a session's joint map: its spacing, roughness and weight
+        self._map_cache: dict = {}
 
     def bases(self, model: _Model) -> list[tuple]:
         """Per session, under the model's conventions: its base problem, its data and its
@@ -105,13 +116,29 @@ class _Evaluator:
             self._bases[key] = list(zip(bases, datas, pools))
         return self._bases[key]
 
-    def problems(self, model: _Model) -> list[ExtendedProblem]:
+    def problems(self, model: _Model, span: Optional[tuple] = None) -> list[ExtendedProblem]:
+        """Per session, the model's problem. Joint maps span the joint's range over the sessions
+        ``span`` (0-based; default all): one basis for every session, held at its end values
+        beyond (a left-out session is placed as ``verify`` would place it)."""
+        span = tuple(range(len(self.sessions))) if span is None else span
         out = []
-        for session, (base, data, pool) in zip(self.sessions, self.bases(model)):
+        for s, (session, (base, data, pool)) in enumerate(zip(self.sessions, self.bases(model))):
             # a cause whose joint does not move in a session does not act there
-            shared = [pool[label] for label in model.causes if label in pool]
+            shared = [self._map(label, s, data, span) if label in self.maps else pool[label] for label in model.causes if label in pool or label in self.maps]
             out.append(ExtendedProblem(base, session.terms + shared, data, session.keep))
         return out
+
+    def _map(self, label: str, s: int, data: Dataset, span: tuple):
+        """The joint map ``label`` on session ``s``'s data over the range of the sessions ``span``."""
+        key = (label, s, span, id(data))
+        if key not in self._map_cache:
+            c = self.maps[label]
+            j = c.joint
+            lo = min(float(np.min(self.sessions[t].data.q[self.sessions[t].keep, j])) for t in span)
+            hi = max(float(np.max(self.sessions[t].data.q[self.sessions[t].keep, j])) for t in span)
+            noise = c.detail["weight"] * c.detail["roughness"] * DEG
+            self._map_cache[key] = map_candidate(data, j, c.detail["spacing"], c.detail["roughness"], noise, (lo, hi))
+        return self._map_cache[key]
 
     def fit(self, model: _Model):
         """The model fitted on every session (once per model): the stacked problem and its fit."""
@@ -135,7 +162,9 @@ class _Evaluator:
             values = problem.coefficients(stacked.session_x(fit.x, s), cause)
             std = problem.coefficients(stacked.session_x(spread, s), cause)
             _, why = cause.physical(values, std, self.robot, self.robot.params)
-            return f"implausible: {why}" if why else undetermined(values - coefficient_reference(cause, self.robot), std)
+            if why or cause.kind == "joint_map":  # a penalised map is judged by its held-out gain, not coefficient by coefficient
+                return f"implausible: {why}" if why else None
+            return undetermined(values - coefficient_reference(cause, self.robot), std)
         return None
 
     def implausible(self, model: _Model) -> list[dict]:
@@ -144,10 +173,12 @@ class _Evaluator:
         return implausible_parameters(self.robot, dict(zip(stacked.names, fit.x)))
 
     def held_out(self, model: _Model) -> list[np.ndarray]:
-        """Per session, the squared errors of its samples under the model fitted on the others."""
-        problems = self.problems(model)
+        """Per session, the squared errors of its samples under the model fitted on the others
+        (joint maps over the others' range)."""
         errors = []
-        for h, held in enumerate(problems):
+        for h in range(len(self.sessions)):
+            problems = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))
+            held = problems[h]
             train = model.stacked([p for s, p in enumerate(problems) if s != h])
             key = (model.conventions, h)  # a smaller model's fits on the same readings start it
             fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose")
@@ -182,6 +213,7 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
     few combinations of shared and set-up parameters near-redundant (a full-rank covariance is
     then not defined), while a cause's own coefficient is still determined."""
     J, r = stacked.jacobian(x), stacked.residuals(x)
+    J = J.toarray() if is_sparse(J) else J
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
     U, sv, Vt = np.linalg.svd(J / scale, full_matrices=False)
@@ -279,6 +311,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         for c in session.diagnosis.model.causes:
             if c.kind not in SESSION_TERMS:
                 found.setdefault(c.label, (c, []))[1].append(s)
+                if c.kind == "joint_map":
+                    evaluator.maps.setdefault(c.label, c)
     # Gravity compliance is the cause with a physical model of how it carries to other poses;
     # within one session a harmonic may fit its shape better and win the selection, so every
     # compliance the robot's mass model offers is judged across sessions too.
@@ -325,6 +359,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         effects.append(_entry(label, candidate, where, current, errors, None))
         model, current = model.plus(candidate), errors
         del pending[label]
+        if candidate.kind == "joint_map":  # one map per joint
+            pending = {k: v for k, v in pending.items() if not (v[0].kind == "joint_map" and v[0].joint == candidate.joint)}
 
     unconstrained = _rmse(current)
     model, current, physical = _physical(evaluator, model, current)
@@ -338,6 +374,13 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if s is not None:
             described = problems[s].describe_causes(joint.session_x(fit.x, s), joint.session_x(spread, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
+    maps = [e for e in effects if e["kind"] == "joint_map"]
+    if maps:  # each map's curve and band from the fit on every session
+        cov = covariance(joint.jacobian(fit.x), joint.residuals(fit.x))[0]
+        for e in maps:
+            at = [i for i, n in enumerate(joint.names) if n.startswith(e["label"] + " c")]
+            detail = next(c.detail for p in problems for c in p.causes if c.label == e["label"])
+            e["curve"] = {k: [float(v) for v in values] for k, values in map_curve(detail, fit.x[at], cov[np.ix_(at, at)]).items()}
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
