@@ -118,6 +118,11 @@ def test_hidden_effect_is_named_first(robot, measurement, kind):
     first = report["effects"][0]
     assert first["rmse_heldout_after"] < first["rmse_heldout_before"]
     assert first["significance"]["p_adjusted"] < 0.05
+    if kind == "joint_compliance":  # the stiffness is the compliance's inverse, in N·m/rad
+        compliance, stiffness = first["params"]["compliance"], first["params"]["stiffness"]
+        assert stiffness["unit"] == "N·m/rad"
+        assert stiffness["value"] == pytest.approx(1.0 / (compliance["value"] * DEG / 1000.0), rel=1e-9)
+        assert stiffness["std"] == pytest.approx(stiffness["value"] * compliance["std"] / compliance["value"], rel=1e-9)
 
 
 @pytest.mark.parametrize("robot,measurement", [(r, m) for r in ROBOTS for m in ("cable", "position")])

@@ -20,6 +20,11 @@ def sample_errors(residuals: np.ndarray, measurement: str) -> np.ndarray:
 
 
 def metrics(residuals: np.ndarray, measurement: str) -> dict:
-    """``{"rmse", "mae", "max", "n"}`` of eq. (28), in mm."""
+    """``{"rmse", "mae", "max", "n"}`` of eq. (28), in mm; pose data add ``rotation_rmse_deg``,
+    the RMS of the orientation error's angle (the rotation residual ``log(R_meas·Rᵀ)``)."""
     e = sample_errors(residuals, measurement)
-    return {"rmse": float(np.sqrt(np.mean(e**2))), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(e.size)}
+    out = {"rmse": float(np.sqrt(np.mean(e**2))), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(e.size)}
+    if RESIDUAL_WIDTH[measurement] == 6:
+        angle = np.linalg.norm(np.asarray(residuals, dtype=np.float64).reshape(-1, 6)[:, 3:], axis=1)
+        out["rotation_rmse_deg"] = float(np.degrees(np.sqrt(np.mean(angle**2))))
+    return out

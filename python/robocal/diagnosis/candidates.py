@@ -110,6 +110,8 @@ class Candidate:
         kind = self.kind
         if kind == "joint_compliance":
             out = {"compliance": q(c[0] / DEG * 1000.0, s[0] / DEG * 1000.0, "deg/(kN·m)")}
+            if c[0] > 0:  # the joint's stiffness k = 1/c, its std by first-order propagation
+                out["stiffness"] = q(1.0 / c[0], s[0] / c[0] ** 2, "N·m/rad")
             bad = not 0.0 < c[0] < LIMITS["compliance"]
             return out, (f"compliance {c[0]:.3g} rad/(N·m) is not within (0, {LIMITS['compliance']:g})" if bad else None)
         if kind == "joint_periodic":
