@@ -45,6 +45,8 @@ def summary(report: dict) -> str:
             f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
             f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it"
         )
+    if report["effects"] and f.get("explained") is not None:
+        lines.append(f"  the causes explain {f['explained']:.0%} of the baseline's held-out mean square error above that floor")
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
     return "\n".join(lines)

@@ -497,11 +497,20 @@ def diagnose(
         effects=effects, rejected=rejected,
         final={"rmse_heldout": _rmse(current_cv["random"]), "rmse_heldout_blocked": _rmse(current_cv["blocked"]), "n_params": int(model.n),
                "floor_mm": budget["floor_mm"], "floor": budget,
+               # Share of the baseline's held-out mean square error above the floor that the causes explain.
+               "explained": _explained(_rmse(baseline_cv["random"]), _rmse(current_cv["random"]), budget["floor_mm"]),
                # The physical model: a tolerance prior where the geometry is undetermined
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
+
+
+def _explained(before: float, after: float, floor: float) -> Optional[float]:
+    """``(before² − after²) / (before² − floor²)``: the share of the mean square error above the
+    floor that a model removes (None if the baseline is at the floor)."""
+    room = before**2 - floor**2
+    return None if room <= 0 else float((before**2 - after**2) / room)
 
 
 #: The tolerance prior may cost at most this fraction of held-out error: beyond it the data

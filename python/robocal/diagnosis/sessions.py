@@ -327,8 +327,17 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
+    # Per joint one map variant is judged across sessions: the one found in the most sessions
+    # (then in the largest), since each LOSO trial is a nonlinear fit of every fold.
+    variants: dict = {}
+    for label, (c, where) in found.items():
+        if c.kind == "joint_map":
+            variants.setdefault(c.joint, []).append((len(where), max(len(sessions[s - 1].keep) for s in where), label))
+    for options_of_joint in variants.values():
+        for *_, label in sorted(options_of_joint)[:-1]:
+            del found[label]
     pending = dict(found)
-    while pending and len(effects) < max_effects:
+    while pending and sum(e["kind"] != "joint_map" for e in effects) < max_effects:  # maps do not count: one per joint at most
         trials = []
         for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
             trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
