@@ -9,6 +9,9 @@ from hypothesis import given, settings, strategies as st
 from scipy import sparse
 
 import robocal
+from robocal.cli import main
+from robocal.data.canonical import write_canonical
+from robocal.results import save_result
 from robocal.core import DampedNormal, factor_damped
 from robocal.diagnosis.candidates import map_basis, map_constraint, map_coverage, map_curve
 from robocal.physics import DEG
@@ -80,7 +83,7 @@ def test_calibrate_verify_and_compensate_apply_the_map(geared, tmp_path):
     assert all(r["status"].startswith("ok") for r in rows)
 
 
-def test_coverage_names_samples_beyond_the_fitted_range(geared):
+def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys):
     data, _ = geared
     narrow = data.subset(np.flatnonzero(np.abs(data.q[:, 1] - np.median(data.q[:, 1])) < 40 * DEG))
     fit = robocal.calibrate(narrow, causes=["joint_map joint 2 spacing=5.0 roughness=0.01"], test_fraction=0.0)
@@ -95,6 +98,11 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared):
     q = second.q[~inside][:1]
     (row,) = robocal.compensate(result, fit.robot.predict("position", q))
     assert "extrapolated: joint 2" in row["status"]
+    # and so does the command line
+    save_result(result, tmp_path / "result.json")
+    write_canonical(second, tmp_path / "second.csv")
+    assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "second.csv")]) == 0
+    assert f"extrapolated: {coverage['outside']} samples have joint 2 beyond" in capsys.readouterr().out
 
 
 @given(st.floats(-170, 0), st.floats(20, 300), st.sampled_from([2.0, 5.0, 15.0]))
