@@ -12,7 +12,9 @@ import robocal
 from robocal.cli import main
 from robocal.data.canonical import write_canonical
 from robocal.results import save_result
-from robocal.core import DampedNormal, factor_damped
+import robocal.exceptions
+from robocal import _robocal
+from robocal.core import DampedNormal, factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_constraint, map_coverage, map_curve
 from robocal.physics import DEG
 from robocal.simulation import simulate
@@ -152,3 +154,22 @@ def test_a_map_found_in_sessions_carries_across_them():
     # once a map of joint 2 is carried, no other map of joint 2 is tried
     tried = [r["label"] for r in report["rejected"] if r["kind"] == "joint_map" and r["joint"] == 2]
     assert not tried, tried
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(1, 40), st.integers(1, 15), st.floats(0.05, 0.9))
+@settings(max_examples=40, deadline=None)
+def test_the_rust_gram_of_a_sparse_jacobian_is_the_dense_product(seed, m, n, density):
+    J = sparse.random_array((m, n), density=density, format="csr", random_state=np.random.default_rng(seed))
+    assert np.allclose(sparse_gram(J), J.toarray().T @ J.toarray(), rtol=1e-12, atol=1e-14)
+    # scipy stores small matrices' indices as int32, large ones' as int64: both are read
+    J64 = sparse.csr_array((J.data, J.indices.astype(np.int64), J.indptr.astype(np.int64)), shape=J.shape)
+    assert np.array_equal(sparse_gram(J64), sparse_gram(J))
+
+
+def test_the_rust_gram_refuses_malformed_input():
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="column index 5"):
+        _robocal.sparse_gram(np.array([0, 1]), np.array([5]), np.array([1.0]), 3)
+    with pytest.raises(robocal.exceptions.RobocalError, match="J"):
+        _robocal.sparse_gram(np.array([0, 1]), np.array([0]), np.array([np.nan]), 3)
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="int32 or int64"):
+        _robocal.sparse_gram(np.array([0.0, 1.0]), np.array([0]), np.array([1.0]), 3)

@@ -2,7 +2,7 @@
 //! `robocal.exceptions`.
 
 use crate::error::CoreError;
-use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 /// Raises `robocal.exceptions.<class>(message)`.
@@ -96,5 +96,20 @@ pub fn index_list(obj: &Bound<'_, PyAny>, arg: &'static str) -> PyResult<Vec<usi
         .map(|v| {
             usize::try_from(v).map_err(|_| core_err(CoreError::InvalidParameter { arg, reason: format!("indices must be >= 0; got {v}") }))
         })
+        .collect()
+}
+
+/// A 1-D integer array of non-negative values (int64 or int32, as scipy.sparse stores indices).
+pub fn index_array(obj: &Bound<'_, PyAny>, arg: &'static str) -> PyResult<Vec<usize>> {
+    let values: Vec<i64> = if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, i64>>() {
+        a.as_array().to_vec()
+    } else if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, i32>>() {
+        a.as_array().iter().map(|&v| v as i64).collect()
+    } else {
+        return Err(core_err(CoreError::InvalidParameter { arg, reason: format!("must be a 1-D int32 or int64 NumPy array; got {}", describe(obj)) }));
+    };
+    values
+        .into_iter()
+        .map(|v| usize::try_from(v).map_err(|_| core_err(CoreError::InvalidParameter { arg, reason: format!("indices must be >= 0; got {v}") })))
         .collect()
 }

@@ -17,6 +17,9 @@
 //!   Jacobian, then each step is the small problem `[R; √λ·I] z ≈ [Qᵀb; 0]`, `O(n³)` instead
 //!   of `O(m·n²)`. The caller scales the columns (`J·D^-½`) to get Marquardt's damping.
 
+mod gram;
+pub use gram::{sparse_gram, MAX_GRAM_COLUMNS};
+
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
 use faer::prelude::*;

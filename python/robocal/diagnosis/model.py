@@ -101,8 +101,15 @@ class ExtendedProblem:
         q = self.data.q.copy()
         for c, s in zip(self.causes, self.slices):
             if c.stage == "joints":
-                q[:, c.joint] += c.basis[self.idx] @ x[s]
+                q[:, c.joint] += (self._sample_basis(c) if is_sparse(c.basis) else c.basis[self.idx]) @ x[s]
         return q
+
+    def _sample_basis(self, cause: Candidate):
+        """A joint map's basis at the problem's samples, CSR; cached."""
+        cache = self.__dict__.setdefault("_samples_cache", {})
+        if id(cause) not in cache:
+            cache[id(cause)] = cause.basis[self.idx].tocsr()
+        return cache[id(cause)]
 
     def _jacobian_columns(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
         """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``."""
@@ -122,10 +129,13 @@ class ExtendedProblem:
             if cause.stage == "parameters":
                 return parts["extra"]
         if cause.stage == "joints":
-            dh_dq = parts["theta"][:, cause.joint][:, None]
-            if is_sparse(cause.basis):  # a joint map: four spline coefficients per sample
-                return cause.basis[np.repeat(self.idx, self.k)].multiply(dh_dq).tocsr()
-            return dh_dq * np.repeat(cause.basis[self.idx], self.k, axis=0)
+            dh_dq = parts["theta"][:, cause.joint]
+            if is_sparse(cause.basis):  # a joint map: four spline coefficients per sample, each row scaled by ∂h/∂q_j
+                from scipy import sparse
+
+                B = self._basis_rows(cause)
+                return sparse.csr_array((B.data * np.repeat(dh_dq, np.diff(B.indptr)), B.indices, B.indptr), shape=B.shape)
+            return dh_dq[:, None] * np.repeat(cause.basis[self.idx], self.k, axis=0)
         if cause.stage == "observations":
             if cause.basis is None:  # thermal expansion of the links: Σ ∂h/∂ℓ · ℓ · ΔT
                 stretch = parts["lengths"] @ p[self._lengths]
@@ -172,9 +182,50 @@ class ExtendedProblem:
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             from scipy import sparse
 
-            return sparse.vstack([sparse.hstack(blocks), sparse.csr_array(rows)], format="csr")
+            return sparse.vstack([self._sparse_data_rows(blocks, n), sparse.csr_array(rows)], format="csr")
         J = np.hstack(blocks)
         return np.vstack([J, rows]) if len(rows) else J
+
+    def _basis_rows(self, cause: Candidate):
+        """A joint map's basis at every residual row (its sample's row repeated ``k`` times), CSR;
+        cached: the samples of a problem do not change."""
+        cache = self.__dict__.setdefault("_rows_cache", {})
+        if id(cause) not in cache:
+            cache[id(cause)] = cause.basis[np.repeat(self.idx, self.k)].tocsr()
+        return cache[id(cause)]
+
+    def _sparse_data_rows(self, blocks: list, n: int):
+        """The data rows of the Jacobian as CSR, assembled straight from its blocks: the dense
+        ones (geometry, causes with a few columns) fill every row, the maps' sparse ones their
+        four entries. The pattern is computed once per problem; each call fills the values."""
+        from scipy import sparse
+
+        offsets = np.concatenate([[0], np.cumsum([b.shape[1] for b in blocks])])
+        dense = [i for i, b in enumerate(blocks) if not is_sparse(b)]
+        thin = [i for i, b in enumerate(blocks) if is_sparse(b)]
+        layout = self.__dict__.get("_layout")
+        if layout is None:
+            m = blocks[0].shape[0]
+            dense_cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in dense])
+            counts = [np.diff(blocks[i].indptr) for i in thin]
+            indptr = np.concatenate([[0], np.cumsum(len(dense_cols) + sum(counts))])
+            indices = np.empty(indptr[-1], dtype=np.int64)
+            at_dense = indptr[:-1, None] + np.arange(len(dense_cols))
+            indices[at_dense] = dense_cols
+            slot, at_thin = indptr[:-1] + len(dense_cols), []
+            for i, count in zip(thin, counts):
+                b = blocks[i]
+                where = np.repeat(slot, count) + (np.arange(b.nnz) - np.repeat(b.indptr[:-1], count))
+                indices[where] = b.indices + offsets[i]
+                at_thin.append(where)
+                slot = slot + count
+            layout = self._layout = (m, indptr, indices, at_dense, at_thin)
+        m, indptr, indices, at_dense, at_thin = layout
+        data = np.empty(len(indices))
+        data[at_dense] = np.hstack([blocks[i] for i in dense])
+        for i, where in zip(thin, at_thin):
+            data[where] = blocks[i].data
+        return sparse.csr_array((data, indices, indptr), shape=(m, n))
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)
