@@ -153,7 +153,7 @@ def test_a_bad_robot_model_in_a_result_is_named(result_path, tmp_path):
         ({"sensor": {"cable_scale": "1"}}, r"key 'sensor', key 'cable_scale': input should be a valid number"),
         ({"schema": "robocal.robot/9"}, r"key 'schema': input should be 'robocal.robot/1'"),
         ({"tool": {"z": float("nan")}}, r"key 'tool', key 'z'"),
-        ({"extra": 1}, r"key 'extra': unknown key \(allowed: schema, name, description, units, convention, joints, base, tool, sensor\)"),
+        ({"extra": 1}, r"key 'extra': unknown key \(allowed: schema, name, description, units, convention, joints, base, tool, sensor, masses\)"),
     ],
 )
 def test_bad_robot_files_are_named(change, message, tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -150,9 +151,15 @@ def test_gravity_torques_by_hand():
     r = robocal.robot("ur10")
     m = MASS_MODELS["ur10"].link_masses
     tau = gravity_torques(r, np.zeros((1, 6)))  # UR10 zero pose: the arm stretched horizontally
-    # Link masses at link midpoints: link 2 at a2/2, link 3 at a2 + a3/2, links 4-6 at a2 + a3.
-    lever2 = m[1] * 0.306 + m[2] * (0.612 + 0.57230 / 2) + sum(m[3:]) * (0.612 + 0.5723)
+    # UR's centres of mass (DH link frames, x2 and x3 along the arm pointing back to the previous
+    # joint since a2, a3 < 0): link 2 at 612 - 380 mm from the shoulder, link 3 at 612 + 572.3 - 240,
+    # links 4-6 on the wrist's axes at a2 + a3 (their offsets are along y and z there).
+    lever2 = m[1] * (0.612 - 0.380) + m[2] * (0.612 + 0.5723 - 0.240) + sum(m[3:]) * (0.612 + 0.5723)
     assert tau[0, 1] == pytest.approx(GRAVITY * lever2, rel=1e-12)
+    # Without centres of mass, link masses at link midpoints: link 2 at a2/2, link 3 at a2 + a3/2.
+    midpoints = replace(MASS_MODELS["ur10"], centres_of_mass=None)
+    lever2 = m[1] * 0.306 + m[2] * (0.612 + 0.57230 / 2) + sum(m[3:]) * (0.612 + 0.5723)
+    assert gravity_torques(r, np.zeros((1, 6)), model=midpoints)[0, 1] == pytest.approx(GRAVITY * lever2, rel=1e-12)
     # Joint 1's axis is vertical: gravity has no torque about it, whatever the pose.
     q = np.random.default_rng(0).uniform(-3, 3, (20, 6))
     np.testing.assert_allclose(gravity_torques(robocal.robot("hsr-jr680"), q, payload=80)[:, 0], 0.0, atol=1e-9)

@@ -31,7 +31,7 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from .exceptions import InvalidParameterError
-from .physics import DEG, MASS_MODELS, approach_directions, gravity_torques
+from .physics import DEG, MASS_MODELS, approach_directions, gravity_torques, mass_model
 from .robot import MEASUREMENTS, Robot
 
 
@@ -234,15 +234,16 @@ class JointEffect(Effect):
 class JointCompliance(JointEffect):
     """Joint elasticity under gravity: ``Δq_j = k_j · τ_j(q)``.
 
-    ``τ_j`` (N·m) is the gravity torque about joint j from the robot's approximate mass model
-    (:func:`robocal.physics.gravity_torques`, links and a payload at the tool point); ``k_j`` is the joint
+    ``τ_j`` (N·m) is the gravity torque about joint j from the robot's mass model
+    (:func:`robocal.physics.mass_model`: a robot file's ``masses``, else the built-in model;
+    :func:`robocal.physics.gravity_torques`, links and a payload at the tool point); ``k_j`` is the joint
     compliance (inverse stiffness). The link sags in the direction gravity pulls it, while the
     motor encoder records the commanded angle. Torques are evaluated at the recorded angles
     (first order in ``k``).
 
     Keys: ``joint`` (optional; all joints when omitted), ``compliance`` in deg/(kN·m)
     (1 deg/(kN·m) = 1.745e-5 rad/(N·m); default: the mass model's, 3e-7 rad/(N·m) for the
-    JR680, 2e-5 for the IRB 120, 1e-5 for the UR10), ``payload`` in kg (default 0).
+    JR680, 2e-5 for the IRB 120, 1e-5 for the UR10, a robot file's ``compliance_rad_per_Nm``), ``payload`` in kg (default 0).
     Typical: joint stiffness 1e6-1e7 N·m/rad on large industrial robots (Dumas et al. 2011),
     1e4-1e5 N·m/rad on small ones; sag of ~0.01-0.1 deg at the shoulder.
     """
@@ -252,12 +253,18 @@ class JointCompliance(JointEffect):
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
-        if robot.name not in MASS_MODELS:
-            raise self.error(f"no mass model for robot {robot.name!r}; available for {sorted(MASS_MODELS)}")
+        model = mass_model(robot)
+        if model is None:
+            raise self.error(
+                f"no mass model for robot {robot.name!r}: give its robot file a 'masses' section (docs/data-format.md) "
+                f"or use a built-in robot with one ({sorted(MASS_MODELS)})"
+            )
         if self.values["payload"] < 0:
             raise self.error(f"key 'payload' must be >= 0 kg; got {self.values['payload']}")
         if self.values["compliance"] is None:  # the robot's default, in spec units for the record
-            self.values["compliance"] = MASS_MODELS[robot.name].compliance / self.keys["compliance"].factor
+            if model.compliance is None:
+                raise self.error(f"robot {robot.name!r}'s mass model has no default compliance: give key 'compliance' (deg/(kN·m))")
+            self.values["compliance"] = model.compliance / self.keys["compliance"].factor
 
     def offsets(self, acq):
         compliance = self["compliance"]

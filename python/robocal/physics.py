@@ -1,4 +1,4 @@
-"""Physics of the robot beyond its kinematics: approximate mass models, gravity torques about
+"""Physics of the robot beyond its kinematics: mass models (masses and centres of mass), gravity torques about
 the joints and the approach direction that decides a joint's backlash.
 
 Part of the model layer: the simulator's effects (:mod:`robocal.effects`) generate data with it
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -19,19 +20,29 @@ DEG = math.pi / 180.0
 GRAVITY = 9.81  # m/s², acting along −z of the robot base frame (a floor-mounted robot)
 
 # ---------------------------------------------------------------------------------------------
-# Approximate mass models of the built-in robots, for the gravity torques of `joint_compliance`.
+# Mass models of the built-in robots, for the gravity torques of `joint_compliance`.
 #
-# These are APPROXIMATIONS, good enough for a realistic size and shape of the compliance error,
-# not identified dynamics. Each link's mass is lumped at the midpoint of the segment joining the
-# origins of DH frames j-1 and j (a point that moves with link j). Sources:
-# * hsr-jr680: HSR does not publish a link breakdown and its total mass was not at hand; about
-#   620 kg is assumed from robots of the same class (80 kg payload, ~2 m reach: ABB IRB 4600-60
-#   435 kg, KUKA KR 60-3 665 kg), split plausibly over column, arms and wrist (the rest, ~120 kg,
-#   is the fixed base). Rated payload 80 kg (catalog).
-# * abb-irb120: total 25 kg and rated payload 3 kg from ABB's product specification, split
-#   plausibly (the fixed base takes ~9.5 kg).
-# * ur10: the link masses Universal Robots publishes with its DH parameters for dynamics
-#   (7.1, 12.7, 4.27, 2.0, 2.0, 0.365 kg; robot 28.9 kg, payload 10 kg).
+# Each link j (moved by joint j) has a mass and a centre of mass (COM) given in its own DH frame j
+# (the frame after joint j's link transform, which moves with link j), in mm. A link without a
+# COM is lumped at the midpoint of the segment joining the origins of DH frames j-1 and j.
+# A robot file can carry its own model (its `masses` section, docs/data-format.md), which
+# :func:`mass_model` prefers over the built-in one of the same name. Sources:
+# * hsr-jr680: an APPROXIMATION (midpoints). HSR does not publish a link breakdown and its total
+#   mass was not at hand; about 620 kg is assumed from robots of the same class (80 kg payload,
+#   ~2 m reach: ABB IRB 4600-60 435 kg, KUKA KR 60-3 665 kg), split plausibly over column, arms
+#   and wrist (the rest, ~120 kg, is the fixed base). Rated payload 80 kg (catalog).
+# * abb-irb120: an APPROXIMATION (midpoints): total 25 kg and rated payload 3 kg from ABB's
+#   product specification, split plausibly (the fixed base takes ~9.5 kg).
+# * ur10: the masses AND centres of mass Universal Robots publishes with its DH parameters for
+#   dynamics ("Parameters for calculations of kinematics and dynamics", universal-robots.com,
+#   articles/ur/parameters-for-calculations-of-kinematics-and-dynamics; robot 28.9 kg, payload
+#   10 kg): masses 7.1, 12.7, 4.27, 2.0, 2.0, 0.365 kg, COMs in the DH link frames [m]
+#   [0.021, 0, 0.027], [0.38, 0, 0.158], [0.24, 0, 0.068], [0, 0.007, 0.018], [0, 0.007, 0.018],
+#   [0, 0, -0.026]. The UR10 (CB3) rows were read through Peter Corke's Robotics Toolbox for
+#   Python (roboticstoolbox/models/DH/UR10.py, which cites that page and uses the same DH as
+#   robocal's ur10: a2 = -612, a3 = -572.3 mm); the stored copy of UR's page lists the same COMs
+#   for the UR10e's links 1-5. Link 2's COM, 0.38 m along x2 from the elbow, sits 232 mm from the
+#   shoulder (the midpoint model put it at 306 mm) and 158 mm along the shoulder axis.
 # Default compliances (rad/(N·m)) are literature orders of magnitude for the joint class: large
 # industrial robots have joint stiffnesses ~1e6-1e7 N·m/rad (Dumas et al., "Joint stiffness
 # identification of six-revolute industrial serial robots", RCIM 2011); small robots and
@@ -41,29 +52,61 @@ GRAVITY = 9.81  # m/s², acting along −z of the robot base frame (a floor-moun
 
 @dataclass(frozen=True)
 class MassModel:
-    """Approximate masses of a robot for gravity torques.
+    """The masses of a robot's links for gravity torques.
 
     Attributes
     ----------
     link_masses : tuple of float
-        Mass of link j (moved by joint j) in kg, lumped at the midpoint of DH frame origins
-        ``o_{j-1}`` and ``o_j``.
+        Mass of link j (moved by joint j) in kg, one per joint.
     rated_payload : float
         The robot's rated payload in kg (for reference; the effect's payload defaults to 0).
-    compliance : float
-        Default joint compliance in rad/(N·m).
+    compliance : float or None
+        Default joint compliance in rad/(N·m) (the simulator's ``joint_compliance`` default);
+        None: none known, the effect must be given one.
+    centres_of_mass : tuple or None
+        Per link, its centre of mass ``(x, y, z)`` in mm in the link's own DH frame j, or None:
+        lumped at the midpoint of DH frame origins ``o_{j-1}`` and ``o_j`` (the default for
+        every link when the tuple is None).
     """
 
     link_masses: tuple
-    rated_payload: float
-    compliance: float
+    rated_payload: float = 0.0
+    compliance: Optional[float] = None
+    centres_of_mass: Optional[tuple] = None
+
+    def __post_init__(self):  # plain tuples of floats, so that equal models compare equal
+        masses = tuple(float(m) for m in self.link_masses)
+        centres = self.centres_of_mass
+        if centres is not None:
+            if len(centres) != len(masses):
+                raise InvalidParameterError(f"centres_of_mass has {len(centres)} entries; expected one per link ({len(masses)})")
+            centres = tuple(None if c is None else tuple(float(v) for v in c) for c in centres)
+            if any(c is not None and len(c) != 3 for c in centres):
+                raise InvalidParameterError(f"each centre of mass must be (x, y, z) in mm or None; got {self.centres_of_mass!r}")
+        object.__setattr__(self, "link_masses", masses)
+        object.__setattr__(self, "centres_of_mass", centres)
+
+
+def _mm(metres) -> tuple:
+    return tuple(round(1000.0 * v, 9) for v in metres)
 
 
 MASS_MODELS = {
     "hsr-jr680": MassModel((220.0, 110.0, 95.0, 55.0, 18.0, 5.0), rated_payload=80.0, compliance=3e-7),
     "abb-irb120": MassModel((5.5, 4.0, 3.5, 1.8, 0.6, 0.1), rated_payload=3.0, compliance=2e-5),
-    "ur10": MassModel((7.1, 12.7, 4.27, 2.0, 2.0, 0.365), rated_payload=10.0, compliance=1e-5),
+    "ur10": MassModel(
+        (7.1, 12.7, 4.27, 2.0, 2.0, 0.365),
+        rated_payload=10.0,
+        compliance=1e-5,
+        centres_of_mass=tuple(_mm(c) for c in ([0.021, 0, 0.027], [0.38, 0, 0.158], [0.24, 0, 0.068], [0, 0.007, 0.018], [0, 0.007, 0.018], [0, 0, -0.026])),
+    ),
 }
+
+
+def mass_model(robot: Robot) -> Optional[MassModel]:
+    """The robot's mass model: its own (a robot file's ``masses``, :attr:`Robot.mass_model`),
+    else the built-in one of its name (:data:`MASS_MODELS`), else None."""
+    return robot.mass_model if robot.mass_model is not None else MASS_MODELS.get(robot.name)
 
 
 def _zero_base(robot: Robot, params: np.ndarray) -> np.ndarray:
@@ -73,8 +116,8 @@ def _zero_base(robot: Robot, params: np.ndarray) -> np.ndarray:
     return p
 
 
-def link_frames(robot: Robot, q, params=None) -> tuple[np.ndarray, np.ndarray]:
-    """Origins and z axes of DH frames 0..N in the robot base frame (base transform left out).
+def link_transforms(robot: Robot, q, params=None) -> np.ndarray:
+    """Poses of DH frames 0..N in the robot base frame (base transform left out).
 
     Frame j is the frame after joint j's link transform, computed with the robot's own chain
     truncated after joint j; frame 0 is the base.
@@ -89,59 +132,84 @@ def link_frames(robot: Robot, q, params=None) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    origins, z_axes : ndarray, shape (m, N + 1, 3)
-        Origins in mm and unit z axes.
+    ndarray, shape (m, N + 1, 4, 4)
+        Homogeneous transforms, translations in mm.
     """
     p = _zero_base(robot, robot.params if params is None else params)
     q = robot._joints_array(q)
     n = robot.n_joints
-    m = len(q)
-    origins, z_axes = np.zeros((m, n + 1, 3)), np.zeros((m, n + 1, 3))
-    z_axes[:, 0, 2] = 1.0
+    T = np.zeros((len(q), n + 1, 4, 4))
+    T[:, 0] = np.eye(4)
     frames = p[5 * n :].copy()
     frames[6:12] = 0.0  # no tool: the chain ends at the flange
     for j in range(1, n + 1):
         part = Robot(robot.name, robot.joints[:j], np.concatenate([p[: 5 * j], frames]))
-        T = part.fkine(q[:, :j])
-        origins[:, j], z_axes[:, j] = T[:, :3, 3], T[:, :3, 2]
-    return origins, z_axes
+        T[:, j] = part.fkine(q[:, :j])
+    return T
 
 
-def gravity_torques(robot: Robot, q, params=None, payload: float = 0.0) -> np.ndarray:
-    """Gravity torque about each joint axis from an approximate mass model, in N·m.
+def link_frames(robot: Robot, q, params=None) -> tuple[np.ndarray, np.ndarray]:
+    """Origins (mm) and unit z axes, each (m, N + 1, 3), of DH frames 0..N in the robot base
+    frame (base transform left out): :func:`link_transforms`."""
+    T = link_transforms(robot, q, params)
+    return T[:, :, :3, 3], T[:, :, :3, 2]
+
+
+def centres_of_mass(model: MassModel, T: np.ndarray) -> np.ndarray:
+    """The links' centres of mass (m, N, 3) in mm in the robot base frame, from the DH frames
+    ``T`` (m, N + 1, 4, 4) of :func:`link_transforms`: ``R_j c_j + o_j`` for a link with a
+    centre of mass ``c_j`` (frame j), the midpoint of ``o_{j-1}`` and ``o_j`` otherwise."""
+    origins = T[:, :, :3, 3]
+    centres = 0.5 * (origins[:, :-1] + origins[:, 1:])  # link k at index k-1
+    for k, com in enumerate(model.centres_of_mass or ()):
+        if com is not None:
+            centres[:, k] = T[:, k + 1, :3, :3] @ np.asarray(com, dtype=float) + origins[:, k + 1]
+    return centres
+
+
+def gravity_torques(robot: Robot, q, params=None, payload: float = 0.0, model: Optional[MassModel] = None) -> np.ndarray:
+    """Gravity torque about each joint axis from the robot's mass model, in N·m.
 
     ``τ_j = Σ_{loads k distal to joint j} z_{j-1} · ((c_k − o_{j-1}) × m_k g)``, with ``g``
-    along −z of the robot base frame, link masses ``m_k`` at the midpoints of consecutive DH
-    frame origins (:data:`MASS_MODELS`) and ``payload`` (kg) at the tool point. ``τ_j`` is the
-    torque gravity exerts on the links beyond joint j, about joint j's axis (standard DH: the z
-    axis of frame j-1 through its origin).
+    along −z of the robot base frame, link masses ``m_k`` at their centres of mass
+    (:func:`centres_of_mass`: given in the link's DH frame, else the midpoint of consecutive DH
+    frame origins) and ``payload`` (kg) at the tool point. ``τ_j`` is the torque gravity exerts
+    on the links beyond joint j, about joint j's axis (standard DH: the z axis of frame j-1
+    through its origin), ``−∂V/∂q_j`` of the potential energy ``V = −Σ m_k g · c_k``.
 
     Parameters
     ----------
     robot : Robot
-        A built-in robot (standard DH) with a mass model.
+        A chain of revolute standard-DH joints with a mass model (:func:`mass_model`).
     q : array_like, shape (m, N)
         Joint values in rad.
     params : array_like, optional
         Parameter vector (nominal by default); the tool point comes from its tool frame.
     payload : float
         Payload in kg at the tool point.
+    model : MassModel, optional
+        The masses; :func:`mass_model` of ``robot`` by default.
 
     Returns
     -------
     ndarray, shape (m, N)
     """
-    model = MASS_MODELS.get(robot.name)
+    model = mass_model(robot) if model is None else model
     if model is None:
-        raise InvalidParameterError(f"no mass model for robot {robot.name!r}; gravity torques are available for {sorted(MASS_MODELS)}")
+        raise InvalidParameterError(
+            f"no mass model for robot {robot.name!r}: give its robot file a 'masses' section (docs/data-format.md) "
+            f"or use a built-in robot with one ({sorted(MASS_MODELS)})"
+        )
     if any(j.convention != "dh" or j.kind != "revolute" for j in robot.joints):
         raise InvalidParameterError("gravity torques need a chain of revolute standard-DH joints")
+    if len(model.link_masses) != robot.n_joints:
+        raise InvalidParameterError(f"the mass model has {len(model.link_masses)} links; robot {robot.name!r} has {robot.n_joints} joints")
     p = _zero_base(robot, robot.params if params is None else params)
-    origins, z_axes = link_frames(robot, q, p)
+    T = link_transforms(robot, q, p)
+    origins, z_axes = T[:, :, :3, 3], T[:, :, :3, 2]
     tool_point = robot.fkine(q, p, tool=True)[:, :3, 3]
-    centres = 0.5 * (origins[:, :-1] + origins[:, 1:])  # (m, N, 3): link k at index k-1
-    points = np.concatenate([centres, tool_point[:, None]], axis=1) / 1000.0  # m
-    weights = np.array(model.link_masses + (payload,)) * GRAVITY  # N, pointing down
+    points = np.concatenate([centres_of_mass(model, T), tool_point[:, None]], axis=1) / 1000.0  # m
+    weights = np.array(tuple(model.link_masses) + (payload,)) * GRAVITY  # N, pointing down
     n = robot.n_joints
     tau = np.zeros((len(points), n))
     for j in range(n):  # joint j+1 carries links j+1..N and the payload: loads j..N

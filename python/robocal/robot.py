@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from .catalog import BUILTIN
 from .core import as_float, as_float_array, as_str
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 from .geometry import frame_params, frame_transform, rotation
+
+if TYPE_CHECKING:  # physics builds on this module
+    from .physics import MassModel
 
 MEASUREMENTS = ("cable", "position", "pose")
 
@@ -70,6 +73,9 @@ class Robot:
     joints : sequence of Joint
     params : array_like, shape (5N + 17,)
         Nominal parameter vector in the order of :attr:`param_names`.
+    mass_model : robocal.physics.MassModel, optional
+        The robot's own masses and centres of mass (a robot file's ``masses``), one link per
+        joint; :func:`robocal.physics.mass_model` prefers it to the built-in model of the name.
 
     Examples
     --------
@@ -80,7 +86,7 @@ class Robot:
     (1, 4, 4)
     """
 
-    def __init__(self, name: str, joints: Sequence[Joint], params: np.ndarray):
+    def __init__(self, name: str, joints: Sequence[Joint], params: np.ndarray, mass_model: Optional["MassModel"] = None):
         self.name = name
         self.joints = tuple(joints)
         if not self.joints:
@@ -94,6 +100,9 @@ class Robot:
         self.param_names: list[str] = self.chain.param_names()
         self.param_units: list[str] = self.chain.param_units()
         self.params = self._check_params(params, "params")
+        if mass_model is not None and len(mass_model.link_masses) != self.n_joints:
+            raise ShapeError(f"robot {name!r}: the mass model has {len(mass_model.link_masses)} links; expected one per joint ({self.n_joints})")
+        self.mass_model = mass_model
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
@@ -172,7 +181,7 @@ class Robot:
         params = self.params.copy()
         for name, value in values.items():
             params[self.index(name)] = as_float(value, name)
-        return Robot(self.name, self.joints, params)
+        return Robot(self.name, self.joints, params, self.mass_model)
 
     def _check_params(self, params, arg: str) -> np.ndarray:
         p = as_float_array(params, arg)
@@ -318,7 +327,7 @@ class Robot:
         params[: 5 * n] = mdh.ravel()
         params[self.index("tool_x") : self.index("tool_x") + 6] = tool
         joints = [Joint("mdh", j.kind, j.hayati, j.limits) for j in self.joints]
-        return Robot(self.name, joints, params)
+        return Robot(self.name, joints, params)  # no mass model: its centres of mass are in the DH frames
 
     def to_roboticstoolbox(self, length_unit: str = "m"):
         """This robot as a ``roboticstoolbox.DHRobot`` (optional extra ``robocal[rtb]``; lengths in

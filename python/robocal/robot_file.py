@@ -4,8 +4,10 @@
 Keys (docs/data-format.md, "Robot files"): ``schema``, ``name``, ``description``, ``units``
 (``length`` ``mm``; ``angle`` ``deg``, the default, or ``rad``), ``convention`` (the joints'
 default), ``joints`` (``convention, kind, alpha, a, d, theta, beta, hayati, limits``), ``base``
-and ``tool`` (``x, y, z, rx, ry, rz``: ``Tx Ty Tz Rz Ry Rx``) and ``sensor`` (``anchor_x,
-anchor_y, anchor_z, cable_offset, cable_scale``). Only ``joints`` and their ``alpha, a, d, theta``
+and ``tool`` (``x, y, z, rx, ry, rz``: ``Tx Ty Tz Rz Ry Rx``), ``sensor`` (``anchor_x,
+anchor_y, anchor_z, cable_offset, cable_scale``) and ``masses`` (``links``: ``mass_kg`` and
+``com_mm`` per joint, ``rated_payload_kg``, ``compliance_rad_per_Nm``: the robot's
+:class:`robocal.physics.MassModel`, written only when the robot has its own). Only ``joints`` and their ``alpha, a, d, theta``
 are required, so hand-written files stay short and the files written before this schema read.
 :func:`write_robot_file` writes every key, angles in rad by default: ``from_file(to_file(r))``
 gives ``r`` back bit for bit (in degrees the conversion may move a value by one unit in the last
@@ -22,6 +24,7 @@ import numpy as np
 
 from .exceptions import InvalidParameterError
 from .outputs import write_json, write_text
+from .physics import MassModel
 from .robot import Joint, Robot
 
 SCHEMA = "robocal.robot/1"
@@ -48,7 +51,7 @@ def robot_document(robot: Robot, degrees: bool = False) -> dict:
         start = robot.index(f"{prefix}_x")
         return {k: (angle if k.startswith("r") else float)(float(v)) for k, v in zip(FRAME_KEYS, p[start : start + 6])}
 
-    return {
+    doc = {
         "schema": SCHEMA,
         "name": robot.name,
         "units": {"length": "mm", "angle": "deg" if degrees else "rad"},
@@ -57,6 +60,30 @@ def robot_document(robot: Robot, degrees: bool = False) -> dict:
         "tool": frame("tool"),
         "sensor": {k: float(p[robot.index(k)]) for k in SENSOR_KEYS},
     }
+    if robot.mass_model is not None:
+        doc["masses"] = masses_document(robot.mass_model)
+    return doc
+
+
+def masses_document(model: MassModel) -> dict:
+    """A robot document's ``masses`` section: kg, mm (centres of mass in the link's DH frame) and rad/(N·m)."""
+    centres = model.centres_of_mass or (None,) * len(model.link_masses)
+    links = [{"mass_kg": m} if c is None else {"mass_kg": m, "com_mm": list(c)} for m, c in zip(model.link_masses, centres)]
+    doc = {"links": links, "rated_payload_kg": model.rated_payload}
+    if model.compliance is not None:
+        doc["compliance_rad_per_Nm"] = model.compliance
+    return doc
+
+
+def mass_model_from_spec(masses) -> MassModel:
+    """The :class:`MassModel` of a validated :class:`robocal.schemas.MassesSpec`."""
+    centres = tuple(None if link.com_mm is None else tuple(link.com_mm) for link in masses.links)
+    return MassModel(
+        tuple(link.mass_kg for link in masses.links),
+        rated_payload=masses.rated_payload_kg,
+        compliance=masses.compliance_rad_per_Nm,
+        centres_of_mass=None if all(c is None for c in centres) else centres,
+    )
 
 
 def robot_from_spec(spec, name: str) -> Robot:
@@ -71,7 +98,8 @@ def robot_from_spec(spec, name: str) -> Robot:
     for frame in (spec.base, spec.tool):
         values += [to_rad(getattr(frame, k)) if k.startswith("r") else getattr(frame, k) for k in FRAME_KEYS]
     values += [getattr(spec.sensor, k) for k in SENSOR_KEYS]
-    return Robot(spec.name or name, joints, np.array(values, dtype=np.float64))
+    masses = None if spec.masses is None else mass_model_from_spec(spec.masses)
+    return Robot(spec.name or name, joints, np.array(values, dtype=np.float64), masses)
 
 
 def robot_from_model(model) -> Robot:
@@ -112,7 +140,7 @@ def calibrated_robot(doc: dict, where: str) -> Robot:
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         not_a_result(where, "a parameter value is not finite")
-    return Robot(robot.name, robot.joints, values)
+    return Robot(robot.name, robot.joints, values, robot.mass_model)
 
 
 def read_document(path) -> object:

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 from typing import Annotated, Any, List, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, ValidationInfo, field_validator
+from pydantic_core import PydanticCustomError
 
 from .exceptions import InvalidParameterError
 
@@ -64,6 +65,25 @@ class SensorSpec(BaseModel):
     cable_scale: float = 1.0
 
 
+class LinkMassSpec(BaseModel):
+    """One link's mass (kg, > 0) and optional centre of mass (mm, ``[x, y, z]`` in the link's own
+    DH frame; absent: the midpoint of the link's DH frame origins)."""
+
+    model_config = _STRICT
+    mass_kg: float = Field(gt=0)
+    com_mm: Optional[Annotated[List[float], Field(min_length=3, max_length=3)]] = None
+
+
+class MassesSpec(BaseModel):
+    """A robot's masses for gravity torques: one link per joint, the rated payload (kg, for
+    reference) and the default joint compliance (rad/(N·m))."""
+
+    model_config = _STRICT
+    links: List[LinkMassSpec] = Field(min_length=1)
+    rated_payload_kg: float = Field(default=0.0, ge=0)
+    compliance_rad_per_Nm: Optional[float] = Field(default=None, gt=0)
+
+
 class Units(BaseModel):
     model_config = _STRICT
     length: Literal["mm"] = "mm"
@@ -85,6 +105,15 @@ class RobotSpec(BaseModel):
     base: FrameSpec = FrameSpec()
     tool: FrameSpec = FrameSpec()
     sensor: SensorSpec = SensorSpec()
+    masses: Optional[MassesSpec] = None
+
+    @field_validator("masses")
+    @classmethod
+    def _one_link_per_joint(cls, masses: Optional[MassesSpec], info: ValidationInfo) -> Optional[MassesSpec]:
+        joints = info.data.get("joints")
+        if masses is not None and joints is not None and len(masses.links) != len(joints):
+            raise PydanticCustomError("link_count", f"key 'links' has {len(masses.links)} entries; expected one per joint ({len(joints)})")
+        return masses
 
 
 class ResultRobotSpec(RobotSpec):
@@ -174,7 +203,7 @@ def _where(loc: tuple, document: str) -> str:
     loc = tuple(k for k in loc if k not in ("document", "vector"))  # the robot_model form's tag
     while i < len(loc):
         key = loc[i]
-        if key in ("joints", "parameters", "implausible") and i + 1 < len(loc) and isinstance(loc[i + 1], int):
+        if key in ("joints", "parameters", "implausible", "links") and i + 1 < len(loc) and isinstance(loc[i + 1], int):
             words.append(f"{key.rstrip('s')} {loc[i + 1] + 1}")
             i += 2
         else:
@@ -194,12 +223,15 @@ def validate(model: type[BaseModel], document, where: str) -> BaseModel:
         if e["type"] == "missing":  # all keys missing at the same place, in one message
             keys = [str(x["loc"][-1]) for x in errors if x["type"] == "missing" and x["loc"][:-1] == e["loc"][:-1]]
             raise InvalidParameterError(f"{where}: {_where(e['loc'][:-1], 'the document')} lacks {', '.join(keys)}") from None
-        got = "" if e["type"] in ("missing", "extra_forbidden") else f"; got {repr(e.get('input'))[:60]}"
+        got = "" if e["type"] in ("missing", "extra_forbidden", "link_count") else f"; got {repr(e.get('input'))[:60]}"
         what = "unknown key" if e["type"] == "extra_forbidden" else e["msg"][0].lower() + e["msg"][1:]
         if e["type"] == "extra_forbidden" and model is RobotSpec:
-            section = {"joints": JointSpec, "base": FrameSpec, "tool": FrameSpec, "sensor": SensorSpec, "units": Units}.get(
-                e["loc"][0] if len(e["loc"]) > 1 else None, RobotSpec
+            top = e["loc"][0] if len(e["loc"]) > 1 else None
+            section = {"joints": JointSpec, "base": FrameSpec, "tool": FrameSpec, "sensor": SensorSpec, "units": Units, "masses": MassesSpec}.get(
+                top, RobotSpec
             )
+            if top == "masses" and len(e["loc"]) > 3:  # masses, links, i, key
+                section = LinkMassSpec
             what += f" (allowed: {', '.join(f.alias or name for name, f in section.model_fields.items())})"
         more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
         raise InvalidParameterError(f"{where}: {_where(e['loc'], 'the top level')}: {what}{got}{more}") from None

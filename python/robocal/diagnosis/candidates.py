@@ -27,7 +27,7 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..physics import DEG, MASS_MODELS, approach_directions, gravity_torques
+from ..physics import DEG, approach_directions, gravity_torques, mass_model
 from ..core import as_float_array
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -174,7 +174,7 @@ class Candidate:
 
 def has_mass_model(robot: Robot) -> bool:
     """Gravity torques are available (a mass model and a revolute standard-DH chain)."""
-    return robot.name in MASS_MODELS and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints)
+    return mass_model(robot) is not None and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints)
 
 
 def joint_basis(robot: Robot, q: np.ndarray, kind: str, joint: int, detail: dict, tau: Optional[np.ndarray] = None) -> np.ndarray:
