@@ -232,7 +232,7 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         when a joint lies beyond the range a joint map was fitted on).
     """
     calibrated, doc = load_result(result)
-    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])  # checked by load_result
+    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)  # checked by load_result
     # The nominal model in the calibration's measurement frame: nominal kinematics, the
     # calibrated set-up (base frame, tool), as a user's controller would have it after a
     # base/tool calibration.

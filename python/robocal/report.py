@@ -130,7 +130,7 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
 def nominal_robot(robot: Robot, doc: dict) -> Robot:
     """The robot with the nominal parameters the calibration started from."""
     nominal = {p["name"]: float(p["nominal"]) for p in doc["parameters"]}
-    return Robot(robot.name, robot.joints, np.array([nominal[n] for n in robot.param_names]))
+    return Robot(robot.name, robot.joints, np.array([nominal[n] for n in robot.param_names]), mass_model=robot.mass_model)
 
 
 # -- evaluation -------------------------------------------------------------------------------

@@ -95,7 +95,7 @@ def verify(
                     "reason": "a term of the calibration's own session (its sensor), not of the robot" if c.get("kind") in SESSION_KINDS
                     else "a parameter of the robot: in the calibrated parameters"} for c in causes if c not in carried]  # fmt: skip
     calibrated_metrics, setup, refit = _refit_setup(calibrated, _with_joint_causes(calibrated, read, carried))
-    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])
+    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)
     nominal_metrics, _, _ = _refit_setup(nominal, read)
     return {
         "schema": SCHEMA,

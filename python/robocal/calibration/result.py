@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core import covariance, is_sparse
+from ..core import covariance, is_sparse, sparse_gram
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
@@ -101,7 +101,7 @@ class CalibrationResult:
         extended model and reading conventions are not part of a :class:`Robot`; ``compensate``
         and ``verify`` apply them from :meth:`to_dict`.)"""
         robot = self.problem.robot
-        return Robot(robot.name, robot.joints, self.params)
+        return Robot(robot.name, robot.joints, self.params, mass_model=robot.mass_model)
 
     @property
     def fun(self) -> np.ndarray:
@@ -168,11 +168,11 @@ class CalibrationResult:
             return []
         units = [self.problem.robot.param_units[k] for k in self.problem.free]
         limits = np.array([PLAUSIBLE.get(u, 0.01) for u in units] + [1.0] * (J.shape[1] - len(units)))
-        # The singular values and directions of J·diag(limits), from its normal equations (J may be sparse).
-        N = J.T @ J
-        N = (N.toarray() if is_sparse(N) else np.asarray(N)) * np.outer(limits, limits)
-        s2, V = np.linalg.eigh(N)
-        sv, Vt = np.sqrt(np.maximum(s2[::-1], 0.0)), V[:, ::-1].T  # largest first, as an SVD gives them
+        if is_sparse(J):  # a model with joint maps: the singular values from the normal equations
+            s2, V = np.linalg.eigh(sparse_gram(J) * np.outer(limits, limits))
+            sv, Vt = np.sqrt(np.maximum(s2[::-1], 0.0)), V[:, ::-1].T  # largest first, as an SVD gives them
+        else:
+            _, sv, Vt = np.linalg.svd(J * limits, full_matrices=False)
         noise = float(np.sqrt(r @ r / (J.shape[0] - J.shape[1])))
         names = list(self.problem.names)
         out = []
