@@ -9,7 +9,7 @@ session set-up re-fitted (tracker base frame, tool point); the session's own ter
 steps, outliers) are not carried. Prints a Markdown table of the verified RMSE (eq. 28) of the
 nominal, geometric and extended models — the extended one without and with joint maps
 (``diagnose(maps=False)``) — and the share of the test samples beyond a map's fitted range (where
-the map is held at its end value). The CLI equivalent of one cell:
+the map corrects nothing). The CLI equivalent of one cell:
 
     robocal calibrate A.csv --measurement position --test-fraction 0 --out A.json
     robocal verify A.json B.csv

@@ -256,7 +256,7 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         beyond = [m for m in map_coverage_report(causes, q[None, :]) if m["outside"]]
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
-        if beyond:  # the map is held at its end value there: the user must know
+        if beyond:  # the map corrects nothing there: the user must know
             status += "; extrapolated: " + ", ".join(
                 f"joint {m['joint']} beyond the map's range {m['range_deg'][0]:g}..{m['range_deg'][1]:g} deg" for m in beyond
             )

@@ -719,7 +719,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     if diag is not None:
         p = diagnosis_figure(diag, out / "diagnosis.png")
         maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), f"Joint map of joint {e['joint']}: the correction of its angle against its reading "
-                        "(held at its end values beyond the range it was fitted on), with ±2 standard deviations.")
+                        "(no correction beyond the range it was fitted on), with ±2 standard deviations.")
                 for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]  # fmt: skip
         diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
                      + _diagnosis_table(diag) + "".join(maps) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip

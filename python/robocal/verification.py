@@ -110,6 +110,6 @@ def verify(
         "nominal": {"metrics": nominal_metrics},
         "applied": {"structure": list(doc.get("structure", [])), "causes": [c.get("label", c["kind"]) for c in carried]},
         "not_applied": not_applied,
-        # Joint maps are held at their end value beyond the range they were fitted on.
+        # Joint maps correct nothing beyond the range they were fitted on.
         "coverage": map_coverage_report(carried, read.q, read.rows),
     }

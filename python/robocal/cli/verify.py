@@ -26,7 +26,7 @@ def summary(report: dict) -> str:
     for c in report.get("coverage", []):
         if c["outside"]:
             lines.append(f"  extrapolated: {c['outside']} samples have joint {c['joint']} beyond the range {c['range_deg'][0]:g}..{c['range_deg'][1]:g} deg "
-                         f"its map was fitted on (held at its end value there; first rows {c['rows'][:5]})")  # fmt: skip
+                         f"its map was fitted on (not corrected there; first rows {c['rows'][:5]})")  # fmt: skip
     if "rotation_rmse_deg" in m:
         lines.insert(2, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
     return "\n".join(lines)

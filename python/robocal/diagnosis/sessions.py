@@ -118,7 +118,7 @@ class _Evaluator:
 
     def problems(self, model: _Model, span: Optional[tuple] = None) -> list[ExtendedProblem]:
         """Per session, the model's problem. Joint maps span the joint's range over the sessions
-        ``span`` (0-based; default all): one basis for every session, held at its end values
+        ``span`` (0-based; default all): one basis for every session, zero
         beyond (a left-out session is placed as ``verify`` would place it)."""
         span = tuple(range(len(self.sessions))) if span is None else span
         out = []
