@@ -99,12 +99,12 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys
     # compensating a target beyond the range says so
     q = second.q[~inside][:1]
     (row,) = robocal.compensate(result, fit.robot.predict("position", q))
-    assert "extrapolated: joint 2" in row["status"]
+    assert "not corrected by its map: joint 2 beyond" in row["status"]
     # and so does the command line
     save_result(result, tmp_path / "result.json")
     write_canonical(second, tmp_path / "second.csv")
     assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "second.csv")]) == 0
-    assert f"extrapolated: {coverage['outside']} samples have joint 2 beyond" in capsys.readouterr().out
+    assert f"not corrected by its map: {coverage['outside']} samples have joint 2 beyond" in capsys.readouterr().out
 
 
 @given(st.floats(-170, 0), st.floats(20, 300), st.sampled_from([2.0, 5.0, 15.0]))

@@ -257,8 +257,8 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
         if beyond:  # the map corrects nothing there: the user must know
-            status += "; extrapolated: " + ", ".join(
-                f"joint {m['joint']} beyond the map's range {m['range_deg'][0]:g}..{m['range_deg'][1]:g} deg" for m in beyond
+            status += "; not corrected by its map: " + ", ".join(
+                f"joint {m['joint']} beyond the range {m['range_deg'][0]:g}..{m['range_deg'][1]:g} deg" for m in beyond
             )
         out.append(
             {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}

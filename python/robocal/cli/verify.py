@@ -25,7 +25,7 @@ def summary(report: dict) -> str:
         lines.append(f"  not applied: {item['label']} ({item['reason']})")
     for c in report.get("coverage", []):
         if c["outside"]:
-            lines.append(f"  extrapolated: {c['outside']} samples have joint {c['joint']} beyond the range {c['range_deg'][0]:g}..{c['range_deg'][1]:g} deg "
+            lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} beyond the range {c['range_deg'][0]:g}..{c['range_deg'][1]:g} deg "
                          f"its map was fitted on (not corrected there; first rows {c['rows'][:5]})")  # fmt: skip
     if "rotation_rmse_deg" in m:
         lines.insert(2, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
