@@ -173,3 +173,12 @@ def test_the_rust_gram_refuses_malformed_input():
         _robocal.sparse_gram(np.array([0, 1]), np.array([0]), np.array([np.nan]), 3)
     with pytest.raises(robocal.exceptions.InvalidParameterError, match="int32 or int64"):
         _robocal.sparse_gram(np.array([0.0, 1.0]), np.array([0]), np.array([1.0]), 3)
+
+
+def test_a_result_cause_needs_a_list_of_coefficients():
+    """A result file whose joint cause holds a bare number is refused by name (it once reached
+    the matrix product of the compensation)."""
+    from robocal.diagnosis.candidates import joint_offsets
+
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="joint_scale.*list of 1 finite coefficients"):
+        joint_offsets(robocal.robot("ur10"), [{"kind": "joint_scale", "joint": 2, "detail": {}, "coefficients": 0.0}])

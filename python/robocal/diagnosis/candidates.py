@@ -420,8 +420,9 @@ COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupl
 JOINT_KINDS = COMPENSABLE + ("backlash",)
 
 
-def _check_joint_cause(robot: Robot, cause: dict) -> None:
-    """A result file's joint cause as :func:`joint_offsets` needs it, or an error naming it."""
+def _check_joint_cause(robot: Robot, cause: dict) -> np.ndarray:
+    """A result file's joint cause as :func:`joint_offsets` needs it — its coefficients, (n_c,) —
+    or an error naming it."""
     where = f"cause {cause.get('label', cause['kind'])!r}"
     joint, detail = cause.get("joint"), cause.get("detail", {})
     if isinstance(joint, bool) or not isinstance(joint, int) or not 1 <= joint <= robot.n_joints or not isinstance(detail, dict):
@@ -432,8 +433,13 @@ def _check_joint_cause(robot: Robot, cause: dict) -> None:
         raise InvalidParameterError(f"{where}: malformed `detail` {detail!r} ({type(exc).__name__}: {exc})") from None
     coefficients = as_float_array(cause.get("coefficients"), f"{where} coefficients")
     values = basis.data if hasattr(basis, "data") and not isinstance(basis, np.ndarray) else basis
-    if coefficients.shape != (basis.shape[1],) or not (np.all(np.isfinite(coefficients)) and np.all(np.isfinite(values))):
-        raise InvalidParameterError(f"{where}: needs {basis.shape[1]} finite coefficients for a finite basis; got {cause.get('coefficients')!r}")
+    if (
+        np.ndim(cause.get("coefficients")) != 1
+        or coefficients.shape != (basis.shape[1],)
+        or not (np.all(np.isfinite(coefficients)) and np.all(np.isfinite(values)))
+    ):
+        raise InvalidParameterError(f"{where}: needs a list of {basis.shape[1]} finite coefficients for a finite basis; got {cause.get('coefficients')!r}")
+    return coefficients
 
 
 def joint_offsets(robot: Robot, causes: list[dict], kinds: tuple = COMPENSABLE):
@@ -443,14 +449,13 @@ def joint_offsets(robot: Robot, causes: list[dict], kinds: tuple = COMPENSABLE):
     usable = [c for c in causes if c.get("kind") in kinds]
     if not usable:
         return None
-    for cause in usable:
-        _check_joint_cause(robot, cause)
+    checked = [(cause, _check_joint_cause(robot, cause)) for cause in usable]
 
     def offsets(q: np.ndarray) -> np.ndarray:
         dq = np.zeros_like(q)
-        for c in usable:
+        for c, coefficients in checked:
             j = c["joint"] - 1
-            dq[:, j] += joint_basis(robot, q, c["kind"], j, c.get("detail", {})) @ np.asarray(c["coefficients"])
+            dq[:, j] += joint_basis(robot, q, c["kind"], j, c.get("detail", {})) @ coefficients
         return dq
 
     return offsets
