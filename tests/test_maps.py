@@ -15,7 +15,7 @@ from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
 from robocal.core import DampedNormal, factor_damped, sparse_gram
-from robocal.diagnosis.candidates import map_basis, map_constraint, map_coverage, map_curve
+from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve
 from robocal.physics import DEG
 from robocal.simulation import simulate
 
@@ -113,10 +113,13 @@ def test_map_basis_has_no_constant_and_is_zero_beyond_its_range(lo, width, spaci
     detail = {"lo": lo, "hi": lo + width, "spacing": spacing}
     q = np.radians(np.linspace(lo - 30, lo + width + 30, 301))
     B = map_basis(q, detail).toarray()
-    # the cubic B-splines sum to one: constrained coefficients cannot add a constant
-    n = B.shape[1] + 1
-    assert np.allclose(map_constraint(n).sum(axis=0), 0.0)
-    c = np.random.default_rng(0).normal(size=n - 1)
+    # neither a constant nor a linear function of the angle is a map (they are theta's and
+    # joint_scale's): no map fits a line over its range
+    c = np.random.default_rng(0).normal(size=B.shape[1])
+    inside_q = np.radians(np.linspace(lo, lo + width, 400))
+    line = 1.0 + 0.3 * inside_q
+    Bd = map_basis(inside_q, detail).toarray()
+    assert np.std(line - Bd @ np.linalg.lstsq(Bd, line, rcond=None)[0]) > 1e-3 * np.std(line)
     inside = map_coverage(q, detail)
     assert np.all(inside == ((q >= np.radians(lo) - 1e-9) & (q <= np.radians(lo + width) + 1e-9)))
     assert np.all(B[~inside] == 0.0)  # no correction beyond the fitted range

@@ -4,7 +4,8 @@ A harmonic-drive or RV reducer's transmission error is a fine, smooth function o
 angle (energy at 10-30 cycles per revolution on the UR10), which a few harmonics cannot follow. A
 *joint map* is a cubic B-spline correction of one joint's angle over the range the data cover,
 with a second-difference roughness penalty (a P-spline, Eilers & Marx 1996); its constant is
-left to the geometry's ``theta`` offset (:func:`~.candidates.map_constraint`).
+left to the geometry's ``theta`` offset and its linear part to ``joint_scale``
+(:func:`~.candidates.map_constraint`).
 
 The stage runs after the named causes. Each round screens, for every joint without a map, every
 knot spacing and roughness of :data:`~.candidates.MAP_SPACINGS_DEG` ×
