@@ -220,7 +220,7 @@ def map_constraint(detail: dict) -> np.ndarray:
 
     A cubic spline is constant or linear in the angle exactly when its coefficients are
     ``a + b·ξ`` (``ξ`` the Greville abscissae of the knots), so ``Z`` spans the coefficients
-    orthogonal to ``1`` and ``ξ`` (the last two solved from the others). A constant map is the
+    orthogonal to ``1`` and ``ξ`` (the first and last solved from the others). A constant map is the
     joint's ``theta`` offset and a linear one its scale error (``joint_scale``), which the
     geometry and the named causes fit; both are also the null space of the roughness penalty,
     so without them every part of a map is penalised and the geometry takes precedence. (Maps
@@ -230,8 +230,13 @@ def map_constraint(detail: dict) -> np.ndarray:
     n = len(t) - MAP_DEGREE - 1
     xi = np.array([t[i + 1 : i + 1 + MAP_DEGREE].mean() for i in range(n)])
     A = np.column_stack([np.ones(n), xi - xi.mean()])
-    last = -np.linalg.solve(A[n - 2 :].T, A[: n - 2].T)  # A_lastᵀ·c_last = −A_firstᵀ·c_first
-    return np.vstack([np.eye(n - 2), last])
+    # The first and the last coefficient are solved from the others (ξ at the two ends keeps the
+    # 2×2 system well conditioned; the last two alone made Z's entries grow as 1/spacing).
+    ends, inner = [0, n - 1], np.arange(1, n - 1)
+    Z = np.zeros((n, n - 2))
+    Z[inner, np.arange(n - 2)] = 1.0
+    Z[ends] = -np.linalg.solve(A[ends].T, A[inner].T)  # A_endsᵀ·c_ends = −A_innerᵀ·c_inner
+    return Z
 
 
 def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
