@@ -28,7 +28,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..physics import DEG, approach_directions, gravity_torques, mass_model
-from ..core import as_float_array
+from ..core import as_float_array, is_sparse
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma
@@ -450,7 +450,7 @@ def _check_joint_cause(robot: Robot, cause: dict) -> np.ndarray:
     except (KeyError, TypeError, IndexError) as exc:
         raise InvalidParameterError(f"{where}: malformed `detail` {detail!r} ({type(exc).__name__}: {exc})") from None
     coefficients = as_float_array(cause.get("coefficients"), f"{where} coefficients")
-    values = basis.data if hasattr(basis, "data") and not isinstance(basis, np.ndarray) else basis
+    values = basis.data if is_sparse(basis) else basis
     if (
         np.ndim(cause.get("coefficients")) != 1
         or coefficients.shape != (basis.shape[1],)

@@ -91,14 +91,14 @@ class _NormalScreen:
         return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof)), extra
 
 
-def _scaled(N: np.ndarray) -> np.ndarray:
-    d = np.sqrt(np.maximum(np.diag(N), 1e-300))
-    return d
+def _diagonal_scale(N: np.ndarray) -> np.ndarray:
+    """``√diag(N)``: the scaling that gives ``N`` a unit diagonal."""
+    return np.sqrt(np.maximum(np.diag(N), 1e-300))
 
 
 def _solve(N: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``N⁻¹·b`` on unit-diagonal scaling with a relative ridge."""
-    d = _scaled(N)
+    d = _diagonal_scale(N)
     Ns = N / np.outer(d, d) + RIDGE * np.eye(len(N))
     return np.linalg.solve(Ns, b / d) / d
 
@@ -106,7 +106,7 @@ def _solve(N: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _rss(N: np.ndarray, b: np.ndarray, rr: float) -> tuple[float, int]:
     """Residual sum of squares of the least-squares fit with normal equations ``N·δ = b``, and
     its rank."""
-    d = _scaled(N)
+    d = _diagonal_scale(N)
     s2, V = np.linalg.eigh(N / np.outer(d, d))
     keep = s2 > 1e-12 * max(float(s2[-1]), 1e-300)
     coef = V[:, keep].T @ (b / d)
@@ -142,14 +142,14 @@ def map_stage(
             errs = screen.errors(C, c.penalty)
             score = sum(np.mean(errs[name]) for name in schemes)
             if c.joint not in best or score < best[c.joint][0]:
-                best[c.joint] = (score, c, errs)
+                best[c.joint] = (score, c, errs, C)
         ranked = sorted(best.values(), key=lambda v: v[0])
         n_tests = len(pool)
         chosen = None
-        for score, c, errs in ranked:
+        for score, c, errs, C in ranked:
             gains = {name: _rmse(base_err[name]) - _rmse(errs[name]) for name in schemes}
-            p_value, extra = screen.f_test(model.columns(x, c))
-            entry = {"candidate": c, "gains_mm": gains, "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests)}
+            p_value, _ = screen.f_test(C)
+            entry = {"candidate": c, "gains_mm": gains, "p_value": p_value, "tests": n_tests}
             if not all(g >= min_gain * _rmse(base_err[name]) for name, g in gains.items()) or p_value * n_tests >= alpha:
                 rejected.append(
                     {**entry, "reason": "not significant" if p_value * n_tests >= alpha else f"held-out gain below {min_gain:.1%} on some fold scheme"}
@@ -184,15 +184,17 @@ def map_stage(
     return model, x, current_cv, fold_x, accepted, rejected
 
 
-def map_curves(model: ExtendedProblem, x: np.ndarray) -> dict:
-    """Each joint map of ``model`` at ``x`` as a curve with its standard deviation (from the fit's
-    covariance, roughness prior included), keyed by the cause's label."""
-    maps = [(c, s) for c, s in zip(model.causes, model.slices) if c.kind == "joint_map"]
+def map_curves(problem, x: np.ndarray, maps: list) -> dict:
+    """The joint maps ``maps`` (candidates) of a fitted ``problem`` (one session's
+    :class:`ExtendedProblem` or several stacked) at ``x``, each as a curve with its standard
+    deviation (from the fit's covariance, roughness prior included), keyed by the cause's label.
+    A map's coefficients are the entries named ``"<label> c<i>"``."""
     if not maps:
         return {}
-    cov, *_ = covariance(model.jacobian(x), model.residuals(x))
+    cov, *_ = covariance(problem.jacobian(x), problem.residuals(x))
     out = {}
-    for c, s in maps:
-        curve = map_curve(c.detail, x[s], cov[s, s])
+    for c in maps:
+        at = [i for i, n in enumerate(problem.names) if n.startswith(c.label + " c")]
+        curve = map_curve(c.detail, np.asarray(x)[at], cov[np.ix_(at, at)])
         out[c.label] = {k: [float(v) for v in values] for k, values in curve.items()}
     return out

@@ -50,6 +50,11 @@ class ExtendedProblem:
         theta = {self.robot.index(f"theta{j + 1}") for j in range(self.robot.n_joints)}
         self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
         self._theta = sorted(theta)
+        # Joint maps' sparse basis rows (per cause) and the CSR pattern of the Jacobian, built
+        # on first use: the samples of a problem do not change.
+        self._sample_rows: dict = {}
+        self._residual_rows: dict = {}
+        self._layout = None
 
     # -- the vector ---------------------------------------------------------------------------
     @property
@@ -106,10 +111,9 @@ class ExtendedProblem:
 
     def _sample_basis(self, cause: Candidate):
         """A joint map's basis at the problem's samples, CSR; cached."""
-        cache = self.__dict__.setdefault("_samples_cache", {})
-        if id(cause) not in cache:
-            cache[id(cause)] = cause.basis[self.idx].tocsr()
-        return cache[id(cause)]
+        if id(cause) not in self._sample_rows:
+            self._sample_rows[id(cause)] = cause.basis[self.idx].tocsr()
+        return self._sample_rows[id(cause)]
 
     def _jacobian_columns(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
         """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``."""
@@ -189,10 +193,9 @@ class ExtendedProblem:
     def _basis_rows(self, cause: Candidate):
         """A joint map's basis at every residual row (its sample's row repeated ``k`` times), CSR;
         cached: the samples of a problem do not change."""
-        cache = self.__dict__.setdefault("_rows_cache", {})
-        if id(cause) not in cache:
-            cache[id(cause)] = cause.basis[np.repeat(self.idx, self.k)].tocsr()
-        return cache[id(cause)]
+        if id(cause) not in self._residual_rows:
+            self._residual_rows[id(cause)] = cause.basis[np.repeat(self.idx, self.k)].tocsr()
+        return self._residual_rows[id(cause)]
 
     def _sparse_data_rows(self, blocks: list, n: int):
         """The data rows of the Jacobian as CSR, assembled straight from its blocks: the dense
@@ -203,7 +206,7 @@ class ExtendedProblem:
         offsets = np.concatenate([[0], np.cumsum([b.shape[1] for b in blocks])])
         dense = [i for i, b in enumerate(blocks) if not is_sparse(b)]
         thin = [i for i, b in enumerate(blocks) if is_sparse(b)]
-        layout = self.__dict__.get("_layout")
+        layout = self._layout
         if layout is None:
             m = blocks[0].shape[0]
             dense_cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in dense])

@@ -459,16 +459,16 @@ def diagnose(
                 "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
                 "significance": {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
                                          "held-out gain of the penalised map required on every fold scheme",
-                                 "p_value": m["p_value"], "p_adjusted": m["p_adjusted"], "screening_gain_mm": m["gains_mm"],
+                                 "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"],
                                  "rmse_heldout_blocked_before": m["rmse_heldout_before"]["blocked"], "rmse_heldout_blocked_after": m["rmse_heldout_after"]["blocked"]},
             })  # fmt: skip
         for m in rejected_maps:
             c = m["candidate"]
-            rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], 1, m.get("params"), m["reason"]) | {"p_adjusted": m["p_adjusted"]})
+            rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
     unconstrained = _rmse(current_cv["random"])
     model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
     x = final_fit.x
-    curves = map_curves(model, x)
+    curves = map_curves(model, x, [c for c in model.causes if c.kind == "joint_map"])
     for effect in effects:
         if effect["label"] in curves:
             effect["curve"] = curves[effect["label"]]

@@ -32,9 +32,10 @@ from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import Robot
 from . import structure
-from ..core import covariance, is_sparse
+from ..core import is_sparse
 from ..physics import DEG
-from .candidates import library, map_candidate, map_curve
+from .candidates import library, map_candidate
+from .maps import map_curves
 from .model import ExtendedProblem
 from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
 
@@ -383,13 +384,12 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if s is not None:
             described = problems[s].describe_causes(joint.session_x(fit.x, s), joint.session_x(spread, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
-    maps = [e for e in effects if e["kind"] == "joint_map"]
-    if maps:  # each map's curve and band from the fit on every session
-        cov = covariance(joint.jacobian(fit.x), joint.residuals(fit.x))[0]
-        for e in maps:
-            at = [i for i, n in enumerate(joint.names) if n.startswith(e["label"] + " c")]
-            detail = next(c.detail for p in problems for c in p.causes if c.label == e["label"])
-            e["curve"] = {k: [float(v) for v in values] for k, values in map_curve(detail, fit.x[at], cov[np.ix_(at, at)]).items()}
+    # each map's curve and band from the fit on every session
+    maps = {c.label: c for p in problems for c in p.causes if c.kind == "joint_map"}
+    curves = map_curves(joint, fit.x, list(maps.values()))
+    for e in effects:
+        if e["label"] in curves:
+            e["curve"] = curves[e["label"]]
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
