@@ -380,3 +380,28 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
               "baseline": {"n_params": 25, "rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "implausible": []},
               "final": {"rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "n_params": 25}}  # fmt: skip
     assert "neither plausible nor 10% better" in summary(report)
+
+
+def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
+    """The ordering of a screening round: a significant compliance with at least
+    ``PHYSICS_SHARE`` of the best free joint shape's gain goes before it; a weaker one, an
+    insignificant one and the shapes keep their rank, and a sensor's drift stays ahead."""
+    from robocal.diagnosis.candidates import Candidate
+    from robocal.diagnosis.select import PHYSICS_SHARE, _physics_first
+
+    def entry(kind, joint, gain, stage="joints"):
+        return (gain, Candidate(kind, joint, stage, None), 1e-9, {"random": gain, "blocked": gain})
+
+    drift = entry("drift", None, 0.05, "observations")
+    harmonic = entry("joint_periodic", 1, 0.02)
+    scale = entry("joint_scale", 2, 0.015)
+    close = entry("joint_compliance", 1, 0.02 * (PHYSICS_SHARE + 0.1))
+    weak = entry("joint_compliance", 2, 0.02 * (PHYSICS_SHARE - 0.1))
+    scored = [drift, harmonic, scale, close, weak]
+    everything = lambda *s: True  # noqa: E731
+    assert [s[1].kind for s in _physics_first(scored, everything)] == ["drift", "joint_compliance", "joint_periodic", "joint_scale", "joint_compliance"]
+    assert _physics_first(scored, everything)[1] is close
+    assert _physics_first(scored, lambda *s: s[1].kind != "joint_compliance") == scored
+    assert _physics_first([drift, close], everything) == [drift, close]  # no free shape to go before
+    # once the model has a compliance, the other loaded joints' go first whatever their share
+    assert [s[1].joint for s in _physics_first(scored, everything, established=True)[1:3]] == [1, 2]

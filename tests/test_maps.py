@@ -185,3 +185,18 @@ def test_a_result_cause_needs_a_list_of_coefficients():
 
     with pytest.raises(robocal.exceptions.InvalidParameterError, match="joint_scale.*list of 1 finite coefficients"):
         joint_offsets(robocal.robot("ur10"), [{"kind": "joint_scale", "joint": 2, "detail": {}, "coefficients": 0.0}])
+
+
+def test_a_map_takes_the_place_of_its_joints_harmonic():
+    """A transmission error with a strong second harmonic: the named stage finds the harmonic,
+    the map of the same joint then follows the whole error and replaces it (a harmonic claims a
+    shape beyond the range it saw; the map does not). The report says so."""
+    effects = ["joint_periodic:joint=2,amplitude=0.03,harmonic=2,phase=20", *GEAR]
+    data, _ = simulate("ur10", "position", samples=800, seed=7, effects=effects)
+    report = robocal.diagnose(data).to_dict()
+    causes = report["model"]["causes"]
+    assert any(c.startswith("joint_map joint 2 ") for c in causes), causes
+    assert not any(c.startswith("joint_periodic joint 2 ") for c in causes), causes
+    replaced = [r for r in report["rejected"] if r["kind"] == "joint_periodic" and r["joint"] == 2 and r["reason"].startswith("replaced by joint_map joint 2")]
+    assert replaced, [(r["label"], r["reason"]) for r in report["rejected"]]
+    assert report["final"]["rmse_heldout"] < 0.5 * report["baseline"]["rmse_heldout"]

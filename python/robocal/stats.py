@@ -36,3 +36,9 @@ def robust_sigma(residuals, floor: float = 1e-12) -> np.ndarray:
     if r.ndim != 2 or len(r) == 0:
         raise ShapeError(f"`residuals` must have shape (m, k) with m >= 1; got {r.shape}")
     return np.maximum(median_abs_deviation(r, axis=0, scale="normal"), floor)
+
+
+def rmse_of_squares(squared_errors) -> float:
+    """RMSE of eq. (28) from per-sample squared errors (the per-sample error is the cable
+    residual, or the Euclidean norm of the position and rotation residual)."""
+    return float(np.sqrt(np.mean(squared_errors)))

@@ -434,6 +434,9 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the
 #: approach direction, observation causes belong to the sensor, not the robot).
 COMPENSABLE = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling", "joint_map")
+#: Causes with a physical model of how they carry from one session to another (gravity
+#: compliance: the torque follows the pose): the selection tries them before free shapes.
+PHYSICAL_KINDS = ("joint_compliance",)
 #: Every cause acting on the joints: what a result carries to a new session of the same robot.
 JOINT_KINDS = COMPENSABLE + ("backlash",)
 

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from ..core import covariance, is_sparse
+from ..stats import rmse_of_squares
 from .candidates import map_candidates, map_curve, map_noise
 from .model import ExtendedProblem
 
@@ -113,19 +114,26 @@ def _rss(N: np.ndarray, b: np.ndarray, rr: float) -> tuple[float, int]:
     return rr - float(coef @ (coef / s2[keep])), int(np.count_nonzero(keep))
 
 
-def _rmse(sq: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(sq)))
-
-
 def map_stage(
-    model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, fit, nonlinear_cv, *, alpha: float, min_gain: float, progress
+    model: ExtendedProblem,
+    x: np.ndarray,
+    schemes: dict,
+    current_cv: dict,
+    fold_x: dict,
+    fit,
+    nonlinear_cv,
+    *,
+    alpha: float,
+    min_gain: float,
+    progress,
 ):
     """Joint maps added to ``model`` (see the module notes).
 
     ``fit(problem, x0)`` and ``nonlinear_cv(problem, folds, starts)`` are the diagnosis' own;
     ``fold_x`` its per-scheme fold fits of ``model`` (warm starts). Returns the new model, its
     ``x``, held-out errors and fold fits, the report entries of the maps accepted and of those
-    rejected (each with a ``candidate`` key: the :class:`Candidate`).
+    rejected (each with a ``candidate`` key: the :class:`Candidate`; an accepted map's
+    ``replaces``: the harmonics it took the place of).
     """
     robot, data = model.robot, model.full_data
     moving = [j for j in range(robot.n_joints) if np.ptp(data.q[model.idx, j]) > 1e-6]
@@ -147,41 +155,55 @@ def map_stage(
         n_tests = len(pool)
         chosen = None
         for score, c, errs, C in ranked:
-            gains = {name: _rmse(base_err[name]) - _rmse(errs[name]) for name in schemes}
+            gains = {name: rmse_of_squares(base_err[name]) - rmse_of_squares(errs[name]) for name in schemes}
             p_value, _ = screen.f_test(C)
             entry = {"candidate": c, "gains_mm": gains, "p_value": p_value, "tests": n_tests}
-            if not all(g >= min_gain * _rmse(base_err[name]) for name, g in gains.items()) or p_value * n_tests >= alpha:
+            if not all(g >= min_gain * rmse_of_squares(base_err[name]) for name, g in gains.items()) or p_value * n_tests >= alpha:
                 rejected.append(
                     {**entry, "reason": "not significant" if p_value * n_tests >= alpha else f"held-out gain below {min_gain:.1%} on some fold scheme"}
                 )
                 continue
-            trial = ExtendedProblem(model.base, model.causes + [c], data, model.idx)
-            x0 = np.concatenate([x, np.zeros(c.size)])
-            trial_fit = fit(trial, x0)
-            coefficients = trial.coefficients(trial_fit.x, c)
-            physical, why = c.physical(coefficients, None, robot, robot.params)
-            if why is not None:
-                rejected.append({**entry, "params": physical, "reason": f"implausible: {why}"})
-                continue
-            refits = {
-                name: nonlinear_cv(trial, folds, [(setup, np.concatenate([xf, np.zeros(c.size)])) for setup, xf in fold_x[name]])
-                for name, folds in schemes.items()
-            }
-            new_cv = {name: err for name, (err, _) in refits.items()}
-            lost = [name for name in schemes if _rmse(new_cv[name]) > (1.0 - min_gain) * _rmse(current_cv[name])]
-            if lost:
-                rejected.append({**entry, "params": physical, "reason": f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"})
-                continue
-            chosen = (c, trial, trial_fit, new_cv, {name: xs for name, (_, xs) in refits.items()}, entry, physical)
-            break
+            for causes in _variants(model.causes, c):
+                trial = ExtendedProblem(model.base, causes, data, model.idx)
+                trial_fit = fit(trial, trial.start_from(x, model))
+                coefficients = trial.coefficients(trial_fit.x, c)
+                std = None if trial_fit.std is None else trial.coefficients(trial_fit.std, c)
+                physical, why = c.physical(coefficients, std, robot, robot.params)
+                if why is not None:
+                    reason = f"implausible: {why}"
+                    continue
+                refits = {
+                    name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()
+                }
+                new_cv = {name: err for name, (err, _) in refits.items()}
+                lost = [name for name in schemes if rmse_of_squares(new_cv[name]) > (1.0 - min_gain) * rmse_of_squares(current_cv[name])]
+                if lost:
+                    reason = f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"
+                    continue
+                replaced = [o for o in model.causes if o not in causes]
+                chosen = (c, trial, trial_fit, new_cv, {name: xs for name, (_, xs) in refits.items()}, {**entry, "replaces": replaced}, physical)
+                break
+            if chosen is not None:
+                break
+            rejected.append({**entry, "params": physical, "reason": reason})
         if chosen is None:
             break
         c, model, trial_fit, new_cv, fold_x, entry, physical = chosen
-        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: _rmse(current_cv[n]) for n in schemes},
-                         "rmse_heldout_after": {n: _rmse(new_cv[n]) for n in schemes}})  # fmt: skip
+        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: rmse_of_squares(current_cv[n]) for n in schemes},
+                         "rmse_heldout_after": {n: rmse_of_squares(new_cv[n]) for n in schemes}})  # fmt: skip
         x, current_cv = trial_fit.x, new_cv
         pool = [o for o in pool if o.joint != c.joint]
     return model, x, current_cv, fold_x, accepted, rejected
+
+
+def _variants(causes: list, joint_map) -> list[list]:
+    """The cause lists a map is tried in: first in place of its joint's harmonics, if the model
+    has any — the map follows the same joint's error in finer detail and, unlike a harmonic,
+    claims nothing beyond the range it saw (UR10 harmonics fitted within one series raised the
+    error on the others) — then beside every cause the model has."""
+    subsumed = [o for o in causes if o.kind == "joint_periodic" and o.joint == joint_map.joint]
+    plain = causes + [joint_map]
+    return [[o for o in causes if o not in subsumed] + [joint_map], plain] if subsumed else [plain]
 
 
 def map_curves(problem, x: np.ndarray, maps: list) -> dict:

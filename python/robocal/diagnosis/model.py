@@ -61,6 +61,16 @@ class ExtendedProblem:
     def x0(self) -> np.ndarray:
         return np.concatenate([self.start[self.free], np.zeros(self.n - len(self.free))])
 
+    def start_from(self, x: np.ndarray, other: "ExtendedProblem") -> np.ndarray:
+        """A start for this model from ``x`` of ``other`` (a model with other causes): the
+        entries they share (by name) from ``x``, the others at their start values."""
+        at = {name: i for i, name in enumerate(other.names)}
+        out = self.x0
+        for i, name in enumerate(self.names):
+            if name in at:
+                out[i] = x[at[name]]
+        return out
+
     def full(self, x: np.ndarray) -> np.ndarray:
         p = self.start.copy()
         p[self.free] = x[: len(self.free)]

@@ -31,6 +31,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import Robot
+from ..stats import rmse_of_squares
 from . import structure
 from ..core import is_sparse
 from ..physics import DEG
@@ -224,7 +225,7 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
 
 
 def _rmse(errors: list[np.ndarray]) -> float:
-    return float(np.sqrt(np.mean(np.concatenate(errors))))
+    return rmse_of_squares(np.concatenate(errors))
 
 
 def _per_session(errors: list[np.ndarray]) -> list[float]:
