@@ -472,6 +472,14 @@ def diagnose(
         for m in rejected_maps:
             c = m["candidate"]
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
+    model, x, current_cv, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
+    for c, physical, why in dropped:
+        found = next(e for e in effects if e["label"] == c.label)
+        effects.remove(found)
+        plots.pop(c.label, None)
+        sig = found["significance"]
+        reason = f"dropped once the causes found after it were in: {why}"
+        rejected.append(_record(c, sig["screening_gain_mm"]["random"], sig["screening_gain_mm"], sig["p_value"], sig["candidates"], physical, reason))
     unconstrained = rmse_of_squares(current_cv["random"])
     model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
     x = final_fit.x
@@ -621,6 +629,32 @@ def _physics_first(scored: list, is_significant, established: bool = False) -> l
     moved = [s for s in scored[at + 1 :] if s[1].kind in PHYSICAL_KINDS and is_significant(*s) and s[0] >= share * scored[at][0]]
     rest = [s for s in scored if all(s is not m for m in moved)]
     return rest[:at] + moved + rest[at:]
+
+
+def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
+    """The final model without the compliances whose size, fitted with every cause found after
+    them, is implausible or undetermined (:func:`_physics_first` lets a compliance go before a
+    free shape it resembles; when that shape is the real cause — a scale error of the same
+    joint, say — the compliance is left with nothing to explain). Returns the model, its ``x``,
+    held-out errors (measured again if anything was dropped) and the ``(cause, physical,
+    reason)`` of each compliance dropped."""
+    compliances = [c for c in model.causes if c.kind in PHYSICAL_KINDS]
+    if not compliances:
+        return model, x, current_cv, []
+    fit = _fit(model, x0=x)
+    dropped = []
+    for c in compliances:
+        values, std = model.coefficients(fit.x, c), _std(model, fit, c)
+        physical, why = c.physical(values, std, model.robot, model.robot.params)
+        why = f"implausible: {why}" if why else undetermined(values - coefficient_reference(c, model.robot), std)
+        if why is not None:
+            dropped.append((c, physical, why))
+    if not dropped:
+        return model, x, current_cv, []
+    kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
+    x = _fit(kept, x0=kept.start_from(fit.x, model)).x
+    cv = {name: _nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]])[0] for name, folds in schemes.items()}
+    return kept, x, cv, dropped
 
 
 def coefficient_reference(cause: Candidate, robot: Robot) -> np.ndarray:
