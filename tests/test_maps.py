@@ -93,9 +93,15 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys
     (cause,) = [c for c in result["causes"] if c["kind"] == "joint_map"]
     second, _ = simulate("ur10", "position", samples=800, seed=5, session=1, effects=GEAR)
     inside = map_coverage(second.q[:, 1], cause["detail"])
-    (coverage,) = robocal.verify(result, second)["coverage"]
+    report = robocal.verify(result, second)
+    (coverage,) = report["coverage"]
     assert coverage["outside"] == int(np.count_nonzero(~inside)) > 0
     assert coverage["rows"] == [int(r) for r in second.rows[~inside][:20]]
+    # the metrics where the map applies are those of the covered samples alone
+    covered = report["metrics_covered"]
+    assert covered["n"] == int(np.count_nonzero(inside)) < report["metrics"]["n"]
+    assert covered["rmse"] < report["metrics"]["rmse"]  # the map corrects the gear error there
+    assert report["nominal"]["metrics_covered"]["n"] == covered["n"]
     # compensating a target beyond the range says so
     q = second.q[~inside][:1]
     (row,) = robocal.compensate(result, fit.robot.predict("position", q))
@@ -104,7 +110,9 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys
     save_result(result, tmp_path / "result.json")
     write_canonical(second, tmp_path / "second.csv")
     assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "second.csv")]) == 0
-    assert f"not corrected by its map: {coverage['outside']} samples have joint 2 beyond" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert f"not corrected by its map: {coverage['outside']} samples have joint 2 beyond" in out
+    assert f"within the maps' ranges ({covered['n']} of {report['metrics']['n']} samples)" in out
 
 
 @given(st.floats(-170, 0), st.floats(20, 300), st.sampled_from([2.0, 5.0, 15.0]))
@@ -157,6 +165,9 @@ def test_a_map_found_in_sessions_carries_across_them():
     # once a map of joint 2 is carried, no other map of joint 2 is tried
     tried = [r["label"] for r in report["rejected"] if r["kind"] == "joint_map" and r["joint"] == 2]
     assert not tried, tried
+    # per session, the error where the map fitted on the other session applies
+    covered = report["final"]["per_session_covered"]
+    assert len(covered) == 2 and all(0 < c["samples"] <= 600 and c["rmse"] > 0 for c in covered)
 
 
 @given(st.integers(0, 2**31 - 1), st.integers(1, 40), st.integers(1, 15), st.floats(0.05, 0.9))

@@ -17,6 +17,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Optional, Union
 
+import numpy as np
+
 
 from .calibration.api import load_inputs
 from .calibration.lm import levenberg_marquardt
@@ -25,7 +27,7 @@ from .calibration.problem import Problem
 from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
 from .diagnosis import structure
-from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_report
+from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report
 from .results import load_result
 from .robot import Robot, setup_names
 
@@ -44,16 +46,16 @@ def _with_joint_causes(robot: Robot, data: Dataset, causes: list[dict]) -> Datas
     return replace(data, q=q)
 
 
-def _refit_setup(robot: Robot, data: Dataset) -> tuple[dict, dict, list[str]]:
-    """Metrics of ``robot`` on ``data`` with only the session set-up fitted, the set-up found
-    and the names fitted."""
+def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[str]]:
+    """Residuals (m, k) of ``robot`` on ``data`` with only the session set-up fitted, the
+    set-up found and the names fitted."""
     names = setup_names(robot, data.measurement)
     problem = Problem.build(robot, data, mask=names)
     # The closed-form start also moves a cable's tool point: the calibrated one is kept.
     held = [robot.index(n) for n in ("tool_x", "tool_y", "tool_z") if n not in names]
     problem.start[held] = robot.params[held]
     fit = levenberg_marquardt(problem)
-    return metrics(problem.data_residuals(fit.x), data.measurement), dict(zip(problem.names, map(float, fit.x))), problem.names
+    return problem.data_residuals(fit.x).reshape(len(data), -1), dict(zip(problem.names, map(float, fit.x))), problem.names
 
 
 def verify(
@@ -78,9 +80,10 @@ def verify(
     Returns
     -------
     dict
-        ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``refit`` (the set-up
+        ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``metrics_covered``
+        (the same over the samples every joint map covers; None if none is), ``refit`` (the set-up
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
-        ``metrics``), ``applied`` (``structure`` and ``causes`` labels), ``not_applied``
+        ``metrics`` and ``metrics_covered``), ``applied`` (``structure`` and ``causes`` labels), ``not_applied``
         (``{label, reason}``), ``coverage`` (per joint map: the samples beyond its fitted range,
         :func:`~robocal.diagnosis.candidates.map_coverage_report`), ``robot``, ``measurement``,
         ``samples``, ``data`` (its source).
@@ -94,9 +97,10 @@ def verify(
     not_applied = [{"label": c.get("label", c.get("kind")),
                     "reason": "a term of the calibration's own session (its sensor), not of the robot" if c.get("kind") in SESSION_KINDS
                     else "a parameter of the robot: in the calibrated parameters"} for c in causes if c not in carried]  # fmt: skip
-    calibrated_metrics, setup, refit = _refit_setup(calibrated, _with_joint_causes(calibrated, read, carried))
+    residuals, setup, refit = _refit_setup(calibrated, _with_joint_causes(calibrated, read, carried))
     nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)
-    nominal_metrics, _, _ = _refit_setup(nominal, read)
+    nominal_residuals, _, _ = _refit_setup(nominal, read)
+    covered = map_coverage_mask(carried, read.q)
     return {
         "schema": SCHEMA,
         "robot": calibrated.name,
@@ -104,10 +108,16 @@ def verify(
         "samples": len(dataset),
         "data": dataset.source,
         "result": None if isinstance(result, dict) else str(result),
-        "metrics": calibrated_metrics,
+        "metrics": metrics(residuals, dataset.measurement),
+        # Where every joint map applies (the joints within the ranges they were fitted on):
+        # what the maps can do, apart from the samples they cannot correct.
+        "metrics_covered": metrics(residuals[covered], dataset.measurement) if covered.any() else None,
         "refit": refit,
         "setup": setup,
-        "nominal": {"metrics": nominal_metrics},
+        "nominal": {
+            "metrics": metrics(nominal_residuals, dataset.measurement),
+            "metrics_covered": metrics(nominal_residuals[covered], dataset.measurement) if covered.any() else None,
+        },
         "applied": {"structure": list(doc.get("structure", [])), "causes": [c.get("label", c["kind"]) for c in carried]},
         "not_applied": not_applied,
         # Joint maps correct nothing beyond the range they were fitted on.

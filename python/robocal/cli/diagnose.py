@@ -93,6 +93,10 @@ def sessions_summary(report: dict) -> str:
         if s["causes"]:
             lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
     lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
+    covered = f.get("per_session_covered", [])
+    if covered and any(c.startswith("joint_map") for c in report["model"]["causes"]):
+        parts = [f"{c['rmse']:.4f} mm on {c['samples']}" if c["rmse"] is not None else "none covered" for c in covered]
+        lines.append(f"  where the joint maps fitted on the other sessions apply: {', '.join(parts)} samples")
     lines += _physical_lines(f, "rmse_loso")
     return "\n".join(lines)
 

@@ -23,6 +23,10 @@ def summary(report: dict) -> str:
         lines.append("  applied: " + "; ".join(applied))
     for item in report["not_applied"]:
         lines.append(f"  not applied: {item['label']} ({item['reason']})")
+    covered = report.get("metrics_covered")
+    if covered is not None and covered["n"] < m["n"]:
+        lines.append(f"  within the maps' ranges ({covered['n']} of {m['n']} samples): calibrated RMSE {covered['rmse']:.4f}, "
+                     f"nominal {report['nominal']['metrics_covered']['rmse']:.4f} mm")  # fmt: skip
     for c in report.get("coverage", []):
         if c["outside"]:
             lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} beyond the range {c['range_deg'][0]:g}..{c['range_deg'][1]:g} deg "

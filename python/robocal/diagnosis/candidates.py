@@ -283,6 +283,16 @@ def map_coverage(qj: np.ndarray, detail: dict) -> np.ndarray:
     return (qj >= float(detail["lo"]) * DEG - 1e-9) & (qj <= float(detail["hi"]) * DEG + 1e-9)
 
 
+def map_coverage_mask(causes: list[dict], q: np.ndarray) -> np.ndarray:
+    """True for the samples of joint angles ``q`` (m, N, rad) that every joint map among a
+    result file's ``causes`` covers (all of them when there is none)."""
+    inside = np.ones(len(q), dtype=bool)
+    for cause in causes:
+        if cause.get("kind") == "joint_map":
+            inside &= map_coverage(q[:, cause["joint"] - 1], cause["detail"])
+    return inside
+
+
 def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.ndarray] = None) -> list[dict]:
     """For each joint map among a result file's ``causes``: how many of the joint angles ``q``
     (m, N, rad) lie beyond the range it was fitted on (where it corrects nothing), and the first

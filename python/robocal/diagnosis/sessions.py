@@ -35,7 +35,7 @@ from ..stats import rmse_of_squares
 from . import structure
 from ..core import is_sparse
 from ..physics import DEG
-from .candidates import library, map_candidate
+from .candidates import library, map_candidate, map_coverage
 from .maps import map_curves
 from .model import ExtendedProblem
 from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
@@ -191,6 +191,19 @@ class _Evaluator:
             r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
             errors.append(np.sum(r * r, axis=1))
         return errors
+
+    def covered(self, model: _Model) -> list[np.ndarray]:
+        """Per session, its samples (those :meth:`held_out` scores) that every joint map of the
+        model, spanning the other sessions' range, covers."""
+        out = []
+        for h in range(len(self.sessions)):
+            held = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))[h]
+            inside = np.ones(len(held.idx), dtype=bool)
+            for c in held.causes:
+                if c.kind == "joint_map":
+                    inside &= map_coverage(held.data.q[:, c.joint], c.detail)
+            out.append(inside)
+        return out
 
     def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
         """The left-out session's start: the trained robot, and the set-up that places it best
@@ -391,7 +404,10 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     for e in effects:
         if e["label"] in curves:
             e["curve"] = curves[e["label"]]
+    covered = evaluator.covered(model)
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
+             # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
+             "per_session_covered": [{"samples": int(m.sum()), "rmse": rmse_of_squares(e[m]) if m.any() else None} for e, m in zip(current, covered)],
              "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
     return SessionsDiagnosis(
