@@ -319,6 +319,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     evaluator = _Evaluator(rob, sessions, baseline_mask(rob, kind, hayati), hayati)
 
     found: dict = {}  # label -> (candidate, sessions it was found in)
+    replaced: dict = {}  # label -> sessions in which a joint map took the place of this harmonic
     for s, session in enumerate(sessions, start=1):
         report = session.diagnosis.to_dict()
         for label in report["model"]["structure"]:
@@ -328,13 +329,19 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 found.setdefault(c.label, (c, []))[1].append(s)
                 if c.kind == "joint_map":
                     evaluator.maps.setdefault(c.label, c)
+        for r in report["rejected"]:
+            if r["reason"].startswith("replaced by joint_map"):
+                replaced.setdefault(r["label"], []).append(s)
     # Gravity compliance is the cause with a physical model of how it carries to other poses;
     # within one session a harmonic may fit its shape better and win the selection, so every
-    # compliance the robot's mass model offers is judged across sessions too.
+    # compliance the robot's mass model offers is judged across sessions too. A harmonic that a
+    # session's map replaced is judged too: across sessions the map may not carry and it may.
     for _, _, pool in evaluator.bases(_Model()):
         for label, c in pool.items():
             if c.kind == "joint_compliance":
                 found.setdefault(label, (c, []))
+            if label in replaced:
+                found.setdefault(label, (c, replaced[label]))
 
     model = _Model()
     current = evaluator.held_out(model)
@@ -342,15 +349,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
-    # Per joint one map variant is judged across sessions: the one found in the most sessions
-    # (then in the largest), since each LOSO trial is a nonlinear fit of every fold.
-    variants: dict = {}
-    for label, (c, where) in found.items():
-        if c.kind == "joint_map":
-            variants.setdefault(c.joint, []).append((len(where), max(len(sessions[s - 1].keep) for s in where), label))
-    for options_of_joint in variants.values():
-        for *_, label in sorted(options_of_joint)[:-1]:
-            del found[label]
+    # Every map variant the sessions found is judged (the smoothness that carries across
+    # sessions need not be the one a session chose alone); one map per joint is accepted.
     pending = dict(found)
     while pending and sum(e["kind"] != "joint_map" for e in effects) < max_effects:  # maps do not count: one per joint at most
         trials = []
