@@ -25,7 +25,7 @@ import numpy as np
 
 import robocal
 from robocal.diagnosis import structure
-from robocal.diagnosis.candidates import map_coverage_mask
+from robocal.diagnosis.candidates import map_coverage_mask, result_maps
 
 #: Fewest covered samples the within-range comparison is made on.
 MIN_COVERED = 50
@@ -55,9 +55,8 @@ def main() -> None:
                 continue
             geo, plain, ext = (robocal.verify(r, data[test]) for r in (geometric, extended[False], extended[True]))
             carried = ", ".join(ext["applied"]["structure"] + ext["applied"]["causes"]) or "none"
-            covered = ext["metrics_covered"]
-            beyond = 1.0 - (covered["n"] if covered else 0) / ext["samples"]
-            n = covered["n"] if covered else 0
+            n = ext["metrics_covered"]["n"] if ext["metrics_covered"] else 0
+            beyond = 1.0 - n / ext["samples"]
             # the set-up is re-fitted on the covered samples: too few of them leave nothing to compare
             within = f"{n}: " + " / ".join(f"{v:.4f}" for v in _covered_rmse((geometric, extended[True]), data[test])) if n >= MIN_COVERED else f"{n}: —"
             print(
@@ -71,7 +70,7 @@ def _covered_rmse(results: tuple, data: robocal.Dataset) -> list[float]:
     """Each result's verified RMSE on the samples of ``data`` that every joint map of the last
     result covers, its set-up re-fitted on those samples alone (so that they compare)."""
     read = structure.apply_all(data, structure.parse_all(results[-1].get("structure", []), data.q.shape[1]))
-    inside = np.flatnonzero(map_coverage_mask(results[-1]["causes"], read.q))
+    inside = np.flatnonzero(map_coverage_mask(result_maps(results[-1]["causes"]), read.q))
     return [robocal.verify(r, data.subset(inside))["metrics"]["rmse"] for r in results]
 
 

@@ -27,7 +27,7 @@ from .calibration.problem import Problem
 from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
 from .diagnosis import structure
-from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report
+from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report, result_maps
 from .results import load_result
 from .robot import Robot, setup_names
 
@@ -100,7 +100,7 @@ def verify(
     residuals, setup, refit = _refit_setup(calibrated, _with_joint_causes(calibrated, read, carried))
     nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)
     nominal_residuals, _, _ = _refit_setup(nominal, read)
-    covered = map_coverage_mask(carried, read.q)
+    covered = map_coverage_mask(result_maps(carried), read.q)
     return {
         "schema": SCHEMA,
         "robot": calibrated.name,

@@ -283,14 +283,18 @@ def map_coverage(qj: np.ndarray, detail: dict) -> np.ndarray:
     return (qj >= float(detail["lo"]) * DEG - 1e-9) & (qj <= float(detail["hi"]) * DEG + 1e-9)
 
 
-def map_coverage_mask(causes: list[dict], q: np.ndarray) -> np.ndarray:
-    """True for the samples of joint angles ``q`` (m, N, rad) that every joint map among a
-    result file's ``causes`` covers (all of them when there is none)."""
+def map_coverage_mask(maps: list[tuple], q: np.ndarray) -> np.ndarray:
+    """True for the samples of joint angles ``q`` (m, N, rad) that every joint map of ``maps``
+    — ``(joint, detail)`` pairs, 0-based joint — covers (all of them when there is none)."""
     inside = np.ones(len(q), dtype=bool)
-    for cause in causes:
-        if cause.get("kind") == "joint_map":
-            inside &= map_coverage(q[:, cause["joint"] - 1], cause["detail"])
+    for joint, detail in maps:
+        inside &= map_coverage(q[:, joint], detail)
     return inside
+
+
+def result_maps(causes: list[dict]) -> list[tuple]:
+    """The joint maps among a result file's ``causes`` as :func:`map_coverage_mask` takes them."""
+    return [(c["joint"] - 1, c["detail"]) for c in causes if c.get("kind") == "joint_map"]
 
 
 def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.ndarray] = None) -> list[dict]:

@@ -453,14 +453,8 @@ def diagnose(
         for m in accepted_maps:
             c = m["candidate"]
             for o in m["replaces"]:
-                found = next(e for e in effects if e["label"] == o.label)
-                effects.remove(found)
-                plots.pop(o.label, None)
-                sig = found["significance"]
                 reason = f"replaced by {c.label} (the same joint's error in finer detail; held-out gain of the map in its place)"
-                rejected.append(
-                    _record(o, sig["screening_gain_mm"]["random"], sig["screening_gain_mm"], sig["p_value"], sig["candidates"], found["params"], reason)
-                )
+                rejected.append({**_retract(o, effects, plots, None, reason), "replaced_by": c.label})
             effects.append({
                 "kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
                 "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
@@ -474,12 +468,7 @@ def diagnose(
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
     model, x, current_cv, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
     for c, physical, why in dropped:
-        found = next(e for e in effects if e["label"] == c.label)
-        effects.remove(found)
-        plots.pop(c.label, None)
-        sig = found["significance"]
-        reason = f"dropped once the causes found after it were in: {why}"
-        rejected.append(_record(c, sig["screening_gain_mm"]["random"], sig["screening_gain_mm"], sig["p_value"], sig["candidates"], physical, reason))
+        rejected.append(_retract(c, effects, plots, physical, f"dropped once the causes found after it were in: {why}"))
     unconstrained = rmse_of_squares(current_cv["random"])
     model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
     x = final_fit.x
@@ -679,6 +668,18 @@ def _std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional[np.ndarray
     if fit.std is None:
         return None
     return problem.coefficients(fit.std, cause)
+
+
+def _retract(c: Candidate, effects: list, plots: dict, physical, reason: str) -> dict:
+    """Takes the accepted cause ``c`` out of the report's ``effects`` (and its plot) and returns
+    its rejection record: its screening figures, ``physical`` (default: those it was accepted
+    with) and ``reason``."""
+    found = next(e for e in effects if e["label"] == c.label)
+    effects.remove(found)
+    plots.pop(c.label, None)
+    sig = found["significance"]
+    return _record(c, sig["screening_gain_mm"]["random"], sig["screening_gain_mm"], sig["p_value"], sig["candidates"],
+                   found["params"] if physical is None else physical, reason)  # fmt: skip
 
 
 def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int, physical, reason: str) -> dict:

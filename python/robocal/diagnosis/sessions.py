@@ -35,7 +35,7 @@ from ..stats import rmse_of_squares
 from . import structure
 from ..core import is_sparse
 from ..physics import DEG
-from .candidates import library, map_candidate, map_coverage
+from .candidates import library, map_candidate, map_coverage_mask
 from .maps import map_curves
 from .model import ExtendedProblem
 from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
@@ -198,11 +198,7 @@ class _Evaluator:
         out = []
         for h in range(len(self.sessions)):
             held = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))[h]
-            inside = np.ones(len(held.idx), dtype=bool)
-            for c in held.causes:
-                if c.kind == "joint_map":
-                    inside &= map_coverage(held.data.q[:, c.joint], c.detail)
-            out.append(inside)
+            out.append(map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q))
         return out
 
     def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
@@ -330,7 +326,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 if c.kind == "joint_map":
                     evaluator.maps.setdefault(c.label, c)
         for r in report["rejected"]:
-            if r["reason"].startswith("replaced by joint_map"):
+            if r.get("replaced_by"):
                 replaced.setdefault(r["label"], []).append(s)
     # Gravity compliance is the cause with a physical model of how it carries to other poses;
     # within one session a harmonic may fit its shape better and win the selection, so every
