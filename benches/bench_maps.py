@@ -53,7 +53,7 @@ def main() -> None:
     plain = ExtendedProblem(base, [], data, idx)
     geometric = _fit(plain)
     noise = map_noise(plain.data_residuals(geometric.x).reshape(len(data), 3))
-    maps = [map_candidate(data, j, args.spacing, 0.03, noise, (float(data.q[:, j].min()), float(data.q[:, j].max()))) for j in range(6)]
+    maps = [map_candidate(data, j, args.spacing, 0.03, noise, data.q[:, j]) for j in range(6)]
     rows = []
     for name, cls in (("sparse normal equations (DampedNormal)", ExtendedProblem), ("dense QR (Rust DampedQr)", Dense)):
         model = cls(base, maps, data, idx)

@@ -15,7 +15,8 @@ from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
 from robocal.core import DampedNormal, factor_damped, sparse_gram
-from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve
+from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
+from robocal.diagnosis.select import _fold_maps
 from robocal.physics import DEG
 from robocal.simulation import simulate
 
@@ -134,6 +135,53 @@ def test_map_basis_has_no_constant_and_is_zero_beyond_its_range(lo, width, spaci
     assert np.all(np.abs(B[inside]).sum(axis=1) > 0)
     curve = map_curve(detail, c)
     assert curve["angle_deg"][0] == lo and np.isclose(curve["angle_deg"][-1], lo + width)
+
+
+@given(st.floats(-170, -60), st.floats(10, 60), st.floats(2.1, 6.0), st.sampled_from([2.0, 5.0]))
+@settings(max_examples=40, deadline=None)
+def test_a_map_covers_only_where_its_data_are(lo, band, gap_spacings, spacing):
+    """Two bands of joint angles with a stretch of ``gap_spacings`` knot spacings between them:
+    more than MAP_GAP_SPACINGS is a gap, where the map corrects nothing; a narrower one is not."""
+    gap = gap_spacings * spacing
+    angles = np.radians(np.concatenate([np.linspace(lo, lo + band, 200), np.linspace(lo + band + gap, lo + 2 * band + gap, 200)]))
+    detail = {"spacing": spacing, **map_support(angles, spacing)}
+    (a, b), middle = detail["gaps"][0], np.radians(lo + band + gap / 2)
+    assert len(detail["gaps"]) == 1 and lo + band <= a < b <= lo + band + gap
+    assert not map_coverage(np.array([middle]), detail)[0]
+    assert np.all(map_basis(np.array([middle]), detail).toarray() == 0.0)
+    assert np.all(map_coverage(angles, detail))  # every angle it was fitted on
+    narrow = {"spacing": gap, **map_support(angles, gap)}  # the same stretch is one spacing of wider knots
+    assert narrow["gaps"] == [] and map_coverage(np.array([middle]), narrow)[0]
+
+
+def test_a_folds_map_corrects_only_the_angles_it_was_fitted_on(geared):
+    """Cross-validation scores a fold's map as a new session's: held-out samples beyond the
+    joint angles of the fold's training samples get no correction from it."""
+    data, diagnosis = geared
+    model = diagnosis.model
+    q2 = data.q[model.idx, 1]
+    train = np.flatnonzero(q2 < np.median(q2))
+    (fold_map,) = [c for c in _fold_maps(model, train) if c.kind == "joint_map"]
+    (full_map,) = [c for c in model.causes if c.kind == "joint_map"]
+    beyond = model.idx[q2 > q2[train].max()]
+    assert beyond.size and np.all(fold_map.basis.toarray()[beyond] == 0.0)
+    assert np.allclose(fold_map.basis.toarray()[model.idx[train]], full_map.basis.toarray()[model.idx[train]])
+
+
+def test_verify_names_the_samples_in_a_gap_of_the_maps_data(geared, tmp_path, capsys):
+    data, _ = geared
+    q2 = data.q[:, 1]
+    hole = (q2 > np.percentile(q2, 40)) & (q2 < np.percentile(q2, 60))
+    fit = robocal.calibrate(data.subset(np.flatnonzero(~hole)), causes=["joint_map joint 2 spacing=2.0 roughness=0.01"], test_fraction=0.0)
+    result = fit.to_dict()
+    (cause,) = [c for c in result["causes"] if c["kind"] == "joint_map"]
+    assert len(cause["detail"]["gaps"]) == 1
+    (coverage,) = robocal.verify(result, data)["coverage"]
+    assert coverage["outside"] == int(np.count_nonzero(hole)) and coverage["gaps_deg"] == cause["detail"]["gaps"]
+    save_result(result, tmp_path / "result.json")
+    write_canonical(data, tmp_path / "data.csv")
+    assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "data.csv")]) == 0
+    assert f"{coverage['outside']} samples have joint 2 beyond the range" in (out := capsys.readouterr().out) and "or in the gaps" in out
 
 
 @given(st.integers(0, 2**31 - 1), st.floats(1e-8, 1e2))

@@ -35,7 +35,7 @@ import numpy as np
 
 from .core import as_float_array, solve_damped
 from .diagnosis import structure
-from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report
+from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
 from .data.table import numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
@@ -257,9 +257,7 @@ def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
         if beyond:  # the map corrects nothing there: the user must know
-            status += "; not corrected by its map: " + ", ".join(
-                f"joint {m['joint']} beyond the range {m['range_deg'][0]:g}..{m['range_deg'][1]:g} deg" for m in beyond
-            )
+            status += "; not corrected by its map: " + ", ".join(f"joint {m['joint']} {uncovered_words(m)}" for m in beyond)
         out.append(
             {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
         )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..diagnosis.candidates import uncovered_words
 from ..outputs import write_text
 from ..verification import verify
 from .arguments import add_angle_unit_argument
@@ -29,8 +30,8 @@ def summary(report: dict) -> str:
                      f"nominal {report['nominal']['metrics_covered']['rmse']:.4f} mm")  # fmt: skip
     for c in report.get("coverage", []):
         if c["outside"]:
-            lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} beyond the range {c['range_deg'][0]:g}..{c['range_deg'][1]:g} deg "
-                         f"its map was fitted on (not corrected there; first rows {c['rows'][:5]})")  # fmt: skip
+            lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
+                         f"(its fit had no data there; first rows {c['rows'][:5]})")  # fmt: skip
     if "rotation_rmse_deg" in m:
         lines.insert(2, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
     return "\n".join(lines)

@@ -154,8 +154,7 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
                 geometric = levenberg_marquardt(problem)
                 noise = map_noise(problem.data_residuals(geometric.x).reshape(len(problem.data), -1))
             j = int(joint_map.group(1)) - 1
-            span = (float(np.min(dataset.q[idx, j])), float(np.max(dataset.q[idx, j])))
-            pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, span)
+            pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, dataset.q[idx, j])
     unknown = [c for c in causes if c not in pool]
     if unknown:
         raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")

@@ -43,7 +43,7 @@ from ..robot import RESIDUAL_WIDTH, Robot
 from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor
-from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, step_candidates
+from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .maps import map_curves, map_stage
 from .model import ExtendedProblem
 
@@ -202,10 +202,19 @@ def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = No
         setup, x0 = (None, None) if starts is None else starts[i]
         fold = _fold_problem(ext, train, setup)
         fit = _fit(fold, x0=x0)
-        r = ExtendedProblem(fold.base, ext.causes, ext.full_data, ext.idx[test]).data_residuals(fit.x)
+        r = ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).data_residuals(fit.x)
         err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
         fits.append((fold.base.start, fit.x))
     return err, fits
+
+
+def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
+    """``ext``'s causes with each joint map covering only the angles of the training samples
+    ``train`` (positions in ``ext.idx``): a fold's map is fitted on them alone, and beyond them
+    it corrects nothing — as on a new session, rather than where the roughness penalty alone
+    extrapolates it (a blocked fold's test block may visit joint ranges no other block does)."""
+    angles = ext.full_data.q[ext.idx[train]]
+    return [map_within(c, ext.full_data, angles[:, c.joint]) if c.kind == "joint_map" else c for c in ext.causes]
 
 
 #: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On

@@ -119,27 +119,27 @@ class _Evaluator:
         return self._bases[key]
 
     def problems(self, model: _Model, span: Optional[tuple] = None) -> list[ExtendedProblem]:
-        """Per session, the model's problem. Joint maps span the joint's range over the sessions
-        ``span`` (0-based; default all): one basis for every session, zero
-        beyond (a left-out session is placed as ``verify`` would place it)."""
+        """Per session, the model's problem. Joint maps cover the joint's angles in the sessions
+        ``span`` (0-based; default all): one basis for every session, zero beyond (a left-out
+        session is placed as ``verify`` would place it)."""
         span = tuple(range(len(self.sessions))) if span is None else span
+        bases = self.bases(model)
         out = []
-        for s, (session, (base, data, pool)) in enumerate(zip(self.sessions, self.bases(model))):
+        for s, (session, (base, data, pool)) in enumerate(zip(self.sessions, bases)):
             # a cause whose joint does not move in a session does not act there
-            shared = [self._map(label, s, data, span) if label in self.maps else pool[label] for label in model.causes if label in pool or label in self.maps]
+            shared = [self._map(label, s, bases, span) if label in self.maps else pool[label] for label in model.causes if label in pool or label in self.maps]
             out.append(ExtendedProblem(base, session.terms + shared, data, session.keep))
         return out
 
-    def _map(self, label: str, s: int, data: Dataset, span: tuple):
-        """The joint map ``label`` on session ``s``'s data over the range of the sessions ``span``."""
-        key = (label, s, span, id(data))
+    def _map(self, label: str, s: int, bases: list, span: tuple):
+        """The joint map ``label`` on session ``s``'s data (of ``bases``: the model's readings),
+        covering the joint's angles in the sessions ``span``."""
+        key = (label, s, span, id(bases[s][1]))
         if key not in self._map_cache:
             c = self.maps[label]
-            j = c.joint
-            lo = min(float(np.min(self.sessions[t].data.q[self.sessions[t].keep, j])) for t in span)
-            hi = max(float(np.max(self.sessions[t].data.q[self.sessions[t].keep, j])) for t in span)
+            angles = np.concatenate([bases[t][1].q[self.sessions[t].keep, c.joint] for t in span])
             noise = c.detail["weight"] * c.detail["roughness"] * DEG
-            self._map_cache[key] = map_candidate(data, j, c.detail["spacing"], c.detail["roughness"], noise, (lo, hi))
+            self._map_cache[key] = map_candidate(bases[s][1], c.joint, c.detail["spacing"], c.detail["roughness"], noise, angles)
         return self._map_cache[key]
 
     def fit(self, model: _Model):
