@@ -589,7 +589,10 @@ def _budget_section(report: dict) -> str:
     part = ""
     floor = f.get("floor")
     if isinstance(floor, dict) and f.get("floor_mm") is not None and f.get("rmse_heldout") is not None:
-        rows = [["final held-out RMSE", _fixed(f["rmse_heldout"], 4)], ["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
+        rows = [["final held-out RMSE", _fixed(f["rmse_heldout"], 4)]]
+        if f.get("rotation_rmse_heldout_deg") is not None:
+            rows.append(["final held-out orientation RMS (deg)", _fixed(f["rotation_rmse_heldout_deg"], 4)])
+        rows += [["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
                 ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)], ["floor (both)", _fixed(f["floor_mm"], 4)],
                 ["unexplained above the floor", _fixed(max(f["rmse_heldout"] - f["floor_mm"], 0.0), 4)]]  # fmt: skip
         if f.get("explained") is not None:

@@ -39,6 +39,9 @@ def summary(report: dict) -> str:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(f"  + {e['kind']}{where}: {_quantities(e['params'])}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm")
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
+    if "rotation_rmse_heldout_deg" in f:
+        lines.append(f"  held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg "
+                     f"(blocked {b['rotation_rmse_heldout_blocked_deg']:.4f} -> {f['rotation_rmse_heldout_blocked_deg']:.4f} deg)")  # fmt: skip
     lines += _physical_lines(f, "rmse_heldout")
     if "floor_mm" in f:
         lines.append(

@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
+from ..calibration.metrics import metrics
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
@@ -202,10 +203,16 @@ def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = No
         setup, x0 = (None, None) if starts is None else starts[i]
         fold = _fold_problem(ext, train, setup)
         fit = _fit(fold, x0=x0)
-        r = ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).data_residuals(fit.x)
+        r = _held_out_residuals(ext, fold, train, test, fit.x)
         err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
         fits.append((fold.base.start, fit.x))
     return err, fits
+
+
+def _held_out_residuals(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Residuals of ``ext``'s samples ``test`` (positions in ``ext.idx``) under the fit ``x`` of
+    ``fold``, the problem of the training samples ``train``."""
+    return ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).data_residuals(x)
 
 
 def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
@@ -215,6 +222,14 @@ def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
     extrapolates it (a blocked fold's test block may visit joint ranges no other block does)."""
     angles = ext.full_data.q[ext.idx[train]]
     return [map_within(c, ext.full_data, angles[:, c.joint]) if c.kind == "joint_map" else c for c in ext.causes]
+
+
+def _held_out_rotation_deg(ext: ExtendedProblem, folds: list, fits: list) -> float:
+    """RMS orientation error (deg) of the pose samples held out in ``folds`` under their fold
+    fits ``fits`` (:func:`_nonlinear_cv`'s). A pose diagnosis' held-out RMSE is the position's
+    (rad² beside mm² weigh nothing); the orientation is reported beside it."""
+    residuals = [_held_out_residuals(ext, _fold_problem(ext, train, setup), train, test, x) for (train, test), (setup, x) in zip(folds, fits)]
+    return metrics(np.concatenate(residuals), "pose")["rotation_rmse_deg"]
 
 
 #: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On
@@ -352,7 +367,7 @@ def diagnose(
     x = base_fit.x
     baseline = {name: _nonlinear_cv(ext, f) for name, f in schemes.items()}
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
-    fold_x = {name: xs for name, (_, xs) in baseline.items()}
+    fold_x = baseline_fits = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
     pool += step_candidates(dataset, keep, ext.residuals(x).reshape(len(keep), k))
     current_cv = baseline_cv
@@ -475,11 +490,11 @@ def diagnose(
         for m in rejected_maps:
             c = m["candidate"]
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
-    model, x, current_cv, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
+    model, x, current_cv, fold_x, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
     for c, physical, why in dropped:
         rejected.append(_retract(c, effects, plots, physical, f"dropped once the causes found after it were in: {why}"))
     unconstrained = rmse_of_squares(current_cv["random"])
-    model, final_fit, current_cv, prior = _physical(model, x, schemes, current_cv)
+    model, final_fit, current_cv, fold_x, prior = _physical(model, x, schemes, current_cv, fold_x)
     x = final_fit.x
     curves = map_curves(model, x, [c for c in model.causes if c.kind == "joint_map"])
     for effect in effects:
@@ -503,12 +518,14 @@ def diagnose(
         robot=rob, data=dataset,
         baseline={"rmse_heldout": rmse_of_squares(baseline_cv["random"]), "rmse_heldout_blocked": rmse_of_squares(baseline_cv["blocked"]),
                   "rmse_train": base_fit.metrics["train"]["rmse"],
+                  **_rotation_entries(ExtendedProblem(base, [], dataset, keep), schemes, baseline_fits),
                   "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
                   # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
                   # geometry fits the data only with parameters no robot has.
                   "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
         final={"rmse_heldout": rmse_of_squares(current_cv["random"]), "rmse_heldout_blocked": rmse_of_squares(current_cv["blocked"]), "n_params": int(model.n),
+               **_rotation_entries(model, schemes, fold_x),
                "floor_mm": budget["floor_mm"], "floor": budget,
                # Share of the baseline's held-out mean square error above the floor that the causes explain.
                "explained": _explained(rmse_of_squares(baseline_cv["random"]), rmse_of_squares(current_cv["random"]), budget["floor_mm"]),
@@ -517,6 +534,14 @@ def diagnose(
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
         model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
     )  # fmt: skip
+
+
+def _rotation_entries(ext: ExtendedProblem, schemes: dict, fold_x: dict) -> dict:
+    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis
+    (:func:`_held_out_rotation_deg`); nothing for other measurements."""
+    if ext.data.measurement != "pose":
+        return {}
+    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": _held_out_rotation_deg(ext, schemes[name], fold_x[name]) for name in ("random", "blocked")}
 
 
 def _explained(before: float, after: float, floor: float) -> Optional[float]:
@@ -540,7 +565,7 @@ def prior_rejected(what: str, before: float, after: float) -> str:
     return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} mm: the data contradict a geometry within the tolerances; the unconstrained model is kept"
 
 
-def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict):
+def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
     """The final model made physical where the data leave the geometry undetermined.
 
     A fit whose kinematic parameters lie beyond the plausibility limits, or whose parameter
@@ -552,26 +577,26 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     :data:`PRIOR_COST` of the unconstrained model's; otherwise the data contradict a physical
     geometry, and the unconstrained model stays with its implausible parameters listed.
 
-    Returns the model, its fit, its held-out errors and the report entry of the prior (``None``
-    if the fit was physical already).
+    Returns the model, its fit, its held-out errors and fold fits (``fold_x``: those of
+    ``model``) and the report entry of the prior (``None`` if the fit was physical already).
     """
     fit = _fit(model, x0=x)
     if not fit.implausible() and not fit.undetermined():
-        return model, fit, current_cv, None
+        return model, fit, current_cv, fold_x, None
     robot = model.robot
     prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
     physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
     x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
     entry = {**TOLERANCE_SIGMAS, "accepted": False}
-    cv = {}
+    cv, fits = {}, {}
     for name, folds in schemes.items():  # random, blocked, then groups
-        cv[name] = _nonlinear_cv(physical, folds)[0]
+        cv[name], fits[name] = _nonlinear_cv(physical, folds)
         entry[f"rmse_heldout_{name}"] = rmse_of_squares(cv[name])
         if rmse_of_squares(cv[name]) > (1.0 + PRIOR_COST) * rmse_of_squares(current_cv[name]):
             entry["reason"] = prior_rejected(f"{name}-fold held-out", rmse_of_squares(current_cv[name]), rmse_of_squares(cv[name]))
-            return model, fit, current_cv, entry
+            return model, fit, current_cv, fold_x, entry
     entry["accepted"] = True
-    return physical, _fit(physical, x0=x0), {**current_cv, **cv}, entry
+    return physical, _fit(physical, x0=x0), cv, fits, entry
 
 
 def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
@@ -638,7 +663,7 @@ def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, cu
     reason)`` of each compliance dropped."""
     compliances = [c for c in model.causes if c.kind in PHYSICAL_KINDS]
     if not compliances:
-        return model, x, current_cv, []
+        return model, x, current_cv, fold_x, []
     fit = _fit(model, x0=x)
     dropped = []
     for c in compliances:
@@ -648,11 +673,11 @@ def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, cu
         if why is not None:
             dropped.append((c, physical, why))
     if not dropped:
-        return model, x, current_cv, []
+        return model, x, current_cv, fold_x, []
     kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
     x = _fit(kept, x0=kept.start_from(fit.x, model)).x
-    cv = {name: _nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]])[0] for name, folds in schemes.items()}
-    return kept, x, cv, dropped
+    refits = {name: _nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
+    return kept, x, {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}, dropped
 
 
 def coefficient_reference(cause: Candidate, robot: Robot) -> np.ndarray:
