@@ -18,6 +18,7 @@ from robocal.core import DampedNormal, factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.select import _fold_maps
 from robocal.physics import DEG
+from robocal.report import map_figure
 from robocal.simulation import simulate
 
 #: A transmission error of joint 2 at 9 and 14 cycles per revolution: far beyond the harmonics
@@ -150,6 +151,8 @@ def test_a_map_covers_only_where_its_data_are(lo, band, gap_spacings, spacing):
     assert not map_coverage(np.array([middle]), detail)[0]
     assert np.all(map_basis(np.array([middle]), detail).toarray() == 0.0)
     assert np.all(map_coverage(angles, detail))  # every angle it was fitted on
+    curve = map_curve(detail, np.ones(map_basis(angles, detail).shape[1]))
+    assert not np.any((curve["angle_deg"] > a) & (curve["angle_deg"] < b))  # the table leaves the gap out
     narrow = {"spacing": gap, **map_support(angles, gap)}  # the same stretch is one spacing of wider knots
     assert narrow["gaps"] == [] and map_coverage(np.array([middle]), narrow)[0]
 
@@ -182,6 +185,9 @@ def test_verify_names_the_samples_in_a_gap_of_the_maps_data(geared, tmp_path, ca
     write_canonical(data, tmp_path / "data.csv")
     assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "data.csv")]) == 0
     assert f"{coverage['outside']} samples have joint 2 beyond the range" in (out := capsys.readouterr().out) and "or in the gaps" in out
+    # the map's plot breaks its line at the gap
+    curve = map_curve(cause["detail"], np.asarray(cause["coefficients"]))
+    assert map_figure({"joint": 2, "label": cause["label"], "curve": curve}, tmp_path / "map.png").stat().st_size > 0
 
 
 @given(st.integers(0, 2**31 - 1), st.floats(1e-8, 1e2))

@@ -381,9 +381,13 @@ def map_figure(effect: dict, path: Path) -> Path:
     plt = _pyplot()
     curve = effect["curve"]
     angle, value = np.asarray(curve["angle_deg"]), np.asarray(curve["value_deg"]) * 3600.0
+    band = 2.0 * np.asarray(curve.get("std_deg", np.zeros(len(angle)))) * 3600.0
+    # the curve leaves out the gaps of the map's data (it corrects nothing there): break the line
+    steps = np.diff(angle)
+    breaks = np.flatnonzero(steps > 1.5 * np.median(steps)) + 1 if len(steps) else []
+    angle, value, band = (np.insert(a, breaks, np.nan) for a in (angle, value, band))
     fig, ax = plt.subplots(figsize=(7.0, 3.4))
     if "std_deg" in curve:
-        band = 2.0 * np.asarray(curve["std_deg"]) * 3600.0
         ax.fill_between(angle, value - band, value + band, color="tab:blue", alpha=0.25, lw=0, label="±2 std")
     ax.plot(angle, value, color="tab:blue", lw=1.2, label="map")
     ax.axhline(0.0, color="0.5", lw=0.6)

@@ -268,11 +268,13 @@ def map_penalty(detail: dict, weight: float) -> np.ndarray:
 
 
 def map_curve(detail: dict, c: np.ndarray, cov: Optional[np.ndarray] = None, points: int = 0) -> dict:
-    """The map as a table: angles (deg) over its range, the correction (deg) and, given the
-    coefficients' covariance ``cov``, its standard deviation (deg)."""
+    """The map as a table: angles (deg) over its range but for the gaps of its data, the
+    correction (deg) and, given the coefficients' covariance ``cov``, its standard deviation
+    (deg)."""
     lo, hi = float(detail["lo"]), float(detail["hi"])
     n = points or max(2, int(round((hi - lo) / (float(detail["spacing"]) / 4.0))) + 1)
     angles = np.linspace(lo, hi, n)
+    angles = angles[map_coverage(angles * DEG, detail)]
     B = map_basis(angles * DEG, detail).toarray()
     out = {"angle_deg": angles, "value_deg": B @ np.asarray(c) / DEG}
     if cov is not None:

@@ -541,7 +541,10 @@ def _rotation_entries(ext: ExtendedProblem, schemes: dict, fold_x: dict) -> dict
     (:func:`_held_out_rotation_deg`); nothing for other measurements."""
     if ext.data.measurement != "pose":
         return {}
-    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": _held_out_rotation_deg(ext, schemes[name], fold_x[name]) for name in ("random", "blocked")}
+    return {
+        f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": _held_out_rotation_deg(ext, schemes[name], fold_x[name])
+        for name in ("random", "blocked")
+    }
 
 
 def _explained(before: float, after: float, floor: float) -> Optional[float]:
