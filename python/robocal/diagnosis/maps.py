@@ -24,7 +24,7 @@ from scipy.stats import f as f_dist
 
 from ..core import covariance, is_sparse
 from ..stats import rmse_of_squares
-from .candidates import map_candidates, map_curve, map_noise
+from .candidates import map_candidates, map_coverage, map_curve, map_noise, map_support
 from .model import ExtendedProblem
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
@@ -38,22 +38,32 @@ def _dense(A) -> np.ndarray:
 class _NormalScreen:
     """Held-out errors of ``r ≈ J·δ + C·c`` (``C`` penalised by ``P``), fitted per fold through
     the normal equations. ``J``'s rows beyond the data (priors, accepted maps' roughness) stay in
-    every training set."""
+    every training set. ``q`` are the samples' joint angles: a fold's map corrects only the
+    held-out samples within its training samples' angles (:func:`~.candidates.map_within`)."""
 
-    def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int):
-        self.k, self.n_data = k, n_data
+    def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
+        self.k, self.n_data, self.q, self._covered = k, n_data, q, {}
         self.J, self.r = J, r
         self.JtJ, self.Jtr = _dense(J.T @ J), np.asarray(J.T @ r)
         self.Jd, self.rd = J[:n_data], r[:n_data]  # the data rows, all a candidate's columns touch
-        self.folds = {name: [self._rows(test) for _, test in folds] for name, folds in schemes.items()}
+        self.folds = {name: [self._rows(train, test) for train, test in folds] for name, folds in schemes.items()}
 
-    def _rows(self, test: np.ndarray) -> tuple:
+    def _rows(self, train: np.ndarray, test: np.ndarray) -> tuple:
         rows = (test[:, None] * self.k + np.arange(self.k)).ravel()
         Jte = self.J[rows]
-        return test, rows, Jte, _dense(Jte.T @ Jte), np.asarray(Jte.T @ self.r[rows])
+        return train, test, rows, Jte, _dense(Jte.T @ Jte), np.asarray(Jte.T @ self.r[rows])
 
-    def errors(self, C=None, P=None) -> dict:
-        """Held-out squared error per sample, per scheme."""
+    def _covered_rows(self, joint_map, train: np.ndarray, test: np.ndarray) -> np.ndarray:
+        """1 for the residual rows of held-out samples ``test`` that the map fitted on the
+        samples ``train`` covers, else 0."""
+        key = (joint_map.joint, joint_map.detail["spacing"], id(train))  # the same for every roughness
+        if key not in self._covered:
+            support = {**joint_map.detail, **map_support(self.q[train, joint_map.joint], joint_map.detail["spacing"])}
+            self._covered[key] = np.repeat(map_coverage(self.q[test, joint_map.joint], support), self.k).astype(np.float64)
+        return self._covered[key]
+
+    def errors(self, C=None, P=None, joint_map=None) -> dict:
+        """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``."""
         if C is None:
             CtC = CtJ = Ctr = None
         else:
@@ -63,7 +73,7 @@ class _NormalScreen:
         out = {}
         for name, folds in self.folds.items():
             err = np.zeros(self.n_data // self.k)
-            for test, rows, Jte, JteJte, Jter in folds:
+            for train, test, rows, Jte, JteJte, Jter in folds:
                 N, b = self.JtJ - JteJte, self.Jtr - Jter
                 if C is not None:
                     Cte = C[rows]
@@ -75,7 +85,7 @@ class _NormalScreen:
                 delta = _solve(N, b)
                 e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
                 if C is not None:
-                    e = e - C[rows] @ delta[self.J.shape[1] :]
+                    e = e - (C[rows] @ delta[self.J.shape[1] :]) * self._covered_rows(joint_map, train, test)
                 err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
             out[name] = err
         return out
@@ -142,12 +152,12 @@ def map_stage(
     while pool:
         J, r = model.jacobian(x), model.residuals(x)
         n_data = len(model.idx) * model.k
-        screen = _NormalScreen(J, r, schemes, model.k, n_data)
+        screen = _NormalScreen(J, r, schemes, model.k, n_data, data.q[model.idx])
         base_err = screen.errors()
         best: dict = {}
         for c in progress(pool, desc=f"diagnose: joint maps round {len(accepted) + 1}", unit="map"):
             C = model.columns(x, c)
-            errs = screen.errors(C, c.penalty)
+            errs = screen.errors(C, c.penalty, c)
             score = sum(np.mean(errs[name]) for name in schemes)
             if c.joint not in best or score < best[c.joint][0]:
                 best[c.joint] = (score, c, errs, C)
