@@ -100,3 +100,19 @@ def test_a_reading_convention_of_the_controller_is_carried():
     report = robocal.diagnose(data).to_dict()
     assert report["model"]["structure"] == ["joint_sign joint 3"]
     assert report["final"]["implausible"] == [] and report["final"]["rmse_loso"] < 0.5 * report["baseline"]["rmse_loso"]
+
+
+def test_gravity_compliance_is_carried_before_a_joint_map_that_needs_it():
+    """Three sessions of a UR10 whose joints 2 and 3 bend under gravity and whose joint 2 has a
+    fine transmission error: both compliances are carried, at the simulated stiffness, and the
+    joint-2 map with them (a map fitted without the compliance takes part of the deflection)."""
+    gear = ["joint_periodic:joint=2,amplitude=0.01,harmonic=9", "joint_periodic:joint=2,amplitude=0.006,harmonic=14,phase=40"]
+    sessions = _sessions("ur10", "position", ["joint_compliance:joint=2", "joint_compliance:joint=3"] + gear, samples=500, seed=7)
+    report = robocal.diagnose(sessions).to_dict()
+    labels = [e["label"] for e in report["effects"]]
+    assert labels[:2] == ["joint_compliance joint 2", "joint_compliance joint 3"], labels
+    assert [e["joint"] for e in report["effects"] if e["kind"] == "joint_map"] == [2], labels
+    for e in report["effects"][:2]:
+        stiffness = e["params"]["stiffness"]
+        assert abs(stiffness["value"] - 1e5) < 4.0 * stiffness["std"], stiffness  # the UR10's default compliance, 1e-5 rad/(N·m)
+    assert all(a < 0.5 * b for a, b in zip(report["final"]["per_session"], report["baseline"]["per_session"]))
