@@ -129,8 +129,10 @@ def levenberg_marquardt(
 
 
 def _default_scale(problem: Problem, x: np.ndarray) -> float:
-    """``2.5·√k·σ̂``: 2.5 robust sigmas per component of the ``k``-component residuals."""
-    components = problem.data_residuals(x).reshape(len(problem.data), -1)
+    """``2.5·√k·σ̂``: 2.5 robust sigmas per component of the ``k``-component residuals (as the
+    cost weighs them: a pose's rotation rows weighted)."""
+    k = RESIDUAL_WIDTH[problem.data.measurement]
+    components = problem.residuals(x)[: len(problem.data) * k].reshape(len(problem.data), k)
     sigma = robust_sigma(components)
     return 2.5 * float(np.sqrt(np.sum(sigma**2)))
 

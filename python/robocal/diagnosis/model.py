@@ -8,9 +8,11 @@ cause columns are assembled here.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
-from ..calibration.problem import Problem
+from ..calibration.problem import Problem, rotation_weight
 from ..core import is_sparse
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
@@ -157,6 +159,14 @@ class ExtendedProblem:
             return cause.basis[self.idx].reshape(len(self.idx) * self.k, -1)
         raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
 
+    @cached_property
+    def row_weights(self) -> np.ndarray:
+        """Weights of the data rows in :meth:`residuals` (the base problem's: rotation rows of
+        pose data weighted by :func:`~robocal.calibration.problem.rotation_weight`), (m·k,)."""
+        w = np.ones((len(self.idx), self.k))
+        w[:, 3:] = rotation_weight(self.base.data)
+        return w.ravel()
+
     @property
     def _penalised(self) -> list:
         return [(c.penalty, s) for c, s in zip(self.causes, self.slices) if c.penalty is not None]
@@ -164,7 +174,7 @@ class ExtendedProblem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """:meth:`data_residuals` followed by the prior rows of the base problem and the
         roughness rows of the causes that have them (joint maps)."""
-        parts = [self.data_residuals(x)]
+        parts = [self.data_residuals(x) * self.row_weights]
         if self._prior:
             idx, mean, sigma = (np.array(v) for v in zip(*self._prior))
             parts.append(self.base.prior_scale * (mean - np.asarray(x)[idx]) / sigma)
@@ -196,8 +206,9 @@ class ExtendedProblem:
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             from scipy import sparse
 
-            return sparse.vstack([self._sparse_data_rows(blocks, n), sparse.csr_array(rows)], format="csr")
-        J = np.hstack(blocks)
+            data_rows = sparse.diags_array(self.row_weights) @ self._sparse_data_rows(blocks, n)
+            return sparse.vstack([data_rows, sparse.csr_array(rows)], format="csr")
+        J = np.hstack(blocks) * self.row_weights[:, None]
         return np.vstack([J, rows]) if len(rows) else J
 
     def _basis_rows(self, cause: Candidate):

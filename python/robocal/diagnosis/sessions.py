@@ -38,7 +38,7 @@ from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from .maps import map_curves
 from .model import ExtendedProblem
-from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
+from .select import PHYSICS_SHARE, PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -352,7 +352,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         trials = []
         for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
             trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
-        trials.sort(key=_physics_first)
+        trials = _physics_first(trials, _rmse(current), any(e["kind"] in PHYSICAL_KINDS for e in effects))
         before, reasons = _per_session(current), {}
         for rmse, label, candidate, where, errors in trials:  # the best that helps without hurting a session
             worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors))) if a > (1.0 + min_gain) * b]
@@ -415,16 +415,22 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     )  # fmt: skip
 
 
-def _physics_first(trial: tuple) -> tuple:
-    """The order in which a round's trials ``(rmse, label, candidate, ...)`` are judged: every
-    gravity compliance (:data:`~.candidates.PHYSICAL_KINDS`) before the other candidates, each
-    group by its pooled held-out RMSE. The first that passes the checks is accepted, so a
-    compliance that carries is taken before a free shape that would carry as well: a free shape
-    fitted first takes part of the gravity deflection and leaves the compliance too little to
-    gain. (UR10 series A, B, C in positions: a joint-1 and a joint-5 map taken first left joint
-    2's compliance 0.4 % to gain and joint 3's none, and without both compliances a joint-2 map
-    fitted on two series raised the third's error; with them it lowered it.)"""
-    return (trial[2].kind not in PHYSICAL_KINDS, trial[0])
+def _physics_first(trials: list, current: float, established: bool) -> list:
+    """A round's trials ``(rmse, label, candidate, ...)`` in the order they are judged (the first
+    that passes the checks is accepted): by pooled held-out RMSE, but a gravity compliance
+    (:data:`~.candidates.PHYSICAL_KINDS`) before every other candidate if it gains at least
+    :data:`~.select.PHYSICS_SHARE` of what the best of them gains below ``current`` — or any
+    share once the model holds a compliance (``established``) — as within one session
+    (:func:`~.select._physics_first`). A free shape fitted first takes part of the gravity
+    deflection and leaves the compliance too little to gain: on UR10 series A, B and C in
+    positions a joint-1 and a joint-5 map taken first left joint 2's compliance 0.4 % and joint
+    3's none, and without both compliances a joint-2 map fitted on two series raised the
+    third's error. A harmonic the compliance only grazes keeps its place."""
+    trials = sorted(trials, key=lambda t: t[0])
+    free = [t for t in trials if t[2].kind not in PHYSICAL_KINDS]
+    bar = 0.0 if established or not free else PHYSICS_SHARE * max(current - free[0][0], 0.0)
+    first = [t for t in trials if t[2].kind in PHYSICAL_KINDS and current - t[0] >= bar]
+    return first + [t for t in trials if all(t is not f for f in first)]
 
 
 def _physical(evaluator: _Evaluator, model: _Model, current: list):
