@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -196,3 +197,22 @@ def test_result_speaks_scipys_vocabulary_and_gives_the_calibrated_robot():
     assert np.allclose(robot.predict("position", data.q[:5]), result.problem.robot.predict("position", data.q[:5], result.params))
     stopped = robocal.calibrate(data, max_nfev=2)
     assert stopped.status == 0 and not stopped.success
+
+
+def test_a_pose_fit_weighs_the_orientation_by_the_sensors_noise():
+    """Rotation residuals (rad) enter the fit weighted by the ratio of the recorded position and
+    orientation standard deviations (mm / deg), else by POSE_ROTATION_WEIGHT; data residuals and
+    other measurements are unweighted."""
+    from robocal.calibration.problem import POSE_ROTATION_WEIGHT, rotation_weight
+
+    data, _ = simulate("ur10", "pose", samples=50, seed=4)
+    problem = Problem.build(robocal.robot("ur10"), data)
+    x = problem.x0
+    raw, weighted = problem.data_residuals(x).reshape(-1, 6), problem.residuals(x)[: len(data) * 6].reshape(-1, 6)
+    assert np.allclose(weighted[:, :3], raw[:, :3]) and np.allclose(weighted[:, 3:], POSE_ROTATION_WEIGHT * raw[:, 3:])
+    J, J_raw = problem.jacobian(x), robocal.robot("ur10").jacobian("pose", data.q, y=data.y, params=problem.full(x), cols=problem.free)
+    assert np.allclose(J[: len(data) * 6].reshape(len(data), 6, -1)[:, 3:], POSE_ROTATION_WEIGHT * J_raw.reshape(len(data), 6, -1)[:, 3:])
+    recorded = replace(data, extra={**data.extra, "measurement_std": np.tile([0.01, 0.01, 0.01, 0.002, 0.002, 0.002], (len(data), 1))})
+    assert np.isclose(rotation_weight(recorded), 0.01 / np.radians(0.002))  # ≈ 286 mm/rad
+    position, _ = simulate("ur10", "position", samples=20, seed=4)
+    assert rotation_weight(position) == 1.0
