@@ -116,3 +116,20 @@ def test_gravity_compliance_is_carried_before_a_joint_map_that_needs_it():
         stiffness = e["params"]["stiffness"]
         assert abs(stiffness["value"] - 1e5) < 4.0 * stiffness["std"], stiffness  # the UR10's default compliance, 1e-5 rad/(N·m)
     assert all(a < 0.5 * b for a, b in zip(report["final"]["per_session"], report["baseline"]["per_session"]))
+
+
+def test_pose_sessions_report_the_held_out_orientation_error(tmp_path, capsys):
+    """Pose sessions: the leave-one-session-out orientation error is reported beside the
+    position's, and the carried gear error of joint 5 (it turns the tool) takes it to the noise."""
+    from robocal.simulation import DEFAULT_NOISE
+
+    sessions = _sessions("ur10", "pose", ["joint_periodic:joint=5,amplitude=0.05,harmonic=2"], n=2, samples=300, seed=21)
+    report = robocal.diagnose(sessions).to_dict()
+    b, f = report["baseline"], report["final"]
+    assert "joint_periodic joint 5 harmonic=2" in report["model"]["causes"]
+    floor = np.degrees(np.sqrt(3.0) * DEFAULT_NOISE["pose"].sigma_rotation)
+    assert len(f["rotation_per_session_deg"]) == 2 and all(v < 2.0 * floor for v in f["rotation_per_session_deg"])
+    assert b["rotation_rmse_loso_deg"] > 10.0 * floor
+    paths = [write_canonical(s, tmp_path / f"s{i}.csv") for i, s in enumerate(sessions)]
+    assert main(["diagnose", *map(str, paths), "--robot", "ur10", "--quiet"]) == 0
+    assert "held-out orientation RMS" in capsys.readouterr().out

@@ -96,6 +96,9 @@ def sessions_summary(report: dict) -> str:
         if s["causes"]:
             lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
     lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
+    if "rotation_rmse_loso_deg" in f:
+        lines.append(f"  held-out orientation RMS {b['rotation_rmse_loso_deg']:.4f} -> {f['rotation_rmse_loso_deg']:.4f} deg "
+                     f"(per session {' / '.join(f'{v:.4f}' for v in f['rotation_per_session_deg'])})")  # fmt: skip
     covered = f.get("per_session_covered", [])
     if covered and any(c.startswith("joint_map") for c in report["model"]["causes"]):
         parts = [f"{c['rmse']:.4f} mm on {c['samples']}" if c["rmse"] is not None else "none covered" for c in covered]

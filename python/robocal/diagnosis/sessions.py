@@ -106,6 +106,7 @@ class _Evaluator:
         self._fits: dict = {}
         self.maps: dict = {}  # label -> a session's joint map: its spacing, roughness and weight
         self._map_cache: dict = {}
+        self.rotation: dict = {}  # model -> per session, the held-out orientation angles (rad) of pose data
 
     def bases(self, model: _Model) -> list[tuple]:
         """Per session, under the model's conventions: its base problem, its data and its
@@ -177,7 +178,7 @@ class _Evaluator:
     def held_out(self, model: _Model) -> list[np.ndarray]:
         """Per session, the squared errors of its samples under the model fitted on the others
         (joint maps over the others' range)."""
-        errors = []
+        errors, angles = [], []
         for h in range(len(self.sessions)):
             problems = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))
             held = problems[h]
@@ -190,7 +191,19 @@ class _Evaluator:
             self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
             r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
             errors.append(np.sum(r * r, axis=1))
+            angles.append(np.linalg.norm(r[:, 3:], axis=1) if r.shape[1] == 6 else None)
+        if self.measurement == "pose":  # the orientation beside the position (rad² beside mm² weigh nothing in the sum)
+            self.rotation[model] = angles
         return errors
+
+    def rotation_entries(self, model: _Model) -> dict:
+        """The held-out orientation error of pose data under ``model`` (after :meth:`held_out`):
+        ``rotation_rmse_loso_deg`` pooled and ``rotation_per_session_deg``; nothing otherwise."""
+        angles = self.rotation.get(model)
+        if not angles:
+            return {}
+        return {"rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(angles) ** 2)))),
+                "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a**2)))) for a in angles]}  # fmt: skip
 
     def covered(self, model: _Model) -> list[np.ndarray]:
         """Per session, its samples (those :meth:`held_out` scores) that every joint map of the
@@ -342,7 +355,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     model = _Model()
     current = evaluator.held_out(model)
     geometric, geometric_fit = evaluator.fit(model)
-    baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
+    baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
     # Every map variant the sessions found is judged (the smoothness that carries across
@@ -401,7 +414,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if e["label"] in curves:
             e["curve"] = curves[e["label"]]
     covered = evaluator.covered(model)
-    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
+    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
              "per_session_covered": [{"samples": int(m.sum()), "rmse": rmse_of_squares(e[m]) if m.any() else None} for e, m in zip(current, covered)],
              "rmse_loso_unconstrained": unconstrained,
