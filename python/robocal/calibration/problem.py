@@ -136,6 +136,14 @@ def rotation_weight(data: Dataset) -> float:
     return position / rotation if position > 0 and rotation > 0 else POSE_ROTATION_WEIGHT
 
 
+def fit_row_weights(data: Dataset, samples: Optional[int] = None) -> np.ndarray:
+    """Weights of the residual rows of ``samples`` samples (default all) of ``data``'s kind in
+    a fit, (samples·k,): 1, and :func:`rotation_weight` for the rotation rows of pose data."""
+    w = np.ones((len(data) if samples is None else samples, RESIDUAL_WIDTH[data.measurement]))
+    w[:, 3:] = rotation_weight(data)
+    return w.ravel()
+
+
 @dataclass
 class Problem:
     """Residuals and Jacobians of one robot on one dataset over the free parameters.
@@ -314,12 +322,8 @@ class Problem:
 
     @cached_property
     def row_weights(self) -> np.ndarray:
-        """Weights of the data rows in :meth:`residuals` (1, and :func:`rotation_weight` for the
-        rotation rows of pose data), (m·k,)."""
-        k = RESIDUAL_WIDTH[self.data.measurement]
-        w = np.ones((len(self.data), k))
-        w[:, 3:] = rotation_weight(self.data)
-        return w.ravel()
+        """Weights of the data rows in :meth:`residuals` (:func:`fit_row_weights`)."""
+        return fit_row_weights(self.data)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """What the calibrators minimise: :meth:`data_residuals` (weighted: :attr:`row_weights`)

@@ -307,14 +307,19 @@ def map_support(angles: np.ndarray, spacing: float) -> dict:
             "gaps": [[math.ceil(a[i] * 1e6) / 1e6, math.floor(a[i + 1] * 1e6) / 1e6] for i in wide]}  # fmt: skip
 
 
+def covered_when_fitted_on(detail: dict, fitted: np.ndarray, qj: np.ndarray) -> np.ndarray:
+    """:func:`map_coverage` of the angles ``qj`` (rad) by the map of ``detail`` fitted on the
+    joint angles ``fitted`` (rad) instead: a fold's map is the map of its training samples."""
+    return map_coverage(qj, {**detail, **map_support(fitted, detail["spacing"])})
+
+
 def map_within(c: Candidate, data: Dataset, angles: np.ndarray) -> Candidate:
     """The joint map ``c`` (its knots and coefficients unchanged) correcting only where the joint
     ``angles`` (rad) it is fitted on support it: held-out samples beyond them are scored as the
-    map would treat a new session's (a fold's map is the map of its training samples)."""
+    map would treat a new session's (:func:`covered_when_fitted_on`)."""
     from scipy import sparse
 
-    support = {**c.detail, **map_support(angles, c.detail["spacing"])}
-    inside = sparse.diags_array(map_coverage(data.q[:, c.joint], support).astype(np.float64))
+    inside = sparse.diags_array(covered_when_fitted_on(c.detail, angles, data.q[:, c.joint]).astype(np.float64))
     return replace(c, basis=(inside @ c.basis).tocsr())
 
 

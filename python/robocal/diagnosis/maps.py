@@ -24,7 +24,7 @@ from scipy.stats import f as f_dist
 
 from ..core import covariance, is_sparse
 from ..stats import rmse_of_squares
-from .candidates import map_candidates, map_coverage, map_curve, map_noise, map_support
+from .candidates import covered_when_fitted_on, map_candidates, map_curve, map_noise
 from .model import ExtendedProblem
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
@@ -39,7 +39,7 @@ class _NormalScreen:
     """Held-out errors of ``r ≈ J·δ + C·c`` (``C`` penalised by ``P``), fitted per fold through
     the normal equations. ``J``'s rows beyond the data (priors, accepted maps' roughness) stay in
     every training set. ``q`` are the samples' joint angles: a fold's map corrects only the
-    held-out samples within its training samples' angles (:func:`~.candidates.map_within`)."""
+    held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`)."""
 
     def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
         self.k, self.n_data, self.q, self._covered = k, n_data, q, {}
@@ -58,8 +58,8 @@ class _NormalScreen:
         samples ``train`` covers, else 0."""
         key = (joint_map.joint, joint_map.detail["spacing"], id(train))  # the same for every roughness
         if key not in self._covered:
-            support = {**joint_map.detail, **map_support(self.q[train, joint_map.joint], joint_map.detail["spacing"])}
-            self._covered[key] = np.repeat(map_coverage(self.q[test, joint_map.joint], support), self.k).astype(np.float64)
+            inside = covered_when_fitted_on(joint_map.detail, self.q[train, joint_map.joint], self.q[test, joint_map.joint])
+            self._covered[key] = np.repeat(inside, self.k).astype(np.float64)
         return self._covered[key]
 
     def errors(self, C=None, P=None, joint_map=None) -> dict:

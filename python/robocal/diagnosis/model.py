@@ -12,7 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..calibration.problem import Problem, rotation_weight
+from ..calibration.problem import Problem, fit_row_weights
 from ..core import is_sparse
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
@@ -163,9 +163,7 @@ class ExtendedProblem:
     def row_weights(self) -> np.ndarray:
         """Weights of the data rows in :meth:`residuals` (the base problem's: rotation rows of
         pose data weighted by :func:`~robocal.calibration.problem.rotation_weight`), (m·k,)."""
-        w = np.ones((len(self.idx), self.k))
-        w[:, 3:] = rotation_weight(self.base.data)
-        return w.ravel()
+        return fit_row_weights(self.base.data, len(self.idx))
 
     @property
     def _penalised(self) -> list:
