@@ -383,14 +383,18 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
 
 
 def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
-    """The ordering of a screening round: a significant compliance with at least
+    """The ordering of a selection round: a significant compliance with at least
     ``PHYSICS_SHARE`` of the best free joint shape's gain goes before it; a weaker one, an
-    insignificant one and the shapes keep their rank, and a sensor's drift stays ahead."""
+    insignificant one and the shapes keep their rank, and a sensor's drift stays ahead. The
+    multi-session round orders its trials, ranked by held-out RMSE, by the same rule."""
     from robocal.diagnosis.candidates import Candidate
-    from robocal.diagnosis.select import PHYSICS_SHARE, _physics_first
+    from robocal.diagnosis.select import PHYSICS_SHARE, physics_first
 
     def entry(kind, joint, gain, stage="joints"):
         return (gain, Candidate(kind, joint, stage, None), 1e-9, {"random": gain, "blocked": gain})
+
+    def order(ranked, eligible=lambda *s: True, established=False):
+        return physics_first(ranked, lambda s: s[0], lambda s: s[1], lambda s: eligible(*s), established)
 
     drift = entry("drift", None, 0.05, "observations")
     harmonic = entry("joint_periodic", 1, 0.02)
@@ -398,13 +402,18 @@ def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
     close = entry("joint_compliance", 1, 0.02 * (PHYSICS_SHARE + 0.1))
     weak = entry("joint_compliance", 2, 0.02 * (PHYSICS_SHARE - 0.1))
     scored = [drift, harmonic, scale, close, weak]
-    everything = lambda *s: True  # noqa: E731
-    assert [s[1].kind for s in _physics_first(scored, everything)] == ["drift", "joint_compliance", "joint_periodic", "joint_scale", "joint_compliance"]
-    assert _physics_first(scored, everything)[1] is close
-    assert _physics_first(scored, lambda *s: s[1].kind != "joint_compliance") == scored
-    assert _physics_first([drift, close], everything) == [drift, close]  # no free shape to go before
+    assert [s[1].kind for s in order(scored)] == ["drift", "joint_compliance", "joint_periodic", "joint_scale", "joint_compliance"]
+    assert order(scored)[1] is close
+    assert order(scored, lambda *s: s[1].kind != "joint_compliance") == scored
+    assert order([drift, close]) == [drift, close]  # no free shape to go before
     # once the model has a compliance, the other loaded joints' go first whatever their share
-    assert [s[1].joint for s in _physics_first(scored, everything, established=True)[1:3]] == [1, 2]
+    assert [s[1].joint for s in order(scored, established=True)[1:3]] == [1, 2]
+    # across sessions: trials (held-out RMSE, label, candidate), gains below the current RMSE
+    current = 0.5
+    trials = [(current - g, s[1].label, s[1]) for g, s in ((s[0], s) for s in (harmonic, scale, close, weak))]
+    ordered = physics_first(trials, lambda t: current - t[0], lambda t: t[2])
+    assert [t[2] for t in ordered] == [close[1], harmonic[1], scale[1], weak[1]]
+    assert [t[2].kind for t in physics_first(trials, lambda t: current - t[0], lambda t: t[2], established=True)[:2]] == ["joint_compliance"] * 2
 
 
 def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsys):

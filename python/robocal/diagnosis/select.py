@@ -401,7 +401,7 @@ def diagnose(
             relevant = gain >= min_gain * rmse_of_squares(model_err["random"])
             return p_value * tests_of(c) < alpha and relevant and all(g > 0 for g in gains.values())
 
-        scored = _physics_first(scored, is_significant, established=any(c.kind in PHYSICAL_KINDS for c in causes))
+        scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
         accepted = None
         joint_trials = 0
         for gain, c, p_value, gains in scored:
@@ -637,29 +637,38 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
 PHYSICS_SHARE = 0.5
 
 
-def _physics_first(scored: list, is_significant, established: bool = False) -> list:
-    """``scored`` (by screening gain) with each significant cause that has a physical model of
-    how it carries (:data:`PHYSICAL_KINDS`: gravity compliance) moved before the first
-    significant free joint shape (harmonic, scale, coupling, backlash) if it has at least
-    :data:`PHYSICS_SHARE` of that shape's gain, or if one is ``established`` (the model already
-    has a compliance: the data have shown the robot bends under gravity, and the other loaded
-    joints bend too). Within one session a harmonic — and then a joint map — can take a
-    compliance's shape: on UR10 series A, B and C they did and raised the error on the other
-    series (to 2.0 mm on C from A with joint 2's compliance alone, absorbing joint 3's), while a
-    compliance, driven by the gravity torque of the pose, carries to any session. A sensor's
-    drift or step keeps its rank."""
-    at = next((i for i, s in enumerate(scored) if s[1].stage == "joints" and s[1].kind not in PHYSICAL_KINDS and is_significant(*s)), None)
+def physics_first(ranked: list, gain, cause, eligible=lambda item: True, established: bool = False) -> list:
+    """``ranked`` (best first; ``gain(item)`` the item's held-out gain, ``cause(item)`` its
+    candidate) with each ``eligible`` cause that has a physical model of how it carries
+    (:data:`PHYSICAL_KINDS`: gravity compliance) moved before the first eligible free joint
+    shape (harmonic, scale, coupling, backlash, map) if it gains at least :data:`PHYSICS_SHARE`
+    of that shape's gain, or any share if one is ``established`` (the model already has a
+    compliance: the data have shown the robot bends under gravity, and the other loaded joints
+    bend too). Within one session a harmonic — and then a joint map — can take a compliance's
+    shape: on UR10 series A, B and C they did and raised the error on the other series (to
+    2.0 mm on C from A with joint 2's compliance alone, absorbing joint 3's), while a
+    compliance, driven by the gravity torque of the pose, carries to any session; across
+    sessions a joint-1 and a joint-5 map taken first left joint 2's compliance 0.4 % and joint
+    3's none. A sensor's drift or step, a reading convention and a harmonic the compliance only
+    grazes keep their rank. Used by the single-session selection (screening gains) and the
+    multi-session one (leave-one-session-out gains)."""
+
+    def free_shape(item) -> bool:
+        c = cause(item)
+        return getattr(c, "stage", None) == "joints" and c.kind not in PHYSICAL_KINDS and eligible(item)
+
+    at = next((i for i, item in enumerate(ranked) if free_shape(item)), None)
     if at is None:
-        return scored
-    share = 0.0 if established else PHYSICS_SHARE
-    moved = [s for s in scored[at + 1 :] if s[1].kind in PHYSICAL_KINDS and is_significant(*s) and s[0] >= share * scored[at][0]]
-    rest = [s for s in scored if all(s is not m for m in moved)]
+        return ranked
+    bar = 0.0 if established else PHYSICS_SHARE * gain(ranked[at])
+    moved = [item for item in ranked[at + 1 :] if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar]
+    rest = [item for item in ranked if all(item is not m for m in moved)]
     return rest[:at] + moved + rest[at:]
 
 
 def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
     """The final model without the compliances whose size, fitted with every cause found after
-    them, is implausible or undetermined (:func:`_physics_first` lets a compliance go before a
+    them, is implausible or undetermined (:func:`physics_first` lets a compliance go before a
     free shape it resembles; when that shape is the real cause — a scale error of the same
     joint, say — the compliance is left with nothing to explain). Returns the model, its ``x``,
     held-out errors (measured again if anything was dropped) and the ``(cause, physical,

@@ -38,7 +38,7 @@ from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from .maps import map_curves
 from .model import ExtendedProblem
-from .select import PHYSICS_SHARE, PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, prior_rejected, undetermined
+from .select import PRIOR_COST, TOLERANCE_SIGMAS, Diagnosis, baseline_mask, coefficient_reference, diagnose, physics_first, prior_rejected, undetermined
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -107,6 +107,7 @@ class _Evaluator:
         self.maps: dict = {}  # label -> a session's joint map: its spacing, roughness and weight
         self._map_cache: dict = {}
         self.rotation: dict = {}  # model -> per session, the held-out orientation angles (rad) of pose data
+        self.coverage: dict = {}  # model -> per session, its held-out samples that every map covers
 
     def bases(self, model: _Model) -> list[tuple]:
         """Per session, under the model's conventions: its base problem, its data and its
@@ -177,11 +178,13 @@ class _Evaluator:
 
     def held_out(self, model: _Model) -> list[np.ndarray]:
         """Per session, the squared errors of its samples under the model fitted on the others
-        (joint maps over the others' range)."""
-        errors, angles = [], []
+        (joint maps over the others' range). Keeps, per session, which of them every map
+        covers (``coverage``) and, of pose data, their orientation errors (``rotation``)."""
+        errors, angles, covered = [], [], []
         for h in range(len(self.sessions)):
             problems = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))
             held = problems[h]
+            covered.append(map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q))
             train = model.stacked([p for s, p in enumerate(problems) if s != h])
             key = (model.conventions, h)  # a smaller model's fits on the same readings start it
             fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose")
@@ -194,6 +197,7 @@ class _Evaluator:
             angles.append(np.linalg.norm(r[:, 3:], axis=1) if r.shape[1] == 6 else None)
         if self.measurement == "pose":  # the orientation beside the position (rad² beside mm² weigh nothing in the sum)
             self.rotation[model] = angles
+        self.coverage[model] = covered
         return errors
 
     def rotation_entries(self, model: _Model) -> dict:
@@ -204,15 +208,6 @@ class _Evaluator:
             return {}
         return {"rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(angles) ** 2)))),
                 "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a**2)))) for a in angles]}  # fmt: skip
-
-    def covered(self, model: _Model) -> list[np.ndarray]:
-        """Per session, its samples (those :meth:`held_out` scores) that every joint map of the
-        model, spanning the other sessions' range, covers."""
-        out = []
-        for h in range(len(self.sessions)):
-            held = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))[h]
-            out.append(map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q))
-        return out
 
     def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
         """The left-out session's start: the trained robot, and the set-up that places it best
@@ -365,7 +360,10 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         trials = []
         for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
             trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
-        trials = _physics_first(trials, _rmse(current), any(e["kind"] in PHYSICAL_KINDS for e in effects))
+        # judged by pooled held-out RMSE, a gravity compliance first as within one session
+        trials = physics_first(
+            sorted(trials, key=lambda t: t[0]), lambda t: _rmse(current) - t[0], lambda t: t[2], established=any(e["kind"] in PHYSICAL_KINDS for e in effects)
+        )
         before, reasons = _per_session(current), {}
         for rmse, label, candidate, where, errors in trials:  # the best that helps without hurting a session
             worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors))) if a > (1.0 + min_gain) * b]
@@ -413,7 +411,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     for e in effects:
         if e["label"] in curves:
             e["curve"] = curves[e["label"]]
-    covered = evaluator.covered(model)
+    covered = evaluator.coverage[model]
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
              "per_session_covered": [{"samples": int(m.sum()), "rmse": rmse_of_squares(e[m]) if m.any() else None} for e, m in zip(current, covered)],
@@ -426,24 +424,6 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                "sessions": [{"source": s.data.source, "causes": [c.label for c in s.terms]} for s in sessions]},
         time_s=time.perf_counter() - t0,
     )  # fmt: skip
-
-
-def _physics_first(trials: list, current: float, established: bool) -> list:
-    """A round's trials ``(rmse, label, candidate, ...)`` in the order they are judged (the first
-    that passes the checks is accepted): by pooled held-out RMSE, but a gravity compliance
-    (:data:`~.candidates.PHYSICAL_KINDS`) before every other candidate if it gains at least
-    :data:`~.select.PHYSICS_SHARE` of what the best of them gains below ``current`` — or any
-    share once the model holds a compliance (``established``) — as within one session
-    (:func:`~.select._physics_first`). A free shape fitted first takes part of the gravity
-    deflection and leaves the compliance too little to gain: on UR10 series A, B and C in
-    positions a joint-1 and a joint-5 map taken first left joint 2's compliance 0.4 % and joint
-    3's none, and without both compliances a joint-2 map fitted on two series raised the
-    third's error. A harmonic the compliance only grazes keeps its place."""
-    trials = sorted(trials, key=lambda t: t[0])
-    free = [t for t in trials if t[2].kind not in PHYSICAL_KINDS]
-    bar = 0.0 if established or not free else PHYSICS_SHARE * max(current - free[0][0], 0.0)
-    first = [t for t in trials if t[2].kind in PHYSICAL_KINDS and current - t[0] >= bar]
-    return first + [t for t in trials if all(t is not f for f in first)]
 
 
 def _physical(evaluator: _Evaluator, model: _Model, current: list):
