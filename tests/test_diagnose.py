@@ -416,6 +416,33 @@ def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
     assert [t[2].kind for t in physics_first(trials, lambda t: current - t[0], lambda t: t[2], established=True)[:2]] == ["joint_compliance"] * 2
 
 
+def test_compliance_correlations_match_a_numpy_covariance():
+    """The correlation between two fitted compliances, as the report gives it, is that of the
+    fit's covariance σ²(JᵀJ)⁻¹ computed densely with NumPy; one compliance has none."""
+    from robocal.calibration.lm import levenberg_marquardt
+    from robocal.calibration.problem import Problem
+    from robocal.diagnosis.candidates import library
+    from robocal.diagnosis.model import ExtendedProblem
+    from robocal.diagnosis.select import baseline_mask, compliance_correlations
+
+    data, _ = simulate("ur10", "position", samples=200, seed=3, effects=["joint_compliance:joint=2", "joint_compliance:joint=3"])
+    rob = robocal.robot("ur10")
+    base = Problem.build(rob, data, mask=baseline_mask(rob, "position", True))
+    pool = {c.label: c for c in library(rob, data, list(base.names) + list(base.fixed))}
+    labels = ["joint_compliance joint 2", "joint_compliance joint 3"]
+    ext = ExtendedProblem(base, [pool[label] for label in labels], data, np.arange(len(data)))
+    x = levenberg_marquardt(ext).x
+    J, r = np.asarray(ext.jacobian(x)), ext.residuals(x)
+    scale = np.linalg.norm(J, axis=0)
+    cov = np.linalg.inv((J / scale).T @ (J / scale)) / np.outer(scale, scale) * (r @ r) / (len(r) - J.shape[1])
+    i, j = (ext.names.index(f"{label} c0") for label in labels)
+    expected = cov[i, j] / np.sqrt(cov[i, i] * cov[j, j])
+    got = compliance_correlations(ext, x, labels)
+    assert got[labels[0]][labels[1]] == pytest.approx(expected, abs=1e-6)
+    assert got[labels[1]][labels[0]] == got[labels[0]][labels[1]] and abs(expected) < 1.0
+    assert compliance_correlations(ext, x, labels[:1]) == {}
+
+
 def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsys):
     """A hidden gear error of joint 5 turns the tool: its held-out orientation error, reported
     beside the position's, falls once the cause is found; position data report none."""

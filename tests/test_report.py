@@ -174,6 +174,12 @@ def test_diagnosis_section_shows_structure_budget_and_sessions(calibrated, tmp_p
     text = report(path, tmp_path / "one", diagnosis=diagnosis).read_text()
     assert "<h3>Structure</h3>" in text and "joint_sign joint 3" in text
     assert "<h3>Error budget</h3>" in text and f"{diagnosis['final']['floor_mm']:.4f}" in text
+    # two compliances: how well the data split them, beside their stiffness
+    both = {"kind": "joint_compliance", "rmse_heldout_before": 0.5, "rmse_heldout_after": 0.4, "params": {}}
+    diagnosis["effects"] += [{**both, "joint": 2, "label": "joint_compliance joint 2", "correlation": {"joint_compliance joint 3": -0.87}},
+                             {**both, "joint": 3, "label": "joint_compliance joint 3", "correlation": {"joint_compliance joint 2": "<b>"}}]  # fmt: skip
+    text = report(path, tmp_path / "corr", diagnosis=diagnosis).read_text()
+    assert "correlation with joint_compliance joint 3 -0.87" in text and "<b>" not in text
     sessions = robocal.diagnose([robocal.simulate("abb-irb120", "position", samples=200, seed=2, session=s)[0] for s in range(2)]).to_dict()
     text = report(path, tmp_path / "two", diagnosis=sessions).read_text()
     assert "<h3>Sessions</h3>" in text and "sessions it was not fitted on" in text

@@ -12,6 +12,7 @@ import robocal
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.calibration.sessions import Partial, Sessions, is_private, session_problems
 from robocal.cli import main
+from robocal.cli.diagnose import sessions_summary
 from robocal.data.canonical import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import simulate
@@ -115,6 +116,10 @@ def test_gravity_compliance_is_carried_before_a_joint_map_that_needs_it():
     for e in report["effects"][:2]:
         stiffness = e["params"]["stiffness"]
         assert abs(stiffness["value"] - 1e5) < 4.0 * stiffness["std"], stiffness  # the UR10's default compliance, 1e-5 rad/(N·m)
+    # how well the data split the two stiffnesses: their correlation, the same both ways
+    r = report["effects"][0]["correlation"]["joint_compliance joint 3"]
+    assert r == report["effects"][1]["correlation"]["joint_compliance joint 2"] and -1.0 < r < 1.0
+    assert f"correlation with joint_compliance joint 3 {r:+.2f}" in sessions_summary(report)
     assert all(a < 0.5 * b for a, b in zip(report["final"]["per_session"], report["baseline"]["per_session"]))
 
 
