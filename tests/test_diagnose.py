@@ -423,7 +423,8 @@ def test_compliance_correlations_match_a_numpy_covariance():
     from robocal.calibration.problem import Problem
     from robocal.diagnosis.candidates import library
     from robocal.diagnosis.model import ExtendedProblem
-    from robocal.diagnosis.select import baseline_mask, compliance_correlations
+    from robocal.diagnosis.select import baseline_mask
+    from robocal.diagnosis.uncertainty import uncertainty_entries
 
     data, _ = simulate("ur10", "position", samples=200, seed=3, effects=["joint_compliance:joint=2", "joint_compliance:joint=3"])
     rob = robocal.robot("ur10")
@@ -437,10 +438,10 @@ def test_compliance_correlations_match_a_numpy_covariance():
     cov = np.linalg.inv((J / scale).T @ (J / scale)) / np.outer(scale, scale) * (r @ r) / (len(r) - J.shape[1])
     i, j = (ext.names.index(f"{label} c0") for label in labels)
     expected = cov[i, j] / np.sqrt(cov[i, i] * cov[j, j])
-    got = compliance_correlations(ext, x, labels)
+    got = {label: entry["correlation"] for label, entry in uncertainty_entries(ext, x, ext.causes).items()}
     assert got[labels[0]][labels[1]] == pytest.approx(expected, abs=1e-6)
     assert got[labels[1]][labels[0]] == got[labels[0]][labels[1]] and abs(expected) < 1.0
-    assert compliance_correlations(ext, x, labels[:1]) == {}
+    assert uncertainty_entries(ext, x, ext.causes[:1]) == {}
 
 
 def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsys):

@@ -548,18 +548,19 @@ def _causes(doc: dict) -> str:
             + _table(["cause", "parameters", "implausible"], rows))  # fmt: skip
 
 
-def _correlations(effect: dict) -> str:
-    """A compliance's correlation with the other compliances (how well the data split them)."""
+def correlation_words(effect: dict) -> str:
+    """A compliance's correlation with the other compliances (how well the data split them), as
+    plain text; entries a hand-edited file makes other than numbers are left out."""
     others = effect.get("correlation")
     if not isinstance(others, dict):
         return ""
-    return "".join(f"; correlation with {_esc(label)} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
+    return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
 
 
 def _diagnosis_table(report: dict) -> str:
     key, rows = _held(report), []
     for e in report["effects"]:
-        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _correlations(e),
+        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _esc(correlation_words(e)),
                      _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])  # fmt: skip
     b, f = report["baseline"], report.get("final") or {}
     intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"

@@ -11,7 +11,7 @@ import numpy as np
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..outputs import make_folder, save_figure, write_text
-from ..report import diagnosis_figure, map_figure, map_tables
+from ..report import correlation_words, diagnosis_figure, map_figure, map_tables
 from .arguments import add_data_arguments
 
 
@@ -26,12 +26,6 @@ def _quantities(params: dict) -> str:
     return ", ".join(shown)
 
 
-def _correlation(effect: dict) -> str:
-    """A compliance's correlation with the other compliances, if the report has it."""
-    others = effect.get("correlation") or {}
-    return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items())
-
-
 def summary(report: dict) -> str:
     """A few lines for the terminal."""
     b, f = report["baseline"], report["final"]
@@ -44,7 +38,7 @@ def summary(report: dict) -> str:
     for e in report["effects"]:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(
-            f"  + {e['kind']}{where}: {_quantities(e['params'])}{_correlation(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
+            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
         )
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
     if "rotation_rmse_heldout_deg" in f:
@@ -96,7 +90,7 @@ def sessions_summary(report: dict) -> str:
     if b["implausible"]:
         lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))
     for e in report["effects"]:
-        lines.append(f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}{_correlation(e)}; held-out "
+        lines.append(f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}{correlation_words(e)}; held-out "
                      f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})")  # fmt: skip
     for r in report["rejected"]:
         lines.append(f"  not carried: {r['label']} ({_origin(r)}): {r['reason']}")

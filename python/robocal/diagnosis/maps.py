@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import f as f_dist
 
-from ..core import covariance, is_sparse
+from ..core import is_sparse
 from ..stats import rmse_of_squares
-from .candidates import covered_when_fitted_on, map_candidates, map_curve, map_noise
+from .candidates import covered_when_fitted_on, map_candidates, map_noise
 from .model import ExtendedProblem
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
@@ -214,19 +214,3 @@ def _variants(causes: list, joint_map) -> list[list]:
     subsumed = [o for o in causes if o.kind == "joint_periodic" and o.joint == joint_map.joint]
     plain = causes + [joint_map]
     return [[o for o in causes if o not in subsumed] + [joint_map], plain] if subsumed else [plain]
-
-
-def map_curves(problem, x: np.ndarray, maps: list) -> dict:
-    """The joint maps ``maps`` (candidates) of a fitted ``problem`` (one session's
-    :class:`ExtendedProblem` or several stacked) at ``x``, each as a curve with its standard
-    deviation (from the fit's covariance, roughness prior included), keyed by the cause's label.
-    A map's coefficients are the entries named ``"<label> c<i>"``."""
-    if not maps:
-        return {}
-    cov, *_ = covariance(problem.jacobian(x), problem.residuals(x))
-    out = {}
-    for c in maps:
-        at = [i for i, n in enumerate(problem.names) if n.startswith(c.label + " c")]
-        curve = map_curve(c.detail, np.asarray(x)[at], cov[np.ix_(at, at)])
-        out[c.label] = {k: [float(v) for v in values] for k, values in curve.items()}
-    return out

@@ -35,7 +35,7 @@ from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.metrics import metrics
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
-from ..core import as_count, as_float, as_tolerance, covariance
+from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import kfold
 from ..exceptions import InvalidParameterError
@@ -45,8 +45,9 @@ from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
-from .maps import map_curves, map_stage
+from .maps import map_stage
 from .model import ExtendedProblem
+from .uncertainty import uncertainty_entries
 
 
 @dataclass
@@ -496,13 +497,9 @@ def diagnose(
     unconstrained = rmse_of_squares(current_cv["random"])
     model, final_fit, current_cv, fold_x, prior = _physical(model, x, schemes, current_cv, fold_x)
     x = final_fit.x
-    curves = map_curves(model, x, [c for c in model.causes if c.kind == "joint_map"])
-    correlations = compliance_correlations(model, x, [c.label for c in model.causes if c.kind in PHYSICAL_KINDS])
+    described = uncertainty_entries(model, x, model.causes)
     for effect in effects:
-        if effect["label"] in curves:
-            effect["curve"] = curves[effect["label"]]
-        if effect["label"] in correlations:
-            effect["correlation"] = correlations[effect["label"]]
+        effect.update(described.get(effect["label"], {}))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     if len(outliers) and causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
@@ -667,24 +664,6 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     moved = [item for item in ranked[at + 1 :] if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar]
     rest = [item for item in ranked if all(item is not m for m in moved)]
     return rest[:at] + moved + rest[at:]
-
-
-def compliance_correlations(problem, x: np.ndarray, labels: list[str]) -> dict:
-    """Per gravity compliance ``labels``, the correlation of its fitted coefficient with each
-    other one's (``{label: {other: r}}``), from the covariance of the fit ``x`` of ``problem``
-    (one session's :class:`ExtendedProblem` or the sessions stacked). Neighbouring joints carry
-    much of the same gravity torque, so the split between their stiffnesses can be weakly
-    determined whatever each one's standard deviation says (UR10: joint 2 / joint 3
-    1.21 / 1.23 ·10⁵ N·m/rad on series A alone, 1.22 / 0.75 on three series)."""
-    if len(labels) < 2:
-        return {}
-    cov, *_ = covariance(problem.jacobian(x), problem.residuals(x))
-    at = [list(problem.names).index(f"{label} c0") for label in labels]
-    sd = np.sqrt(np.diag(cov)[at])
-    if not np.all(sd > 0):
-        return {}
-    r = cov[np.ix_(at, at)] / np.outer(sd, sd)
-    return {a: {b: float(r[i, j]) for j, b in enumerate(labels) if j != i} for i, a in enumerate(labels)}
 
 
 def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):

@@ -36,7 +36,6 @@ from . import structure
 from ..core import is_sparse
 from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
-from .maps import map_curves
 from .model import ExtendedProblem
 from .select import (
     PRIOR_COST,
@@ -44,12 +43,12 @@ from .select import (
     Diagnosis,
     baseline_mask,
     coefficient_reference,
-    compliance_correlations,
     diagnose,
     physics_first,
     prior_rejected,
     undetermined,
 )
+from .uncertainty import uncertainty_entries
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -416,15 +415,11 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if s is not None:
             described = problems[s].describe_causes(joint.session_x(fit.x, s), joint.session_x(spread, s))
             e["params"] = next(c["params"] for c in described if c["label"] == e["label"])
-    # each map's curve and band from the fit on every session
-    maps = {c.label: c for p in problems for c in p.causes if c.kind == "joint_map"}
-    curves = map_curves(joint, fit.x, list(maps.values()))
-    correlations = compliance_correlations(joint, fit.x, [e["label"] for e in effects if e["kind"] in PHYSICAL_KINDS])
+    # each map's curve and band, the compliances' correlation, from the fit on every session
+    shared = {c.label: c for p in problems for c in p.causes if c.label in {e["label"] for e in effects}}
+    described = uncertainty_entries(joint, fit.x, list(shared.values()))
     for e in effects:
-        if e["label"] in curves:
-            e["curve"] = curves[e["label"]]
-        if e["label"] in correlations:
-            e["correlation"] = correlations[e["label"]]
+        e.update(described.get(e["label"], {}))
     covered = evaluator.coverage[model]
     final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
