@@ -462,3 +462,19 @@ def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsy
     write_canonical(data, tmp_path / "pose.csv")
     assert main(["diagnose", str(tmp_path / "pose.csv"), "--robot", "ur10"]) == 0
     assert f"held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg" in capsys.readouterr().out
+
+
+def test_an_outlier_the_baseline_hides_is_named_once_the_causes_are_in():
+    """A 12-sigma error lies within the geometric baseline's spread while a strong joint effect
+    bends every residual; under the model with that effect it stands out, and diagnose names it
+    (as revealed by the causes) and leaves it out of every held-out figure."""
+    sigma, hidden = 0.02, 123
+    data, _ = simulate("abb-irb120", "position", samples=400, seed=7, noise=sigma, effects=["joint_periodic:joint=2,harmonic=3,amplitude=0.1"])
+    y = data.y.copy()
+    y[hidden, 2] += 12 * sigma
+    report = diagnose(replace(data, y=y)).to_dict()
+    assert report["effects"][0]["kind"] == "outliers", report["effects"]
+    assert report["effects"][0]["params"]["samples"] == [hidden]
+    assert report["effects"][0]["params"]["revealed_by_causes"] == [int(data.rows[hidden])]
+    assert ("joint_periodic", 2) in {(e["kind"], e["joint"]) for e in report["effects"]}
+    assert report["final"]["rmse_heldout"] < 2 * sigma * np.sqrt(3)

@@ -245,33 +245,34 @@ MAX_TRIALS = 8
 GROSS_SIGMAS = 8.0
 
 
-def _outliers(base: Problem, data: Dataset, level: float = 0.01) -> tuple[np.ndarray, float, np.ndarray]:
+def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.01) -> tuple[np.ndarray, float, np.ndarray]:
     """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale, and
-    beyond :data:`GROSS_SIGMAS`; and the last all-data fit (each refit starts from the previous one)."""
+    beyond :data:`GROSS_SIGMAS`, with the ``known`` outliers always among them; and the last
+    fit without them (each refit starts from the previous one)."""
     m = len(data)
     k = RESIDUAL_WIDTH[data.measurement]
     bound = max(float(chi2.ppf(1.0 - level / m, k)), GROSS_SIGMAS**2)
-    flagged, x = np.zeros(m, dtype=bool), None
+    always = np.isin(np.arange(m), known)
+    flagged, x = always.copy(), None
     for _ in range(5):
         ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
         fit = _fit(ext, x0=x)
         x = fit.x
         r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
         sigma = robust_sigma(r[~flagged])
-        now = np.sum((r / sigma) ** 2, axis=1) > bound
+        now = (np.sum((r / sigma) ** 2, axis=1) > bound) | always
         if np.array_equal(now, flagged):
             break
         flagged = now
     return np.flatnonzero(flagged), float(np.sqrt(bound)), x
 
 
-def _still_outlying(model: ExtendedProblem, x: np.ndarray, flagged: np.ndarray, z_bound: float) -> np.ndarray:
-    """The ``flagged`` samples still beyond the bound under the fitted extended ``model``."""
+def _beyond_bound(model: ExtendedProblem, x: np.ndarray, z_bound: float) -> np.ndarray:
+    """Per sample of the whole dataset: its residual under the fitted extended ``model`` lies
+    beyond ``z_bound`` robust sigmas of the kept samples' residuals."""
     m = len(model.full_data)
     r = model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
-    kept = r[model.idx]
-    z = np.sqrt(np.sum((r[flagged] / robust_sigma(kept)) ** 2, axis=1))
-    return flagged[z > z_bound]
+    return np.sqrt(np.sum((r / robust_sigma(r[model.idx])) ** 2, axis=1)) > z_bound
 
 
 def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
@@ -353,10 +354,35 @@ def diagnose(
     mask = baseline_mask(rob, dataset.measurement, hayati)
     dataset, effects, rejected = _structure(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
-    k = RESIDUAL_WIDTH[dataset.measurement]
+    settings = {
+        "folds": folds,
+        "seed": seed,
+        "groups": groups,
+        "alpha": alpha,
+        "max_effects": max_effects,
+        "min_gain": min_gain,
+        "hayati": hayati,
+        "maps": maps,
+    }
+    diagnosis, revealed = _select(rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), **settings)
+    if len(revealed):
+        # Gross errors the geometric baseline's large residuals hid, beyond the bound only once
+        # the causes are in: named, and the diagnosis repeated without them, so that every
+        # held-out figure (baseline included) is over the same samples.
+        diagnosis, _ = _select(rob, dataset, base, effects, rejected, np.union1d(diagnosis.outliers, revealed), revealed=revealed, **settings)
+    diagnosis.time_s = time.perf_counter() - t0
+    return diagnosis
 
+
+def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected: list, known: np.ndarray, *, folds: int, seed: int, groups,
+            alpha: float, max_effects: int, min_gain: float, hayati: bool, maps: bool, revealed: Optional[np.ndarray] = None) -> tuple[Diagnosis, np.ndarray]:  # fmt: skip
+    """One pass of :func:`diagnose` after the structural stage, with the ``known`` outliers
+    (``revealed``: those an earlier pass's final model named); and the kept samples its final
+    model puts beyond the outlier bound."""
+    k = RESIDUAL_WIDTH[dataset.measurement]
+    revealed = np.zeros(0, dtype=int) if revealed is None else revealed
     plots = {}
-    outliers, z_bound, x_outliers = _outliers(base, dataset)
+    outliers, z_bound, x_outliers = _outliers(base, dataset, known)
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
@@ -501,16 +527,19 @@ def diagnose(
     for effect in effects:
         effect.update(described.get(effect["label"], {}))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
-    if len(outliers) and causes:
+    beyond = _beyond_bound(model, x, z_bound)
+    if len(outliers) and model.causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
         # bent the residuals is not an outlier.
-        outliers = _still_outlying(model, x, outliers, z_bound)
+        outliers = outliers[beyond[outliers]]
     if len(outliers):
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
         before, _ = _nonlinear_cv(everyone, kfold(len(dataset), folds, seed))
         effects.insert(0, {
             "kind": "outliers", "joint": None, "label": "outliers",
-            "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound},
+            "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound,
+                       # rows beyond the bound only under the final model (hidden by the baseline's residuals)
+                       "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]]},
             "rmse_heldout_before": rmse_of_squares(before), "rmse_heldout_after": rmse_of_squares(baseline_cv["random"]),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
         })  # fmt: skip
@@ -532,8 +561,8 @@ def diagnose(
                # The physical model: a tolerance prior where the geometry is undetermined
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
-        model=model, x=x, outliers=[int(v) for v in outliers], time_s=time.perf_counter() - t0, plots=plots,
-    )  # fmt: skip
+        model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
+    ), keep[beyond[keep]]  # fmt: skip
 
 
 def _rotation_entries(ext: ExtendedProblem, schemes: dict, fold_x: dict) -> dict:
