@@ -361,6 +361,24 @@ def test_error_floor_predicts_the_residual_of_rounded_joint_readings():
     assert [r["step"] for r in floor["joint_resolution"]] == pytest.approx([0.1] * 6) and {r["unit"] for r in floor["joint_resolution"]} == {"deg"}
     assert report["baseline"]["rmse_train"] == pytest.approx(floor["joints_mm"], rel=0.2)
     assert report["final"]["floor_mm"] >= floor["joints_mm"]
+    assert floor["revisits"] is None  # the simulated path never returns to a configuration
+
+
+def test_revisited_configurations_measure_the_noise_and_what_the_model_misses():
+    """100 of 400 configurations revisited (joint readings 0.01° apart): the residuals'
+    differences give one reading's noise, their shared part the error that depends on the
+    configuration alone."""
+    from robocal.diagnosis.budget import repeatability
+
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-2.0, 2.0, (300, 6))
+    q = np.vstack([q, q[:100] + rng.uniform(-2e-4, 2e-4, (100, 6))])
+    systematic, sigma = 0.05 * np.sin(3.0 * q[:, :3]), 0.02
+    found = repeatability(q, systematic + rng.normal(0.0, sigma, (400, 3)))
+    assert found["pairs"] == 100 and found["samples"] == 200
+    assert found["repeatability_mm"] == pytest.approx(sigma * np.sqrt(3.0), rel=0.15)
+    assert found["systematic_mm"] == pytest.approx(np.sqrt(np.mean(np.sum(systematic[:100] ** 2, axis=1))), rel=0.15)
+    assert repeatability(q[:300], systematic[:300]) is None
 
 
 def test_rejected_reading_conventions_are_reported_like_other_causes():

@@ -608,6 +608,9 @@ def _budget_section(report: dict) -> str:
         rows += [["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
                 ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)], ["floor (both)", _fixed(f["floor_mm"], 4)],
                 ["unexplained above the floor", _fixed(max(f["rmse_heldout"] - f["floor_mm"], 0.0), 4)]]  # fmt: skip
+        if revisits := floor.get("revisits"):
+            rows += [[f"repeatability of one reading, measured at {revisits['pairs']} revisited joint configurations", _fixed(revisits["repeatability_mm"], 4)],
+                     ["final model's error shared by the revisits, beyond their noise (at least)", _fixed(revisits["systematic_mm"], 4)]]  # fmt: skip
         if f.get("explained") is not None:
             rows.append(["share of the baseline's held-out mean square error above the floor explained", f"{f['explained']:.0%}"])
         part += ("<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains "

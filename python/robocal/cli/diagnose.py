@@ -50,6 +50,11 @@ def summary(report: dict) -> str:
             f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
             f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it"
         )
+    if "floor_mm" in f and (revisits := f["floor"].get("revisits")):
+        lines.append(
+            f"  measured at {revisits['pairs']} revisits of a joint configuration: one reading's repeatability {revisits['repeatability_mm']:.4f} mm; "
+            f"what the final model still gets wrong there, beyond that noise, at least {revisits['systematic_mm']:.4f} mm"
+        )
     if report["effects"] and f.get("explained") is not None:
         lines.append(f"  the causes explain {f['explained']:.0%} of the baseline's held-out mean square error above that floor")
     for r in report["rejected"][:3]:

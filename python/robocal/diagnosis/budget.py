@@ -7,6 +7,11 @@ sensitivity to each joint (the ``θ_j`` columns of the identification Jacobian) 
 sensor's own (its grid, or the per-reading standard deviations a tracker file records), it gives
 the residual a perfect model would still leave: the floor. A final RMSE near the floor means
 nothing is left to find; well above it, that much is unexplained.
+
+Where the data revisit a joint configuration (UR10 series B reaches each configuration again a few
+samples later), the floor is also *measured*: the difference of the model's residuals at two
+visits is the noise of two readings (the model predicts both alike), and their mean, less that
+noise, is what the model still gets wrong at that configuration — systematic, so findable.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from __future__ import annotations
 from typing import Optional
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -88,3 +94,26 @@ def floor(robot: Robot, data: Dataset, params: np.ndarray) -> dict:
             else "; sensor noise finer than its grid is not in the data and not counted"
         ),
     }
+
+
+#: Joint readings within this of each other on every joint (rad, 0.06°) are one configuration
+#: revisited: far below the scale on which any modelled error varies (a joint map's knots are 2°
+#: or more apart), so the residuals' difference at two visits is the readings' noise alone.
+REVISIT_TOLERANCE = 1e-3
+
+
+def repeatability(q: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
+    """The floor measured from revisited configurations: ``q`` (m, n) joint readings, ``residuals``
+    (m, k) a model's residuals (position components) at them. ``repeatability_mm`` is the RMS
+    length of one reading's noise, ``sqrt(mean|r_a − r_b|² / 2)`` over the pairs; ``systematic_mm``
+    the RMS length of the residual the visits share, less the noise it carries
+    (``sqrt(mean|(r_a + r_b)/2|² − repeatability²/2)``; from residuals of a fit that saw the
+    samples, so a lower bound). None without revisits."""
+    pairs = cKDTree(q).query_pairs(REVISIT_TOLERANCE, p=np.inf, output_type="ndarray")
+    if len(pairs) == 0:
+        return None
+    a, b = pairs[:, 0], pairs[:, 1]
+    noise = float(np.sqrt(np.mean(np.sum((residuals[a] - residuals[b]) ** 2, axis=1)) / 2.0))
+    shared = float(np.mean(np.sum(((residuals[a] + residuals[b]) / 2.0) ** 2, axis=1)))
+    return {"pairs": int(len(pairs)), "samples": int(np.unique(pairs).size), "repeatability_mm": noise,
+            "systematic_mm": float(np.sqrt(max(shared - noise**2 / 2.0, 0.0)))}  # fmt: skip

@@ -43,7 +43,7 @@ from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot
 from ..stats import rmse_of_squares, robust_sigma
 from . import structure
-from .budget import floor as error_floor
+from .budget import floor as error_floor, repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .maps import map_stage
 from .model import ExtendedProblem
@@ -527,6 +527,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     for effect in effects:
         effect.update(described.get(effect["label"], {}))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
+    budget["revisits"] = repeatability(dataset.q[keep], model.data_residuals(x).reshape(len(keep), k)[:, :3])
     beyond = _beyond_bound(model, x, z_bound)
     if len(outliers) and model.causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
