@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Optional, Union
 
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.stats import chi2, f as f_dist
 from threadpoolctl import threadpool_limits
 
@@ -267,12 +268,31 @@ def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.
     return np.flatnonzero(flagged), float(np.sqrt(bound)), x
 
 
-def _beyond_bound(model: ExtendedProblem, x: np.ndarray, z_bound: float) -> np.ndarray:
-    """Per sample of the whole dataset: its residual under the fitted extended ``model`` lies
-    beyond ``z_bound`` robust sigmas of the kept samples' residuals."""
+def _scaled_residuals(model: ExtendedProblem, x: np.ndarray) -> np.ndarray:
+    """Residuals (m, k) of every sample of the dataset under the fitted extended ``model``, in
+    robust sigmas of the kept samples' residuals."""
     m = len(model.full_data)
     r = model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
-    return np.sqrt(np.sum((r / robust_sigma(r[model.idx])) ** 2, axis=1)) > z_bound
+    return r / robust_sigma(r[model.idx])
+
+
+#: A revealed outlier's residual is compared with those of this many samples nearest to it in
+#: joint space.
+NEIGHBOURS = 5
+
+
+def _isolated(q: np.ndarray, z: np.ndarray, suspects: np.ndarray, keep: np.ndarray, z_bound: float) -> np.ndarray:
+    """The ``suspects`` (kept samples beyond the bound) whose scaled residual ``z`` also lies
+    beyond ``z_bound`` from the median residual of their :data:`NEIGHBOURS` nearest kept samples
+    in joint space ``q``. Large residuals that a region of the workspace shares are error the
+    model still makes there, not gross errors (on UR10 series A they come in runs along the grid)."""
+    if len(suspects) == 0 or len(keep) <= NEIGHBOURS:
+        return suspects[:0]
+    _, near = cKDTree(q[keep]).query(q[suspects], NEIGHBOURS + 1)
+    near = keep[near]
+    others = np.array([row[row != s][:NEIGHBOURS] for row, s in zip(near, suspects)])
+    contrast = np.sqrt(np.sum((z[suspects] - np.median(z[others], axis=1)) ** 2, axis=1))
+    return suspects[contrast > z_bound]
 
 
 def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
@@ -528,7 +548,8 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         effect.update(described.get(effect["label"], {}))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     budget["revisits"] = repeatability(dataset.q[keep], model.data_residuals(x).reshape(len(keep), k)[:, :3])
-    beyond = _beyond_bound(model, x, z_bound)
+    z = _scaled_residuals(model, x)
+    beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and model.causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
         # bent the residuals is not an outlier.
@@ -563,7 +584,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
-    ), keep[beyond[keep]]  # fmt: skip
+    ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
 
 
 def _rotation_entries(ext: ExtendedProblem, schemes: dict, fold_x: dict) -> dict:
