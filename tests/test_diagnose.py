@@ -496,3 +496,21 @@ def test_an_outlier_the_baseline_hides_is_named_once_the_causes_are_in():
     assert report["effects"][0]["params"]["revealed_by_causes"] == [int(data.rows[hidden])]
     assert ("joint_periodic", 2) in {(e["kind"], e["joint"]) for e in report["effects"]}
     assert report["final"]["rmse_heldout"] < 2 * sigma * np.sqrt(3)
+
+
+def test_a_region_of_large_residuals_is_not_named_as_outliers():
+    """Of the samples beyond the bound under the final model, only one whose residual also stands
+    out from its neighbours' in joint space is a gross error; a run of them in one region of the
+    workspace (as along UR10 series A's grid) is error the model still makes there."""
+    from robocal.diagnosis.select import NEIGHBOURS, _isolated
+
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-2.0, 2.0, (300, 6))
+    z = rng.normal(0.0, 1.0, (300, 3))
+    lone = 7
+    region = np.arange(100, 100 + 2 * NEIGHBOURS)
+    q[region] = q[100] + rng.uniform(-0.05, 0.05, (len(region), 6))  # visited densely, as a grid does
+    z[lone, 2] += 12.0
+    z[region, 2] += 12.0
+    suspects = np.sort(np.concatenate([[lone], region]))
+    assert _isolated(q, z, suspects, np.arange(300), 8.0).tolist() == [lone]
