@@ -9,8 +9,14 @@ lengths each fold's fit moves to beside the map (what held series B's joint-3 ma
 gravity torque, and the reverse — added one at a time to a series' diagnosis, with their
 held-out RMSE on random and blocked folds.
 
+``--probe outliers --report R.json``: the outliers a series' diagnosis (``robocal diagnose
+<series> --json R.json``) named, beside the joint move that preceded each sample (a reading
+taken before the arm settled) and, where the series revisits the sample's joint configuration,
+how far apart the two visits' measured positions lie (a glitch of one reading).
+
     python benches/probe_ur10.py --probe coverage --series B --joint 3
     python benches/probe_ur10.py --probe bending --series A --measurement position
+    robocal diagnose $A --measurement position --json a.json && python benches/probe_ur10.py --probe outliers --series A --report a.json
 """
 
 from __future__ import annotations
@@ -19,8 +25,14 @@ import argparse
 import os
 from pathlib import Path
 
-import numpy as np
+import json
 
+import numpy as np
+from scipy.spatial import cKDTree
+
+import robocal
+
+from robocal.diagnosis.budget import REVISIT_TOLERANCE
 from robocal.diagnosis.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
 from robocal.diagnosis.model import ExtendedProblem
 from robocal.diagnosis.select import _fit, _fold_problem, _folds, _held_out_residuals, _nonlinear_cv, _std, diagnose
@@ -79,14 +91,50 @@ def bending(series: str, measurement) -> None:
               + ", ".join(f"{n} {rmse_of_squares(base[n][0]):.4f} -> {rmse_of_squares(cv[n]):.4f}" for n in schemes) + " mm", flush=True)  # fmt: skip
 
 
+#: A joint move at least this large (deg, the largest joint's) before a reading counts as long.
+LONG_MOVE_DEG = 90.0
+
+
+def outliers(series: str, report: Path) -> None:
+    data = robocal.load(ROOT / SERIES[series], measurement=json.loads(report.read_text())["measurement"])
+    named = next((e["params"] for e in json.loads(report.read_text())["effects"] if e["kind"] == "outliers"), None)
+    if named is None:
+        print("no outliers named")
+        return
+    samples, revealed = np.array(named["samples"]), set(named.get("revealed_by_causes", []))
+    move = np.degrees(np.r_[0.0, np.max(np.abs(np.diff(data.q, axis=0)), axis=1)])  # rows in acquisition order
+    is_revealed = np.array([r in revealed for r in data.rows[samples]], dtype=bool)
+    long = move >= LONG_MOVE_DEG
+    print(f"{len(samples)} outliers, {is_revealed.sum()} revealed by the causes")
+    for name, group in (("baseline's", samples[~is_revealed]), ("revealed", samples[is_revealed])):
+        if len(group):
+            print(f"  {name}: {np.sum(long[group])} of {len(group)} follow a joint move of {LONG_MOVE_DEG:g} deg or more "
+                  f"({np.mean(long[group]):.0%}; of all samples {np.mean(long):.1%}); moves before them (deg): {np.round(move[group], 1).tolist()}")  # fmt: skip
+    tree = cKDTree(data.q)
+    for s in samples:
+        others = [j for j in tree.query_ball_point(data.q[s], REVISIT_TOLERANCE, p=np.inf) if j != s]
+        if others:
+            gap = [float(np.linalg.norm(data.y[s, :3] - data.y[j, :3])) for j in others]
+            print(f"  row {data.rows[s]}: measured {np.round(gap, 3).tolist()} mm from its revisit(s), rows {data.rows[others].tolist()}")
+    pairs = tree.query_pairs(REVISIT_TOLERANCE, p=np.inf, output_type="ndarray")
+    if len(pairs):
+        gap = np.linalg.norm(data.y[pairs[:, 0], :3] - data.y[pairs[:, 1], :3], axis=1)
+        print(
+            f"  every revisit: {len(pairs)} pairs, measured positions apart by median {np.median(gap):.3f} mm, 90th percentile {np.percentile(gap, 90):.3f} mm"
+        )
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--probe", choices=["coverage", "bending"], required=True)
+    parser.add_argument("--probe", choices=["coverage", "bending", "outliers"], required=True)
     parser.add_argument("--series", choices=sorted(SERIES), required=True)
     parser.add_argument("--measurement", choices=["position", "pose"], default=None)
     parser.add_argument("--joint", type=int, default=3, help="coverage: the joint whose map is added (1-based)")
+    parser.add_argument("--report", type=Path, help="outliers: the series' diagnose --json report")
     args = parser.parse_args()
     if args.probe == "coverage":
         coverage(args.series, args.measurement, args.joint)
+    elif args.probe == "outliers":
+        outliers(args.series, args.report)
     else:
         bending(args.series, args.measurement)
