@@ -285,7 +285,7 @@ def _isolated(q: np.ndarray, z: np.ndarray, suspects: np.ndarray, keep: np.ndarr
     """The ``suspects`` (kept samples beyond the bound) whose scaled residual ``z`` also lies
     beyond ``z_bound`` from the median residual of their :data:`NEIGHBOURS` nearest kept samples
     in joint space ``q``. Large residuals that a region of the workspace shares are error the
-    model still makes there, not gross errors (on UR10 series A they come in runs along the grid)."""
+    model still makes there, not gross errors."""
     if len(suspects) == 0 or len(keep) <= NEIGHBOURS:
         return suspects[:0]
     _, near = cKDTree(q[keep]).query(q[suspects], NEIGHBOURS + 1)
