@@ -34,8 +34,8 @@ import robocal
 
 from robocal.diagnosis.budget import REVISIT_TOLERANCE
 from robocal.diagnosis.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
-from robocal.diagnosis.model import ExtendedProblem
-from robocal.diagnosis.select import _fit, _fold_problem, _folds, _held_out_residuals, _nonlinear_cv, _std, diagnose
+from robocal.diagnosis.model import ExtendedProblem, reported_rmse
+from robocal.diagnosis.select import _fit, _fold_problem, _folds, _held_out_errors, _nonlinear_cv, _std, diagnose
 from robocal.physics import gravity_torques
 from robocal.stats import rmse_of_squares
 
@@ -68,7 +68,7 @@ def coverage(series: str, measurement, joint: int) -> None:
                 ext = ExtendedProblem(model.base, causes, data, keep)
                 fold = _fold_problem(ext, train)
                 fit = _fit(fold)
-                e = np.sum(_held_out_residuals(ext, fold, train, test, fit.x).reshape(len(test), -1)[:, :3] ** 2, axis=1)
+                e = _held_out_errors(ext, fold, train, test, fit.x)[:, 0]
                 parts = [f"{rmse_of_squares(e[m]):.3f}" if m.any() else "-" for m in (covered, ~covered)]
                 links = ", ".join(f"{n} {fit.x[fold.names.index(n)]:.3f}" for n in lengths)
                 row.append(f"{name} map: covered {parts[0]} / beyond {parts[1]} mm, {links}")
@@ -80,7 +80,7 @@ def bending(series: str, measurement) -> None:
     data, keep = model.full_data, model.idx
     tau = gravity_torques(model.robot, data.q)
     base = {n: _nonlinear_cv(model, f) for n, f in schemes.items()}
-    print("diagnosis: " + ", ".join(f"{n} {rmse_of_squares(e):.4f}" for n, (e, _) in base.items()) + " mm")
+    print("diagnosis: " + ", ".join(f"{n} {reported_rmse(e):.4f}" for n, (e, _) in base.items()) + " mm")
     for joint, source in ((3, 2), (2, 3), (4, 3), (3, 4)):  # 1-based: joint turned, torque that turns it
         c = Candidate("joint_compliance", joint - 1, "joints", tau[:, source - 1 : source].copy(), detail={"source": source})
         trial = ExtendedProblem(model.base, model.causes + [c], data, keep)
@@ -88,7 +88,7 @@ def bending(series: str, measurement) -> None:
         std = _std(trial, fit, c)
         cv = {n: _nonlinear_cv(trial, f, [(s, trial.start_from(xf, model)) for s, xf in base[n][1]])[0] for n, f in schemes.items()}
         print(f"dq{joint} = c·tau{source}: c {trial.coefficients(fit.x, c)[0]:.3g} ± {np.nan if std is None else std[0]:.2g} rad/(N·m); "
-              + ", ".join(f"{n} {rmse_of_squares(base[n][0]):.4f} -> {rmse_of_squares(cv[n]):.4f}" for n in schemes) + " mm", flush=True)  # fmt: skip
+              + ", ".join(f"{n} {reported_rmse(base[n][0]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes) + " mm", flush=True)  # fmt: skip
 
 
 #: A joint move at least this large (deg, the largest joint's) before a reading counts as long.

@@ -482,6 +482,20 @@ def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsy
     assert f"held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg" in capsys.readouterr().out
 
 
+def test_a_joint_error_seen_only_in_the_orientation_is_found_on_pose_data():
+    """Joint 6 turns the flange point about itself: its gear error moves no position, only the
+    orientation. Judged by the position alone (held-out mm) it gained nothing and was rejected;
+    judged by what the fit minimises (the orientation weighted by the sensor's noise) it is
+    found and the orientation falls to the sensor's noise."""
+    data, _ = simulate("ur10", "pose", samples=300, seed=21, tool=(0, 0, 0), effects=["joint_periodic:joint=6,amplitude=0.01,harmonic=2"])
+    report = robocal.diagnose(data).to_dict()
+    b, f = report["baseline"], report["final"]
+    assert [e["joint"] for e in report["effects"]] == [6], report["effects"]
+    floor = np.degrees(np.sqrt(3.0) * DEFAULT_NOISE["pose"].sigma_rotation)
+    assert b["rotation_rmse_heldout_deg"] > 2.0 * floor and f["rotation_rmse_heldout_deg"] < 1.2 * floor, (b, f, floor)
+    assert f["rmse_heldout"] <= 1.01 * b["rmse_heldout"]  # the position stays where it was
+
+
 def test_an_outlier_the_baseline_hides_is_named_once_the_causes_are_in():
     """A 12-sigma error lies within the geometric baseline's spread while a strong joint effect
     bends every residual; under the model with that effect it stands out, and diagnose names it

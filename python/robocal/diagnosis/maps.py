@@ -25,7 +25,7 @@ from scipy.stats import f as f_dist
 from ..core import is_sparse
 from ..stats import rmse_of_squares
 from .candidates import covered_when_fitted_on, map_candidates, map_noise
-from .model import ExtendedProblem
+from .model import ExtendedProblem, judged_rmse, reported_rmse
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -186,7 +186,7 @@ def map_stage(
                     name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()
                 }
                 new_cv = {name: err for name, (err, _) in refits.items()}
-                lost = [name for name in schemes if rmse_of_squares(new_cv[name]) > (1.0 - min_gain) * rmse_of_squares(current_cv[name])]
+                lost = [name for name in schemes if judged_rmse(new_cv[name]) > (1.0 - min_gain) * judged_rmse(current_cv[name])]
                 if lost:
                     reason = f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"
                     continue
@@ -199,8 +199,8 @@ def map_stage(
         if chosen is None:
             break
         c, model, trial_fit, new_cv, fold_x, entry, physical = chosen
-        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: rmse_of_squares(current_cv[n]) for n in schemes},
-                         "rmse_heldout_after": {n: rmse_of_squares(new_cv[n]) for n in schemes}})  # fmt: skip
+        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: reported_rmse(current_cv[n]) for n in schemes},
+                         "rmse_heldout_after": {n: reported_rmse(new_cv[n]) for n in schemes}})  # fmt: skip
         x, current_cv = trial_fit.x, new_cv
         pool = [o for o in pool if o.joint != c.joint]
     return model, x, current_cv, fold_x, accepted, rejected

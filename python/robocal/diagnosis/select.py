@@ -34,7 +34,6 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.metrics import metrics
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
@@ -47,7 +46,7 @@ from . import structure
 from .budget import floor as error_floor, repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .maps import map_stage
-from .model import ExtendedProblem
+from .model import ExtendedProblem, judged_rmse, reported_rmse, rotation_rmse_deg
 from .uncertainty import uncertainty_entries
 
 
@@ -195,26 +194,25 @@ def _fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.nd
 
 
 def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
-    """Held-out squared error per sample of ``ext`` re-fitted (nonlinear) on each fold, and per
-    fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair for the same fold of a smaller
-    model (its fit laid out for ``ext``): the set-up is reused and the fit is the start. Without
-    it each fold starts from its own training samples' set-up: never from a fit that saw its
-    held-out samples."""
-    err, fits = np.zeros(len(ext.idx)), []
+    """Held-out :func:`~.model.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
+    each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
+    for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
+    and the fit is the start. Without it each fold starts from its own training samples'
+    set-up: never from a fit that saw its held-out samples."""
+    err, fits = np.zeros((len(ext.idx), 2)), []
     for i, (train, test) in enumerate(folds):
         setup, x0 = (None, None) if starts is None else starts[i]
         fold = _fold_problem(ext, train, setup)
         fit = _fit(fold, x0=x0)
-        r = _held_out_residuals(ext, fold, train, test, fit.x)
-        err[test] = (r * r).reshape(-1, ext.k).sum(axis=1)
+        err[test] = _held_out_errors(ext, fold, train, test, fit.x)
         fits.append((fold.base.start, fit.x))
     return err, fits
 
 
-def _held_out_residuals(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Residuals of ``ext``'s samples ``test`` (positions in ``ext.idx``) under the fit ``x`` of
-    ``fold``, the problem of the training samples ``train``."""
-    return ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).data_residuals(x)
+def _held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """:func:`~.model.squared_errors` of ``ext``'s samples ``test`` (positions in ``ext.idx``)
+    under the fit ``x`` of ``fold``, the problem of the training samples ``train``."""
+    return ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).squared_errors(x)
 
 
 def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
@@ -224,14 +222,6 @@ def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
     extrapolates it (a blocked fold's test block may visit joint ranges no other block does)."""
     angles = ext.full_data.q[ext.idx[train]]
     return [map_within(c, ext.full_data, angles[:, c.joint]) if c.kind == "joint_map" else c for c in ext.causes]
-
-
-def _held_out_rotation_deg(ext: ExtendedProblem, folds: list, fits: list) -> float:
-    """RMS orientation error (deg) of the pose samples held out in ``folds`` under their fold
-    fits ``fits`` (:func:`_nonlinear_cv`'s). A pose diagnosis' held-out RMSE is the position's
-    (rad² beside mm² weigh nothing); the orientation is reported beside it."""
-    residuals = [_held_out_residuals(ext, _fold_problem(ext, train, setup), train, test, x) for (train, test), (setup, x) in zip(folds, fits)]
-    return metrics(np.concatenate(residuals), "pose")["rotation_rmse_deg"]
 
 
 #: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On
@@ -414,7 +404,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     x = base_fit.x
     baseline = {name: _nonlinear_cv(ext, f) for name, f in schemes.items()}
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
-    fold_x = baseline_fits = {name: xs for name, (_, xs) in baseline.items()}
+    fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
     pool += step_candidates(dataset, keep, ext.residuals(x).reshape(len(keep), k))
     current_cv = baseline_cv
@@ -484,7 +474,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
             refits = {name: _nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
-            lost = [name for name in schemes if rmse_of_squares(new_cv[name]) >= rmse_of_squares(current_cv[name])]
+            lost = [name for name in schemes if judged_rmse(new_cv[name]) >= judged_rmse(current_cv[name])]
             if lost:
                 rejected.append(
                     _record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)")
@@ -508,11 +498,11 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         x = fit.x
         effects.append({
             "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
-            "rmse_heldout_before": rmse_of_squares(current_cv["random"]), "rmse_heldout_after": rmse_of_squares(new_cv["random"]),
+            "rmse_heldout_before": reported_rmse(current_cv["random"]), "rmse_heldout_after": reported_rmse(new_cv["random"]),
             "significance": {"test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
                              "p_value": p_value, "p_adjusted": min(1.0, p_value * tests_of(c)), "candidates": n_tests,
                              "screening_gain_mm": gains,
-                             "rmse_heldout_blocked_before": rmse_of_squares(current_cv["blocked"]), "rmse_heldout_blocked_after": rmse_of_squares(new_cv["blocked"])},
+                             "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"])},
         })  # fmt: skip
         current_cv = new_cv
 
@@ -540,7 +530,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     model, x, current_cv, fold_x, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
     for c, physical, why in dropped:
         rejected.append(_retract(c, effects, plots, physical, f"dropped once the causes found after it were in: {why}"))
-    unconstrained = rmse_of_squares(current_cv["random"])
+    unconstrained = reported_rmse(current_cv["random"])
     model, final_fit, current_cv, fold_x, prior = _physical(model, x, schemes, current_cv, fold_x)
     x = final_fit.x
     described = uncertainty_entries(model, x, model.causes)
@@ -562,24 +552,24 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound,
                        # rows beyond the bound only under the final model (hidden by the baseline's residuals)
                        "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]]},
-            "rmse_heldout_before": rmse_of_squares(before), "rmse_heldout_after": rmse_of_squares(baseline_cv["random"]),
+            "rmse_heldout_before": reported_rmse(before), "rmse_heldout_after": reported_rmse(baseline_cv["random"]),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
         })  # fmt: skip
     return Diagnosis(
         robot=rob, data=dataset,
-        baseline={"rmse_heldout": rmse_of_squares(baseline_cv["random"]), "rmse_heldout_blocked": rmse_of_squares(baseline_cv["blocked"]),
+        baseline={"rmse_heldout": reported_rmse(baseline_cv["random"]), "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
                   "rmse_train": base_fit.metrics["train"]["rmse"],
-                  **_rotation_entries(ExtendedProblem(base, [], dataset, keep), schemes, baseline_fits),
+                  **_rotation_entries(dataset, baseline_cv),
                   "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
                   # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
                   # geometry fits the data only with parameters no robot has.
                   "implausible": base_fit.implausible()},
         effects=effects, rejected=rejected,
-        final={"rmse_heldout": rmse_of_squares(current_cv["random"]), "rmse_heldout_blocked": rmse_of_squares(current_cv["blocked"]), "n_params": int(model.n),
-               **_rotation_entries(model, schemes, fold_x),
+        final={"rmse_heldout": reported_rmse(current_cv["random"]), "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]), "n_params": int(model.n),
+               **_rotation_entries(dataset, current_cv),
                "floor_mm": budget["floor_mm"], "floor": budget,
                # Share of the baseline's held-out mean square error above the floor that the causes explain.
-               "explained": _explained(rmse_of_squares(baseline_cv["random"]), rmse_of_squares(current_cv["random"]), budget["floor_mm"]),
+               "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
                # The physical model: a tolerance prior where the geometry is undetermined
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
@@ -587,15 +577,12 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
 
 
-def _rotation_entries(ext: ExtendedProblem, schemes: dict, fold_x: dict) -> dict:
-    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis
-    (:func:`_held_out_rotation_deg`); nothing for other measurements."""
-    if ext.data.measurement != "pose":
+def _rotation_entries(data: Dataset, cv: dict) -> dict:
+    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis'
+    held-out errors ``cv``; nothing for other measurements."""
+    if data.measurement != "pose":
         return {}
-    return {
-        f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": _held_out_rotation_deg(ext, schemes[name], fold_x[name])
-        for name in ("random", "blocked")
-    }
+    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": rotation_rmse_deg(cv[name], data) for name in ("random", "blocked")}
 
 
 def _explained(before: float, after: float, floor: float) -> Optional[float]:
@@ -614,9 +601,11 @@ PRIOR_COST = 0.05
 TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"]))}
 
 
-def prior_rejected(what: str, before: float, after: float) -> str:
-    """Why a tolerance prior that raised ``what`` RMSE from ``before`` to ``after`` is not kept."""
-    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} mm: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+def prior_rejected(what: str, before: float, after: float, measurement: str) -> str:
+    """Why a tolerance prior that raised ``what`` RMSE (:func:`~.model.judged_rmse`) of
+    ``measurement`` data from ``before`` to ``after`` is not kept."""
+    unit = "mm (position and orientation weighed as in the fit)" if measurement == "pose" else "mm"
+    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {unit}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
 
 
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
@@ -645,9 +634,9 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     cv, fits = {}, {}
     for name, folds in schemes.items():  # random, blocked, then groups
         cv[name], fits[name] = _nonlinear_cv(physical, folds)
-        entry[f"rmse_heldout_{name}"] = rmse_of_squares(cv[name])
-        if rmse_of_squares(cv[name]) > (1.0 + PRIOR_COST) * rmse_of_squares(current_cv[name]):
-            entry["reason"] = prior_rejected(f"{name}-fold held-out", rmse_of_squares(current_cv[name]), rmse_of_squares(cv[name]))
+        entry[f"rmse_heldout_{name}"] = reported_rmse(cv[name])
+        if judged_rmse(cv[name]) > (1.0 + PRIOR_COST) * judged_rmse(current_cv[name]):
+            entry["reason"] = prior_rejected(f"{name}-fold held-out", judged_rmse(current_cv[name]), judged_rmse(cv[name]), model.data.measurement)
             return model, fit, current_cv, fold_x, entry
     entry["accepted"] = True
     return physical, _fit(physical, x0=x0), cv, fits, entry
@@ -670,7 +659,7 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
 
     def cross_validate(d: Dataset) -> dict:
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
-        return {name: rmse_of_squares(_nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
+        return {name: reported_rmse(_nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
 
     as_read = geometric(data)
     bad = as_read.implausible()

@@ -31,12 +31,11 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import Robot
-from ..stats import rmse_of_squares
 from . import structure
 from ..core import is_sparse
 from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
-from .model import ExtendedProblem
+from .model import ExtendedProblem, judged_rmse, reported_rmse, squared_errors
 from .select import (
     PRIOR_COST,
     TOLERANCE_SIGMAS,
@@ -187,8 +186,8 @@ class _Evaluator:
         return implausible_parameters(self.robot, dict(zip(stacked.names, fit.x)))
 
     def held_out(self, model: _Model) -> list[np.ndarray]:
-        """Per session, the squared errors of its samples under the model fitted on the others
-        (joint maps over the others' range). Keeps, per session, which of them every map
+        """Per session, the :func:`~.model.squared_errors` of its samples under the model fitted
+        on the others (joint maps over the others' range). Keeps, per session, which of them every map
         covers (``coverage``) and, of pose data, their orientation errors (``rotation``)."""
         errors, angles, covered = [], [], []
         for h in range(len(self.sessions)):
@@ -203,9 +202,9 @@ class _Evaluator:
             fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose")
             self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
             r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
-            errors.append(np.sum(r * r, axis=1))
+            errors.append(squared_errors(r.ravel() * held.row_weights, held.k))
             angles.append(np.linalg.norm(r[:, 3:], axis=1) if r.shape[1] == 6 else None)
-        if self.measurement == "pose":  # the orientation beside the position (rad² beside mm² weigh nothing in the sum)
+        if self.measurement == "pose":  # the orientation, in degrees, beside the position
             self.rotation[model] = angles
         self.coverage[model] = covered
         return errors
@@ -251,12 +250,14 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
     return np.sqrt(sigma2 * np.sum((Vt[keep] / sv[keep, None]) ** 2, axis=0)) / scale
 
 
-def _rmse(errors: list[np.ndarray]) -> float:
-    return rmse_of_squares(np.concatenate(errors))
+def _rmse(errors: list[np.ndarray], rmse=judged_rmse) -> float:
+    """Pooled held-out RMSE of per-session :func:`~.model.squared_errors`: what selection
+    judges, or (``rmse=reported_rmse``) what the report states."""
+    return rmse(np.concatenate(errors))
 
 
-def _per_session(errors: list[np.ndarray]) -> list[float]:
-    return [float(np.sqrt(np.mean(e))) for e in errors]
+def _per_session(errors: list[np.ndarray], rmse=reported_rmse) -> list[float]:
+    return [rmse(e) for e in errors]
 
 
 @dataclass
@@ -360,7 +361,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     model = _Model()
     current = evaluator.held_out(model)
     geometric, geometric_fit = evaluator.fit(model)
-    baseline = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "rmse_train": geometric_fit.metrics["train"]["rmse"],
+    baseline = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current), **evaluator.rotation_entries(model), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
     # Every map variant the sessions found is judged (the smoothness that carries across
@@ -374,11 +375,12 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         trials = physics_first(
             sorted(trials, key=lambda t: t[0]), lambda t: _rmse(current) - t[0], lambda t: t[2], established=any(e["kind"] in PHYSICAL_KINDS for e in effects)
         )
-        before, reasons = _per_session(current), {}
+        before, reasons = _per_session(current, judged_rmse), {}
+        unit = "mm (position and orientation weighed as in the fit)" if kind == "pose" else "mm"
         for rmse, label, candidate, where, errors in trials:  # the best that helps without hurting a session
-            worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors))) if a > (1.0 + min_gain) * b]
+            worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors, judged_rmse))) if a > (1.0 + min_gain) * b]
             if rmse > (1.0 - min_gain) * _rmse(current):
-                reasons[label] = f"pooled held-out RMSE {rmse:.4g} mm is not {min_gain:.1%} below {_rmse(current):.4g} mm"
+                reasons[label] = f"pooled held-out RMSE {rmse:.4g} {unit} is not {min_gain:.1%} below {_rmse(current):.4g}"
             elif worse:
                 reasons[label] = f"held-out error on session(s) {worse} rises"
             elif not isinstance(candidate, structure.Structure) and (why := evaluator.cause_check(model.plus(candidate), label)):
@@ -403,7 +405,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         if candidate.kind == "joint_map":  # one map per joint
             pending = {k: v for k, v in pending.items() if not (v[0].kind == "joint_map" and v[0].joint == candidate.joint)}
 
-    unconstrained = _rmse(current)
+    unconstrained = _rmse(current, reported_rmse)
     model, current, physical = _physical(evaluator, model, current)
     problems = evaluator.problems(model)
     joint, fit = evaluator.fit(model)
@@ -421,9 +423,9 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     for e in effects:
         e.update(described.get(e["label"], {}))
     covered = evaluator.coverage[model]
-    final = {"rmse_loso": _rmse(current), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
+    final = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
-             "per_session_covered": [{"samples": int(m.sum()), "rmse": rmse_of_squares(e[m]) if m.any() else None} for e, m in zip(current, covered)],
+             "per_session_covered": [{"samples": int(m.sum()), "rmse": reported_rmse(e[m]) if m.any() else None} for e, m in zip(current, covered)],
              "rmse_loso_unconstrained": unconstrained,
              "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
     return SessionsDiagnosis(
@@ -447,9 +449,9 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
     prior = kinematic_prior_pairs(robot, stacked.names, dict(zip(robot.param_names, robot.params)), TOLERANCE)
     trial = replace(model, prior=tuple(sorted(prior.items())))
     errors = evaluator.held_out(trial)
-    entry = {**TOLERANCE_SIGMAS, "rmse_loso": _rmse(errors), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
+    entry = {**TOLERANCE_SIGMAS, "rmse_loso": _rmse(errors, reported_rmse), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
     if not entry["accepted"]:
-        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current), _rmse(errors))
+        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current), _rmse(errors), evaluator.measurement)
         return model, current, entry
     return trial, errors, entry
 
@@ -457,7 +459,7 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
 def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
     joint = None if candidate.joint is None else candidate.joint + 1
     entry = {"kind": candidate.kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
-             "found_in_sessions": where, "rmse_loso_before": _rmse(before), "rmse_loso_after": _rmse(after),
+             "found_in_sessions": where, "rmse_loso_before": _rmse(before, reported_rmse), "rmse_loso_after": _rmse(after, reported_rmse),
              "per_session_before": _per_session(before), "per_session_after": _per_session(after)}  # fmt: skip
     if reason is not None:
         entry["reason"] = reason
