@@ -482,6 +482,31 @@ def test_a_pose_diagnosis_reports_the_held_out_orientation_error(tmp_path, capsy
     assert f"held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg" in capsys.readouterr().out
 
 
+def test_outliers_that_follow_long_joint_moves_are_named_as_unsettled_readings():
+    """Readings right after a long joint move (before the arm settled) are flagged as such when
+    the outliers follow long moves far more often than the samples do; outliers spread over the
+    path are not. The command line and the HTML report say it."""
+    from robocal.diagnosis.settling import after_long_moves, preceding_move_deg
+    from robocal.report import settling_words
+
+    data, _ = simulate("ur10", "position", samples=400, seed=3)
+    rng = np.random.default_rng(0)
+    jumps = np.sort(rng.choice(np.arange(1, 400), 12, replace=False))
+    steps = rng.normal(0.0, 0.5, (400, 6)) * DEG
+    steps[jumps, 1] += 120.0 * DEG * rng.choice([-1.0, 1.0], 12)  # joint 2 swings at 12 samples
+    moved = replace(data, q=np.cumsum(steps, axis=0), t=np.arange(400.0)[::-1])  # acquired in reverse
+    after = jumps - 1  # acquired in reverse: the swing between samples j and j - 1 precedes j - 1
+    assert np.all(preceding_move_deg(moved)[after] >= 90.0)
+    found = after_long_moves(moved, after[:8])
+    assert found["settling"] and found["outliers"] == 8 and found["of"] == 8 and found["share_of_samples"] == pytest.approx(12 / 400)
+    spread = after_long_moves(moved, np.setdiff1d(np.arange(0, 400, 50), after))
+    assert not spread["settling"] and spread["outliers"] == 0
+    assert after_long_moves(data, after[:8]) is None  # no long moves on the simulated path
+    words = settling_words({"after_long_moves": found})
+    assert "8 of 8 follow a joint move of 90 deg or more" in words and "before the arm settled" in words
+    assert settling_words({"after_long_moves": spread}) == "" and settling_words({"after_long_moves": {"settling": True, "of": "x"}}) == ""
+
+
 def test_a_joint_error_seen_only_in_the_orientation_is_found_on_pose_data():
     """Joint 6 turns the flange point about itself: its gear error moves no position, only the
     orientation. Judged by the position alone (held-out mm) it gained nothing and was rejected;

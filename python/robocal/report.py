@@ -557,10 +557,23 @@ def correlation_words(effect: dict) -> str:
     return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
 
 
+def settling_words(effect: dict) -> str:
+    """Whether an outliers entry's readings follow long joint moves beyond chance (readings taken
+    before the arm settled), as plain text; "" otherwise or for a hand-edited entry."""
+    moves = effect.get("after_long_moves")
+    if not isinstance(moves, dict) or not moves.get("settling"):
+        return ""
+    try:
+        return (f"; {int(moves['outliers'])} of {int(moves['of'])} follow a joint move of {float(moves['threshold_deg']):g} deg or more "
+                f"({float(moves['share_of_samples']):.1%} of all samples do; p = {float(moves['p_value']):.1g}): readings taken before the arm settled")  # fmt: skip
+    except (KeyError, TypeError, ValueError):
+        return ""
+
+
 def _diagnosis_table(report: dict) -> str:
     key, rows = _held(report), []
     for e in report["effects"]:
-        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _esc(correlation_words(e)),
+        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _esc(correlation_words(e) + settling_words(e)),
                      _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])  # fmt: skip
     b, f = report["baseline"], report.get("final") or {}
     intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"

@@ -11,7 +11,7 @@ import numpy as np
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..outputs import make_folder, save_figure, write_text
-from ..report import correlation_words, diagnosis_figure, map_figure, map_tables
+from ..report import correlation_words, diagnosis_figure, map_figure, map_tables, settling_words
 from .arguments import add_data_arguments
 
 
@@ -38,7 +38,7 @@ def summary(report: dict) -> str:
     for e in report["effects"]:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(
-            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
+            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}{settling_words(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
         )
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
     if "rotation_rmse_heldout_deg" in f:

@@ -47,6 +47,7 @@ from .budget import floor as error_floor, repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .maps import map_stage
 from .model import ExtendedProblem, judged_rmse, reported_rmse, rotation_rmse_deg
+from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
 
 
@@ -554,6 +555,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                        "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]]},
             "rmse_heldout_before": reported_rmse(before), "rmse_heldout_after": reported_rmse(baseline_cv["random"]),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
+            "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
         })  # fmt: skip
     return Diagnosis(
         robot=rob, data=dataset,
