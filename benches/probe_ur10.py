@@ -22,22 +22,20 @@ how far apart the two visits' measured positions lie (a glitch of one reading).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from pathlib import Path
 
-import json
-
 import numpy as np
-from scipy.spatial import cKDTree
-
 import robocal
-
 from robocal.diagnosis.budget import REVISIT_TOLERANCE
 from robocal.diagnosis.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
 from robocal.diagnosis.model import ExtendedProblem, reported_rmse
 from robocal.diagnosis.select import _fit, _fold_problem, _folds, _held_out_errors, _nonlinear_cv, _std, diagnose
+from robocal.diagnosis.settling import LONG_MOVE_DEG, preceding_move_deg
 from robocal.physics import gravity_torques
 from robocal.stats import rmse_of_squares
+from scipy.spatial import cKDTree
 
 SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv", "C": "Series_C/measurements_random_poses.csv"}
 ROOT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets")) / "ipa-robot-accuracy-ur10"
@@ -91,10 +89,6 @@ def bending(series: str, measurement) -> None:
               + ", ".join(f"{n} {reported_rmse(base[n][0]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes) + " mm", flush=True)  # fmt: skip
 
 
-#: A joint move at least this large (deg, the largest joint's) before a reading counts as long.
-LONG_MOVE_DEG = 90.0
-
-
 def outliers(series: str, report: Path) -> None:
     data = robocal.load(ROOT / SERIES[series], measurement=json.loads(report.read_text())["measurement"])
     named = next((e["params"] for e in json.loads(report.read_text())["effects"] if e["kind"] == "outliers"), None)
@@ -102,7 +96,7 @@ def outliers(series: str, report: Path) -> None:
         print("no outliers named")
         return
     samples, revealed = np.array(named["samples"]), set(named.get("revealed_by_causes", []))
-    move = np.degrees(np.r_[0.0, np.max(np.abs(np.diff(data.q, axis=0)), axis=1)])  # rows in acquisition order
+    move = preceding_move_deg(data)
     is_revealed = np.array([r in revealed for r in data.rows[samples]], dtype=bool)
     long = move >= LONG_MOVE_DEG
     print(f"{len(samples)} outliers, {is_revealed.sum()} revealed by the causes")
