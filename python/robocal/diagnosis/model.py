@@ -42,9 +42,20 @@ def judged_rmse(errors: np.ndarray) -> float:
     return rmse_of_squares(errors.sum(axis=1))
 
 
+def judged_unit(measurement: str) -> str:
+    """The unit of a :func:`judged_rmse` of ``measurement`` data, as a report states it."""
+    return "mm (position and orientation weighed as in the fit)" if measurement == "pose" else "mm"
+
+
+def rotation_squared_rad(errors: np.ndarray, data: Dataset) -> np.ndarray:
+    """Per sample, the squared orientation error (rad²) of pose ``data``'s :func:`squared_errors`
+    ``errors``."""
+    return errors[:, 1] / rotation_weight(data) ** 2
+
+
 def rotation_rmse_deg(errors: np.ndarray, data: Dataset) -> float:
     """RMS orientation error (deg) of pose ``data``'s :func:`squared_errors` ``errors``."""
-    return float(np.degrees(np.sqrt(np.mean(errors[:, 1])) / rotation_weight(data)))
+    return float(np.degrees(np.sqrt(np.mean(rotation_squared_rad(errors, data)))))
 
 
 def _plain(detail: dict) -> dict:

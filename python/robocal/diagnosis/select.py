@@ -46,7 +46,7 @@ from . import structure
 from .budget import floor as error_floor, repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .maps import map_stage
-from .model import ExtendedProblem, judged_rmse, reported_rmse, rotation_rmse_deg
+from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
 
@@ -259,12 +259,11 @@ def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.
     return np.flatnonzero(flagged), float(np.sqrt(bound)), x
 
 
-def _scaled_residuals(model: ExtendedProblem, x: np.ndarray) -> np.ndarray:
-    """Residuals (m, k) of every sample of the dataset under the fitted extended ``model``, in
-    robust sigmas of the kept samples' residuals."""
+def _all_residuals(model: ExtendedProblem, x: np.ndarray) -> np.ndarray:
+    """Residuals (m, k) of every sample of the dataset, the left-out ones too, under the fitted
+    extended ``model``."""
     m = len(model.full_data)
-    r = model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
-    return r / robust_sigma(r[model.idx])
+    return model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
 
 
 #: A revealed outlier's residual is compared with those of this many samples nearest to it in
@@ -538,8 +537,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     for effect in effects:
         effect.update(described.get(effect["label"], {}))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
-    budget["revisits"] = repeatability(dataset.q[keep], model.data_residuals(x).reshape(len(keep), k)[:, :3])
-    z = _scaled_residuals(model, x)
+    r = _all_residuals(model, x)
+    budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
+    z = r / robust_sigma(r[keep])  # in robust sigmas of the kept samples' residuals
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and model.causes:
         # Re-decided with the extended model: a sample flagged only because an unmodelled cause
@@ -606,8 +606,7 @@ TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(T
 def prior_rejected(what: str, before: float, after: float, measurement: str) -> str:
     """Why a tolerance prior that raised ``what`` RMSE (:func:`~.model.judged_rmse`) of
     ``measurement`` data from ``before`` to ``after`` is not kept."""
-    unit = "mm (position and orientation weighed as in the fit)" if measurement == "pose" else "mm"
-    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {unit}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
 
 
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):

@@ -35,7 +35,7 @@ from . import structure
 from ..core import is_sparse
 from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
-from .model import ExtendedProblem, judged_rmse, reported_rmse, squared_errors
+from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors
 from .select import (
     PRIOR_COST,
     TOLERANCE_SIGMAS,
@@ -115,7 +115,6 @@ class _Evaluator:
         self._fits: dict = {}
         self.maps: dict = {}  # label -> a session's joint map: its spacing, roughness and weight
         self._map_cache: dict = {}
-        self.rotation: dict = {}  # model -> per session, the held-out orientation angles (rad) of pose data
         self.coverage: dict = {}  # model -> per session, its held-out samples that every map covers
 
     def bases(self, model: _Model) -> list[tuple]:
@@ -188,8 +187,8 @@ class _Evaluator:
     def held_out(self, model: _Model) -> list[np.ndarray]:
         """Per session, the :func:`~.model.squared_errors` of its samples under the model fitted
         on the others (joint maps over the others' range). Keeps, per session, which of them every map
-        covers (``coverage``) and, of pose data, their orientation errors (``rotation``)."""
-        errors, angles, covered = [], [], []
+        covers (``coverage``)."""
+        errors, covered = [], []
         for h in range(len(self.sessions)):
             problems = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))
             held = problems[h]
@@ -201,22 +200,19 @@ class _Evaluator:
             part = Partial(held, [n for n in held.names if is_private(n, self.measurement)], self._held_start(held, self._starts[(*key, "train")]))
             fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose")
             self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
-            r = part.data_residuals(fitted.x).reshape(len(held.idx), -1)
-            errors.append(squared_errors(r.ravel() * held.row_weights, held.k))
-            angles.append(np.linalg.norm(r[:, 3:], axis=1) if r.shape[1] == 6 else None)
-        if self.measurement == "pose":  # the orientation, in degrees, beside the position
-            self.rotation[model] = angles
+            errors.append(squared_errors(part.data_residuals(fitted.x) * held.row_weights, held.k))
         self.coverage[model] = covered
         return errors
 
-    def rotation_entries(self, model: _Model) -> dict:
-        """The held-out orientation error of pose data under ``model`` (after :meth:`held_out`):
-        ``rotation_rmse_loso_deg`` pooled and ``rotation_per_session_deg``; nothing otherwise."""
-        angles = self.rotation.get(model)
-        if not angles:
+    def rotation_entries(self, model: _Model, errors: list[np.ndarray]) -> dict:
+        """The held-out orientation error of pose data from ``model``'s :meth:`held_out`
+        ``errors``: ``rotation_rmse_loso_deg`` pooled and ``rotation_per_session_deg``; nothing
+        otherwise."""
+        if self.measurement != "pose":
             return {}
-        return {"rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(angles) ** 2)))),
-                "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a**2)))) for a in angles]}  # fmt: skip
+        rad2 = [rotation_squared_rad(e, base.data) for e, (base, _, _) in zip(errors, self.bases(model))]  # each session weighed by its own noise
+        return {"rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(rad2))))),
+                "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a)))) for a in rad2]}  # fmt: skip
 
     def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
         """The left-out session's start: the trained robot, and the set-up that places it best
@@ -250,13 +246,13 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
     return np.sqrt(sigma2 * np.sum((Vt[keep] / sv[keep, None]) ** 2, axis=0)) / scale
 
 
-def _rmse(errors: list[np.ndarray], rmse=judged_rmse) -> float:
-    """Pooled held-out RMSE of per-session :func:`~.model.squared_errors`: what selection
-    judges, or (``rmse=reported_rmse``) what the report states."""
+def _rmse(errors: list[np.ndarray], rmse) -> float:
+    """Pooled held-out RMSE of per-session :func:`~.model.squared_errors`: what selection judges
+    (``rmse=judged_rmse``) or what the report states (``reported_rmse``)."""
     return rmse(np.concatenate(errors))
 
 
-def _per_session(errors: list[np.ndarray], rmse=reported_rmse) -> list[float]:
+def _per_session(errors: list[np.ndarray], rmse) -> list[float]:
     return [rmse(e) for e in errors]
 
 
@@ -361,7 +357,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     model = _Model()
     current = evaluator.held_out(model)
     geometric, geometric_fit = evaluator.fit(model)
-    baseline = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current), **evaluator.rotation_entries(model), "rmse_train": geometric_fit.metrics["train"]["rmse"],
+    baseline = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current, reported_rmse), **evaluator.rotation_entries(model, current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
                 "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
     effects, rejected = [], []
     # Every map variant the sessions found is judged (the smoothness that carries across
@@ -370,30 +366,32 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     while pending and sum(e["kind"] != "joint_map" for e in effects) < max_effects:  # maps do not count: one per joint at most
         trials = []
         for label, (candidate, where) in progress(list(pending.items()), desc="diagnose: leave-one-session-out", unit="candidate"):
-            trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate))), label, candidate, where, errors))
+            trials.append((_rmse(errors := evaluator.held_out(model.plus(candidate)), judged_rmse), label, candidate, where, errors))
         # judged by pooled held-out RMSE, a gravity compliance first as within one session
         trials = physics_first(
-            sorted(trials, key=lambda t: t[0]), lambda t: _rmse(current) - t[0], lambda t: t[2], established=any(e["kind"] in PHYSICAL_KINDS for e in effects)
+            sorted(trials, key=lambda t: t[0]),
+            lambda t: _rmse(current, judged_rmse) - t[0],
+            lambda t: t[2],
+            established=any(e["kind"] in PHYSICAL_KINDS for e in effects),
         )
         before, reasons = _per_session(current, judged_rmse), {}
-        unit = "mm (position and orientation weighed as in the fit)" if kind == "pose" else "mm"
         for rmse, label, candidate, where, errors in trials:  # the best that helps without hurting a session
             worse = [s + 1 for s, (b, a) in enumerate(zip(before, _per_session(errors, judged_rmse))) if a > (1.0 + min_gain) * b]
-            if rmse > (1.0 - min_gain) * _rmse(current):
-                reasons[label] = f"pooled held-out RMSE {rmse:.4g} {unit} is not {min_gain:.1%} below {_rmse(current):.4g}"
+            if rmse > (1.0 - min_gain) * _rmse(current, judged_rmse):
+                reasons[label] = f"pooled held-out RMSE {rmse:.4g} {judged_unit(kind)} is not {min_gain:.1%} below {_rmse(current, judged_rmse):.4g}"
             elif worse:
                 reasons[label] = f"held-out error on session(s) {worse} rises"
             elif not isinstance(candidate, structure.Structure) and (why := evaluator.cause_check(model.plus(candidate), label)):
                 reasons[label] = why  # implausible or undetermined, as within one session
             elif (
                 isinstance(candidate, structure.Structure)
-                and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current)
+                and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current, judged_rmse)
                 and evaluator.implausible(model.plus(candidate))
             ):
                 # A convention is no small correction: as within one session, it must make the
                 # geometry plausible or gain REAL_GAIN.
                 reasons[label] = (f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
-                                  f"it gains {1.0 - rmse / _rmse(current):.1%} and leaves {len(evaluator.implausible(model.plus(candidate)))} parameters implausible")  # fmt: skip
+                                  f"it gains {1.0 - rmse / _rmse(current, judged_rmse):.1%} and leaves {len(evaluator.implausible(model.plus(candidate)))} parameters implausible")  # fmt: skip
             else:
                 break
         else:
@@ -423,7 +421,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     for e in effects:
         e.update(described.get(e["label"], {}))
     covered = evaluator.coverage[model]
-    final = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current), **evaluator.rotation_entries(model), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
+    final = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current, reported_rmse), **evaluator.rotation_entries(model, current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
              # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
              "per_session_covered": [{"samples": int(m.sum()), "rmse": reported_rmse(e[m]) if m.any() else None} for e, m in zip(current, covered)],
              "rmse_loso_unconstrained": unconstrained,
@@ -449,9 +447,13 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
     prior = kinematic_prior_pairs(robot, stacked.names, dict(zip(robot.param_names, robot.params)), TOLERANCE)
     trial = replace(model, prior=tuple(sorted(prior.items())))
     errors = evaluator.held_out(trial)
-    entry = {**TOLERANCE_SIGMAS, "rmse_loso": _rmse(errors, reported_rmse), "accepted": _rmse(errors) <= (1.0 + PRIOR_COST) * _rmse(current)}
+    entry = {
+        **TOLERANCE_SIGMAS,
+        "rmse_loso": _rmse(errors, reported_rmse),
+        "accepted": _rmse(errors, judged_rmse) <= (1.0 + PRIOR_COST) * _rmse(current, judged_rmse),
+    }
     if not entry["accepted"]:
-        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current), _rmse(errors), evaluator.measurement)
+        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current, judged_rmse), _rmse(errors, judged_rmse), evaluator.measurement)
         return model, current, entry
     return trial, errors, entry
 
@@ -460,7 +462,7 @@ def _entry(label: str, candidate, where: list, before: list, after: list, reason
     joint = None if candidate.joint is None else candidate.joint + 1
     entry = {"kind": candidate.kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
              "found_in_sessions": where, "rmse_loso_before": _rmse(before, reported_rmse), "rmse_loso_after": _rmse(after, reported_rmse),
-             "per_session_before": _per_session(before), "per_session_after": _per_session(after)}  # fmt: skip
+             "per_session_before": _per_session(before, reported_rmse), "per_session_after": _per_session(after, reported_rmse)}  # fmt: skip
     if reason is not None:
         entry["reason"] = reason
     return entry
