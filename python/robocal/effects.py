@@ -25,13 +25,13 @@ prediction, sensor noise, observations, quantisation.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Optional
 
 import numpy as np
 
 from .exceptions import InvalidParameterError
-from .physics import DEG, MASS_MODELS, approach_directions, gravity_torques, mass_model
+from .physics import DEG, MASS_MODELS, MassModel, approach_directions, gravity_torques, mass_model
 from .robot import MEASUREMENTS, Robot
 
 
@@ -202,6 +202,17 @@ class Effect:
         }
 
 
+#: Largest joint-angle error an effect may have (deg): beyond it no reducer or encoder is in
+#: working order, and a diagnosis' plausibility limit would reject it as a cause.
+MAX_ANGLE_DEG = 1.0
+
+
+def check_angle(effect: "Effect", key: str) -> None:
+    """Refuses an angle key beyond ±:data:`MAX_ANGLE_DEG`."""
+    if abs(effect.values[key]) > MAX_ANGLE_DEG:
+        raise effect.error(f"key {key!r} must be within ±{MAX_ANGLE_DEG:g} deg; got {effect.values[key]}")
+
+
 def _largest(change: np.ndarray, unit: str, what: str, factor: float = 1.0) -> dict:
     value = float(np.max(np.abs(change))) / factor if change.size else 0.0
     return {"value": value, "unit": unit, "what": what}
@@ -243,13 +254,21 @@ class JointCompliance(JointEffect):
 
     Keys: ``joint`` (optional; all joints when omitted), ``compliance`` in deg/(kN·m)
     (1 deg/(kN·m) = 1.745e-5 rad/(N·m); default: the mass model's, 3e-7 rad/(N·m) for the
-    JR680, 2e-5 for the IRB 120, 1e-5 for the UR10, a robot file's ``compliance_rad_per_Nm``), ``payload`` in kg (default 0).
+    JR680, 2e-5 for the IRB 120, 1e-5 for the UR10, a robot file's ``compliance_rad_per_Nm``), ``payload`` in kg (default 0),
+    ``mass_error`` (default 0): the true robot's link masses and centres of mass each differ from
+    the mass model by a factor drawn uniformly from ``1 ± mass_error`` — a real arm is never its
+    mass model, and a diagnosis must not need it to be.
     Typical: joint stiffness 1e6-1e7 N·m/rad on large industrial robots (Dumas et al. 2011),
     1e4-1e5 N·m/rad on small ones; sag of ~0.01-0.1 deg at the shoulder.
     """
 
     kind = "joint_compliance"
-    keys = {"joint": Key(JOINT.unit, None, integer=True), "compliance": Key("deg/(kN·m)", None, DEG / 1000.0), "payload": Key("kg", 0.0)}
+    keys = {
+        "joint": Key(JOINT.unit, None, integer=True),
+        "compliance": Key("deg/(kN·m)", None, DEG / 1000.0),
+        "payload": Key("kg", 0.0),
+        "mass_error": Key("1", 0.0),
+    }
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
@@ -261,14 +280,30 @@ class JointCompliance(JointEffect):
             )
         if self.values["payload"] < 0:
             raise self.error(f"key 'payload' must be >= 0 kg; got {self.values['payload']}")
+        if not 0.0 <= self.values["mass_error"] < 1.0:
+            raise self.error(f"key 'mass_error' must be within [0, 1); got {self.values['mass_error']}")
         if self.values["compliance"] is None:  # the robot's default, in spec units for the record
             if model.compliance is None:
                 raise self.error(f"robot {robot.name!r}'s mass model has no default compliance: give key 'compliance' (deg/(kN·m))")
             self.values["compliance"] = model.compliance / self.keys["compliance"].factor
 
+    def true_masses(self, robot: Robot, rng: np.random.Generator) -> MassModel:
+        """The mass model with each link's mass and centre of mass off by ``1 ± mass_error``."""
+        model, e = mass_model(robot), self["mass_error"]
+        if e == 0.0:
+            return model
+        n = len(model.link_masses)
+        masses = np.array(model.link_masses) * rng.uniform(1.0 - e, 1.0 + e, n)
+        centres = (
+            None
+            if model.centres_of_mass is None
+            else tuple(None if c is None else tuple(np.array(c) * rng.uniform(1.0 - e, 1.0 + e, 3)) for c in model.centres_of_mass)
+        )
+        return replace(model, link_masses=tuple(masses), centres_of_mass=centres)
+
     def offsets(self, acq):
         compliance = self["compliance"]
-        tau = gravity_torques(acq.robot, acq.q, acq.params[0], self["payload"])
+        tau = gravity_torques(acq.robot, acq.q, acq.params[0], self["payload"], model=self.true_masses(acq.robot, acq.rng))
         j = self.joint_index(acq.robot)
         return compliance * tau if j is None else self.offset_of_joint(acq, compliance * tau[:, j])
 
@@ -283,6 +318,12 @@ class JointPeriodic(JointEffect):
 
     kind = "joint_periodic"
     keys = {"joint": JOINT, "amplitude": Key("deg", 0.01, DEG), "harmonic": Key("cycles/rev", 1, integer=True), "phase": Key("deg", 0.0, DEG)}
+
+    def check(self, robot, measurement):
+        super().check(robot, measurement)
+        if self.values["harmonic"] < 1:
+            raise self.error(f"key 'harmonic' must be >= 1 cycle per revolution (0 would be a constant offset); got {self.values['harmonic']}")
+        check_angle(self, "amplitude")
 
     def offsets(self, acq):
         j = self.joint_index(acq.robot)
@@ -327,18 +368,26 @@ class JointCoupling(JointEffect):
 
 
 class Backlash(JointEffect):
-    """Backlash (lost motion) of joint j: ``Δq_j = −(b/2) · s_i``.
+    """Lost motion of joint j: ``Δq_j = −(b/2) · s_i``.
 
     ``s_i`` is the direction joint j last moved in, from the acquisition order: the sign of
     ``q_j(i) − q_j(i−1)``; a sample without motion keeps the previous direction and the first
-    sample counts as approached in the positive direction. The link lags behind the motor by
-    half the play.
-    Keys: ``joint``, ``width`` b in deg (default 0.02). Typical: 0.01-0.03 deg (≤ 1-2 arcmin for
-    industrial reducers).
+    sample counts as approached in the positive direction. With ``b > 0`` the link lags behind
+    the motor by half the play (backlash); with ``b < 0`` the reading lags behind the link — the
+    link leads (an encoder on the motor side of an elastic stage, a servo's following error,
+    preload).
+    Keys: ``joint``, ``width`` b in deg (default 0.02; nonzero, |b| ≤ 1). Typical: 0.01-0.03 deg
+    (≤ 1-2 arcmin for industrial reducers).
     """
 
     kind = "backlash"
     keys = {"joint": JOINT, "width": Key("deg", 0.02, DEG)}
+
+    def check(self, robot, measurement):
+        super().check(robot, measurement)
+        if self.values["width"] == 0:
+            raise self.error("key 'width' must be nonzero (deg; negative: the link leads its reading)")
+        check_angle(self, "width")
 
     def offsets(self, acq):
         j = self.joint_index(acq.robot)
@@ -453,21 +502,26 @@ class Drift(ObservationEffect):
     ``Δp = r · t · e_axis`` (the position part).
 
     Keys: ``rate`` r in mm/h (default 0.2), ``axis`` (``x``, ``y`` or ``z``, default z; position
-    and pose only). Typical: 0.05-0.5 mm/h (thermal drift of a sensor or its stand).
+    and pose only), ``exponent`` p (default 1): a drift that is not linear,
+    ``r · T · (t/T)^p`` over a session of length ``T`` (the same offset at its end). Typical:
+    0.05-0.5 mm/h (thermal drift of a sensor or its stand).
     """
 
     kind = "drift"
-    keys = {"rate": Key("mm/h", 0.2, 1.0 / 3600.0), "axis": Key("word", None, choices=("x", "y", "z"))}
+    keys = {"rate": Key("mm/h", 0.2, 1.0 / 3600.0), "axis": Key("word", None, choices=("x", "y", "z")), "exponent": Key("1", 1.0)}
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
         if measurement == "cable" and self.values["axis"] is not None:
             raise self.error("key 'axis' applies to position and pose measurements; a cable drifts along its length")
+        if self.values["exponent"] <= 0:
+            raise self.error(f"key 'exponent' must be > 0; got {self.values['exponent']}")
 
     def observe(self, acq):
         y = acq.y.copy()
         column = 0 if acq.measurement == "cable" else "xyz".index(self.values["axis"] or "z")
-        y[:, column] += self["rate"] * acq.t
+        span = max(float(acq.t[-1]), 1e-12)
+        y[:, column] += self["rate"] * span * (acq.t / span) ** self["exponent"]
         return y
 
 
@@ -493,6 +547,42 @@ class Step(ObservationEffect):
         y = acq.y.copy()
         column = 0 if acq.measurement == "cable" else "xyz".index(self.values["axis"] or "z")
         y[self.values["sample"] :, column] += self["size"]
+        return y
+
+
+class Wander(ObservationEffect):
+    """The sensor itself wanders in time: the cable sensor's zero, or the tracker's frame (its
+    translation), moves slowly and irregularly — a stand warming and cooling, air currents, a
+    base settling. A smooth random process in acquisition order: white noise smoothed by a
+    Gaussian of ``length`` samples (its correlation length), scaled to RMS ``rms``; independent
+    on x, y and z (position and pose) unless ``axis`` names one.
+
+    Keys: ``rms`` in mm (default 0.2), ``length`` in samples (default 10), ``axis`` (``x``,
+    ``y`` or ``z``; position and pose only). Typical: a few tenths of a mm over 5-20 samples.
+    """
+
+    kind = "wander"
+    keys = {"rms": Key("mm", 0.2), "length": Key("samples", 10.0), "axis": Key("word", None, choices=("x", "y", "z"))}
+
+    def check(self, robot, measurement):
+        super().check(robot, measurement)
+        if measurement == "cable" and self.values["axis"] is not None:
+            raise self.error("key 'axis' applies to position and pose measurements; a cable wanders along its length")
+        if self.values["rms"] <= 0:
+            raise self.error(f"key 'rms' must be > 0 mm; got {self.values['rms']}")
+        if not 1.0 <= self.values["length"] <= 1e4:
+            raise self.error(f"key 'length' must be within 1..10000 samples; got {self.values['length']}")
+
+    def observe(self, acq):
+        from scipy.ndimage import gaussian_filter1d  # imported on use: only this effect needs it
+
+        m = len(acq.y)
+        columns = [0] if acq.measurement == "cable" else ["xyz".index(self.values["axis"])] if self.values["axis"] else [0, 1, 2]
+        path = gaussian_filter1d(acq.rng.normal(size=(m, len(columns))), self["length"], axis=0, mode="reflect")
+        path -= path.mean(axis=0)
+        path *= self["rms"] / max(float(np.sqrt(np.mean(np.sum(path**2, axis=1)))), 1e-300)
+        y = acq.y.copy()
+        y[:, columns] += path
         return y
 
 
@@ -551,7 +641,7 @@ class Outliers(ObservationEffect):
 
 EFFECTS = {
     cls.kind: cls
-    for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Step, Temperature, CableScale, AxisMisalignment, Outliers)
+    for cls in (JointCompliance, JointPeriodic, JointScale, JointCoupling, Backlash, Drift, Step, Wander, Temperature, CableScale, AxisMisalignment, Outliers)
 }
 
 
