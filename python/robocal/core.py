@@ -14,6 +14,10 @@ import numpy as np
 from . import _robocal
 from .exceptions import InvalidParameterError
 
+#: Largest magnitude of a kinematic input (mm, rad): beyond ±1e12 the core's squares overflow.
+#: The core refuses such inputs by index; readers check first, to name the cell or parameter.
+MAX_ABS = 1e12
+
 
 def _real_array(value, name: str) -> np.ndarray:
     """``value`` as a float64 array of any shape. Complex values are refused rather than cast

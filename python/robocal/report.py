@@ -22,7 +22,6 @@ moved or archived as a whole.
 from __future__ import annotations
 
 import html
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
@@ -39,6 +38,7 @@ from .exceptions import InvalidParameterError, RobocalError
 from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
 from .robot import Robot
+from .robot_file import read_document
 
 #: deviation display: unit in the file -> (unit shown, factor)
 _SHOWN = {"mm": ("mm", 1.0), "rad": ("deg", float(np.degrees(1.0))), "1": ("ppm", 1e6)}
@@ -113,12 +113,7 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
     if diagnosis is None or isinstance(diagnosis, dict):
         report = diagnosis
     else:
-        try:
-            report = json.loads(Path(diagnosis).read_text())
-        except OSError as exc:
-            raise InvalidParameterError(f"{diagnosis}: cannot read the diagnose report ({exc.strerror or exc})") from None
-        except ValueError as exc:
-            raise InvalidParameterError(f"{diagnosis}: the diagnose report is not valid JSON ({exc})") from None
+        report = read_document(diagnosis, "diagnose report")
     if report is not None:
         ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
         if not ok or _held(report) not in report["baseline"]:

@@ -29,18 +29,16 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 from pathlib import Path
 from typing import Optional
-
 
 from ._robocal import __version__
 from .exceptions import InvalidParameterError
 from .outputs import write_json
 from .robot import Robot
 from .robot_file import RESULT_SCHEMA as SCHEMA
-from .robot_file import calibrated_robot, not_a_result, robot_document
+from .robot_file import calibrated_robot, check_nesting, read_document, robot_document
 
 
 def robot_model(robot: Robot) -> dict:
@@ -97,11 +95,7 @@ def load_result(source) -> tuple[Robot, dict]:
     where = str(source) if not isinstance(source, dict) else "result"
     if isinstance(source, dict):
         doc = source
+        check_nesting(doc, where, "robocal result file")
     else:
-        try:
-            doc = json.loads(Path(source).read_text())
-        except OSError as exc:
-            raise InvalidParameterError(f"{where}: cannot read it ({exc.strerror or exc})") from None
-        except ValueError as exc:
-            not_a_result(where, f"invalid JSON: {exc}")
+        doc = read_document(source, "robocal result file")
     return calibrated_robot(doc, where), doc

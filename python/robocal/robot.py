@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _robocal
 from .catalog import BUILTIN
-from .core import as_float, as_float_array, as_str
+from .core import MAX_ABS, as_float, as_float_array, as_str
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 from .geometry import frame_params, frame_transform, rotation
 
@@ -190,6 +190,10 @@ class Robot:
         bad = np.flatnonzero(~np.isfinite(p))
         if bad.size:
             raise NonFiniteError(f"`{arg}` must be finite; got {p[bad[0]]} at index {bad[0]} ({self.param_names[bad[0]]})")
+        huge = np.flatnonzero(np.abs(p) > MAX_ABS)
+        if huge.size:  # the core would refuse it by index only
+            k = huge[0]
+            raise InvalidParameterError(f"{self.param_names[k]} must lie within ±{MAX_ABS:.0e} {self.param_units[k]}; got {p[k]:.4g} (`{arg}` index {k})")
         return p
 
     def columns(self, selection, arg: str = "mask") -> np.ndarray:

@@ -16,13 +16,15 @@ place). The export table (:mod:`robocal.robot_table`) holds the same fields, one
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+from collections.abc import Hashable
 from pathlib import Path
 
 import numpy as np
 
-from .exceptions import InvalidParameterError
+from .exceptions import InvalidParameterError, RobocalError
 from .outputs import write_json, write_text
 from .physics import MassModel
 from .robot import Joint, Robot
@@ -86,12 +88,16 @@ def mass_model_from_spec(masses) -> MassModel:
     )
 
 
-def robot_from_spec(spec, name: str) -> Robot:
-    """The :class:`Robot` of a validated :class:`robocal.schemas.RobotSpec`."""
+def robot_from_spec(spec, name: str, where: str = "robot file") -> Robot:
+    """The :class:`Robot` of a validated :class:`robocal.schemas.RobotSpec`; an error names
+    ``where`` (the file), the joint or parameter, in the document's units."""
     to_rad = math.radians if spec.units.angle == "deg" else float
     joints, values = [], []
-    for j in spec.joints:
+    for i, j in enumerate(spec.joints, start=1):
         kind = j.kind
+        if not j.limits[0] < j.limits[1]:  # here, not in Robot(): in the file's unit
+            unit = "mm" if kind == "prismatic" else spec.units.angle
+            raise InvalidParameterError(f"{where}: joint {i}, key 'limits': the lower limit must be below the upper; got {j.limits} ({unit})")
         limits = tuple(to_rad(v) if kind == "revolute" else float(v) for v in j.limits)
         joints.append(Joint(j.convention or spec.convention, kind, j.hayati, limits))
         values += [to_rad(j.alpha), j.a, j.d, to_rad(j.theta), to_rad(j.beta)]
@@ -99,16 +105,30 @@ def robot_from_spec(spec, name: str) -> Robot:
         values += [to_rad(getattr(frame, k)) if k.startswith("r") else getattr(frame, k) for k in FRAME_KEYS]
     values += [getattr(spec.sensor, k) for k in SENSOR_KEYS]
     masses = None if spec.masses is None else mass_model_from_spec(spec.masses)
-    return Robot(spec.name or name, joints, np.array(values, dtype=np.float64), masses)
+    return built(where, spec.name or name, joints, np.array(values, dtype=np.float64), masses)
 
 
-def robot_from_model(model) -> Robot:
+def built(where: str, *args) -> Robot:
+    """``Robot(*args)``, its error prefixed with ``where`` (the file it was read from)."""
+    try:
+        return Robot(*args)
+    except RobocalError as exc:
+        raise InvalidParameterError(f"{where}: {exc}") from None
+
+
+def robot_from_model(model, where: str = "result file") -> Robot:
     """The nominal robot of a result's validated ``robot_model``: a robot document, or the older
-    form (joints without values and the ``nominal`` vector)."""
+    form (joints without values and the ``nominal`` vector); errors name ``where`` (the file)."""
+    where = f"{where}: robot_model"
     if hasattr(model, "units"):
-        return robot_from_spec(model, model.name or "robot")
+        robot = robot_from_spec(model, model.name or "robot", where)
+        if model.nominal is not None and len(model.nominal) != robot.n_params:
+            raise InvalidParameterError(
+                f"{where} has {robot.n_joints} joints ({robot.n_params} parameters) but its key 'nominal' holds {len(model.nominal)} values"
+            )
+        return robot
     joints = [Joint(j.convention, j.kind, j.hayati, tuple(j.limits)) for j in model.joints]
-    return Robot(model.name, joints, np.array(model.nominal, dtype=np.float64))
+    return built(where, model.name, joints, np.array(model.nominal, dtype=np.float64))
 
 
 def not_a_result(where: str, why: str):
@@ -132,32 +152,128 @@ def calibrated_robot(doc: dict, where: str) -> Robot:
     from .schemas import ResultSpec, validate  # pydantic loads only when a document is read
 
     spec = validate(ResultSpec, doc, where)
-    robot = robot_from_model(spec.robot_model)
-    calibrated = {p.name: p.value for p in spec.parameters}
+    robot = robot_from_model(spec.robot_model, where)
+    names = [p.name for p in spec.parameters]
+    twice = sorted({n for n in names if names.count(n) > 1}) if len(set(names)) < len(names) else []
+    if twice:
+        not_a_result(where, f"parameters {twice[:5]} appear more than once in key 'parameters'")
+    calibrated = dict(zip(names, (p.value for p in spec.parameters)))
+    unknown = [n for n in names if n not in robot.param_names]
+    if unknown:  # a parameter of another robot (or a typo): the file does not describe one model
+        joints = len({n[len("alpha") :] for n in names if n.startswith("alpha")})
+        count = f"; the parameters hold {joints} joints" if joints != robot.n_joints else ""
+        not_a_result(where, f"parameters {unknown[:5]} are not parameters of its robot_model ({robot.n_joints} joints){count}")
     missing = [n for n in robot.param_names if n not in calibrated]
     if missing:
         not_a_result(where, f"parameters lack {missing[:5]}")
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
-        not_a_result(where, "a parameter value is not finite")
-    return Robot(robot.name, robot.joints, values, robot.mass_model)
+        not_a_result(where, f"the value of {robot.param_names[int(np.flatnonzero(~np.isfinite(values))[0])]} is not finite")
+    return built(where, robot.name, robot.joints, values, robot.mass_model)
 
 
-def read_document(path) -> object:
-    """The parsed JSON or YAML (by suffix) of ``path``, or an error naming the file."""
-    path = Path(path)
-    if path.suffix.lower() in (".yaml", ".yml"):
+#: Deepest nesting of lists and objects a document may have. robocal's documents are at most
+#: ~8 deep; a deeper one is corrupt, and Python's parsers and validators recurse on nesting
+#: (100 000 brackets would end in a RecursionError).
+MAX_DEPTH = 64
+
+
+class DuplicateKeyError(ValueError):
+    """A JSON or YAML object holds the same key twice (the parsers would keep the last silently)."""
+
+    def __init__(self, key):
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_object(pairs: list) -> dict:
+    """json's ``object_pairs_hook``: the object, or a :class:`DuplicateKeyError`."""
+    doc = {}
+    for key, value in pairs:
+        if key in doc:
+            raise DuplicateKeyError(key)
+        doc[key] = value
+    return doc
+
+
+@functools.cache
+def _yaml_loader():
+    """``yaml.SafeLoader`` that refuses a key given twice in one mapping (a ``<<`` merge may
+    still override merged keys, as YAML intends)."""
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                if not isinstance(key, Hashable):
+                    continue  # the base constructor refuses it with its own message
+                if key in seen:
+                    raise DuplicateKeyError(key)
+                seen.add(key)
+            return super().construct_mapping(node, deep)
+
+    return UniqueKeyLoader
+
+
+def nesting_depth(doc, limit: int = MAX_DEPTH) -> int:
+    """How deeply lists and objects nest in ``doc`` (a scalar: 0), counted without recursion
+    and up to ``limit + 1``."""
+    deepest, stack = 0, [(doc, 1)]
+    while stack:
+        node, depth = stack.pop()
+        children = node.values() if isinstance(node, dict) else node if isinstance(node, (list, tuple)) else None
+        if children is None:
+            continue
+        deepest = max(deepest, depth)
+        if deepest > limit:
+            break
+        stack.extend((child, depth + 1) for child in children)
+    return deepest
+
+
+def check_nesting(doc, where: str, what: str) -> None:
+    """An :class:`InvalidParameterError` naming ``where`` when ``doc`` nests deeper than :data:`MAX_DEPTH`."""
+    if nesting_depth(doc) > MAX_DEPTH:
+        raise InvalidParameterError(f"{where}: not a {what}: lists or objects nested more than {MAX_DEPTH} levels deep")
+
+
+def parse_document(text: str, where: str, what: str = "robot file", yaml_text: bool = False) -> object:
+    """The parsed JSON (or YAML) ``text``, or an :class:`InvalidParameterError` naming ``where``
+    (the file) and what is wrong: malformed, a key given twice in one object, nested deeper than
+    :data:`MAX_DEPTH`. The one parser of every document robocal reads (robot files, results,
+    parameter tables, diagnose reports)."""
+    if yaml_text:
         import yaml
 
-        parse, malformed = yaml.safe_load, yaml.YAMLError
+        parse, malformed, language = (lambda t: yaml.load(t, Loader=_yaml_loader())), yaml.YAMLError, "YAML"
     else:
-        parse, malformed = json.loads, ValueError
+        parse, malformed, language = (lambda t: json.loads(t, object_pairs_hook=_unique_object)), ValueError, "JSON"
     try:
-        return parse(path.read_text())
-    except OSError as exc:
-        raise InvalidParameterError(f"{path}: cannot read the robot file ({exc.strerror or exc})") from None
+        doc = parse(text)
+    except DuplicateKeyError as exc:
+        raise InvalidParameterError(f"{where}: key {exc.key!r} appears twice in one object: which value is meant cannot be guessed") from None
+    except RecursionError:
+        raise InvalidParameterError(f"{where}: not a {what}: lists or objects nested too deeply to read") from None
     except (UnicodeDecodeError, malformed) as exc:
-        raise InvalidParameterError(f"{path}: not a robot file ({type(exc).__name__}: {exc})") from None
+        raise InvalidParameterError(f"{where}: not a {what} (invalid {language}: {str(exc)[:200]})") from None
+    check_nesting(doc, where, what)
+    return doc
+
+
+def read_document(path, what: str = "robot file") -> object:
+    """The parsed JSON or YAML (by suffix) of ``path`` (:func:`parse_document`), or an error naming the file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InvalidParameterError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise InvalidParameterError(f"{path}: not a {what} (not UTF-8 text: undecodable byte at offset {exc.start})") from None
+    return parse_document(text, str(path), what, yaml_text=path.suffix.lower() in (".yaml", ".yml"))
 
 
 def read_robot_file(path) -> Robot:
@@ -174,10 +290,10 @@ def read_robot_file(path) -> Robot:
     from .schemas import RobotModel, RobotSpec, validate
 
     if isinstance(doc, dict) and "nominal" in doc and "units" not in doc:  # an older result's robot_model
-        return robot_from_model(validate(RobotModel, doc, str(path)))
+        return robot_from_model(validate(RobotModel, doc, str(path)), str(path))
     if isinstance(doc, dict) and "nominal" in doc:
         doc = {k: v for k, v in doc.items() if k != "nominal"}  # a robot_model: its document is the robot
-    return robot_from_spec(validate(RobotSpec, doc, str(path)), path.stem)
+    return robot_from_spec(validate(RobotSpec, doc, str(path)), path.stem, str(path))
 
 
 def write_robot_file(robot: Robot, path, degrees: bool = False) -> Path:

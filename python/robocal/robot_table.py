@@ -9,7 +9,6 @@ the DH/MDH values and Hayati ``beta``, a frame row ``x, y, z, rx, ry, rz`` (``Tx
 from __future__ import annotations
 
 import csv
-import json
 import math
 from pathlib import Path
 from typing import Sequence
@@ -18,6 +17,7 @@ import numpy as np
 
 from .exceptions import InvalidParameterError
 from .robot import Joint, Robot
+from .robot_file import parse_document, read_document
 
 TABLE_SCHEMA = "robocal.export.table/1"
 
@@ -35,8 +35,8 @@ def is_table(path) -> bool:
     if path.suffix.lower() == ".csv":
         return True
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError):
+        doc = read_document(path)
+    except InvalidParameterError:
         return False  # the robot-file reader names what is wrong with it
     return isinstance(doc, dict) and doc.get("schema") == TABLE_SCHEMA
 
@@ -111,7 +111,7 @@ def read_table(path) -> list[dict]:
     path = Path(path)
     text = path.read_text()
     if text.lstrip().startswith("{"):
-        doc = json.loads(text)
+        doc = parse_document(text, str(path), "robocal parameter table")
         if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:
             raise InvalidParameterError(f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r})")
         return [dict(r) for r in doc["rows"]]

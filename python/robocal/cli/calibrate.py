@@ -9,6 +9,7 @@ from ..calibration.api import METHODS
 from ..calibration.result import describe_implausible
 from ..diagnosis.extended import calibrate
 from ..results import save_result
+from ..robot_file import read_document
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
@@ -27,9 +28,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    report = args.causes[0] if args.causes and len(args.causes) == 1 and args.causes[0].endswith(".json") else None
+    if report is not None:
+        read_document(report, "diagnose report")  # a corrupt report (too deep, a key twice) is refused naming the file
     result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
                        test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior, angle_unit=args.angle_unit,
-                       causes=(args.causes[0] if len(args.causes) == 1 and args.causes[0].endswith(".json") else args.causes) if args.causes else None,
+                       causes=report or args.causes or None,
                        **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
     doc = result.to_dict()
     if args.out:

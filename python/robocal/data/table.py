@@ -22,7 +22,9 @@ from __future__ import annotations
 import csv
 import difflib
 import math
+import os
 import re
+import stat
 import sys
 from functools import cached_property
 from pathlib import Path
@@ -30,11 +32,10 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
+from ..core import MAX_ABS
 from ..exceptions import DataError
+from ..outputs import file_kind
 
-#: Largest magnitude a cell may hold: beyond ±1e12 mm / rad the core's squares overflow (the
-#: core refuses such inputs too, but here the error can name the file, row and column).
-MAX_ABS = 1e12
 #: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
 #: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
 COLUMNAR = True
@@ -42,6 +43,9 @@ COLUMNAR = True
 #: cell: importing pyarrow (~0.1 s) costs more than the per-cell path on ~1 MB of cells
 #: (benches/bench_loading.py). Once pyarrow is loaded, every file takes the columnar reader.
 COLUMNAR_MIN_BYTES = 1 << 20
+#: Largest data file read (bytes): a million pose samples, the most ``simulate`` writes, take
+#: about 260 MB; a larger file is refused before it is read instead of filling the memory.
+MAX_FILE_BYTES = 1 << 30
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
 #: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
@@ -54,13 +58,54 @@ def shown(value, limit: int = 40) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(str(value))} characters)"
 
 
+def open_data(path):
+    """``path`` opened for reading in binary mode, once it is known to be a regular file of at
+    most :data:`MAX_FILE_BYTES`; else a :class:`DataError` naming it.
+
+    A FIFO, ``/dev/zero`` or a terminal would block the reader or never end: the file is opened
+    without blocking (a FIFO's open waits for a writer otherwise) and judged by ``fstat`` of
+    what was opened, so a file swapped after a check cannot slip through.
+    """
+    if "\x00" in str(path):
+        raise DataError(f"{str(path)!r}: a path cannot contain a NUL character")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+    info = os.fstat(fd)
+    problem = None
+    if not stat.S_ISREG(info.st_mode):
+        problem = f"is {file_kind(info.st_mode)}, not a regular file; measurements are read from files"
+    elif info.st_size > MAX_FILE_BYTES:
+        problem = f"the file has {info.st_size:,} bytes; data files are read up to {MAX_FILE_BYTES:,} bytes"
+    if problem is not None:
+        os.close(fd)
+        raise DataError(problem, path)
+    return os.fdopen(fd, "rb")
+
+
+def read_data(path) -> bytes:
+    """The bytes of the data file ``path`` (see :func:`open_data`), at most :data:`MAX_FILE_BYTES`
+    even if it grows while being read."""
+    with open_data(path) as f:
+        try:  # the size it has (read(n) allocates n bytes), then what it may have grown by, bounded
+            chunks = [f.read(os.fstat(f.fileno()).st_size + 1)]
+            size = len(chunks[0])
+            while chunks[-1] and size <= MAX_FILE_BYTES:
+                chunks.append(f.read(1 << 20))
+                size += len(chunks[-1])
+        except OSError as exc:
+            raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+    if size > MAX_FILE_BYTES:
+        raise DataError(f"the file grew beyond {MAX_FILE_BYTES:,} bytes while it was read", path)
+    return b"".join(chunks)
+
+
 def read_text(path) -> str:
     """The file's text (UTF-8, an optional BOM removed), or a :class:`DataError`."""
     path = Path(path)
     try:  # bytes then decode: no newline translation to pay for (str.splitlines reads CRLF and CR alike)
-        return path.read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+        return read_data(path).decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise DataError(f"not a UTF-8 text file (undecodable byte at offset {exc.start})", path) from None
 
