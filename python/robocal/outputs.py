@@ -4,15 +4,22 @@ Every file robocal writes goes through :class:`Staged`: the content is written t
 file in the target folder and renamed over the target only when it is complete (and, where the
 caller validates it, valid), so an interrupted or failed write never leaves a truncated file and
 never replaces a good one. :func:`check_outputs` runs before any work: it refuses an output that
-is one of the inputs, an output file whose folder is missing or unwritable, and an existing,
-non-empty output folder unless the user passed ``--force``. Every problem is an
-:class:`~robocal.exceptions.OutputError` naming the path.
+is one of the inputs, an output file whose folder is missing or unwritable, an output that exists
+and is not a regular file (a device, a FIFO, a symbolic link: a rename would replace the node
+itself), and an existing, non-empty output folder unless the user passed ``--force``. It claims
+every output folder with a lock file, so that two runs cannot both find the same folder empty.
+Every problem is an :class:`~robocal.exceptions.OutputError` naming the path.
+
+What goes to the terminal is text from files too (a robot's name, a column name): :func:`printable`
+escapes the characters a terminal acts on instead of showing them.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
+import stat
 import tempfile
 from pathlib import Path
 from typing import Iterable, Optional
@@ -38,6 +45,36 @@ def _existing(paths: Iterable) -> list[Path]:
     return [Path(p) for p in _flat(paths) if p not in (None, "", "-") and os.path.exists(p)]
 
 
+def special_kind(path) -> str | None:
+    """What ``path`` is when it exists and is not a regular file ("a FIFO (named pipe)", "a
+    symbolic link to ...", ...), else None. A symbolic link is not followed: renaming over it
+    would replace the link, and writing through it could reach anything."""
+    try:
+        mode = os.lstat(path).st_mode
+    except (OSError, ValueError):  # missing (or a NUL in the name, refused by the callers)
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISLNK(mode):
+        target = os.readlink(path)
+        return f"a symbolic link to {target}" + ("" if os.path.exists(path) else " (which does not exist)")
+    return file_kind(mode)
+
+
+def file_kind(mode: int) -> str:
+    """The kind of file an ``st_mode`` describes, as a phrase for a message."""
+    kinds = [(stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link")]  # fmt: skip
+    return next((phrase for test, phrase in kinds if test(mode)), "not a regular file")
+
+
+def refuse_special(path) -> None:
+    """An :class:`OutputError` when ``path`` exists and is not a regular file."""
+    kind = special_kind(path)
+    if kind is not None:
+        raise OutputError(f"{path}: is {kind}, not a regular file; robocal writes only regular files (it would replace this one), choose another path")
+
+
 def _writable_folder(folder: Path, what) -> None:
     if not folder.is_dir():
         raise OutputError(f"{what}: the folder {folder} does not exist")
@@ -45,8 +82,9 @@ def _writable_folder(folder: Path, what) -> None:
         raise OutputError(f"{what}: the folder {folder} is not writable")
 
 
-def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable = (), force: bool = False) -> None:
-    """Refuses outputs that would destroy an input or cannot be written, before any work.
+def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable = (), force: bool = False) -> list[FolderClaim]:
+    """Refuses outputs that would destroy an input or cannot be written, before any work, and
+    claims the output folders.
 
     Parameters
     ----------
@@ -58,6 +96,12 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
         Output folders, created if missing.
     force : bool
         Allow writing into an existing, non-empty output folder.
+
+    Returns
+    -------
+    list of FolderClaim
+        One per output folder (created if missing): call :meth:`FolderClaim.release` when the
+        work is done, whatever its outcome.
 
     Raises
     ------
@@ -79,20 +123,85 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
             raise OutputError(f"{out}: the same file is given for two outputs")
         if out.is_dir():
             raise OutputError(f"{out}: is a folder; a file path is expected")
+        refuse_special(out)
         _writable_folder(out.resolve().parent, out)
-    for folder in (Path(f) for f in folders if f not in (None, "")):
+    folders = [Path(f) for f in folders if f not in (None, "")]
+    for folder in folders:
+        if os.path.lexists(folder) and not folder.exists():
+            raise OutputError(f"{folder}: is {special_kind(folder)}; an output folder is expected")
         if folder.exists() and not folder.is_dir():
             raise OutputError(f"{folder}: exists and is not a folder")
         if folder.is_dir():
-            if any(folder.iterdir()) and not force:
-                raise OutputError(f"{folder}: the output folder exists and is not empty; pass --force to overwrite the files in it")
             inside = next((s for s in sources if same_file(s.resolve().parent, folder)), None)
-            if inside is not None:
+            if inside is not None and force:
                 raise OutputError(f"{folder}: the output folder holds the input {inside}; choose another folder")
             _writable_folder(folder, folder)
         else:
             ancestor = next(p for p in folder.resolve().parents if p.exists())
             _writable_folder(ancestor, folder)
+    claims: list[FolderClaim] = []
+    try:  # claimed last: a refusal above leaves nothing behind
+        for folder in folders:
+            claims.append(FolderClaim(folder, force))
+    except BaseException:  # an OutputError, or Ctrl-C between two claims
+        for claim in claims:
+            claim.release()
+        raise
+    return claims
+
+
+class FolderClaim:
+    """An output folder held by this run: created if missing, with a lock file created
+    exclusively (``O_CREAT | O_EXCL``) in it.
+
+    The emptiness check runs under the lock: of two runs started together into one new folder,
+    the second is refused instead of both finding it empty and the later overwriting the
+    earlier's files. :meth:`release` removes the lock, and the folder too when this run created
+    it and wrote nothing into it.
+    """
+
+    LOCK = ".robocal-writing"
+
+    def __init__(self, folder: Path, force: bool = False):
+        self.folder = Path(folder)
+        missing = [p for p in self._chain() if not p.exists()]
+        self.created = missing[-1] if missing else None  # the topmost folder this run creates
+        make_folder(self.folder)
+        self.lock = self.folder / self.LOCK
+        try:
+            fd = os.open(self.lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            raise OutputError(
+                f"{self.folder}: another robocal run is writing into this folder (if none is, remove {self.lock}, left by an interrupted run)"
+            ) from None
+        except OSError as exc:
+            raise OutputError(f"{self.folder}: cannot write into the folder ({exc.strerror or exc})") from None
+        with os.fdopen(fd, "w") as f:
+            f.write(f"{os.getpid()}\n")
+        if not force and any(p.name != self.LOCK for p in self.folder.iterdir()):
+            self.release()
+            raise OutputError(f"{self.folder}: the output folder exists and is not empty; pass --force to overwrite the files in it")
+
+    def release(self) -> None:
+        """Removes the lock, and the folders this run created if they are still empty."""
+        try:
+            self.lock.unlink()
+        except FileNotFoundError:
+            pass
+        if self.created is None:
+            return
+        for folder in self._chain():
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: something was written, keep it
+                return
+            if folder == self.created:
+                return
+
+    def _chain(self) -> list[Path]:
+        """The folder and its parents, absolute."""
+        folder = self.folder.absolute()
+        return [folder, *folder.parents]
 
 
 def make_folder(folder) -> Path:
@@ -129,17 +238,22 @@ class Staged:
         self._keep = True
 
     def __enter__(self) -> "Staged":
+        refuse_special(self.path)
         try:
             # Same folder: the final rename stays on one file system, hence atomic. Same suffix:
             # writers that choose the format by suffix (matplotlib, the export tables) still can.
             fd, name = tempfile.mkstemp(dir=self.path.resolve().parent, prefix=f".{self.path.name}.", suffix=f".tmp{self.path.suffix}")
         except OSError as exc:
             raise OutputError(f"{self.path}: cannot write it ({exc.strerror or exc})") from None
-        os.close(fd)
         self.tmp = Path(name)
-        # mkstemp creates the file readable by its owner only; an output gets the mode a plain
-        # open() would give it (the existing file's, else 0o666 less the umask).
-        os.chmod(self.tmp, self.path.stat().st_mode & 0o7777 if self.path.is_file() else 0o666 & ~_umask())
+        try:
+            os.close(fd)
+            # mkstemp creates the file readable by its owner only; an output gets the mode a plain
+            # open() would give it (the existing file's, else 0o666 less the umask).
+            os.chmod(self.tmp, self.path.stat().st_mode & 0o7777 if self.path.is_file() else 0o666 & ~_umask())
+        except BaseException:  # Ctrl-C before the with block owns the temporary
+            self.tmp.unlink(missing_ok=True)
+            raise
         return self
 
     def discard(self) -> None:
@@ -148,15 +262,58 @@ class Staged:
     def __exit__(self, kind, exc, tb) -> bool:
         try:
             if kind is None and self._keep:
+                # Again: since the check before the work, the path may have become a FIFO or a link.
+                refuse_special(self.path)
                 os.replace(self.tmp, self.path)
                 return False
         except OSError as error:
             exc, kind = error, OSError
+        except BaseException:  # the refusal above, or Ctrl-C during the rename
+            self.tmp.unlink(missing_ok=True)
+            raise
         if self.tmp.exists():
             self.tmp.unlink()
         if kind is not None and issubclass(kind, OSError):  # e.g. a full disk while writing
             raise OutputError(f"{self.path}: cannot write it ({exc.strerror or exc})") from None
         return False
+
+
+#: Characters a terminal acts on instead of showing: C0 and C1 controls and DEL (ESC starts a
+#: sequence that can erase or rewrite lines, CR returns to the line start), bidirectional
+#: overrides and isolates (U+202E shows text reversed), zero-width and other invisible format
+#: characters, line and paragraph separators. Newline and tab are kept by :func:`printable`.
+_TERMINAL = "\x00-\x08\x0b-\x1f\x7f-\x9f\u00ad\u061c\u180e\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff\ufff9-\ufffb"
+_HIDDEN = re.compile(f"[{_TERMINAL}]")
+_HIDDEN_OR_BREAK = re.compile(f"[{_TERMINAL}\n\t]")
+
+
+def _escape(match: re.Match) -> str:
+    return match.group().encode("unicode_escape").decode("ascii")
+
+
+def printable(text: str, one_line: bool = False) -> str:
+    """``text`` with every character a terminal would act on written as its escape (``\\x1b``,
+    ``\\u202e``); with ``one_line``, newlines and tabs too (for a name inside a line)."""
+    return (_HIDDEN_OR_BREAK if one_line else _HIDDEN).sub(_escape, str(text))
+
+
+class PrintableStream:
+    """A text stream that writes everything through :func:`printable`: what a command prints
+    may hold text from files (names, columns, paths a result records)."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        self.stream.write(printable(text))
+        return len(text)
+
+    def writelines(self, lines) -> None:
+        for line in lines:
+            self.write(line)
+
+    def __getattr__(self, name):  # flush, isatty, encoding, buffer, ...
+        return getattr(self.stream, name)
 
 
 def write_text(path, text: str) -> Path:

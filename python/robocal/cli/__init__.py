@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from .. import __version__, progress
 from ..exceptions import RobocalError
-from ..outputs import check_outputs
+from ..outputs import PrintableStream, check_outputs, printable
 
 
 @dataclass(frozen=True)
@@ -74,15 +74,33 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Runs the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code: 0, 1 (a
+    check failed), 2 (refused: one line ``robocal: error: ...``), 130 (interrupted)."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:
+        # Ctrl-C, even while the subcommand's modules load: staged outputs are discarded on the
+        # way out (no temporary left, no file replaced), so one line and the shell's code for
+        # SIGINT (128 + 2) say it all.
+        if "--debug" in argv:
+            raise
+        print("robocal: interrupted", file=sys.stderr)
+        return 130
+
+
+def _run(argv: list[str]) -> int:
     # The options before the subcommand are flags without values: the first word that is not an
     # option names it.
     command = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(command).parse_args(argv)
     progress.QUIET = args.quiet
     paths = COMMANDS[args.command][1]
+    claims = []
+    stdout = sys.stdout
+    sys.stdout = PrintableStream(stdout)  # names and columns from files may hold terminal escapes
     try:
-        check_outputs(
+        claims = check_outputs(
             inputs=[getattr(args, a, None) for a in paths.inputs],
             files=[getattr(args, a, None) for a in paths.files],
             folders=[getattr(args, a, None) for a in paths.folders],
@@ -91,12 +109,18 @@ def main(argv: list[str] | None = None) -> int:
         return command_module(args.command).run(args)
     except BrokenPipeError:
         # The reader went away (`robocal ... | head`): stop quietly, as Unix tools do.
-        sys.stdout = open(os.devnull, "w")
+        stdout = open(os.devnull, "w")  # noqa: SIM115 (stays open: the interpreter flushes stdout at exit)
         return 0
     except (RobocalError, OSError) as exc:
         if args.debug:
             raise
         if isinstance(exc, OSError):  # a file error no reader turned into a RobocalError
             exc = f"{exc.filename}: {exc.strerror or exc}" if exc.filename else (exc.strerror or str(exc))
-        print("robocal: error: " + " ".join(str(exc).split()), file=sys.stderr)  # one line, whatever the message holds
+        # one line, whatever the message holds (a name from a file may hold terminal escapes)
+        print("robocal: error: " + printable(" ".join(str(exc).split()), one_line=True), file=sys.stderr)
         return 2
+    finally:
+        for claim in claims:
+            claim.release()
+        if isinstance(sys.stdout, PrintableStream):  # a command may have replaced it
+            sys.stdout = stdout

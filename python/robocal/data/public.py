@@ -33,7 +33,7 @@ from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
-from .table import check_header, numeric_columns, read_text, require_columns, shown, split_delimited, text_column
+from .table import check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -57,10 +57,9 @@ _FIRST_LINE = re.compile("[^\n\r\x0b\x0c\x1c-\x1e\x85\u2028\u2029]*")
 def _open_workbook(path: Path):
     import openpyxl
 
+    content = read_data(path)
     try:  # from bytes: openpyxl would judge a path by its extension, we judge by content
-        return openpyxl.load_workbook(io.BytesIO(path.read_bytes()), read_only=True, data_only=True)
-    except OSError as exc:
-        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+        return openpyxl.load_workbook(io.BytesIO(content), read_only=True, data_only=True)
     except Exception as exc:  # openpyxl raises many types (zipfile, KeyError, XML errors) on corrupt files
         raise DataError(f"not a readable .xlsx workbook ({type(exc).__name__}: {exc})", path) from None
 
@@ -141,11 +140,11 @@ def _read_table(path, sheet: Optional[str] = None, delimiter: str = ","):
 
 
 def _signature(path: Path) -> bytes:
-    try:
-        with path.open("rb") as f:
+    with open_data(path) as f:
+        try:
             return f.read(4)
-    except OSError as exc:
-        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+        except OSError as exc:
+            raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
 
 
 def _check_joint_columns(header, n: int, robot: str, path) -> None:
