@@ -30,7 +30,7 @@ import numpy as np
 
 from ._robocal import __version__
 from .calibration.metrics import sample_errors
-from .calibration.problem import is_kinematic, start_parameters
+from .calibration.problem import implausible_parameters, is_kinematic, start_parameters
 from .calibration.result import describe_implausible, implausible_meaning
 from .data.dataset import Dataset
 from .diagnosis import structure
@@ -464,8 +464,36 @@ def _data_row(data: _Data) -> str:
     return f"{where}, {len(data.dataset)} samples; {same}"
 
 
-def _metrics(doc: dict) -> str:
+def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Dataset]) -> tuple[dict, str]:
+    """The result's training and held-out metrics, recomputed from its parameter values where the
+    data it was calibrated on are at hand, and a note saying whether they could be checked: a
+    hand-edited file must not show the metrics of other values."""
     m = doc.get("metrics") or {}
+    if ev is None or ev.held_out is None:
+        return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)"
+    if doc.get("causes") or doc.get("structure") or doc.get("method") == "rbf":
+        return m, "copied from the result file: its causes, reading conventions or network are not held in it, so its values alone do not reproduce them"
+    used = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_used") or [], dtype=np.int64))
+    recomputed = {"train": used, "test": ev.held_out}
+    out, differ = dict(m), []
+    for key, mask in recomputed.items():
+        if not mask.any() or not isinstance(m.get(key), dict):
+            continue
+        e = ev.after[mask]
+        mine = {"rmse": _rms(e), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(mask.sum())}
+        if not all(isinstance(m[key].get(k), (int, float)) and np.isclose(m[key][k], v, rtol=1e-6, atol=1e-9) for k, v in mine.items()):
+            said = m[key].get("rmse")
+            differ.append(
+                f"{key} RMSE {mine['rmse']:.4g} mm, the file says {said:.4g}" if isinstance(said, (int, float)) else f"{key} RMSE {mine['rmse']:.4g} mm"
+            )
+        out[key] = {**m[key], **mine}
+    if differ:
+        return out, ("recomputed from the parameter values on the data: the result file's metrics do not match its values (" + "; ".join(differ)
+                     + "): the file was edited or is corrupt")  # fmt: skip
+    return out, "recomputed from the parameter values on the data: they match the result file"
+
+
+def _metrics(doc: dict, m: dict, note: str) -> str:
     rows = []
     for key, label in (("train", "training"), ("test", "held out")):
         v = m.get(key)
@@ -474,19 +502,33 @@ def _metrics(doc: dict) -> str:
         else:
             rows.append([_esc(label), _fixed(v.get("rmse"), 4), _fixed(v.get("mae"), 4), _fixed(v.get("max"), 4), _esc(v.get("n", "–"))])
     per = "|cable residual|" if doc.get("measurement") == "cable" else "Euclidean position error"
+    warn = "warn" if "do not match" in note else "small"
     return (_table(["samples", "RMSE (mm)", "MAE (mm)", "max (mm)", "n"], rows, numeric={1, 2, 3, 4})
+            + f'<p class="{warn}">Metrics {_esc(note)}.</p>'
             + f'<p class="small">Per-sample error: {_esc(per)}; eq. (28) of the paper (its "STD" is the MAE).</p>')  # fmt: skip
 
 
-def _implausible(doc: dict) -> str:
-    flags = doc.get("implausible") or []
+def checked_implausible(robot: Robot, doc: dict) -> tuple[list[dict], str]:
+    """The kinematic parameters beyond 10 mm / 2 deg from nominal, recomputed from the result's
+    parameter values (as the table shows them), and a note when the file's own list differs."""
+    values = {p["name"]: p["value"] for p in doc["parameters"]}
+    flags = implausible_parameters(nominal_robot(robot, doc), values)
+    listed, found = sorted(f["name"] for f in doc.get("implausible") or []), sorted(f["name"] for f in flags)
+    if listed == found:
+        return flags, ""
+    return flags, (f"the result file lists {listed or 'none'} as implausible, but its parameter values put {found or 'none'} beyond the limits: "
+                   "the file was edited or is corrupt; the list is recomputed from the values")  # fmt: skip
+
+
+def _implausible(flags: list[dict], note: str) -> str:
+    note = f'<p class="warn">{_esc(note[0].upper() + note[1:])}.</p>' if note else ""
     if not flags:
-        return '<p class="note">No kinematic parameter moved beyond 10 mm / 2 deg from nominal.</p>'
+        return note + '<p class="note">No kinematic parameter moved beyond 10 mm / 2 deg from nominal.</p>'
     items = []
     for f in sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"]):
         unit, factor = _SHOWN.get(f["unit"], (f["unit"], 1.0))
         items.append(f"<li><code>{_esc(f['name'])}</code>: {f['deviation'] * factor:+.4g} {_esc(unit)} (limit ±{f['limit'] * factor:.3g} {_esc(unit)})</li>")
-    return (f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
+    return note + (f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
             "the data do not determine them (the fit bends weakly determined directions to absorb other errors); "
             f"a kinematic prior (<code>--kinematic-prior</code>) or more varied poses are needed.<ul>{''.join(items)}</ul></div>")  # fmt: skip
 
@@ -499,8 +541,8 @@ def _fixed_params(doc: dict) -> str:
     return _table(["parameter", "why it was not estimated"], rows)
 
 
-def _parameters(doc: dict) -> str:
-    flagged = {f["name"] for f in doc.get("implausible") or []}
+def _parameters(doc: dict, flags: list[dict]) -> str:
+    flagged = {f["name"] for f in flags}
     fixed = doc.get("fixed") or {}
     rows, classes = [], []
     for p in doc["parameters"]:
@@ -686,6 +728,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         An explicitly given ``data`` file cannot be read.
     """
     robot, doc = load_result(result)
+    implausible = checked_implausible(robot, doc)
     diag = _load_diagnosis(diagnosis)
     d = _load_data(doc, data, angle_unit)
     out = make_folder(out)
@@ -765,9 +808,9 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 <h1>{_esc(title)}</h1>
 {_header(doc, d)}
 <h2>Accuracy</h2>
-{_metrics(doc)}
+{_metrics(doc, *checked_metrics(doc, ev, d.dataset))}
 <h2>Plausibility</h2>
-{_implausible(doc)}
+{_implausible(*implausible)}
 <h2>Figures</h2>
 {note_html}
 {"".join(figures)}
@@ -776,7 +819,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 <h2>Parameters not estimated</h2>
 {_fixed_params(doc)}
 <h2>Parameters</h2>
-{_parameters(doc)}
+{_parameters(doc, implausible[0])}
 </body>
 </html>
 """
