@@ -36,7 +36,7 @@ import numpy as np
 from .core import as_float_array, solve_damped
 from .diagnosis import structure
 from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
-from .data.table import numeric_columns, read_text, require_columns, split_delimited
+from .data.table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
@@ -71,10 +71,19 @@ def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targe
     deg by default; seed joints implausible for the default unit are refused]."""
     header, body = split_delimited(read_text(path), ",", path)
     require_columns(header, ["x", "y", "z"], path, "a targets file")
-    pose = all(c in header for c in ("qw", "qx", "qy", "qz"))
-    columns = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
+    quaternion, joints = ["qw", "qx", "qy", "qz"], [f"q{j}" for j in range(1, n_joints + 1)]
+    expected = f"a targets file holds x,y,z, optionally qw,qx,qy,qz (pose targets) and q1..q{n_joints} (seed joints, {angle_unit or 'deg'})"
+    unknown = [h for h in header if h not in ["x", "y", "z", *quaternion, *joints]]
+    if unknown:  # a misnamed column would otherwise be solved without
+        raise DataError(f"unknown columns {[h[:40] for h in unknown[:8]]}: {expected}", path, 1)
+    present = [c for c in quaternion if c in header]
+    if 0 < len(present) < 4:
+        raise DataError(f"only {present} of the quaternion columns: pose targets need all of qw,qx,qy,qz, position targets none; {expected}", path, 1)
+    pose = len(present) == 4
+    columns = ["x", "y", "z"] + (quaternion if pose else [])
     values, rows, _ = numeric_columns(header, body, columns, path)
-    joints = [f"q{j}" for j in range(1, n_joints + 1)]
+    if pose:
+        check_unit_quaternions(values[:, 3:], rows, path)
     seeds = None
     if any(j in header for j in joints):
         require_columns(header, joints, path, "seed joints")

@@ -17,6 +17,9 @@ from .exceptions import InvalidParameterError
 #: Largest magnitude of a kinematic input (mm, rad): beyond ±1e12 the core's squares overflow.
 #: The core refuses such inputs by index; readers check first, to name the cell or parameter.
 MAX_ABS = 1e12
+#: How far from 1 the norm of an observed quaternion may be: the core refuses a pose beyond it
+#: (by sample index); readers check first, to name the file and row.
+QUATERNION_NORM_TOL = 1e-3
 
 
 def _real_array(value, name: str) -> np.ndarray:

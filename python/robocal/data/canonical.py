@@ -17,7 +17,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset
-from .table import numeric_columns, read_text, require_columns, split_delimited
+from .table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
 
 NUMERIC_OPTIONAL = ("t", "temp")
 
@@ -76,6 +76,8 @@ def canonical_dataset(header, body, path, angle_unit: str, measurement: Optional
     ignored = [h for h in header if h not in known]
     values, rows, excluded = numeric_columns(header, body, wanted, path, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
     n = len(joints)
+    if measurement == "pose":
+        check_unit_quaternions(values[:, n + 3 : n + 7], rows, path)
     q = values[:, :n]
     if angle_unit == "deg":
         q = np.radians(q)

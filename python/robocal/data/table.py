@@ -32,7 +32,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from ..core import MAX_ABS
+from ..core import MAX_ABS, QUATERNION_NORM_TOL
 from ..exceptions import DataError
 from ..outputs import file_kind
 
@@ -509,3 +509,14 @@ def numeric_columns(
     if not rows:
         raise DataError("no valid data rows" + (f" ({len(excluded)} rows with bad cells excluded)" if excluded else ""), path, 2)
     return np.array(values, dtype=np.float64), np.array(rows, dtype=np.int64), excluded
+
+
+def check_unit_quaternions(quaternions: np.ndarray, rows: np.ndarray, path) -> None:
+    """A :class:`DataError` naming ``path`` and the first row whose quaternion ``qw, qx, qy, qz``
+    (one per row of ``quaternions``, shape (m, 4)) is not of unit norm within the core's tolerance."""
+    norms = np.linalg.norm(quaternions, axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_NORM_TOL)
+    if bad.size:
+        k = bad[0]
+        raise DataError(f"the quaternion (qw,qx,qy,qz) = {tuple(float(v) for v in quaternions[k])} must have unit norm (within {QUATERNION_NORM_TOL:g}); "
+                        f"got norm {norms[k]:.6g}" + (f" ({bad.size} rows like it)" if bad.size > 1 else ""), path, int(rows[k]))  # fmt: skip
