@@ -39,7 +39,7 @@ from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
 from .data.dataset import Dataset
-from .data.splits import chronological, kfold, paper_split, random_split
+from .data.splits import chronological, configuration_groups, kfold, paper_split, random_split
 from .core import seeded_rng
 from .exceptions import InvalidParameterError
 from .outputs import make_folder, save_figure, write_json, write_text
@@ -84,17 +84,19 @@ def make_splits(dataset: Dataset, protocol: str, repeats: int, seed: int) -> lis
     ``paper``: :func:`~robocal.data.paper_split` (120 random samples → 100 / 20) with seeds
     ``seed, seed + 1, ...``; ``80-20``: :func:`~robocal.data.random_split` likewise; ``kfold``:
     ``repeats`` folds of one permutation (:func:`~robocal.data.kfold`); ``chronological``: one
-    split, the last 20 % of the acquisition order held out (``repeats`` does not apply).
+    split, the last 20 % of the acquisition order held out (``repeats`` does not apply). Every
+    protocol keeps each joint configuration on one side (:func:`~robocal.data.configuration_groups`).
     """
     m = len(dataset)
+    groups = configuration_groups(dataset.q)  # a repeated configuration is never on both sides
     if protocol == "paper":
-        return [paper_split(m, seed=seed + k) for k in range(repeats)]
+        return [paper_split(m, seed=seed + k, groups=groups) for k in range(repeats)]
     if protocol == "80-20":
-        return [random_split(m, test_fraction=0.2, seed=seed + k) for k in range(repeats)]
+        return [random_split(m, test_fraction=0.2, seed=seed + k, groups=groups) for k in range(repeats)]
     if protocol == "kfold":
-        return kfold(m, k=repeats, seed=seed)
+        return kfold(m, k=repeats, seed=seed, groups=groups)
     if protocol == "chronological":
-        return [chronological(m, test_fraction=0.2, t=dataset.t)]
+        return [chronological(m, test_fraction=0.2, t=dataset.t, groups=groups)]
     raise InvalidParameterError(f"unknown protocol {protocol!r}; choose one of {PROTOCOLS}")
 
 

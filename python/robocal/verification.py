@@ -28,7 +28,7 @@ from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
 from .diagnosis import structure
 from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report, result_maps
-from .results import load_result
+from .results import file_sha256, load_result
 from .robot import Robot, setup_names
 
 SCHEMA = "robocal.verify/1"
@@ -51,11 +51,24 @@ def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[st
     set-up found and the names fitted."""
     names = setup_names(robot, data.measurement)
     problem = Problem.build(robot, data, mask=names)
+    problem.require_dof("re-fitting the session set-up", "more samples: a figure with none would be 0 whatever the calibration")
     # The closed-form start also moves a cable's tool point: the calibrated one is kept.
     held = [robot.index(n) for n in ("tool_x", "tool_y", "tool_z") if n not in names]
     problem.start[held] = robot.params[held]
     fit = levenberg_marquardt(problem)
     return problem.data_residuals(fit.x).reshape(len(data), -1), dict(zip(problem.names, map(float, fit.x))), problem.names
+
+
+def _seen_by_fit(doc: dict, dataset: Dataset) -> list[str]:
+    """Notes when ``dataset`` is the file ``doc`` was calibrated on (its SHA-256 recorded in the
+    result): its figures are then no test on new samples."""
+    recorded = (doc.get("dataset") or {}).get("sha256")
+    if not recorded or not dataset.source or file_sha256(dataset.source) != recorded:
+        return []
+    used = len((doc.get("dataset") or {}).get("rows_used") or [])
+    note = (f"these are not new samples: {dataset.source} is the file the result was calibrated on (same SHA-256); "
+            f"{used} of its rows trained the fit, so these figures are no held-out error")  # fmt: skip
+    return [note]
 
 
 def verify(
@@ -80,6 +93,7 @@ def verify(
     Returns
     -------
     dict
+        ``held_out`` (False when ``data`` is the calibration's own file) and ``notes`` (why),
         ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``metrics_covered``
         (the same over the samples every joint map covers; None if none is), ``refit`` (the set-up
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
@@ -102,6 +116,8 @@ def verify(
     nominal_residuals, _, _ = _refit_setup(nominal, read)
     covered = map_coverage_mask(result_maps(carried), read.q)
     return {
+        "held_out": not (notes := _seen_by_fit(doc, dataset)),
+        "notes": notes,
         "schema": SCHEMA,
         "robot": calibrated.name,
         "measurement": dataset.measurement,

@@ -9,11 +9,12 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
+from ..catalog import BUILTIN
 from ..core import as_float
 from ..data.dataset import Dataset
 from ..data.public import load
-from ..data.splits import random_split
-from ..exceptions import InvalidParameterError
+from ..data.splits import configuration_groups, random_split
+from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
@@ -54,6 +55,7 @@ def load_inputs(
     dataset : Dataset
     robot : Robot
     """
+    named = getattr(data, "attrs", {}).get("robot") if not isinstance(data, (str, Path, Dataset)) else None  # a DataFrame's own
     dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, angle_unit=angle_unit, robot=robot if isinstance(robot, str) else None)
     if measurement is not None and dataset.measurement != measurement:
         raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
@@ -61,7 +63,23 @@ def load_inputs(
         if dataset.robot is None:
             raise InvalidParameterError("the data do not name their robot: pass `robot`")
         robot = dataset.robot
-    return dataset, robot if isinstance(robot, Robot) else load_robot(robot)
+    model = robot if isinstance(robot, Robot) else load_robot(robot)
+    if named is None and not isinstance(robot, str):  # a string was checked against the file by `load`
+        named = dataset.robot
+    _check_named_robot(dataset, named, model)
+    return dataset, model
+
+
+def _check_named_robot(dataset: Dataset, named, model: Robot) -> None:
+    """An error when the data name a built-in robot and ``model`` is another built-in one (UR10
+    data fit an HSR's geometry to 0.04 mm with absurd parameters); a note on ``dataset`` when
+    ``model`` is a robot of the user's own under another name."""
+    if not isinstance(named, str) or named not in BUILTIN or named == model.name:
+        return
+    where = f" ({dataset.source})" if dataset.source else ""
+    if model.name in BUILTIN:
+        raise InvalidParameterError(f"the data{where} are of robot {named!r}; the robot given is {model.name!r}: pass the robot the data were measured on")
+    dataset.notes.append(f"the data name robot {named!r}; used as asked: robot {model.name!r}")
 
 
 def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
@@ -122,12 +140,24 @@ def check_test_fraction(test_fraction) -> float:
 
 def held_out_problem(robot: Robot, dataset: Dataset, test_fraction: float, seed: int, **build) -> tuple[Problem, np.ndarray, Optional[np.ndarray]]:
     """The :class:`Problem` on the training samples of a seeded random split (``Problem.build``
-    options in ``build``), the training and the held-out indices (None when ``test_fraction`` is 0)."""
+    options in ``build``), the training and the held-out indices (None when ``test_fraction`` is 0).
+
+    The split keeps every joint configuration whole (:func:`~robocal.data.splits.configuration_groups`):
+    a repeated row on both sides would make the held-out error a training error."""
     train_idx, test_idx = np.arange(len(dataset)), None
     if test_fraction > 0:
-        train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed)
-    problem = Problem.build(robot, dataset.subset(train_idx) if test_idx is not None else dataset, **build)
-    problem.require_dof()
+        train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=configuration_groups(dataset.q))
+    try:
+        problem = Problem.build(robot, dataset.subset(train_idx) if test_idx is not None else dataset, **build)
+        problem.require_dof()
+    except (DataError, InvalidParameterError) as exc:
+        if test_idx is None or "too few" not in str(exc) and "degrees of freedom" not in str(exc):
+            raise
+        # The user counts the file's samples: say where the others went.
+        held = f"; these are the training samples: {len(test_idx)} of the {len(dataset)} are held out (`test_fraction`)"
+        if isinstance(exc, DataError):
+            raise DataError(exc.message + held, exc.path, exc.row, exc.column) from None
+        raise InvalidParameterError(str(exc) + held) from None
     return problem, train_idx, test_idx
 
 

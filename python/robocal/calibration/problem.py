@@ -16,7 +16,8 @@ import numpy as np
 
 from ..core import as_float_array, cable_initial_guess, identifiability, solve_damped
 from ..data.dataset import Dataset
-from ..exceptions import InvalidParameterError, NonFiniteError
+from ..data.splits import configuration_groups
+from ..exceptions import DataError, InvalidParameterError, NonFiniteError
 from ..geometry import frame_params, kabsch
 from ..robot import RESIDUAL_WIDTH, Robot
 from ..sensors import DEFAULT_NOISE
@@ -33,6 +34,23 @@ PLAUSIBLE = {"mm": 10.0, "rad": np.radians(2.0)}
 #: Standard deviations of the manufacturing-tolerance prior of a physical model (mm, rad): what
 #: the geometry of an industrial arm deviates from its drawing, as a Gaussian at nominal.
 TOLERANCE = {"mm": 1.0, "rad": np.radians(0.1)}
+#: Sigmas a ``kinematic_prior`` may take (mm, deg): below, the prior rows' weights overflow the
+#: kernels' squares; above, it constrains nothing.
+KINEMATIC_PRIOR_RANGE = {"mm": (1e-6, 1e6), "deg": (1e-6, 360.0)}
+#: Distinct joint configurations the closed-form start of each measurement needs: a cable's
+#: anchor and zero (4 unknowns, the differences of squared lengths), a tracker's frame (Kabsch).
+MIN_CONFIGURATIONS = {"cable": 5, "position": 3, "pose": 3}
+#: The measured points' spread against the robot's tool points' at the same joint values
+#: (median distance from the median point; for cables, the lengths' spread) beyond which the
+#: observations are in another unit than mm: a rigid frame keeps distances (ratio about 1), a
+#: cable's length varies by a fraction of the points' spread (0.3–0.5 on the public data).
+SCALE_RATIO = {"cable": (0.02, 20.0), "position": (0.1, 10.0), "pose": (0.1, 10.0)}
+#: A sample whose observation lies further from the median than this many times the largest
+#: distance between the robot's tool points cannot be a reading of that robot: no rigid frame or
+#: cable makes two readings differ by more than their points do.
+IMPOSSIBLE_SPREAD = 10.0
+#: Unit factors (measured / mm) that name a likely unit in the messages.
+LIKELY_UNITS = {"metres": 1e-3, "centimetres": 1e-1, "inches": 1 / 25.4, "micrometres": 1e3}
 
 
 def is_kinematic(name: str) -> bool:
@@ -90,6 +108,57 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
         if np.max(np.abs(step)) < 1e-9:
             break
     return p
+
+
+def _spread(points: np.ndarray) -> np.ndarray:
+    """Distances of ``points`` (m, k) from their median point."""
+    return np.linalg.norm(points - np.median(points, axis=0), axis=1)
+
+
+def check_observations(robot: Robot, data: Dataset) -> None:
+    """An error naming the likely cause when ``data``'s observations cannot be readings of
+    ``robot`` at its joint values: too few distinct configurations to place the sensor
+    (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
+    the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
+    than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row."""
+    kind, where = data.measurement, data.source
+    distinct = int(configuration_groups(data.q).max(initial=-1)) + 1
+    if distinct < MIN_CONFIGURATIONS[kind]:
+        repeated = f" ({distinct} distinct joint configurations)" if distinct < len(data) else ""
+        sensor = "the cable sensor's anchor and zero" if kind == "cable" else "the tracker's frame"
+        raise DataError(f"{len(data)} {kind} samples{repeated} are too few: placing {sensor} needs at least "
+                        f"{MIN_CONFIGURATIONS[kind]} distinct joint configurations", where)  # fmt: skip
+    points = robot.fkine(data.q, tool=True)[:, :3, 3]
+    robot_spread = _spread(points)
+    observed = data.y[:, :1] if kind == "cable" else data.y[:, :3]
+    observed_spread = _spread(observed)
+    typical = float(np.median(robot_spread))
+    if typical < 1.0:  # the joints barely move: nothing to compare with
+        return
+    ratio = float(np.median(observed_spread)) / typical
+    low, high = SCALE_RATIO[kind]
+    if not low <= ratio <= high:
+        unit = min(LIKELY_UNITS, key=lambda u: abs(np.log(ratio / LIKELY_UNITS[u])))
+        guess = f"{unit}?" if abs(np.log(ratio / LIKELY_UNITS[unit])) < np.log(3) else "another unit or another robot?"
+        what = "cable lengths" if kind == "cable" else "measured positions"
+        raise DataError(
+            f"the {what} vary by {np.median(observed_spread):.4g} mm around their median, the tool points of {robot.name} at these "
+            f"joint values by {typical:.4g} mm: {max(ratio, 1 / ratio):.3g}x {'smaller' if ratio < 1 else 'larger'} — {guess} "
+            "robocal reads observations in mm",
+            where,
+        )
+    bound = IMPOSSIBLE_SPREAD * 2.0 * float(robot_spread.max())
+    wild = np.flatnonzero(observed_spread > bound)
+    if wild.size:
+        rows = ", ".join(str(r) for r in data.rows[wild[:5]]) + (", ..." if wild.size > 5 else "")
+        shown = ", ".join(f"{v:.4g}" for v in observed[wild[0]])
+        raise DataError(
+            f"{wild.size} reading(s) lie more than {bound:.4g} mm from the others' median (row(s) {rows}; the first reads {shown} mm), "
+            f"while {robot.name}'s tool points at these joint values are at most {2 * robot_spread.max():.4g} mm apart: a wrong value "
+            "— correct or remove the row(s)",
+            where,
+            int(data.rows[wild[0]]),
+        )
 
 
 def _pairs(value, what: str) -> Mapping:
@@ -220,6 +289,7 @@ class Problem:
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
+        check_observations(robot, data)
         start = start_parameters(robot, data, params)
         J = robot.jacobian(data.measurement, data.q, y=data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
@@ -236,8 +306,12 @@ class Problem:
                 length, angle = (float(v) for v in kinematic_prior)
             except (TypeError, ValueError):
                 raise InvalidParameterError(f"`kinematic_prior` must be (mm, deg); got {kinematic_prior!r}") from None
-            if not (length > 0 and angle > 0 and np.isfinite(length) and np.isfinite(angle)):
-                raise InvalidParameterError(f"`kinematic_prior` needs finite sigmas > 0; got ({length}, {angle})")
+            (mm_low, mm_high), (deg_low, deg_high) = KINEMATIC_PRIOR_RANGE["mm"], KINEMATIC_PRIOR_RANGE["deg"]
+            if not (mm_low <= length <= mm_high and deg_low <= angle <= deg_high):
+                raise InvalidParameterError(
+                    f"`kinematic_prior` must be (mm, deg) sigmas in [{mm_low:g}, {mm_high:g}] mm and [{deg_low:g}, {deg_high:g}] deg; "
+                    f"got ({length:g}, {angle:g})"
+                )
             start_of = dict(zip(robot.param_names, start))
             prior = {**kinematic_prior_pairs(robot, [robot.param_names[k] for k in free], start_of, {"mm": length, "rad": np.radians(angle)}), **prior}
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
@@ -245,16 +319,19 @@ class Problem:
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
         return problem
 
-    def require_dof(self) -> None:
+    def require_dof(self, purpose: str = "a calibration", remedy: str = "more samples, or a kinematic prior") -> None:
         """An error with the counts when the residuals do not outnumber the estimated parameters
         and no prior regularises them: any data are then fitted exactly (RMSE 0), nothing is
-        learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)"""
-        residuals = len(self.data) * RESIDUAL_WIDTH[self.data.measurement]
+        learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)
+        ``purpose`` and ``remedy`` word the message (``verify`` re-fits a set-up, not a robot)."""
+        # A repeated configuration averages the noise but adds no geometry: it counts once.
+        distinct = int(configuration_groups(self.data.q).max(initial=-1)) + 1
+        residuals = distinct * RESIDUAL_WIDTH[self.data.measurement]
         if residuals <= len(self.free) and not self.prior:
+            repeated = f" ({distinct} distinct joint configurations)" if distinct < len(self.data) else ""
             raise InvalidParameterError(
-                f"{len(self.data)} {self.data.measurement} samples give {residuals} residuals for {len(self.free)} identifiable "
-                f"parameters: {residuals - len(self.free)} degrees of freedom; a calibration needs more residuals than parameters "
-                "(more samples, or a kinematic prior)"
+                f"{len(self.data)} {self.data.measurement} samples{repeated} give {residuals} residuals for {len(self.free)} identifiable "
+                f"parameters: {residuals - len(self.free)} degrees of freedom; {purpose} needs more residuals than parameters ({remedy})"
             )
 
     def _checked_pairs(self, pairs: dict, what: str, form: str, valid) -> dict:

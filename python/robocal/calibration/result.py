@@ -28,12 +28,22 @@ def implausible_meaning(tolerance_prior) -> str:
     return CONTRADICTED if tolerance_prior and not tolerance_prior.get("accepted") else UNDETERMINED
 
 
+#: Deviations beyond this many times :data:`PLAUSIBLE` (100 mm, 20 deg) are no error of an arm's
+#: manufacture or an undetermined direction alone: the geometry is another robot's.
+GROSS_FACTOR = 10.0
+#: ... what they most likely mean.
+GROSS = ("far beyond any manufacturing error: the data are probably of another robot than the one given (check `--robot`), "
+         "or their joint or length unit is not the one read (deg, mm)")  # fmt: skip
+
+
 def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDETERMINED) -> str:
     """One line on :meth:`CalibrationResult.implausible` flags: how many, the worst ones and
-    ``meaning``."""
+    ``meaning`` — preceded by :data:`GROSS` when the worst is beyond :data:`GROSS_FACTOR` limits."""
     worst = sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"])[:shown]
     parts = [f"{f['name']} {f['deviation'] if f['unit'] == 'mm' else np.degrees(f['deviation']):+.4g} {'mm' if f['unit'] == 'mm' else 'deg'}" for f in worst]
     more = ", ..." if len(flags) > shown else ""
+    if worst and abs(worst[0]["deviation"]) > GROSS_FACTOR * worst[0]["limit"]:
+        meaning = f"{GROSS}; if neither, {meaning}"
     return f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): {meaning}"
 
 

@@ -15,11 +15,12 @@ def summary(report: dict) -> str:
     m, n = report["metrics"], report["nominal"]["metrics"]
     applied = report["applied"]["structure"] + report["applied"]["causes"]
     lines = [
-        f"{report['robot']} on {report['samples']} new {report['measurement']} samples ({report['data'] or 'data'}), "
+        f"{report['robot']} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples ({report['data'] or 'data'}), "
         f"session set-up re-fitted ({', '.join(report['refit'])}):",
         f"  calibrated: RMSE {m['rmse']:.4f}  MAE {m['mae']:.4f}  MAX {m['max']:.4f} mm",
         f"  nominal:    RMSE {n['rmse']:.4f}  MAE {n['mae']:.4f}  MAX {n['max']:.4f} mm",
     ]
+    lines += [f"  note: {note}" for note in report.get("notes", [])]
     if applied:
         lines.append("  applied: " + "; ".join(applied))
     for item in report["not_applied"]:

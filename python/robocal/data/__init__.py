@@ -6,13 +6,14 @@ from .canonical import read_canonical, write_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset
 from .frame import read_frame
 from .public import FORMATS, detect_format, load, read_hsr, read_ipa, read_robotcali
-from .splits import chronological, kfold, paper_split, random_split
+from .splits import chronological, configuration_groups, kfold, paper_split, random_split
 
 __all__ = [
     "FORMATS",
     "OBSERVATION_COLUMNS",
     "Dataset",
     "chronological",
+    "configuration_groups",
     "detect_format",
     "kfold",
     "load",

@@ -3,24 +3,92 @@
 Every function takes the number of samples ``m`` and returns positions ``0..m-1`` (use
 :meth:`Dataset.subset <robocal.data.Dataset.subset>` to cut the dataset). Random splits are
 deterministic per ``seed`` (:func:`numpy.random.default_rng`); indices come back sorted.
+
+A held-out figure is honest only if the fit saw none of the held-out configurations: samples
+of one joint configuration (a repeated row, a revisit) carry the same geometric information,
+so every split takes ``groups`` (:func:`configuration_groups`) and keeps each group on one side.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 from typing import Optional
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from ..core import as_count, seeded_rng
 from ..exceptions import InvalidParameterError
 
+#: Joint readings within this of each other on every joint (rad, 0.06°; mm for a prismatic
+#: joint) are one configuration: far below the scale on which any modelled error varies, so a
+#: second visit adds noise averaging, not geometry.
+CONFIGURATION_TOLERANCE = 1e-3
 
-def _check_m(m: int, least: int, split: str) -> int:
-    """``m`` if it is a sample count of at least ``least``, else an error saying what ``split``
+
+def configuration_groups(q, tol: float = CONFIGURATION_TOLERANCE) -> np.ndarray:
+    """One label per sample: samples whose joint values agree within ``tol`` on every joint
+    (chained: a within tol of b, b of c) share a label.
+
+    Parameters
+    ----------
+    q : array_like, shape (m, N)
+        Joint values (rad; mm for prismatic joints).
+    tol : float
+        Largest difference on any joint (Chebyshev distance) of two visits of one configuration.
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+        Labels ``0..g-1`` numbered in order of first appearance: for distinct configurations,
+        ``arange(m)`` (so a grouped split equals the ungrouped one).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or not np.all(np.isfinite(q)):
+        raise InvalidParameterError(f"`q` must be finite joint values of shape (m, N); got shape {q.shape}")
+    if not (np.isfinite(tol) and tol >= 0):
+        raise InvalidParameterError(f"`tol` must be finite and >= 0; got {tol!r}")
+    m = len(q)
+    if m == 0:
+        return np.zeros(0, dtype=np.int64)
+    pairs = cKDTree(q).query_pairs(tol, p=np.inf, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(m)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    _, component = connected_components(graph, directed=False)
+    _, first, inverse = np.unique(component, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inverse.ravel()]
+
+
+def _labels(m: int, groups) -> tuple[np.ndarray, int]:
+    """Dense group labels (first appearance order) of ``m`` samples and their count."""
+    if groups is None:
+        return np.arange(m), m
+    groups = np.asarray(groups)
+    if groups.shape != (m,):
+        raise InvalidParameterError(f"`groups` must hold one label per sample, shape ({m},); got shape {groups.shape}")
+    _, first, inverse = np.unique(groups, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inverse.ravel()], len(first)
+
+
+def _members(labels: np.ndarray, chosen) -> np.ndarray:
+    """Sorted positions of the samples whose group is among ``chosen``."""
+    return np.flatnonzero(np.isin(labels, np.asarray(chosen, dtype=np.int64)))
+
+
+def _check_m(m: int, least: int, split: str, groups: int) -> int:
+    """``m`` if the samples form at least ``least`` groups, else an error saying what ``split``
     needs (the user sees a sample count, not an argument name)."""
-    m = as_count(m, "m", 0)
-    if m < least:
-        raise InvalidParameterError(f"{split} needs at least {least} samples; the data have {m}")
+    if groups < least:
+        distinct = f" ({groups} distinct joint configurations)" if groups < m else ""
+        raise InvalidParameterError(f"{split} needs at least {least} samples; the data have {m}{distinct}")
     return m
 
 
@@ -30,46 +98,58 @@ def _test_count(m: int, test_fraction: float) -> int:
     return min(max(1, round(m * test_fraction)), m - 1)
 
 
-def paper_split(m: int, seed: int = 0, n_train: int = 100, n_test: int = 20) -> tuple[np.ndarray, np.ndarray]:
+def paper_split(m: int, seed: int = 0, n_train: int = 100, n_test: int = 20, *, groups=None) -> tuple[np.ndarray, np.ndarray]:
     """The paper's protocol: a random subset of ``n_train + n_test`` (120) samples, split into
     ``n_train`` (100) for calibration and ``n_test`` (20) for validation.
+
+    With ``groups`` (:func:`configuration_groups`), the counts are of groups and every sample
+    of a chosen group goes with it.
 
     Returns
     -------
     train, test : ndarray of int
         Disjoint, sorted.
     """
-    m = _check_m(m, n_train + n_test, f"the paper's split ({n_train} training + {n_test} test samples)")
+    m = as_count(m, "m", 0)
+    labels, g = _labels(m, groups)
+    _check_m(m, n_train + n_test, f"the paper's split ({n_train} training + {n_test} test samples)", g)
     if n_train < 1 or n_test < 1:
         raise InvalidParameterError(f"`n_train` and `n_test` must be >= 1; got {n_train}, {n_test}")
-    pick = seeded_rng(seed).choice(m, size=n_train + n_test, replace=False)
-    return np.sort(pick[:n_train]), np.sort(pick[n_train:])
+    pick = seeded_rng(seed).choice(g, size=n_train + n_test, replace=False)
+    return _members(labels, pick[:n_train]), _members(labels, pick[n_train:])
 
 
-def random_split(m: int, test_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """A random ``1 - test_fraction`` / ``test_fraction`` split of all samples (each side >= 1)."""
-    m = _check_m(m, 2, "a random training / held-out split")
-    order = seeded_rng(seed).permutation(m)
-    n_test = _test_count(m, test_fraction)
-    return np.sort(order[n_test:]), np.sort(order[:n_test])
+def random_split(m: int, test_fraction: float = 0.2, seed: int = 0, *, groups=None) -> tuple[np.ndarray, np.ndarray]:
+    """A random ``1 - test_fraction`` / ``test_fraction`` split of all samples (each side >= 1);
+    with ``groups``, of the groups (each group whole on one side)."""
+    m = as_count(m, "m", 0)
+    labels, g = _labels(m, groups)
+    _check_m(m, 2, "a random training / held-out split", g)
+    order = seeded_rng(seed).permutation(g)
+    n_test = _test_count(g, test_fraction)
+    return _members(labels, order[n_test:]), _members(labels, order[:n_test])
 
 
-def kfold(m: int, k: int = 5, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``k`` folds of a random permutation: each sample is in exactly one test set.
+def kfold(m: int, k: int = 5, seed: int = 0, *, groups=None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``k`` folds of a random permutation: each sample is in exactly one test set; with
+    ``groups``, folds of the groups (each group whole in one fold).
 
     Returns
     -------
     list of (train, test)
-        Fold sizes differ by at most one.
+        Fold sizes (in groups) differ by at most one.
     """
-    m = _check_m(m, 2, "k-fold cross-validation")
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 2 <= k <= m:
-        raise InvalidParameterError(f"`k` must be an integer in [2, m={m}]; got {k!r}")
-    folds = np.array_split(seeded_rng(seed).permutation(m), k)
-    return [(np.sort(np.concatenate(folds[:i] + folds[i + 1 :])), np.sort(test)) for i, test in enumerate(folds)]
+    m = as_count(m, "m", 0)
+    labels, g = _labels(m, groups)
+    _check_m(m, 2, "k-fold cross-validation", g)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 2 <= k <= g:
+        what = f"m={m}" if g == m else f"the {g} distinct configurations"
+        raise InvalidParameterError(f"`k` must be an integer in [2, {what}]; got {k!r}")
+    folds = np.array_split(seeded_rng(seed).permutation(g), k)
+    return [(_members(labels, np.concatenate(folds[:i] + folds[i + 1 :])), _members(labels, test)) for i, test in enumerate(folds)]
 
 
-def chronological(m: int, test_fraction: float = 0.2, t: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+def chronological(m: int, test_fraction: float = 0.2, t: Optional[np.ndarray] = None, *, groups=None) -> tuple[np.ndarray, np.ndarray]:
     """Train on the earlier samples, test on the later ones (drift, temperature, wear).
 
     Parameters
@@ -78,13 +158,46 @@ def chronological(m: int, test_fraction: float = 0.2, t: Optional[np.ndarray] = 
     test_fraction : float
     t : array_like, shape (m,), optional
         Acquisition times; row order is the acquisition order without them.
+    groups : array_like of int, shape (m,), optional
+        A group is held out when its first visit is (a later revisit of a training
+        configuration trains).
     """
-    m = _check_m(m, 2, "a chronological split")
+    m = as_count(m, "m", 0)
+    labels, g = _labels(m, groups)
+    _check_m(m, 2, "a chronological split", g)
     order = np.arange(m)
     if t is not None:
         t = np.asarray(t, dtype=np.float64)
         if t.shape != (m,) or not np.all(np.isfinite(t)):
             raise InvalidParameterError(f"`t` must be {m} finite times; got shape {t.shape}")
         order = np.argsort(t, kind="stable")
-    n_test = _test_count(m, test_fraction)
-    return np.sort(order[: m - n_test]), np.sort(order[m - n_test :])
+    _, first = np.unique(labels[order], return_index=True)
+    group_order = labels[order][np.sort(first)]  # groups by their first visit in time
+    n_test = _test_count(g, test_fraction)
+    return _members(labels, group_order[: g - n_test]), _members(labels, group_order[g - n_test :])
+
+
+def require_distinct_sessions(datasets: list, what: str = "session") -> None:
+    """An error naming both when two of ``datasets`` are one file (the same path, a link to it)
+    or hold the same samples (equal joint values and observations, by SHA-256): a
+    leave-one-session-out figure would then test on the data the fit saw.
+
+    Parameters
+    ----------
+    datasets : list of Dataset
+    what : str
+        What one dataset is, for the message.
+    """
+    seen: dict = {}
+    for i, d in enumerate(datasets, start=1):
+        keys = [("the same file", os.path.realpath(d.source))] if d.source and os.path.exists(d.source) else []
+        content = np.ascontiguousarray(d.q).tobytes() + b"|" + np.ascontiguousarray(d.y).tobytes()
+        keys.append(("the same samples", hashlib.sha256(content).hexdigest()))
+        for how, key in keys:
+            if key in seen:
+                j, other = seen[key]
+                raise InvalidParameterError(
+                    f"{what}s {j} ({other.source or 'data'}) and {i} ({d.source or 'data'}) are {how}: a {what} held out would "
+                    f"be one the fit saw; give each {what} once"
+                )
+            seen[key] = (i, d)

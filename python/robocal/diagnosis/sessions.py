@@ -28,6 +28,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
 from ..data.dataset import Dataset
+from ..data.splits import require_distinct_sessions
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import Robot
@@ -320,6 +321,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     if not isinstance(data, (list, tuple)) or len(data) < 2:
         raise InvalidParameterError(f"a multi-session diagnosis needs a list of at least two sessions; got {data!r}")
     loaded = [load_inputs(d, robot, measurement, angle_unit) for d in data]
+    require_distinct_sessions([d for d, _ in loaded])  # one session twice: its held-out figure would be a training error
     rob, kind = loaded[0][1], loaded[0][0].measurement
     for i, (d, r) in enumerate(loaded[1:], start=2):
         if r.name != rob.name or d.measurement != kind:
