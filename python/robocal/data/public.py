@@ -19,6 +19,7 @@ it in ``Dataset.excluded``.
 
 from __future__ import annotations
 
+import csv
 import io
 import os
 import re
@@ -33,7 +34,7 @@ from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
-from .table import check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
+from .table import UncachedFormula, check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -54,12 +55,13 @@ _FIRST_LINE = re.compile("[^\n\r\x0b\x0c\x1c-\x1e\x85\u2028\u2029]*")
 
 
 # -- tables ------------------------------------------------------------------------------------
-def _open_workbook(path: Path):
+def _open_workbook(path: Path, data_only: bool = True):
+    """The workbook at ``path``: cell values as last computed (``data_only``) or as typed (formulas)."""
     import openpyxl
 
     content = read_data(path)
     try:  # from bytes: openpyxl would judge a path by its extension, we judge by content
-        return openpyxl.load_workbook(io.BytesIO(content), read_only=True, data_only=True)
+        return openpyxl.load_workbook(io.BytesIO(content), read_only=True, data_only=data_only)
     except Exception as exc:  # openpyxl raises many types (zipfile, KeyError, XML errors) on corrupt files
         raise DataError(f"not a readable .xlsx workbook ({type(exc).__name__}: {exc})", path) from None
 
@@ -110,7 +112,26 @@ def _read_xlsx(path: Path, sheet: Optional[str] = None):
     if not header:
         raise DataError(f"sheet {chosen!r} is empty (a header row is expected)", path, 1)
     check_header(header, path)
+    if any(c is None for _, cells in body for c in cells):
+        body = _mark_uncached_formulas(path, chosen, body)
     return header, body, notes
+
+
+def _mark_uncached_formulas(path: Path, sheet: str, body: list) -> list:
+    """``body`` with each empty cell that holds a formula as an :class:`UncachedFormula`: a
+    workbook written by a program that computes nothing (openpyxl, pandas) has formulas without
+    values, which are not empty cells and need another remedy."""
+    book = _open_workbook(path, data_only=False)
+    try:
+        typed = list(book[sheet].iter_rows(values_only=True))
+    finally:
+        book.close()
+    marked = []
+    for number, cells in body:
+        row = typed[number - 1] if number - 1 < len(typed) else ()
+        formulas = [v if isinstance(v, str) and v.startswith("=") else None for v in row]
+        marked.append((number, [UncachedFormula(formulas[k]) if c is None and k < len(formulas) and formulas[k] else c for k, c in enumerate(cells)]))
+    return marked
 
 
 def _ranges(numbers) -> str:
@@ -371,20 +392,23 @@ def detect_format(path) -> str:
     first = _FIRST_LINE.match(text).group() if text.strip() else ""
     if not first.strip():
         raise DataError("the file is empty (a header row is expected)", path, 1)
-    fields = {sep: [c.strip() for c in first.split(sep)] for sep in (";", ",")}
+    fields = {sep: [c.strip() for c in next(csv.reader([first], delimiter=sep), [])] for sep in (";", ",", "\t")}  # quoted names are valid CSV
     if "shoulder_pan_joint" in fields[";"] or "measurement_x" in fields[";"]:
         return "ipa"
     if fields[","] == ROBOTCALI_COLUMNS:
         return "robotcali"
     if any(re.fullmatch(r"q\d+", c) for c in fields[","]):
         return "canonical"
-    seps = max(fields, key=lambda s: len(fields[s]))
-    raise DataError(
-        f"unknown format: the first line has {len(fields[seps])} {seps!r}-separated field(s) {fields[seps][:8]}; expected a canonical "
-        "header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, or an .xlsx workbook of D1/D2",
-        path,
-        1,
-    )
+    expected = ("expected a canonical header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, "
+                "or an .xlsx workbook of D1/D2")  # fmt: skip
+    if first.lstrip().startswith("#"):
+        seen = f"the first line is a comment ({shown(first.strip())}): the header must be the first line; remove the comment lines"
+    elif len(tabbed := fields["\t"]) > max(len(fields[","]), len(fields[";"])):
+        seen = f"the first line is tab-separated ({len(tabbed)} fields {tabbed[:8]}): canonical files are comma-separated"
+    else:
+        seps = max((";", ","), key=lambda s: len(fields[s]))
+        seen = f"the first line has {len(fields[seps])} {seps!r}-separated field(s) {fields[seps][:8]}"
+    raise DataError(f"unknown format: {seen}; {expected}", path, 1)
 
 
 def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Dataset:

@@ -394,6 +394,10 @@ def check_header(header: Sequence[str], path) -> None:
         seen.add(name)
 
 
+class UncachedFormula(str):
+    """A spreadsheet cell holding a formula (``"=J4+1"``) but no computed value."""
+
+
 def parse_number(cell, path, row: int, column: str, decimal_comma: bool = False, finite: bool = True) -> float:
     """One cell as a float, or a :class:`DataError` naming ``path``, ``row`` and ``column``.
 
@@ -408,6 +412,9 @@ def parse_number(cell, path, row: int, column: str, decimal_comma: bool = False,
     finite : bool
         Reject NaN and infinity.
     """
+    if isinstance(cell, UncachedFormula):
+        raise DataError(f"the cell holds the formula {shown(str(cell))} without a cached value: open and save the workbook in a spreadsheet "
+                        "program to compute it", path, row, column)  # fmt: skip
     if isinstance(cell, bool) or not isinstance(cell, (str, int, float, type(None))):
         raise DataError(f"expected a number; got {cell!r} ({type(cell).__name__})", path, row, column)
     if cell is None or (isinstance(cell, str) and not cell.strip()):
