@@ -17,9 +17,10 @@ import numpy as np
 
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem, start_parameters
+from .core import as_float
 from .data.dataset import Dataset, angle_unit_check
 from .data.public import detect_format, load
-from .exceptions import DataError, RobocalError
+from .exceptions import DataError, InvalidParameterError, RobocalError
 from .geometry import frame_params, homogeneous, matrix_from_quaternion
 from .robot import robot as load_robot
 from .stats import robust_sigma
@@ -60,9 +61,13 @@ def inspect(
         ``bad_cells`` (list of ``{row, column, reason}``), ``duplicates`` (lists of rows with
         identical values), ``out_of_limits`` (``{row, joint, value_deg, limits_deg}``),
         ``angle_unit`` (``{unit, plausible, message}``), ``fit`` (the robust nominal-model fit
-        and its ``outliers``, or None), ``cross_check`` (D2's controller x, y, z against the
+        and its ``outliers``, ``{"error": message}`` when the data cannot be fitted — counted as a problem — or
+        None), ``cross_check`` (D2's controller x, y, z against the
         nominal forward kinematics, or None) and ``problems`` (the number of findings).
     """
+    sigmas = as_float(sigmas, "sigmas")
+    if not (np.isfinite(sigmas) and sigmas > 0):  # 0 or less calls every sample an outlier
+        raise InvalidParameterError(f"`sigmas` (--sigmas), the outlier threshold in robust standard deviations, must be finite and > 0; got {sigmas:g}")
     if isinstance(source, Dataset):
         dataset, fmt, unit = source, None, "rad"
     else:
@@ -89,7 +94,7 @@ def inspect(
     }
     report["problems"] = (
         len(report["bad_cells"]) + len(report["duplicates"]) + len(report["out_of_limits"]) + (not report["angle_unit"]["plausible"])
-        + (len(report["fit"].get("outliers", [])) if report["fit"] else 0)
+        + (len(report["fit"].get("outliers", [])) + ("error" in report["fit"]) if report["fit"] else 0)  # a failed fit is a finding
         + (len(report["cross_check"]["inconsistent"]) if report["cross_check"] else 0)
     )  # fmt: skip
     return report

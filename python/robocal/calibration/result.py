@@ -47,6 +47,25 @@ def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDET
     return f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): {meaning}"
 
 
+def bounds_against_nominal(problem, x: np.ndarray) -> list[str]:
+    """``"a2 at 1 mm (nominal -612.7 mm)"`` for every free parameter of ``x`` that sits on a bound
+    of ``problem`` whose interval excludes the parameter's nominal value."""
+    bounds, robot = getattr(problem, "bounds", None) or {}, problem.robot
+    held = []
+    for name, value in zip(problem.names, x):
+        if name not in bounds or name not in robot.param_names:
+            continue
+        k = robot.index(name)
+        lower, upper = bounds[name]
+        nominal, unit = float(robot.params[k]), robot.param_units[k]
+        at_bound = min(abs(value - lower), abs(value - upper)) <= 1e-9 * (1.0 + abs(value))
+        if at_bound and not lower <= nominal <= upper:
+            show = np.degrees if unit == "rad" else float
+            shown_unit = "deg" if unit == "rad" else unit
+            held.append(f"{name} at {show(value):.4g} {shown_unit} (nominal {show(nominal):.4g} {shown_unit})")
+    return held
+
+
 @dataclass
 class CalibrationResult:
     """What a calibration found.
@@ -239,6 +258,12 @@ class CalibrationResult:
     def from_fit(cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float) -> "CalibrationResult":
         """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics."""
         x = np.asarray(x, dtype=np.float64)
+        held = bounds_against_nominal(problem, x)
+        if held and success:  # the optimum lies beyond the bounds: no convergence to the data
+            success, message = (
+                False,
+                f"stopped at bounds that exclude the nominal value ({'; '.join(held)}): the data pull beyond them (the solver's stop: {message})",
+            )
         r = problem.residuals(x)
         J = problem.jacobian(x)
         data_r = problem.data_residuals(x)

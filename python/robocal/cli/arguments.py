@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import argparse
 
+from ..calibration.problem import KINEMATIC_PRIOR_RANGE
+
 
 def _mm_deg(text: str) -> tuple[float, float]:
     try:
         length, angle = (float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected MM,DEG (e.g. 10,1); got {text!r}") from None
+    (mm_low, mm_high), (deg_low, deg_high) = KINEMATIC_PRIOR_RANGE["mm"], KINEMATIC_PRIOR_RANGE["deg"]
+    if not (mm_low <= length <= mm_high and deg_low <= angle <= deg_high):
+        raise argparse.ArgumentTypeError(f"MM must lie in [{mm_low:g}, {mm_high:g}] and DEG in [{deg_low:g}, {deg_high:g}]; got {text!r}")
     return length, angle
 
 

@@ -6,6 +6,7 @@ import argparse
 
 from ..calibration.api import METHODS
 from ..compare import PROTOCOLS, compare
+from ..exceptions import InvalidParameterError
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
@@ -23,6 +24,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    least = 2 if args.protocol == "kfold" else 1  # folds: one to hold out, at least one to fit
+    if args.repeats < least:
+        what = "the number of folds of --protocol kfold" if args.protocol == "kfold" else f"the number of splits of --protocol {args.protocol}"
+        raise InvalidParameterError(f"--repeats is {what}: it must be at least {least}; got {args.repeats}")
     result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
                      repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior,
                      angle_unit=args.angle_unit)  # fmt: skip

@@ -19,8 +19,9 @@ def run(args: argparse.Namespace) -> int:
     n_joints = len(rows[0]["q"]) if rows else 0
     write_joints(rows, args.out, n_joints)
     bad = [r for r in rows if not r["status"].startswith("ok")]
-    print(f"{len(rows) - len(bad)} of {len(rows)} targets reached (largest residual "
-          f"{max((r['residual_mm'] for r in rows if r['status'] == 'ok'), default=float('nan')):.2g} mm); written to {args.out}")  # fmt: skip
+    reached = [r["residual_mm"] for r in rows if r["status"].startswith("ok")]
+    largest = f" (largest residual {max(reached):.2g} mm)" if reached else ""  # none reached: no residual to show
+    print(f"{len(reached)} of {len(rows)} targets reached{largest}; written to {args.out}")
     for r in bad[:10]:
         print(f"  row {r['row']}: {r['status']}")
     return 0 if not bad else 1

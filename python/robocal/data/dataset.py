@@ -38,6 +38,47 @@ def require_pandas(what: str):
 MAX_PLAUSIBLE_RAD = 4 * math.pi
 
 
+#: A degree file's rows or columns whose values all stay within ±2π, while the rest of the file
+#: reaches beyond this (deg), are radians written into it (random poses of a 6-axis arm put every
+#: joint within ±6.3° almost never; a joint that varies but stays within ±6.3° while the others
+#: sweep tens of degrees is a column converted in one place and not in another).
+PARTIAL_RADIANS_CONTRAST_DEG = 20.0
+
+
+def _ranges(rows) -> str:
+    """``[2, 3, 4, 9]`` as ``"2-4, 9"`` (the first 5 runs)."""
+    rows = [int(r) for r in rows]
+    runs, start = [], rows[0]
+    for a, b in zip(rows, rows[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"{start}-{a}" if a != start else f"{a}")
+            start = b
+    return ", ".join(runs[:5]) + (", ..." if len(runs) > 5 else "")
+
+
+def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
+    """A message naming the rows or the columns of a degree table (``values``: |file values|,
+    (m, N)) that look like radians while the rest does not, or None."""
+    if len(values) < 4:
+        return None
+    rows = np.arange(2, len(values) + 2) if rows is None else np.asarray(rows)
+    row_max = values.max(axis=1)
+    small = (row_max <= 2 * math.pi) & (row_max > 0.5)  # within ±2π but not a pose at the zeros
+    wide = row_max > PARTIAL_RADIANS_CONTRAST_DEG
+    if small.sum() >= 2 and wide.sum() >= 2:
+        return (f"rows {_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
+                f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "
+                "convert them to degrees")  # fmt: skip
+    column_max = values.max(axis=0)
+    spread = np.ptp(values, axis=0)
+    narrow = (column_max <= 2 * math.pi) & (spread > 0.5)
+    if narrow.any() and (column_max > PARTIAL_RADIANS_CONTRAST_DEG).sum() >= 2:
+        columns = ", ".join(f"q{j + 1}" for j in np.flatnonzero(narrow))
+        return (f"column(s) {columns} stay within ±2 pi (at most {column_max[narrow].max():.4g}) while the other joints reach "
+                f"{column_max.max():.4g} deg: they look like radians in a degree table; convert them to degrees")  # fmt: skip
+    return None
+
+
 def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
     """Whether joint values ``q`` (m, N), read as ``unit`` and converted to rad, are plausible.
 
@@ -59,6 +100,8 @@ def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
         return {"unit": unit, "plausible": False, "likely": "rad",
                 "message": f"every joint value (columns q1..q{q.shape[1]}) is at most {np.degrees(q.max()):.4g} in size (within 2 pi): "
                            "the angles look like radians"}  # fmt: skip
+    if unit == "deg" and (partial := _radians_in_part(np.degrees(q), rows)):
+        return {"unit": unit, "plausible": False, "likely": unit, "partial": True, "message": partial}
     return {"unit": unit, "plausible": True, "likely": unit, "message": f"joint values plausible in {unit} (max |q| = {np.degrees(q.max()):.4g} deg)"}
 
 
@@ -93,6 +136,9 @@ class Dataset:
     extra : dict of str to ndarray
         Side columns a source file carries beside the samples, each an array of first dimension m
         (e.g. ``controller_xyz`` of the RobotCali data). Sliced with the samples.
+    prismatic : tuple of int
+        Joints (0-based) that are prismatic: their ``q`` column is mm, in files too (never
+        converted between degrees and radians).
     """
 
     q: np.ndarray
@@ -106,6 +152,7 @@ class Dataset:
     excluded: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    prismatic: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.measurement, str) or self.measurement not in OBSERVATION_COLUMNS:
@@ -150,11 +197,14 @@ class Dataset:
                        extra={k: v[idx] for k, v in self.extra.items()})  # fmt: skip
 
     def canonical_columns(self, angle_unit: str = "deg") -> tuple[list[str], np.ndarray]:
-        """Column names and values (m, k) of the canonical table: ``q1..qN`` in ``angle_unit``,
-        the observation columns, then ``t`` and ``temp`` where present (docs/data-format.md)."""
+        """Column names and values (m, k) of the canonical table: ``q1..qN`` in ``angle_unit``
+        (prismatic joints in mm), the observation columns, then ``t`` and ``temp`` where present (docs/data-format.md)."""
         if angle_unit not in ANGLE_UNITS:
             raise InvalidParameterError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}")
-        q = np.degrees(self.q) if angle_unit == "deg" else self.q
+        q = self.q.copy()
+        if angle_unit == "deg":
+            revolute = [j for j in range(self.n_joints) if j not in self.prismatic]
+            q[:, revolute] = np.degrees(q[:, revolute])  # a prismatic joint's column stays in mm
         columns = [f"q{i}" for i in range(1, self.n_joints + 1)] + list(OBSERVATION_COLUMNS[self.measurement])
         blocks = [q, self.y]
         for name in ("t", "temp"):

@@ -428,6 +428,13 @@ def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Data
     return dataset
 
 
+def _prismatic(robot) -> tuple:
+    """The prismatic joints of ``robot`` (a name or file, or None: none known)."""
+    from ..robot import robot as load_robot
+
+    return () if robot is None else load_robot(robot).prismatic
+
+
 def load(
     path,
     format: Optional[str] = None,
@@ -497,7 +504,7 @@ def load(
         raise DataError(f"{fmt} files hold cable measurements; got measurement={measurement!r}", path)
     if fmt == "canonical":
         read = read_frame if frame else read_canonical
-        dataset = read(source if frame else path, angle_unit or "deg", measurement, None, exclude_bad_rows)
+        dataset = read(source if frame else path, angle_unit or "deg", measurement, None, exclude_bad_rows, prismatic=_prismatic(robot))
         if sheet is not None:
             raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
     elif fmt == "hsr":
@@ -506,12 +513,18 @@ def load(
         dataset = read_robotcali(path, sheet, exclude_bad_rows)
     else:
         dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
-    if check_units:
+    if check_units and len(dataset.prismatic) < dataset.n_joints:
         unit = angle_unit or native_unit or "deg"
-        check = angle_unit_check(dataset.q, unit, dataset.rows)
+        angles = dataset.q.copy()
+        angles[:, list(dataset.prismatic)] = 0.0  # mm say nothing of the angle unit: a zero column neither passes nor fails the check
+        check = angle_unit_check(angles, unit, dataset.rows)
         if not check["plausible"] and angle_unit is None:
-            raise DataError(f"{check['message']}; read them as {check['likely']} with angle_unit={check['likely']!r} "
-                            f"(--angle-unit {check['likely']}), or confirm {unit} with angle_unit={unit!r}", path)  # fmt: skip
+            read_as = (
+                f"read them as {check['likely']} with angle_unit={check['likely']!r} (--angle-unit {check['likely']}), or "
+                if check["likely"] != unit
+                else "or "
+            )
+            raise DataError(f"{check['message']}; {read_as}confirm {unit} with angle_unit={unit!r} (--angle-unit {unit})", path)
         if not check["plausible"]:
             dataset.notes.append(f"{check['message']} (kept in {unit} as asked)")
     return _check_robot(dataset, fmt, robot, path)
