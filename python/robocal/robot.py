@@ -166,6 +166,11 @@ class Robot:
         return len(self.joints)
 
     @property
+    def prismatic(self) -> tuple[int, ...]:
+        """Indices (0-based) of the prismatic joints, whose values are mm rather than angles."""
+        return tuple(j for j, joint in enumerate(self.joints) if joint.kind == "prismatic")
+
+    @property
     def n_params(self) -> int:
         return len(self.param_names)
 

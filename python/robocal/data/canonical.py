@@ -33,7 +33,9 @@ def _measurement_from_header(header: list[str], path) -> str:
     raise DataError(f"no measurement columns: expected 'L' (cable), 'x,y,z' (position) or 'x,y,z,qw,qx,qy,qz' (pose); got {header}", path, 1)
 
 
-def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
+def read_canonical(
+    path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False, *, prismatic: tuple = ()
+) -> Dataset:
     """Reads a canonical CSV file into a :class:`Dataset` (joint angles converted to rad).
 
     Parameters
@@ -48,6 +50,8 @@ def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = N
     exclude_bad_rows : bool
         Leave out rows with a bad cell, recording each in ``Dataset.excluded``, instead of
         raising a :class:`DataError` on the first.
+    prismatic : tuple of int
+        Joints (0-based) that are prismatic: their columns are mm, read as they are.
     """
     path = Path(path)
     if angle_unit not in ANGLE_UNITS:
@@ -56,12 +60,15 @@ def read_canonical(path, angle_unit: str = "deg", measurement: Optional[str] = N
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
         sep = ";" if ";" in header[0] else "tab"
         raise DataError(f"the header has a single column containing '{sep}': canonical files are comma-separated", path, 1)
-    return canonical_dataset(header, body, path, angle_unit, measurement, robot, exclude_bad_rows)
+    return canonical_dataset(header, body, path, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
 
 
-def canonical_dataset(header, body, path, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool) -> Dataset:
+def canonical_dataset(
+    header, body, path, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool, *, prismatic: tuple = ()
+) -> Dataset:
     """The :class:`Dataset` of a canonical table, its ``header`` and ``(row, cells)`` ``body``
-    (from a file or a DataFrame); ``path`` names the source in errors."""
+    (from a file or a DataFrame); ``path`` names the source in errors; the ``prismatic`` joints'
+    columns (0-based) are mm, never converted from degrees."""
     joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
     expected = [f"q{i}" for i in range(1, len(joints) + 1)]
     if not joints or joints != expected:
@@ -78,9 +85,10 @@ def canonical_dataset(header, body, path, angle_unit: str, measurement: Optional
     n = len(joints)
     if measurement == "pose":
         check_unit_quaternions(values[:, n + 3 : n + 7], rows, path)
-    q = values[:, :n]
+    q = values[:, :n].copy()
     if angle_unit == "deg":
-        q = np.radians(q)
+        revolute = [j for j in range(n) if j not in prismatic]
+        q[:, revolute] = np.radians(q[:, revolute])
     column = {name: values[:, i] for i, name in enumerate(wanted)}
     notes = [f"ignored unknown columns {ignored}"] if ignored else []
     if excluded:
@@ -96,6 +104,7 @@ def canonical_dataset(header, body, path, angle_unit: str, measurement: Optional
         source=str(path),
         excluded=excluded,
         notes=notes,
+        prismatic=tuple(j for j in prismatic if j < n),
     )
 
 

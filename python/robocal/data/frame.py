@@ -63,7 +63,9 @@ class FrameBody(ColumnarBody):
         return [(i, [None if c is pd.NA or c is pd.NaT else c for c in row]) for i, row in enumerate(cells)]
 
 
-def read_frame(frame, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
+def read_frame(
+    frame, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False, *, prismatic: tuple = ()
+) -> Dataset:
     """Reads a DataFrame with the canonical columns into a :class:`Dataset`, as
     :func:`~robocal.data.read_canonical` reads the same table from a CSV file.
 
@@ -102,4 +104,4 @@ def read_frame(frame, angle_unit: str = "deg", measurement: Optional[str] = None
         raise DataError("the DataFrame has no rows", SOURCE)
     header = [str(name).strip() for name in frame.columns]
     check_header(header, SOURCE)
-    return canonical_dataset(header, FrameBody(frame), SOURCE, angle_unit, measurement, robot, exclude_bad_rows)
+    return canonical_dataset(header, FrameBody(frame), SOURCE, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
