@@ -136,16 +136,23 @@ class Candidate:
                 out["source"] = q(self.detail["source"], np.nan, "joint")
             return out, (f"{name} {c[0]:.3g} exceeds {LIMITS['ratio']:g}" if abs(c[0]) > LIMITS["ratio"] else None)
         if kind == "backlash":
-            width = -2.0 * c[0]  # Δq = −(b/2)·direction
-            out = {"width": q(width / DEG, 2.0 * s[0] / DEG, "deg")}
-            bad = not 0.0 < width < LIMITS["angle"]
-            return out, (f"width {width / DEG:.3g} deg is not within (0, {LIMITS['angle'] / DEG:g}) deg" if bad else None)
+            # Lost motion, Δq = −(b/2)·direction: b > 0 the link lags its reading (backlash),
+            # b < 0 it leads (the encoder behind an elastic stage, a servo's following error,
+            # preload). Both are named, with the sign; only the size is limited.
+            width = -2.0 * c[0]
+            out = {"width": q(width / DEG, 2.0 * s[0] / DEG, "deg"), "direction": q(1.0 if width > 0 else -1.0, np.nan, "+1 the link lags, -1 it leads")}
+            bad = not abs(width) < LIMITS["angle"]
+            return out, (f"width {width / DEG:.3g} deg is not within ±{LIMITS['angle'] / DEG:g} deg" if bad else None)
         if kind == "drift":
             unit = "mm/" + self.detail["unit"]
             out = {f"rate_{a}": q(v, sd, unit) for a, v, sd in zip(self.detail["axes"], c, s)}
             fastest = float(np.max(np.abs(c)))
             bad = self.detail["unit"] == "h" and fastest > LIMITS["drift_mm_per_h"]
             return out, (f"drift {fastest:.3g} mm/h exceeds {LIMITS['drift_mm_per_h']:g} mm/h" if bad else None)
+        if kind == "wander":
+            path = self.basis @ c  # (M, k): the sensor's offset at every sample
+            rms = float(np.sqrt(np.mean(np.sum(path**2, axis=1))))
+            return {"rms": q(rms, np.nan, "mm"), "spacing": q(self.detail["spacing"], np.nan, "samples")}, None
         if kind == "step":
             out = {f"size_{a}" if len(self.detail["axes"]) > 1 else "size": q(v, sd, "mm") for a, v, sd in zip(self.detail["axes"], c, s)}
             out["sample"] = q(self.detail["sample"], np.nan, "")

@@ -49,6 +49,7 @@ from .maps import map_stage
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
+from .wander import residual_correlation, wander_candidate, wander_within
 
 
 @dataclass
@@ -220,9 +221,36 @@ def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
     """``ext``'s causes with each joint map covering only the angles of the training samples
     ``train`` (positions in ``ext.idx``): a fold's map is fitted on them alone, and beyond them
     it corrects nothing — as on a new session, rather than where the roughness penalty alone
-    extrapolates it (a blocked fold's test block may visit joint ranges no other block does)."""
+    extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
+    likewise a wandering sensor's term covers only the stretches of the session it was fitted on."""
     angles = ext.full_data.q[ext.idx[train]]
-    return [map_within(c, ext.full_data, angles[:, c.joint]) if c.kind == "joint_map" else c for c in ext.causes]
+    fitted = {"joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]), "wander": lambda c: wander_within(c, ext.full_data, ext.idx[train])}
+    return [fitted[c.kind](c) if c.kind in fitted else c for c in ext.causes]
+
+
+#: Kinds that belong to the session and change smoothly in time (a wandering sensor): fitted
+#: on neighbours in time, they predict samples between their training samples (random folds)
+#: but not a block of the session they never saw (blocked, group folds), where they must only
+#: do no harm — within :data:`SESSION_TERM_COST` of the model without them.
+TIME_TERMS = ("wander",)
+SESSION_TERM_COST = 0.01
+
+
+def gains_everywhere(c: Candidate, gains: dict) -> bool:
+    """A screening gain on every fold scheme (a time term: on the random folds; the linear
+    screening extrapolates it into a held-out block, so the nonlinear check, which does not,
+    judges it there)."""
+    if c.kind in TIME_TERMS:
+        return gains["random"] > 0
+    return all(g > 0 for g in gains.values())
+
+
+def improves(c: Candidate, scheme: str, before: float, after: float) -> bool:
+    """Whether the held-out error ``after`` adding ``c`` counts as a gain on ``scheme`` (a time
+    term must only do no harm beyond the random folds)."""
+    if c.kind in TIME_TERMS and scheme != "random":
+        return after <= (1.0 + SESSION_TERM_COST) * before
+    return after < before
 
 
 #: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On
@@ -406,12 +434,18 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
-    pool += step_candidates(dataset, keep, ext.residuals(x).reshape(len(keep), k))
+    base_residuals = ext.residuals(x).reshape(len(keep), k)
+    pool += step_candidates(dataset, keep, base_residuals)
+    wander_test = residual_correlation(dataset, keep, base_residuals)
+    length = None if wander_test is None else wander_test["correlation_length_samples"]
+    if length is not None:  # residuals alike from one sample to the next: the sensor may wander
+        pool.append(wander_candidate(dataset, length / 2.0))
     current_cv = baseline_cv
     while len(causes) < max_effects:
         ext = ExtendedProblem(base, causes, dataset, keep)
-        J = ext.jacobian(x)
-        r = ext.residuals(x)
+        rows = len(keep) * k  # the data rows: a penalised cause (a wander) appends its roughness rows
+        J = ext.jacobian(x)[:rows]
+        r = ext.residuals(x)[:rows]
         params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
         screen = _Screen(J, r, schemes, k)
@@ -436,7 +470,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
 
         def is_significant(gain: float, c: Candidate, p_value: float, gains: dict) -> bool:
             relevant = gain >= min_gain * rmse_of_squares(model_err["random"])
-            return p_value * tests_of(c) < alpha and relevant and all(g > 0 for g in gains.values())
+            return p_value * tests_of(c) < alpha and relevant and gains_everywhere(c, gains)
 
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
         accepted = None
@@ -474,7 +508,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
             refits = {name: _nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
-            lost = [name for name in schemes if judged_rmse(new_cv[name]) >= judged_rmse(current_cv[name])]
+            lost = [name for name in schemes if not improves(c, name, judged_rmse(current_cv[name]), judged_rmse(new_cv[name]))]
             if lost:
                 rejected.append(
                     _record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)")

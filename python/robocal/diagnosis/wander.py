@@ -1,0 +1,190 @@
+"""A sensor that wanders in time: the evidence in the residuals, and its session term.
+
+A cable sensor's zero or a tracker's frame that moves slowly and irregularly leaves residuals
+that are alike for samples taken one after another — whatever the joints did between them. A
+cause of the robot leaves residuals that are alike for samples taken in similar configurations —
+whenever they were taken. On a path that moves the joints little between samples the two look
+the same; the test therefore compares two sets of pairs that tell them apart:
+
+* pairs **near in time, apart in joints**: at most :data:`MAX_LAG` samples apart in acquisition
+  order, their configurations farther apart than the typical distance to a sample's nearest
+  neighbours in joint space;
+* pairs **near in joints, apart in time**: each sample's :data:`NEIGHBOURS` nearest neighbours in
+  joint space among the samples more than ``2·MAX_LAG`` apart in time.
+
+The correlation of the residuals over each set is ``mean(e_i·e_j) / mean(|e|²)``. A robot cause
+correlates the second set at least as much as the first (its pairs are nearer in the cause's own
+variable); a wander correlates the first and not the second. The difference is judged by a z
+score of the per-pair products (pairs overlap, so the score is approximate; the bound
+:data:`Z_BOUND` is set high for that reason).
+
+The session term is a cubic B-spline of the acquisition order per sensor axis, knots a fraction
+of the correlation length apart, with a second-difference roughness penalty (so that it bridges
+a held-out block by a straight line instead of guessing). It belongs to the session: it is never
+carried to another one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Optional
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.linalg import null_space
+from scipy.spatial import cKDTree
+
+from ..data.dataset import Dataset
+from ..robot import RESIDUAL_WIDTH
+from .candidates import Candidate, acquisition_order
+
+#: Pairs up to this many samples apart in acquisition order are "near in time".
+MAX_LAG = 20
+#: Nearest neighbours in joint space per sample (among samples far apart in time).
+NEIGHBOURS = 3
+#: A correlation this many approximate standard errors beyond zero (or beyond the other set's)
+#: counts; pairs overlap, so the standard errors are optimistic and the bound is high.
+Z_BOUND = 5.0
+#: Neighbours in time are alike when their correlation exceeds this many standard errors
+#: (``1/sqrt(m)`` for independent residuals).
+Z_LAG1 = 3.0
+#: Smallest correlation worth naming (a fifth of the residual's variance shared by neighbours).
+MIN_CORRELATION = 0.2
+#: Roughness penalty of the wander spline (mm per mm of second difference of its coefficients).
+ROUGHNESS = 0.1
+#: Most spline coefficients per axis (a long session gets wider knots).
+MAX_KNOTS = 80
+
+
+def _positions(data: Dataset, idx: np.ndarray) -> np.ndarray:
+    """Rank of each of the samples ``idx`` in acquisition order (0 .. len(idx)-1)."""
+    rank = np.empty(len(data), dtype=int)
+    rank[acquisition_order(data)] = np.arange(len(data))
+    return np.argsort(np.argsort(rank[idx], kind="stable"), kind="stable")
+
+
+def _sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
+    """The residual components a wandering sensor moves: the length, or the position."""
+    return residuals[:, :1] if data.measurement == "cable" else residuals[:, :3]
+
+
+def _z(products: np.ndarray) -> float:
+    return float(np.mean(products) / max(np.std(products) / np.sqrt(len(products)), 1e-300)) if len(products) > 1 else 0.0
+
+
+def correlation_length(e: np.ndarray) -> Optional[float]:
+    """Lag (samples) at which the autocorrelation of the residuals ``e`` (m, k, in acquisition
+    order) falls below 1/e of its value at lag 1 (white noise on top of a wander lowers every lag
+    alike); None if neighbours in time are not significantly alike (lag-1 correlation below
+    :data:`Z_LAG1` standard errors)."""
+    e = e - e.mean(axis=0)
+    var = float(np.mean(np.sum(e * e, axis=1)))
+    m = len(e)
+    if var <= 0 or m < 8:
+        return None
+
+    def rho(lag: int) -> float:
+        return float(np.mean(np.sum(e[lag:] * e[:-lag], axis=1))) / var
+
+    first = rho(1)
+    if first * np.sqrt(m) < Z_LAG1:
+        return None
+    longest = min(m // 4, 10 * MAX_LAG)
+    return float(next((lag for lag in range(2, longest) if rho(lag) < first / np.e), longest))
+
+
+def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
+    """The test of the module notes on ``residuals`` (len(idx), k) of the samples ``idx``.
+
+    Returns a report entry — the correlation of each set of pairs, their z scores and typical
+    joint distances (deg), the correlation length in samples, and a ``verdict``: ``time`` (the
+    sensor wanders), ``joints`` (a cause of the robot), ``both``, ``confounded`` (the path never
+    puts samples near in time far apart in joints) or ``none`` — or None with too few samples.
+    """
+    m = len(idx)
+    if m < 4 * MAX_LAG:
+        return None
+    pos = _positions(data, idx)
+    order = np.argsort(pos)
+    e = _sensor_part(data, residuals)[order]
+    q = data.q[idx][order]
+    var = float(np.mean(np.sum(e * e, axis=1)))
+    if var <= 0:
+        return None
+    tree = cKDTree(q)
+    far = 2 * MAX_LAG
+    dist, near = tree.query(q, min(m, NEIGHBOURS + 2 * far + 2))
+    i_rows, j_rows, d_rows = [], [], []
+    for i in range(m):
+        keep = np.abs(near[i] - i) > far
+        i_rows.append(np.full(NEIGHBOURS, i)[: keep.sum()][:NEIGHBOURS])
+        j_rows.append(near[i][keep][:NEIGHBOURS])
+        d_rows.append(dist[i][keep][:NEIGHBOURS])
+    ji, jj, jd = (np.concatenate(v) for v in (i_rows, j_rows, d_rows))
+    if len(ji) < 10:
+        return None
+    reach = float(np.median(jd))  # the typical distance to a neighbour in joint space
+    ti = np.concatenate([np.arange(m - lag) for lag in range(1, MAX_LAG + 1)])
+    tj = np.concatenate([np.arange(lag, m) for lag in range(1, MAX_LAG + 1)])
+    td = np.linalg.norm(q[ti] - q[tj], axis=1)
+    apart = td > reach
+    entry = {
+        "test": f"residual correlation of pairs <= {MAX_LAG} samples apart in acquisition order but farther apart in joints than the typical "
+        f"nearest neighbour ({np.degrees(reach):.3g} deg), against each sample's {NEIGHBOURS} nearest neighbours in joint space more than {far} samples apart",
+        "correlation_length_samples": correlation_length(e),
+        "joint_distance_deg": {"time_pairs": float(np.degrees(np.median(td[apart]))) if apart.any() else None, "joint_pairs": float(np.degrees(reach))},
+    }
+    p_joint = np.sum(e[ji] * e[jj], axis=1) / var
+    entry["joints"] = {"correlation": float(np.mean(p_joint)), "z": _z(p_joint), "pairs": int(len(p_joint))}
+    if apart.sum() < 10:
+        entry["time"] = None
+        entry["verdict"] = "confounded"
+        return entry
+    p_time = np.sum(e[ti[apart]] * e[tj[apart]], axis=1) / var
+    entry["time"] = {"correlation": float(np.mean(p_time)), "z": _z(p_time), "pairs": int(apart.sum())}
+    difference = float(np.mean(p_time) - np.mean(p_joint))
+    se = np.sqrt(np.var(p_time) / len(p_time) + np.var(p_joint) / len(p_joint))
+    entry["difference_z"] = float(difference / max(se, 1e-300))
+    in_time = entry["difference_z"] > Z_BOUND and entry["time"]["z"] > Z_BOUND and entry["time"]["correlation"] >= MIN_CORRELATION
+    in_joints = entry["joints"]["z"] > Z_BOUND and entry["joints"]["correlation"] >= MIN_CORRELATION
+    entry["verdict"] = "both" if in_time and in_joints else "time" if in_time else "joints" if in_joints else "none"
+    return entry
+
+
+def wander_candidate(data: Dataset, spacing: float) -> Candidate:
+    """The session term of a wandering sensor: a cubic B-spline of the acquisition order with
+    knots ``spacing`` samples apart (at least so many that there are at most
+    :data:`MAX_KNOTS` per axis), one per sensor axis, and its roughness penalty."""
+    m, k = len(data), RESIDUAL_WIDTH[data.measurement]
+    spacing = max(float(spacing), (m - 1) / (MAX_KNOTS - 3), 2.0)
+    rank = np.empty(m)
+    rank[acquisition_order(data)] = np.arange(m)
+    inner = np.arange(0.0, m - 1 + spacing, spacing)
+    knots = np.concatenate([[inner[0]] * 3, inner, [inner[-1]] * 3])
+    B = BSpline.design_matrix(np.clip(rank, inner[0], inner[-1]), knots, 3).toarray()
+    # Without its mean and its trend: a constant offset of the sensor is the set-up's (anchor,
+    # cable zero, tracker base), which the geometric model already fits, and a steady trend is
+    # a drift, a cause of its own with one coefficient per axis.
+    centred = null_space(np.vstack([B.sum(axis=0), rank @ B]))
+    B = B @ centred
+    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
+    n = B.shape[1]
+    basis = np.zeros((m, k, n * len(axes)))
+    for a in range(len(axes)):
+        basis[:, a, a * n : (a + 1) * n] = B
+    second = np.diff(np.eye(len(centred)), 2, axis=0) @ centred
+    penalty = ROUGHNESS * np.kron(np.eye(len(axes)), second)  # per axis, no coupling between axes
+    return Candidate("wander", None, "observations", basis, detail={"spacing": round(spacing, 3), "axes": axes}, penalty=penalty)
+
+
+def wander_within(c: Candidate, data: Dataset, fitted: np.ndarray) -> Candidate:
+    """``c`` correcting only samples within one knot spacing (in acquisition order) of the
+    samples ``fitted``: a session term fitted on some samples says nothing about a stretch of
+    the session it never saw (a blocked fold's test block), as a joint map says nothing beyond
+    its angles."""
+    rank = np.empty(len(data))
+    rank[acquisition_order(data)] = np.arange(len(data))
+    seen = np.sort(rank[fitted])
+    at = np.clip(np.searchsorted(seen, rank), 1, len(seen) - 1)
+    gap = np.minimum(np.abs(rank - seen[at - 1]), np.abs(seen[at] - rank))
+    return replace(c, basis=np.where((gap <= c.detail["spacing"])[:, None, None], c.basis, 0.0))
