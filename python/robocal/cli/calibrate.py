@@ -8,6 +8,7 @@ import json
 from ..calibration.api import METHODS
 from ..calibration.result import describe_implausible
 from ..diagnosis.extended import calibrate
+from ..outputs import printable
 from ..results import save_result
 from ..robot_file import read_document
 from .arguments import add_data_arguments, add_kinematic_prior_argument
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2))
         return 0
     train, test = doc["metrics"]["train"], doc["metrics"]["test"]
-    print(f"{doc['method']} on {doc['robot']} ({doc['measurement']}, {train['n']} training samples): "
+    print(f"{doc['method']} on {printable(doc['robot'], one_line=True)} ({doc['measurement']}, {train['n']} training samples): "
           f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms")  # fmt: skip
     print(f"  train: RMSE {train['rmse']:.4f}  MAE {train['mae']:.4f}  MAX {train['max']:.4f} mm")
     if test:

@@ -17,9 +17,12 @@ import numpy as np
 
 from .. import __version__
 from ..calibration import calibrate
+from ..calibration.api import held_out_problem
 from ..calibration.problem import is_kinematic
 from ..diagnosis import diagnose
+from ..exceptions import InvalidParameterError
 from ..outputs import make_folder, write_json
+from ..robot import robot as load_robot
 from ..simulation import simulate, write_simulation
 from .diagnose import write_figures
 
@@ -28,9 +31,15 @@ EFFECT = "backlash:joint=2,width=0.03"
 
 
 def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
-    folder = make_folder(out)
     t0 = time.perf_counter()
     data, truth = simulate("hsr-jr680", "cable", samples=samples, seed=seed, effects=[EFFECT])
+    # Before the first file is written: the calibration's split of these samples must leave it
+    # degrees of freedom (the same check calibrate makes), or the folder would keep half a demo.
+    try:
+        held_out_problem(load_robot("hsr-jr680"), data, 0.2, seed)
+    except InvalidParameterError as exc:
+        raise InvalidParameterError(f"--samples {samples} is too few for the demo: {exc}") from None
+    folder = make_folder(out)
     csv, _ = write_simulation(data, truth, folder / "data.csv", folder / "truth.json")
     print(f"robocal {__version__} demo: a simulated HSR JR680 with a cable sensor, {samples} samples (seed {seed}), "
           f"hidden effect {EFFECT}")  # fmt: skip

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
-from ..outputs import make_folder, save_figure, write_text
+from ..outputs import make_folder, printable, save_figure, write_text
 from ..report import correlation_words, diagnosis_figure, map_figure, map_tables, settling_words
 from .arguments import add_data_arguments
 
@@ -29,7 +29,7 @@ def _quantities(params: dict) -> str:
 def summary(report: dict) -> str:
     """A few lines for the terminal."""
     b, f = report["baseline"], report["final"]
-    lines = [f"{report['robot']}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
+    lines = [f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
              f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"]  # fmt: skip
     if b["implausible"]:
         lines.append("  warning: geometric baseline: " + describe_implausible(b["implausible"]))
@@ -85,7 +85,7 @@ def sessions_summary(report: dict) -> str:
     """A few lines for the terminal on a multi-session report."""
     b, f = report["baseline"], report["final"]
     rmse = lambda values: " / ".join(f"{v:.4f}" for v in values)  # noqa: E731
-    lines = [f"{report['robot']}, {report['measurement']} data, {len(report['sessions'])} sessions:"]
+    lines = [f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {len(report['sessions'])} sessions:"]
     for i, s in enumerate(report["sessions"], start=1):
         own = [e["label"] for e in s["diagnosis"]["effects"]]
         lines.append(

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from ..export import FORMATS, TABLE_FORMATS, export_checked
+from ..outputs import printable
 from ..results import load_result
 
 
@@ -32,5 +33,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"robocal export: the {kind} does not reproduce the calibrated kinematics, {args.out} not written: " + "; ".join(failed))
         return 1
     article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
-    print(f"wrote the calibrated {robot.name} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
+    print(f"wrote the calibrated {printable(robot.name, one_line=True)} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
     return 0

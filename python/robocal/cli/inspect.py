@@ -7,7 +7,7 @@ import json
 
 from ..data.public import FORMATS
 from ..inspection import OUTLIER_SIGMAS, inspect
-from ..outputs import write_json
+from ..outputs import printable, write_json
 
 
 def _first(items: list, limit: int) -> list:
@@ -17,7 +17,7 @@ def _first(items: list, limit: int) -> list:
 def format_report(report: dict, limit: int = 20) -> str:
     """The report as text for humans, at most ``limit`` entries per list (0: all)."""
     lines = [f"{report['source'] or 'dataset'}: {report['rows']} {report['measurement']} samples"
-             + (f" ({report['format']} format)" if report["format"] else "") + f", robot {report['robot'] or 'not given'}"]  # fmt: skip
+             + (f" ({report['format']} format)" if report["format"] else "") + f", robot {printable(report['robot'] or 'not given', one_line=True)}"]  # fmt: skip
     lines += [f"  note: {n}" for n in report["notes"]]
     lines.append(f"  bad cells: {len(report['bad_cells'])}")
     lines += [f"    row {e['row']}, column {e['column']!r}: {e['reason']}" for e in _first(report["bad_cells"], limit)]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..effects import EFFECTS
+from ..outputs import printable
 from ..robot import MEASUREMENTS
 from ..simulation import simulate, write_simulation
 
@@ -31,6 +32,9 @@ def run(args) -> int:
                               geometric_error=args.geometric_error, outliers=args.outliers, session=args.session)  # fmt: skip
     csv_path, json_path = write_simulation(dataset, truth, args.out, args.truth)
     effects = ", ".join(e["spec"] for e in truth["effects"]) or "none"
-    print(f"wrote {len(dataset)} {args.measurement} samples of {truth['robot']} to {csv_path}" + (f" and the truth to {json_path}" if json_path else ""))
+    print(
+        f"wrote {len(dataset)} {args.measurement} samples of {printable(truth['robot'], one_line=True)} to {csv_path}"
+        + (f" and the truth to {json_path}" if json_path else "")
+    )
     print(f"effects: {effects}")
     return 0
