@@ -6,7 +6,7 @@ import argparse
 import json
 
 from ..diagnosis.candidates import uncovered_words
-from ..outputs import write_text
+from ..outputs import printable, write_text
 from ..verification import verify
 from .arguments import add_angle_unit_argument
 
@@ -15,7 +15,7 @@ def summary(report: dict) -> str:
     m, n = report["metrics"], report["nominal"]["metrics"]
     applied = report["applied"]["structure"] + report["applied"]["causes"]
     lines = [
-        f"{report['robot']} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples ({report['data'] or 'data'}), "
+        f"{printable(report['robot'], one_line=True)} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples ({report['data'] or 'data'}), "
         f"session set-up re-fitted ({', '.join(report['refit'])}):",
         f"  calibrated: RMSE {m['rmse']:.4f}  MAE {m['mae']:.4f}  MAX {m['max']:.4f} mm",
         f"  nominal:    RMSE {n['rmse']:.4f}  MAE {n['mae']:.4f}  MAX {n['max']:.4f} mm",
