@@ -24,7 +24,7 @@ from ..robot import RESIDUAL_WIDTH, Robot
 from .problem import Problem
 
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
-SESSION_KINDS = ("drift", "step", "temperature", "outliers")
+SESSION_KINDS = ("drift", "step", "wander", "temperature", "outliers")
 
 
 def is_private(name: str, measurement: str) -> bool:

@@ -26,6 +26,7 @@ from ..robot import Robot
 from . import structure
 from .candidates import MAP_LABEL, library, map_candidate, map_noise, step_candidate
 from .model import ExtendedProblem
+from .wander import wander_candidate
 
 
 def calibrate(
@@ -148,6 +149,9 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
         if step:
             pool[label] = step_candidate(dataset, int(step.group(1)))
+        wander = re.fullmatch(r"wander spacing=([0-9.]+)", label)
+        if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
+            pool[label] = wander_candidate(dataset, float(wander.group(1)))
         joint_map = MAP_LABEL.fullmatch(label)
         if joint_map and 1 <= int(joint_map.group(1)) <= problem.robot.n_joints:
             if noise is None:  # the roughness is weighed against the geometric fit's residuals
