@@ -95,10 +95,13 @@ def robot_from_spec(spec, name: str, where: str = "robot file") -> Robot:
     joints, values = [], []
     for i, j in enumerate(spec.joints, start=1):
         kind = j.kind
-        if not j.limits[0] < j.limits[1]:  # here, not in Robot(): in the file's unit
+        if j.limits is None:  # the default is ±180 deg also in a rad document (not ±180 rad)
+            limits = (-math.pi, math.pi) if kind == "revolute" else (-180.0, 180.0)
+        elif not j.limits[0] < j.limits[1]:  # here, not in Robot(): in the file's unit
             unit = "mm" if kind == "prismatic" else spec.units.angle
             raise InvalidParameterError(f"{where}: joint {i}, key 'limits': the lower limit must be below the upper; got {j.limits} ({unit})")
-        limits = tuple(to_rad(v) if kind == "revolute" else float(v) for v in j.limits)
+        else:
+            limits = tuple(to_rad(v) if kind == "revolute" else float(v) for v in j.limits)
         joints.append(Joint(j.convention or spec.convention, kind, j.hayati, limits))
         values += [to_rad(j.alpha), j.a, j.d, to_rad(j.theta), to_rad(j.beta)]
     for frame in (spec.base, spec.tool):

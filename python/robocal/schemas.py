@@ -36,7 +36,7 @@ class JointSpec(BaseModel):
     d: float
     theta: float
     beta: float = 0.0
-    limits: Pair = Field(default=[-180.0, 180.0], min_length=2, max_length=2)
+    limits: Optional[Pair] = Field(default=None, min_length=2, max_length=2)  # None: ±180 deg (±180 mm if prismatic), in any angle unit
     hayati: bool = False
     kind: Literal["revolute", "prismatic"] = "revolute"
     convention: Optional[Literal["dh", "mdh"]] = None
