@@ -34,6 +34,7 @@ from .calibration.problem import implausible_parameters, is_kinematic, start_par
 from .calibration.result import describe_implausible, implausible_meaning
 from .data.dataset import Dataset
 from .diagnosis import structure
+from .diagnosis.leftover import leftover_words
 from .exceptions import InvalidParameterError, RobocalError
 from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
@@ -616,9 +617,15 @@ def _diagnosis_table(report: dict) -> str:
     intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
              f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b[key], 4)} mm"
              f"{', final ' + _fixed(f[key], 4) + ' mm' if f.get(key) is not None else ''}.</p>")  # fmt: skip
+    words = leftover_words(f)
+    left = f"<p>What is left: {_esc(words)}.</p>" if words else ""
+    found = [u for u in f.get("unexplained") or [] if isinstance(u, dict)]
+    if found:
+        left += _table(["unexplained finding", "share of the error left", "refused because"],
+                       [[_esc(u.get("label")), _esc(f"{u['share']:.0%}" if isinstance(u.get("share"), (int, float)) else "?"), _esc(u.get("reason", ""))] for u in found])  # fmt: skip
     if not rows:
-        return intro + "<p>No cause beyond the geometric model is significant: the residuals look like noise.</p>"
-    return intro + _table(["effect", "parameters", "held-out RMSE before (mm)", "after (mm)"], rows, numeric={2, 3})
+        return intro + "<p>No cause beyond the geometric model is significant.</p>" + left
+    return intro + _table(["effect", "parameters", "held-out RMSE before (mm)", "after (mm)"], rows, numeric={2, 3}) + left
 
 
 #: Kinds that change how the data are read rather than add a smooth term.

@@ -321,7 +321,7 @@ def simulate(
                 f"{CABLE_RANGE[0]:g}..{CABLE_RANGE[1]:g} mm (e.g. sample {outside[0]}: {y[outside[0], 0]:.3f} mm)"
             )
 
-    dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp,
+    dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp, prismatic=base.prismatic,
                       notes=[f"simulated by robocal.simulation (seed {seeds.entropy})"])  # fmt: skip
     records = [effect.record(magnitude) for effect, magnitude in zip(chosen, magnitudes)]
     outlier_samples = sorted({i for rec in records for i in rec.get("samples", [])})

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
+from ..diagnosis.leftover import leftover_words
 from ..outputs import make_folder, printable, save_figure, write_text
 from ..report import correlation_words, diagnosis_figure, map_figure, map_tables, settling_words
 from .arguments import add_data_arguments
@@ -34,7 +35,7 @@ def summary(report: dict) -> str:
     if b["implausible"]:
         lines.append("  warning: geometric baseline: " + describe_implausible(b["implausible"]))
     if not report["effects"]:
-        lines.append("  no cause beyond the geometric model is significant: the residuals look like noise")
+        lines.append("  no cause beyond the geometric model is significant")
     for e in report["effects"]:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(
@@ -57,6 +58,12 @@ def summary(report: dict) -> str:
         )
     if report["effects"] and f.get("explained") is not None:
         lines.append(f"  the causes explain {f['explained']:.0%} of the baseline's held-out mean square error above that floor")
+    if words := leftover_words(f):
+        lines.append(f"  what is left: {words}")
+    for u in f.get("unexplained") or []:
+        lines.append(
+            f"  unexplained finding: {u['label']} would explain {u['share']:.0%} of the held-out mean square error left ({_quantities(u['params'] or {})}); refused: {u['reason']}"
+        )
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
     return "\n".join(lines)

@@ -367,6 +367,15 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
 
 
 # -- detection and load ---------------------------------------------------------------------------
+def _header_fields(first: str, sep: str) -> list[str]:
+    """The names of a header line split at ``sep`` as CSV (quoted names are valid CSV); a line
+    csv cannot split (a field beyond its size limit: a header of another separator) as plain text."""
+    try:
+        return [c.strip() for c in next(csv.reader([first], delimiter=sep), [])]
+    except csv.Error:
+        return [c.strip() for c in first.split(sep)]
+
+
 def detect_format(path) -> str:
     """The format of ``path`` judged by its content: ``"hsr"``, ``"robotcali"``, ``"ipa"`` or
     ``"canonical"``.
@@ -392,7 +401,7 @@ def detect_format(path) -> str:
     first = _FIRST_LINE.match(text).group() if text.strip() else ""
     if not first.strip():
         raise DataError("the file is empty (a header row is expected)", path, 1)
-    fields = {sep: [c.strip() for c in next(csv.reader([first], delimiter=sep), [])] for sep in (";", ",", "\t")}  # quoted names are valid CSV
+    fields = {sep: _header_fields(first, sep) for sep in (";", ",", "\t")}
     if "shoulder_pan_joint" in fields[";"] or "measurement_x" in fields[";"]:
         return "ipa"
     if fields[","] == ROBOTCALI_COLUMNS:

@@ -8,7 +8,6 @@ the diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) an
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Optional, Union
@@ -23,6 +22,7 @@ from ..calibration.result import CalibrationResult
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..robot import Robot
+from ..robot_file import read_document
 from . import structure
 from .candidates import MAP_LABEL, library, map_candidate, map_noise, step_candidate
 from .model import ExtendedProblem
@@ -122,10 +122,7 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     reading conventions (``model.structure``) first, then its ``model.causes`` — and the
     report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
     if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
-        try:
-            causes = json.loads(Path(causes).read_text())
-        except (OSError, ValueError) as exc:
-            raise InvalidParameterError(f"cannot read the diagnose report {causes}: {exc}") from None
+        causes = read_document(causes, "diagnose report")
     prior = None
     if isinstance(causes, dict):
         try:

@@ -45,6 +45,7 @@ from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor, repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
+from .leftover import residual_verdict, unexplained
 from .maps import map_stage
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
@@ -441,7 +442,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     if length is not None:  # residuals alike from one sample to the next: the sensor may wander
         pool.append(wander_candidate(dataset, length / 2.0))
     current_cv = baseline_cv
+    last_round = (len(rejected), None)  # where the last screening round's refusals start, and its model's held-out RMSE
     while len(causes) < max_effects:
+        last_round = (len(rejected), None)
         ext = ExtendedProblem(base, causes, dataset, keep)
         rows = len(keep) * k  # the data rows: a penalised cause (a wander) appends its roughness rows
         J = ext.jacobian(x)[:rows]
@@ -450,6 +453,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
         screen = _Screen(J, r, schemes, k)
         model_err = screen.errors(np.zeros((len(r), 0)))
+        last_round = (last_round[0], rmse_of_squares(model_err["random"]))
         scored = []
         for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
             if c.stage == "parameters":
@@ -576,6 +580,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     r = _all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
+    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(current_cv["random"]), budget["floor_mm"])
     z = r / robust_sigma(r[keep])  # in robust sigmas of the kept samples' residuals
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and model.causes:
@@ -611,7 +616,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
                # The physical model: a tolerance prior where the geometry is undetermined
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
-               "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible()},
+               "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible(),
+               # Noise or not (tested), and what the selection refused although it would have explained much.
+               "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] :], last_round[1])},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
     ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
 

@@ -128,7 +128,9 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     tj = np.concatenate([np.arange(lag, m) for lag in range(1, MAX_LAG + 1)])
     td = np.linalg.norm(q[ti] - q[tj], axis=1)
     apart = td > reach
+    lag1 = float(np.mean(np.sum(e[1:] * e[:-1], axis=1))) / var
     entry = {
+        "lag1": {"correlation": lag1, "z": lag1 * float(np.sqrt(m))},
         "test": f"residual correlation of pairs <= {MAX_LAG} samples apart in acquisition order but farther apart in joints than the typical "
         f"nearest neighbour ({np.degrees(reach):.3g} deg), against each sample's {NEIGHBOURS} nearest neighbours in joint space more than {far} samples apart",
         "correlation_length_samples": correlation_length(e),
