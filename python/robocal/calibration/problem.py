@@ -117,10 +117,17 @@ def _spread(points: np.ndarray) -> np.ndarray:
 
 def check_observations(robot: Robot, data: Dataset) -> None:
     """An error naming the likely cause when ``data``'s observations cannot be readings of
-    ``robot`` at its joint values: too few distinct configurations to place the sensor
+    ``robot`` at its joint values: another joint count, values that are not finite, too few distinct configurations to place the sensor
     (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
     the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
     than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row."""
+    if data.n_joints != robot.n_joints:
+        raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
+    for name, values in (("q", data.q), ("y", data.y)):
+        bad = np.argwhere(~np.isfinite(values))
+        if bad.size:
+            i = bad[0][0]
+            raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
     kind, where = data.measurement, data.source
     distinct = int(configuration_groups(data.q).max(initial=-1)) + 1
     if distinct < MIN_CONFIGURATIONS[kind]:
@@ -137,6 +144,9 @@ def check_observations(robot: Robot, data: Dataset) -> None:
         return
     ratio = float(np.median(observed_spread)) / typical
     low, high = SCALE_RATIO[kind]
+    if ratio == 0.0:
+        raise DataError(f"most readings are equal while the tool points of {robot.name} at these joint values move by {typical:.4g} mm: "
+                        "the observations do not follow the joints", where)  # fmt: skip
     if not low <= ratio <= high:
         unit = min(LIKELY_UNITS, key=lambda u: abs(np.log(ratio / LIKELY_UNITS[u])))
         guess = f"{unit}?" if abs(np.log(ratio / LIKELY_UNITS[unit])) < np.log(3) else "another unit or another robot?"
@@ -278,18 +288,11 @@ class Problem:
             weakly determined directions of a narrow workspace near nominal instead of letting
             them absorb what the geometry cannot explain.
         """
-        if data.n_joints != robot.n_joints:
-            raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
-        for name, values in (("q", data.q), ("y", data.y)):
-            bad = np.argwhere(~np.isfinite(values))
-            if bad.size:
-                i = bad[0][0]
-                raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
+        check_observations(robot, data)
         cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
-        check_observations(robot, data)
         start = start_parameters(robot, data, params)
         J = robot.jacobian(data.measurement, data.q, y=data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
