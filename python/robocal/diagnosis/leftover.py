@@ -1,8 +1,9 @@
 """What the final model leaves: noise, or something it does not explain.
 
 "The residuals look like noise" is a claim, and it is tested before it is made: the final
-model's residuals against the floor (the data's own resolution; a residual many times the floor
-is not its noise), for correlation between samples taken one after another (a sensor that
+model's residuals against the noise the data show (the repeatability at revisited
+configurations, or the floor where it includes the sensor's recorded noise; a residual many
+times that is not noise), for correlation between samples taken one after another (a sensor that
 wanders, settling, a cause that follows the path) and between samples taken in similar
 configurations far apart in time (a cause of the robot outside the library). Candidates the
 selection refused although they would have explained a large share of the error are reported
@@ -26,14 +27,29 @@ FLOOR_MULTIPLE = 3.0
 LARGE_SHARE = 0.2
 
 
-def residual_verdict(data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse: float, floor_mm: float) -> dict:
+def noise_reference(budget: dict) -> tuple[Optional[float], str]:
+    """The noise a perfect model would leave, as far as the data show it (mm), and what it is:
+    the repeatability measured at revisited configurations, else the floor when it includes the
+    sensor's own recorded noise; None when neither is known (a floor of rounding alone says
+    nothing of a sensor whose noise is finer than its readings' grid is coarse)."""
+    revisits = budget.get("revisits")
+    if revisits and revisits.get("repeatability_mm"):
+        return float(revisits["repeatability_mm"]), "the repeatability measured at revisited configurations"
+    if budget.get("sensor_std_recorded") and budget.get("floor_mm", 0) > 0:
+        return float(budget["floor_mm"]), "the floor of the data's resolution and the sensor's recorded noise"
+    return None, "no measured noise to compare with (no revisits, no recorded sensor noise)"
+
+
+def residual_verdict(data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse: float, budget: dict) -> dict:
     """The tests of the module notes on the final model's ``residuals`` (len(idx), k) of the
-    samples ``idx`` whose held-out RMSE is ``rmse`` (mm): a report entry with each test and
-    ``noise`` (True only if none of them finds anything) and ``findings`` (plain words)."""
+    samples ``idx`` whose held-out RMSE is ``rmse`` (mm), with the error ``budget``
+    (:func:`~.budget.floor` and its revisits): a report entry with each test, ``noise`` (True
+    only if none of them finds anything) and ``findings`` (plain words)."""
     correlation = residual_correlation(data, idx, residuals)
     findings = []
-    if floor_mm > 0 and rmse > FLOOR_MULTIPLE * floor_mm:
-        findings.append(f"the held-out RMSE is {rmse / floor_mm:.3g} times the floor of the data's resolution ({floor_mm:.3g} mm)")
+    reference, what = noise_reference(budget)
+    if reference is not None and rmse > FLOOR_MULTIPLE * reference:
+        findings.append(f"the held-out RMSE is {rmse / reference:.3g} times {what} ({reference:.3g} mm)")
     lag1 = None if correlation is None else correlation.get("lag1")
     if lag1 is not None and lag1["z"] > Z_BOUND:
         findings.append(
@@ -45,7 +61,8 @@ def residual_verdict(data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse
             f"samples in similar configurations far apart in time are alike (correlation {joints['correlation']:.2f}, z {joints['z']:.1f}): "
             "systematic in joint space, a cause of the robot"
         )
-    return {"noise": not findings, "findings": findings, "correlation": correlation, "floor_multiple": None if floor_mm <= 0 else float(rmse / floor_mm)}
+    return {"noise": not findings, "findings": findings, "correlation": correlation,
+            "noise_reference_mm": reference, "noise_reference": what, "noise_multiple": None if reference is None else float(rmse / reference)}  # fmt: skip
 
 
 def unexplained(rejected: list, rmse: Optional[float]) -> list[dict]:
@@ -72,6 +89,6 @@ def leftover_words(final: dict) -> Optional[str]:
     if not isinstance(verdict, dict) or not isinstance(verdict.get("findings"), list):
         return None
     if verdict.get("noise"):
-        near = "near the floor, and " if verdict.get("floor_multiple") is not None else ""
+        near = "near the measured noise, and " if verdict.get("noise_multiple") is not None else ""
         return f"the residuals look like noise: {near}neither correlated in acquisition order nor in joint space"
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])

@@ -580,7 +580,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     r = _all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
-    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(current_cv["random"]), budget["floor_mm"])
+    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(current_cv["random"]), budget)
     z = r / robust_sigma(r[keep])  # in robust sigmas of the kept samples' residuals
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and model.causes:

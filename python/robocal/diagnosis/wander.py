@@ -51,7 +51,7 @@ Z_LAG1 = 3.0
 #: Smallest correlation worth naming (a fifth of the residual's variance shared by neighbours).
 MIN_CORRELATION = 0.2
 #: Roughness penalty of the wander spline (mm per mm of second difference of its coefficients).
-ROUGHNESS = 0.1
+ROUGHNESS = 0.3
 #: Most spline coefficients per axis (a long session gets wider knots).
 MAX_KNOTS = 80
 

@@ -1,0 +1,76 @@
+"""A fixed subset of the discovery benchmark (``benches/discovery.py``): each hidden effect is
+named — with its sign and size where it has them — **and nothing else is**. The effects are the
+classes diagnose used to misname: a sensor that wanders in time, lost motion of the unexpected
+sign, a compliance whose true masses are not the mass model's, and pairs of effects."""
+
+from __future__ import annotations
+
+import pytest
+
+from robocal.diagnosis import diagnose
+from robocal.simulation import simulate
+
+
+def named(robot: str, measurement: str, effects: list[str], seed: int = 3) -> dict:
+    data, _ = simulate(robot, measurement, samples=300, seed=seed, effects=effects)
+    return diagnose(data).to_dict()
+
+
+def kinds(report: dict) -> list[tuple]:
+    return sorted((e["kind"], e["joint"]) for e in report["effects"])
+
+
+@pytest.mark.parametrize(
+    "robot, measurement, rms, length",
+    [("ur10", "position", 0.2, 10), ("hsr-jr680", "cable", 0.2, 8), ("abb-irb120", "pose", 0.2, 15), ("abb-irb120", "cable", 0.1, 5)],
+)
+def test_a_wandering_sensor_is_named_as_wander_and_nothing_else(robot, measurement, rms, length):
+    report = named(robot, measurement, [f"wander:rms={rms},length={length}"])
+    assert kinds(report) == [("wander", None)]
+    found = report["effects"][0]["params"]["rms"]["value"]
+    assert 0.7 * rms < found < 1.3 * rms  # the fitted path's RMS, mm, within 30 % (it takes some of the noise)
+    assert report["final"]["rmse_heldout"] < 0.5 * report["baseline"]["rmse_heldout"]
+
+
+def test_lost_motion_of_the_unexpected_sign_is_named_with_its_sign():
+    report = named("ur10", "position", ["backlash:joint=2,width=-0.03"])
+    assert kinds(report) == [("backlash", 2)]
+    params = report["effects"][0]["params"]
+    assert params["width"]["value"] == pytest.approx(-0.03, abs=0.003)
+    assert params["direction"]["value"] == -1.0  # the link leads its reading
+
+
+def test_a_compliance_on_masses_off_the_mass_model_breeds_no_other_causes():
+    report = named("ur10", "position", ["joint_compliance:joint=2,mass_error=0.3"])
+    assert kinds(report) == [("joint_compliance", 2)]
+
+
+@pytest.mark.parametrize(
+    "robot, measurement, effects, expected",
+    [
+        ("abb-irb120", "position", ["step:sample=150,size=0.3", "backlash:joint=2,width=-0.02"], [("backlash", 2), ("step", None)]),
+        ("hsr-jr680", "position", ["joint_compliance:joint=2,mass_error=0.3", "joint_periodic:joint=3,amplitude=0.02,harmonic=2"],
+         [("joint_compliance", 2), ("joint_periodic", 3)]),
+    ],
+)  # fmt: skip
+def test_pairs_of_effects_are_both_named_and_nothing_else(robot, measurement, effects, expected):
+    assert kinds(named(robot, measurement, effects)) == expected
+
+
+@pytest.mark.parametrize("robot, measurement", [("ur10", "position"), ("hsr-jr680", "cable")])
+def test_clean_data_name_nothing_and_say_noise_after_testing_it(robot, measurement):
+    report = named(robot, measurement, [])
+    assert report["effects"] == []
+    verdict = report["final"]["residuals"]
+    assert verdict["noise"] is True and verdict["findings"] == []
+    assert abs(verdict["correlation"]["lag1"]["z"]) < 5.0
+
+
+def test_residuals_correlated_in_time_are_not_called_noise():
+    """With the wander term refused (no maps, a single cause allowed but none of its kind), what is
+    left is said to be correlated in acquisition order — never 'noise'."""
+    data, _ = simulate("ur10", "position", samples=300, seed=3, effects=["wander:rms=0.2,length=10"])
+    report = diagnose(data, max_effects=0, maps=False).to_dict()
+    verdict = report["final"]["residuals"]
+    assert verdict["noise"] is False
+    assert any("acquisition order" in f for f in verdict["findings"])
