@@ -110,6 +110,8 @@ def repeatability(q: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
     (``sqrt(mean|(r_a + r_b)/2|² − repeatability²/2)``; from residuals of a fit that saw the
     samples, so a lower bound). None without revisits."""
     pairs = cKDTree(q).query_pairs(REVISIT_TOLERANCE, p=np.inf, output_type="ndarray")
+    # A row repeated in the file is the same reading twice, not a revisit: its noise is not in it.
+    pairs = pairs[np.any(residuals[pairs[:, 0]] != residuals[pairs[:, 1]], axis=1)] if len(pairs) else pairs
     if len(pairs) == 0:
         return None
     a, b = pairs[:, 0], pairs[:, 1]

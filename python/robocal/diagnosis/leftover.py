@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from .wander import Z_BOUND, residual_correlation
+from .wander import TIME_TERMS, Z_BOUND, residual_correlation
 
 #: A final RMSE beyond this multiple of the floor is more than the data's resolution.
 FLOOR_MULTIPLE = 3.0
@@ -68,12 +68,15 @@ def residual_verdict(data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse
 def unexplained(rejected: list, rmse: Optional[float]) -> list[dict]:
     """The candidates the last screening round refused (``rejected``, screened against a model
     of held-out RMSE ``rmse``) whose gain would have removed at least :data:`LARGE_SHARE` of
-    that model's held-out mean square error: label, share, values and why they were refused
+    that model's held-out mean square error on every fold scheme (the smallest of their screening
+    gains; a time term's on the random folds): label, share, values and why they were refused
     (largest first). Earlier rounds' refusals are left out: a later cause took what they saw."""
     out = []
     baseline_rmse = rmse or 0.0
     for r in rejected:
-        gain = r.get("gain_mm")
+        # what it explains on every fold scheme (a time term: within the session's stretches)
+        gains = r.get("gains_mm") or {}
+        gain = gains.get("random") if r.get("kind") in TIME_TERMS else min(gains.values(), default=None)
         if gain is None or not np.isfinite(gain) or baseline_rmse <= 0 or gain <= 0:
             continue
         share = 1.0 - max(baseline_rmse - gain, 0.0) ** 2 / baseline_rmse**2

@@ -37,7 +37,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
-from ..data.splits import kfold
+from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -50,7 +50,7 @@ from .maps import map_stage
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
-from .wander import residual_correlation, wander_candidate, wander_within
+from .wander import TIME_TERMS, residual_correlation, wander_candidate, wander_within
 
 
 @dataclass
@@ -91,9 +91,12 @@ class Diagnosis:
         }
 
 
-def _folds(m: int, k: int, seed: int, order: np.ndarray, groups) -> dict:
-    """Fold schemes over ``m`` samples: random, blocks in acquisition ``order``, groups."""
-    schemes = {"random": kfold(m, k, seed)}
+def _folds(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) -> dict:
+    """Fold schemes over the samples of joint readings ``q`` (m, N): random (a configuration
+    measured more than once stays on one side: a repeated row is no held-out sample), blocks in
+    acquisition ``order``, groups."""
+    m = len(q)
+    schemes = {"random": kfold(m, k, seed, groups=configuration_groups(q))}
     blocks = np.array_split(order, k)
     schemes["blocked"] = [(np.sort(np.concatenate([b for j, b in enumerate(blocks) if j != i])), np.sort(blocks[i])) for i in range(k)]
     if groups is not None:
@@ -233,7 +236,6 @@ def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
 #: on neighbours in time, they predict samples between their training samples (random folds)
 #: but not a block of the session they never saw (blocked, group folds), where they must only
 #: do no harm — within :data:`SESSION_TERM_COST` of the model without them.
-TIME_TERMS = ("wander",)
 SESSION_TERM_COST = 0.01
 
 
@@ -425,7 +427,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
-    schemes = _folds(len(keep), folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
+    schemes = _folds(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
 
     causes: list[Candidate] = []
     ext = ExtendedProblem(base, causes, dataset, keep)
@@ -544,6 +546,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         })  # fmt: skip
         current_cv = new_cv
 
+    last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
     causes, x, current_cv, fold_x, dropped = backward(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
@@ -589,7 +592,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         outliers = outliers[beyond[outliers]]
     if len(outliers):
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
-        before, _ = _nonlinear_cv(everyone, kfold(len(dataset), folds, seed))
+        before, _ = _nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
         effects.insert(0, {
             "kind": "outliers", "joint": None, "label": "outliers",
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound,
@@ -618,7 +621,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible(),
                # Noise or not (tested), and what the selection refused although it would have explained much.
-               "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] :], last_round[1])},
+               "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1])},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
     ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
 
@@ -700,7 +703,7 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
         return result.metrics["train"]["rmse"], len(result.implausible())
 
     order = acquisition_order(data)
-    schemes = _folds(len(data), folds, seed, order, groups)
+    schemes = _folds(data.q, folds, seed, order, groups)
 
     def cross_validate(d: Dataset) -> dict:
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))

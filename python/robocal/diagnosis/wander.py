@@ -36,8 +36,11 @@ from scipy.spatial import cKDTree
 
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
+from .budget import REVISIT_TOLERANCE
 from .candidates import Candidate, acquisition_order
 
+#: Kinds that are smooth functions of time within one session (this module's term).
+TIME_TERMS = ("wander",)
 #: Pairs up to this many samples apart in acquisition order are "near in time".
 MAX_LAG = 20
 #: Nearest neighbours in joint space per sample (among samples far apart in time).
@@ -128,9 +131,10 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     tj = np.concatenate([np.arange(lag, m) for lag in range(1, MAX_LAG + 1)])
     td = np.linalg.norm(q[ti] - q[tj], axis=1)
     apart = td > reach
-    lag1 = float(np.mean(np.sum(e[1:] * e[:-1], axis=1))) / var
+    moved = np.any(np.abs(q[1:] - q[:-1]) > REVISIT_TOLERANCE, axis=1)  # a row repeated in the file is no neighbour in time
+    lag1 = float(np.mean(np.sum(e[1:][moved] * e[:-1][moved], axis=1))) / var if moved.any() else 0.0
     entry = {
-        "lag1": {"correlation": lag1, "z": lag1 * float(np.sqrt(m))},
+        "lag1": {"correlation": lag1, "z": lag1 * float(np.sqrt(max(int(moved.sum()), 1)))},
         "test": f"residual correlation of pairs <= {MAX_LAG} samples apart in acquisition order but farther apart in joints than the typical "
         f"nearest neighbour ({np.degrees(reach):.3g} deg), against each sample's {NEIGHBOURS} nearest neighbours in joint space more than {far} samples apart",
         "correlation_length_samples": correlation_length(e),
