@@ -12,7 +12,7 @@
    in acquisition order (a cause must also help on a block of the session it was not fitted
    on), plus leave-one-group-out when ``groups`` are given.
 3. A candidate is significant if the extra-sum-of-squares F test of adding its columns passes at
-   ``alpha`` / (number of candidates) (Bonferroni), its held-out gain is positive on every
+   ``alpha`` / (number of candidates × rounds the selection may run) (Bonferroni over the whole search), its held-out gain is positive on every
    fold scheme and at least ``min_gain`` of the held-out RMSE. The one with the largest gain is fitted (nonlinear,
    all parameters re-fitted) and kept if its physical parameters are plausible
    (:data:`~robocal.diagnosis.candidates.LIMITS`); otherwise the next one is tried.
@@ -40,7 +40,7 @@ from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
-from ..robot import RESIDUAL_WIDTH, Robot
+from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor, repeatability
@@ -470,9 +470,11 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         n_tests = len(scored)
 
         def tests_of(c: Candidate) -> int:
-            # A step's position was chosen from the data among every sample: Bonferroni over
-            # those positions as well (its p-value is that of the best of them).
-            return n_tests + (len(r) // k if c.kind == "step" else 0)
+            # Bonferroni over the whole search, not one round: every candidate of every round the
+            # selection may run (max_effects). A step's position was chosen from the data among
+            # every sample: Bonferroni over those positions as well (its p-value is that of the
+            # best of them).
+            return (n_tests + (len(r) // k if c.kind == "step" else 0)) * max(1, max_effects)
 
         def is_significant(gain: float, c: Candidate, p_value: float, gains: dict) -> bool:
             relevant = gain >= min_gain * rmse_of_squares(model_err["random"])
@@ -714,7 +716,13 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
     if not bad:
         return data, [], []
     baseline = structure.Trial([], as_read.metrics["train"]["rmse"], len(bad))
-    accepted, effects, rejected = structure.search(data, fit, cross_validate, baseline, seed, extra=structure.zero_errors(bad))
+    setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
+
+    def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
+        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=structure.SCREEN_NFEV // 2).metrics["train"]["rmse"]
+
+    combined = structure.screen_combinations(data, setup_rmse, seed)
+    accepted, effects, rejected = structure.search(data, fit, cross_validate, baseline, seed, extra=structure.zero_errors(bad) + combined)
     return structure.apply_all(data, accepted), effects, rejected
 
 

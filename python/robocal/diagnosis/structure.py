@@ -22,7 +22,8 @@ promising on all samples, then cross-validation. A hypothesis is accepted when i
 geometric fit plausible (no parameter beyond the limits) at an equal or better held-out error,
 or lowers the held-out error by :data:`REAL_GAIN` with fewer implausible parameters; hypotheses
 the data cannot tell apart are reported together, as undetermined. Two conventions wrong at
-once, neither of which helps alone, are not found.
+once, neither of which helps alone, are found by :func:`screen_combinations`: every quarter-turn
+offset and sign on one or two joints, judged by the nominal geometry with only the set-up fitted.
 """
 
 from __future__ import annotations
@@ -102,6 +103,12 @@ class Structure:
         if self.kind == "joint_sign":
             return {"sign": q(-1.0, "1")}
         return {"coefficient": q(self.value, "1"), "source": q(self.source + 1, "joint")}
+
+    @property
+    def quarter_turn(self) -> bool:
+        """A convention of whole quarter turns (a DH table's offsets, a counting direction), as
+        against a joint re-mastered at some angle."""
+        return self.kind != "joint_zero" or abs(self.value / DEG / 90.0 - round(self.value / DEG / 90.0)) < 1e-9
 
     def size(self) -> float:
         """How large a change to the readings it is (for preferring the smaller)."""
@@ -195,6 +202,56 @@ def zero_errors(implausible: list[dict]) -> list[Structure]:
             for f in implausible if f["name"].startswith("theta")]  # fmt: skip
 
 
+def combinations(data: Dataset) -> list[tuple]:
+    """Every controller convention on one or two of the joints that move in ``data``: per joint
+    a quarter-turn zero offset (0, 90, 180, 270°), read with its sign or reversed — the
+    conventions a DH table's offsets and a controller's counting directions differ by. Two joints
+    wrong at once is common (a DH table whose θ offsets the controller already includes on
+    joints 2 and 3), and neither helps alone."""
+    moving = [j for j in range(data.n_joints) if np.ptp(data.q[:, j]) > MOVING_DEG * DEG]
+
+    def options(j: int) -> list[tuple]:
+        out = []
+        for sign in (False, True):
+            for zero in (0.0,) + ZERO_OFFSETS:
+                parts = ((Structure("joint_sign", j),) if sign else ()) + ((Structure("joint_zero", j, zero * DEG),) if zero else ())
+                if parts:
+                    out.append(parts)
+        return out
+
+    singles = {j: options(j) for j in moving}
+    pairs = [a + b for i, j in enumerate(moving) for k in moving[i + 1 :] for a in singles[j] for b in singles[k]]
+    return [h for j in moving for h in singles[j]] + pairs
+
+
+#: Conventions on one or two joints kept from the set-up-only screening for the full checks.
+COMBINED_SHORTLIST = 3
+#: ... if their set-up-only fit is at most this fraction of the readings as read.
+COMBINED_GAIN = 0.5
+
+
+def screen_combinations(data: Dataset, setup_rmse: Callable, seed: int = 0) -> list[tuple]:
+    """The :func:`combinations` under which the *nominal* geometry, with only the set-up fitted
+    (``setup_rmse(dataset) -> RMSE``), explains the data far better than as read (at most
+    :data:`COMBINED_GAIN` of its RMSE), best first, at most :data:`COMBINED_SHORTLIST`. A
+    controller's convention leaves the robot's geometry nominal, so the right one shows before
+    any kinematic parameter is fitted; set-up-only fits on a subsample are cheap enough to try
+    all of them (about a thousand on six joints)."""
+    rng = np.random.default_rng(seed)
+    sub = data.subset(np.sort(rng.choice(len(data), min(COMBINED_SAMPLES, len(data)), replace=False)))
+    as_read = setup_rmse(sub)
+    scored = sorted(((setup_rmse(apply_all(sub, list(h))), sum(s.size() for s in h), h) for h in combinations(data)), key=lambda t: t[:2])
+    return [h for rmse, _, h in scored[:COMBINED_SHORTLIST] if rmse <= COMBINED_GAIN * as_read]
+
+
+#: Samples of the set-up-only screening fits.
+COMBINED_SAMPLES = 120
+
+
+def _labels(parts) -> str:
+    return " + ".join(s.label for s in parts)
+
+
 def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0,
            extra: tuple = ()) -> tuple[list[Structure], list[dict], list[dict]]:  # fmt: skip
     """Greedy search for the reading conventions that make the geometry plausible.
@@ -214,17 +271,18 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
             break
         now = apply_all(data, accepted)
         scored = []
-        for h in hypotheses(now) + ([] if accepted else list(extra)):
-            rmse, bad = fit(apply_all(now.subset(screen), [h]), SCREEN_NFEV)
+        # a hypothesis is one or more conventions applied together (two joints wrong at once)
+        for h in [(s,) for s in hypotheses(now)] + ([] if accepted else [tuple(e) if isinstance(e, (list, tuple)) else (e,) for e in extra]):
+            rmse, bad = fit(apply_all(now.subset(screen), list(h)), SCREEN_NFEV)
             scored.append((bad, rmse, h))
-        scored.sort(key=lambda s: (s[0], s[1], s[2].size()))
+        scored.sort(key=lambda s: (s[0], s[1], sum(p.size() for p in s[2])))
         trials = []
         for _, _, h in scored[:SHORTLIST]:
-            rmse, bad = fit(apply_all(now, [h]), None)
+            rmse, bad = fit(apply_all(now, list(h)), None)
             # Cross-validation (the expensive part) only for what could pass: a plausible fit as
             # good as now, or a training error already lower by the gain asked of the held-out one.
             if (bad == 0 and rmse <= (1.0 + EQUAL) * current.rmse) or (bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse):
-                trials.append(Trial(accepted + [h], rmse, bad))
+                trials.append(Trial(accepted + list(h), rmse, bad))
         if trials and current.heldout is None:
             current.heldout = cross_validate(apply_all(data, accepted))
         for t in trials:
@@ -236,27 +294,40 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
             or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
         ]
         if not good:
-            rejected += [{"kind": t.structures[-1].kind, "joint": t.structures[-1].joint + 1, "label": t.structures[-1].label,
+            rejected += [{"kind": t.structures[len(accepted)].kind, "joint": t.structures[len(accepted)].joint + 1, "label": _labels(t.structures[len(accepted):]),
                           "gain_mm": current.heldout["random"] - t.heldout["random"],
                           "gains_mm": {k: current.heldout[k] - t.heldout[k] for k in current.heldout},
-                          "p_value": None, "p_adjusted": None, "params": t.structures[-1].params,
+                          "p_value": None, "p_adjusted": None, "params": t.structures[len(accepted)].params,
                           "reason": f"{t.implausible} implausible parameters instead of {current.implausible} at held-out RMSE "
                                     f"{t.heldout['random']:.4g} mm instead of {current.heldout['random']:.4g} mm: neither plausible nor "
                                     f"{REAL_GAIN:.0%} better"} for t in trials]  # fmt: skip
             break
-        good.sort(key=lambda t: (t.implausible, t.heldout["random"], t.structures[-1].size()))
-        best = good[0]
+        good.sort(key=lambda t: (t.implausible, t.heldout["random"], sum(p.size() for p in t.structures[len(accepted) :])))
+        # Among hypotheses the data cannot tell apart, the fewest conventions: a zero offset of a
+        # joint the set-up absorbs (the last one, before a free tool point) explains nothing.
+        level = [t for t in good if t.implausible == good[0].implausible and t.heldout["random"] <= (1.0 + EQUAL) * good[0].heldout["random"]]
+        best = min(
+            level,
+            key=lambda t: (
+                len(t.structures),
+                sum(not p.quarter_turn for p in t.structures),
+                sum(p.size() for p in t.structures[len(accepted) :]),
+                t.heldout["random"],
+            ),
+        )
+        good = [best] + [t for t in good if t is not best]
         alike = [t for t in good[1:] if t.implausible == best.implausible and t.heldout["random"] <= (1.0 + EQUAL) * best.heldout["random"]]
-        s = best.structures[-1]
-        effects.append({
+        for s in best.structures[len(accepted) :]:
+            effects.append({
             "kind": s.kind, "joint": s.joint + 1, "label": s.label, "params": s.params,
             "rmse_heldout_before": current.heldout["random"], "rmse_heldout_after": best.heldout["random"],
             "significance": {"test": "nonlinear re-fits: a plausible geometry at an equal or better held-out error, or a held-out gain of "
                                      f"{REAL_GAIN:.0%} (random and blocked folds)",
                              "implausible_before": current.implausible, "implausible_after": best.implausible,
                              "rmse_heldout_blocked_before": current.heldout["blocked"], "rmse_heldout_blocked_after": best.heldout["blocked"],
-                             "undetermined_between": [t.structures[-1].label for t in alike]},
-        })  # fmt: skip
-        accepted.append(s)
+                             "undetermined_between": [_labels(t.structures[len(accepted):]) for t in alike],
+                             "together_with": [o.label for o in best.structures[len(accepted):] if o is not s]},
+          })  # fmt: skip
+        accepted = list(best.structures)
         current = best
     return accepted, effects, rejected
