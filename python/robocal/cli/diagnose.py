@@ -58,6 +58,8 @@ def summary(report: dict) -> str:
         )
     if report["effects"] and f.get("explained") is not None:
         lines.append(f"  the causes explain {f['explained']:.0%} of the baseline's held-out mean square error above that floor")
+    if f.get("structure_unexplained"):
+        lines.append(f"  structure unexplained: {f['structure_unexplained']['note']}")
     if words := leftover_words(f):
         lines.append(f"  what is left: {words}")
     for u in f.get("unexplained") or []:

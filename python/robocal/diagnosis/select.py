@@ -239,6 +239,16 @@ def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
 SESSION_TERM_COST = 0.01
 
 
+#: The highest harmonic offered while the geometry is implausible (higher ones are flexible terms).
+MAX_HARMONIC_UNEXPLAINED = 2
+
+
+def is_flexible(c: Candidate) -> bool:
+    """A joint term flexible enough to fit around a wrong geometry: a harmonic above
+    :data:`MAX_HARMONIC_UNEXPLAINED` (maps are offered by their own stage)."""
+    return c.kind == "joint_periodic" and c.detail.get("harmonic", 1) > MAX_HARMONIC_UNEXPLAINED
+
+
 def gains_everywhere(c: Candidate, gains: dict) -> bool:
     """A screening gain on every fold scheme (a time term: on the random folds; the linear
     screening extrapolates it into a held-out block, so the nonlinear check, which does not,
@@ -437,6 +447,12 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
+    # A geometry that stays implausible after the reading conventions is structure not
+    # explained: a flexible joint term would only make a wrong geometry fit better (D1: four joint
+    # maps took 0.124 -> 0.067 mm beside a1 at -7858 mm). Those are not offered until it is.
+    unexplained_structure = len(base_fit.implausible())
+    if unexplained_structure:
+        pool = [c for c in pool if not is_flexible(c)]
     base_residuals = ext.residuals(x).reshape(len(keep), k)
     pool += step_candidates(dataset, keep, base_residuals)
     wander_test = residual_correlation(dataset, keep, base_residuals)
@@ -553,7 +569,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
     model = ExtendedProblem(base, causes, dataset, keep)
-    if maps:
+    if maps and not unexplained_structure:
         model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
             model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
         )
@@ -610,6 +626,8 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                   "rmse_train": base_fit.metrics["train"]["rmse"],
                   **_rotation_entries(dataset, baseline_cv),
                   "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
+                  # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
+                  "residual_correlation": wander_test,
                   # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
                   # geometry fits the data only with parameters no robot has.
                   "implausible": base_fit.implausible()},
@@ -623,6 +641,10 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
                "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible(),
                # Noise or not (tested), and what the selection refused although it would have explained much.
+               "structure_unexplained": None if not unexplained_structure else {
+                   "implausible": unexplained_structure,
+                   "note": "the geometric fit stays implausible and no reading convention makes it plausible: joint maps and harmonics above "
+                           f"order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"},
                "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1])},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
     ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
