@@ -1,6 +1,6 @@
 """Issue 28, outputs and crashes: nothing replaced but regular files, no race, no traceback.
 
-One test per row (2 Ctrl-C, 3 NUL in an API path, 4 a device or FIFO as data, 5 special files as
+One test per row (2 Ctrl-C, 3 NUL in an API path, 4 a device or FIFO as data or document, 5 special files as
 outputs, 10 two runs into one folder, 19 terminal escapes from a robot file, 21 demo's partial
 output), then a Hypothesis fuzz of the class: whatever kind of node an output path names, a
 command either refuses it (exit 2, one line naming it, the node untouched) or writes a regular
@@ -22,10 +22,10 @@ import pytest
 import robocal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from robocal import outputs
+from robocal import files, outputs
 from robocal.cli import main
 from robocal.data import table
-from robocal.exceptions import DataError, OutputError
+from robocal.exceptions import DataError, InvalidParameterError, OutputError
 from test_cli_safety import ROBOT, digest, inputs, refused, run  # noqa: F401 (inputs: a fixture)
 
 ROOT = os.geteuid() == 0
@@ -130,7 +130,61 @@ def test_a_fifo_or_a_device_as_data_is_refused_at_once(inputs, tmp_path, capsys,
 
 def test_a_data_file_beyond_the_size_limit_is_refused_unread(inputs, monkeypatch, capsys):  # noqa: F811
     monkeypatch.setattr(table, "MAX_FILE_BYTES", 1000)
-    refused(["calibrate", inputs / "d.csv", "--robot", ROBOT], capsys, str(inputs / "d.csv"), "bytes; data files are read up to 1,000 bytes")
+    refused(["calibrate", inputs / "d.csv", "--robot", ROBOT], capsys, str(inputs / "d.csv"), "bytes; robocal reads files up to 1,000 bytes")
+
+
+def _special_documents(tmp_path, name: str) -> list[tuple[Path, str]]:
+    """A FIFO (and, as root, a character device with /dev/zero's numbers) named ``name``, in tmp_path."""
+    fifo = tmp_path / name
+    os.mkfifo(fifo)
+    made = [(fifo, "is a FIFO")]
+    if ROOT:
+        zero = tmp_path / f"zero-{name}"
+        os.mknod(zero, 0o444 | stat.S_IFCHR, os.makedev(1, 5))
+        made.append((zero, "is a character device"))
+    return made
+
+
+@pytest.mark.parametrize("name", ["r.json", "r.yaml", "r.csv", "r.urdf"])
+def test_a_fifo_or_a_device_as_robot_result_or_diagnosis_is_refused_at_once(inputs, tmp_path, capsys, no_hang, name):  # noqa: F811
+    """Row 4 for documents (robot, result, parameter table, URDF, diagnose report): read through
+    the same regular-file check as data files (robocal.files), never opened to block."""
+    for path, words in _special_documents(tmp_path, name):
+        refused(
+            ["simulate", "--robot", path, "--measurement", "position", "--samples", "10", "--out", tmp_path / "s.csv"],
+            capsys,
+            str(path),
+            words,
+            "not a regular file",
+        )
+        if name.endswith(".json"):
+            refused(["export", path, "--format", "dh", "--out", tmp_path / "x.csv"], capsys, str(path), words)
+            refused(["report", path, "--out", tmp_path / "rep"], capsys, str(path), words)
+            refused(["report", inputs / "result.json", "--diagnosis", path, "--out", tmp_path / "rep"], capsys, str(path), words)
+            refused(["calibrate", inputs / "d.csv", "--robot", ROBOT, "--causes", path], capsys, str(path), words)
+            with pytest.raises(InvalidParameterError, match="not a regular file"):
+                robocal.load_result(path)
+        with pytest.raises(InvalidParameterError, match="not a regular file"):
+            robocal.robot(str(path))
+    assert not (tmp_path / "s.csv").exists() and not (tmp_path / "x.csv").exists() and not (tmp_path / "rep").exists()
+
+
+def test_a_robot_file_beyond_the_size_limit_is_refused_unread(inputs, monkeypatch, capsys):  # noqa: F811
+    monkeypatch.setattr(files, "MAX_FILE_BYTES", 100)
+    refused(
+        ["export", inputs / "result.json", "--format", "dh", "--out", inputs / "x.csv"],
+        capsys,
+        str(inputs / "result.json"),
+        "robocal reads files up to 100 bytes",
+    )
+    assert not (inputs / "x.csv").exists()
+
+
+def test_data_and_documents_share_one_reader():
+    """One regular-file reader (robocal.files) for data (DataError) and documents (InvalidParameterError)."""
+    from robocal import robot_file
+
+    assert table.open_regular is files.open_regular and robot_file.read_regular is files.read_regular and table.read_regular is files.read_regular
 
 
 # -- row 5: an output that is not a regular file -------------------------------------------------------

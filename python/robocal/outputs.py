@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Iterable, Optional
 
 from .exceptions import OutputError
+from .files import file_kind
 
 
 def same_file(a, b) -> bool:
@@ -59,13 +60,6 @@ def special_kind(path) -> str | None:
         target = os.readlink(path)
         return f"a symbolic link to {target}" + ("" if os.path.exists(path) else " (which does not exist)")
     return file_kind(mode)
-
-
-def file_kind(mode: int) -> str:
-    """The kind of file an ``st_mode`` describes, as a phrase for a message."""
-    kinds = [(stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
-             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link")]  # fmt: skip
-    return next((phrase for test, phrase in kinds if test(mode)), "not a regular file")
 
 
 def refuse_special(path) -> None:

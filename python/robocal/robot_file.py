@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import InvalidParameterError, RobocalError
+from .files import read_regular
 from .outputs import write_json, write_text
 from .physics import MassModel
 from .robot import Joint, Robot
@@ -268,15 +269,22 @@ def parse_document(text: str, where: str, what: str = "robot file", yaml_text: b
 
 
 def read_document(path, what: str = "robot file") -> object:
-    """The parsed JSON or YAML (by suffix) of ``path`` (:func:`parse_document`), or an error naming the file."""
+    """The parsed JSON or YAML (by suffix) of ``path`` (:func:`parse_document`), or an error naming
+    the file; only a regular file is read (a FIFO or a device would block or never end), up to
+    :data:`robocal.files.MAX_FILE_BYTES` (:func:`read_file`)."""
     path = Path(path)
+    text = read_file(path, what)
+    return parse_document(text, str(path), what, yaml_text=path.suffix.lower() in (".yaml", ".yml"))
+
+
+def read_file(path, what: str = "robot file") -> str:
+    """The UTF-8 text of the ``what`` at ``path`` (:func:`robocal.files.read_regular`), or an
+    :class:`InvalidParameterError` naming the file and what is wrong with it."""
+    data = read_regular(path, lambda problem: InvalidParameterError(f"{path}: {problem}"), what=what)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InvalidParameterError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InvalidParameterError(f"{path}: not a {what} (not UTF-8 text: undecodable byte at offset {exc.start})") from None
-    return parse_document(text, str(path), what, yaml_text=path.suffix.lower() in (".yaml", ".yml"))
 
 
 def read_robot_file(path) -> Robot:

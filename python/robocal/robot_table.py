@@ -17,7 +17,7 @@ import numpy as np
 
 from .exceptions import InvalidParameterError
 from .robot import Joint, Robot
-from .robot_file import parse_document, read_document
+from .robot_file import parse_document, read_document, read_file
 
 TABLE_SCHEMA = "robocal.export.table/1"
 
@@ -109,7 +109,7 @@ def read_table(path) -> list[dict]:
     Numbers come back as float, ``hayati`` as bool, empty cells as ``None``.
     """
     path = Path(path)
-    text = path.read_text()
+    text = read_file(path, "robocal parameter table")
     if text.lstrip().startswith("{"):
         doc = parse_document(text, str(path), "robocal parameter table")
         if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:

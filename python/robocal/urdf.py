@@ -40,6 +40,7 @@ import numpy as np
 from .exceptions import InvalidParameterError, MissingDependencyError
 from .geometry import X, Y, frame_params, homogeneous, rotation
 from .robot import Joint, Robot
+from .robot_file import read_file
 
 #: Consecutive joint axes closer to parallel than this (degrees) get Hayati's ``beta`` instead of ``d``.
 PARALLEL_DEG = 1.0
@@ -50,12 +51,7 @@ _M_TO_MM = 1000.0
 
 def _parse(path: Path):
     """The yourdfpy model of ``path``, or an error naming the file."""
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise InvalidParameterError(f"{path}: cannot read the URDF file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise InvalidParameterError(f"{path}: not a URDF file ({exc})") from None
+    text = read_file(path, "URDF file")
     try:  # the stdlib names the line and column of malformed XML; yourdfpy does not
         root = ET.fromstring(text)
     except ET.ParseError as exc:

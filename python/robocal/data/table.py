@@ -22,9 +22,7 @@ from __future__ import annotations
 import csv
 import difflib
 import math
-import os
 import re
-import stat
 import sys
 from functools import cached_property
 from pathlib import Path
@@ -34,7 +32,7 @@ import numpy as np
 
 from ..core import MAX_ABS, QUATERNION_NORM_TOL
 from ..exceptions import DataError
-from ..outputs import file_kind
+from ..files import MAX_FILE_BYTES, open_regular, read_regular
 
 #: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
 #: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
@@ -43,9 +41,6 @@ COLUMNAR = True
 #: cell: importing pyarrow (~0.1 s) costs more than the per-cell path on ~1 MB of cells
 #: (benches/bench_loading.py). Once pyarrow is loaded, every file takes the columnar reader.
 COLUMNAR_MIN_BYTES = 1 << 20
-#: Largest data file read (bytes): a million pose samples, the most ``simulate`` writes, take
-#: about 260 MB; a larger file is refused before it is read instead of filling the memory.
-MAX_FILE_BYTES = 1 << 30
 #: A number as a person writes it in a table: no underscores (Python's ``float("1_0")`` is 10),
 #: no hex, no non-ASCII digits; ``nan`` / ``inf`` are recognised to be refused by name.
 #: (Unambiguous, hence linear-time: a 100 000-digit cell must not backtrack.)
@@ -58,47 +53,22 @@ def shown(value, limit: int = 40) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(str(value))} characters)"
 
 
+def _refusal(path):
+    """The :class:`DataError` naming ``path`` for a problem :mod:`robocal.files` found."""
+    return lambda problem: DataError(problem, path)
+
+
 def open_data(path):
     """``path`` opened for reading in binary mode, once it is known to be a regular file of at
-    most :data:`MAX_FILE_BYTES`; else a :class:`DataError` naming it.
-
-    A FIFO, ``/dev/zero`` or a terminal would block the reader or never end: the file is opened
-    without blocking (a FIFO's open waits for a writer otherwise) and judged by ``fstat`` of
-    what was opened, so a file swapped after a check cannot slip through.
-    """
-    if "\x00" in str(path):
-        raise DataError(f"{str(path)!r}: a path cannot contain a NUL character")
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except OSError as exc:
-        raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
-    info = os.fstat(fd)
-    problem = None
-    if not stat.S_ISREG(info.st_mode):
-        problem = f"is {file_kind(info.st_mode)}, not a regular file; measurements are read from files"
-    elif info.st_size > MAX_FILE_BYTES:
-        problem = f"the file has {info.st_size:,} bytes; data files are read up to {MAX_FILE_BYTES:,} bytes"
-    if problem is not None:
-        os.close(fd)
-        raise DataError(problem, path)
-    return os.fdopen(fd, "rb")
+    most :data:`MAX_FILE_BYTES` (:func:`robocal.files.open_regular`); else a :class:`DataError`
+    naming it."""
+    return open_regular(path, _refusal(path), limit=MAX_FILE_BYTES)
 
 
 def read_data(path) -> bytes:
     """The bytes of the data file ``path`` (see :func:`open_data`), at most :data:`MAX_FILE_BYTES`
     even if it grows while being read."""
-    with open_data(path) as f:
-        try:  # the size it has (read(n) allocates n bytes), then what it may have grown by, bounded
-            chunks = [f.read(os.fstat(f.fileno()).st_size + 1)]
-            size = len(chunks[0])
-            while chunks[-1] and size <= MAX_FILE_BYTES:
-                chunks.append(f.read(1 << 20))
-                size += len(chunks[-1])
-        except OSError as exc:
-            raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
-    if size > MAX_FILE_BYTES:
-        raise DataError(f"the file grew beyond {MAX_FILE_BYTES:,} bytes while it was read", path)
-    return b"".join(chunks)
+    return read_regular(path, _refusal(path), limit=MAX_FILE_BYTES)
 
 
 def read_text(path) -> str:
