@@ -23,6 +23,7 @@ from robocal.data.splits import chronological, paper_split, require_distinct_ses
 from robocal.diagnosis.sessions import diagnose_sessions
 from robocal.exceptions import DataError, InvalidParameterError
 from robocal.inspection import inspect
+from robocal.report import report
 from robocal.results import save_result
 from robocal.simulation import simulate
 from robocal.verification import verify
@@ -135,6 +136,35 @@ def test_row13_verify_refuses_a_file_of_another_robot(tmp_path, cable):
     abb = simulate("abb-irb120", "cable", samples=60, seed=4)[0]
     with pytest.raises(InvalidParameterError, match="are of robot 'abb-irb120'; the robot given is 'hsr-jr680'"):
         verify(str(result), replace(abb, robot="abb-irb120"))
+
+
+def test_row13_report_refuses_data_of_another_robot_as_verify_does(tmp_path, cable, capsys):
+    """``report --data`` reads its data through verify's load_inputs: data naming another built-in
+    robot are refused before the folder is made; under a robot of the user's own name, a note."""
+    result = tmp_path / "r.json"
+    save_result(calibrate(cable, robot="hsr-jr680").to_dict(), result)
+    abb = replace(simulate("abb-irb120", "cable", samples=60, seed=4)[0], robot="abb-irb120")
+    with pytest.raises(InvalidParameterError, match="are of robot 'abb-irb120'; the robot given is 'hsr-jr680'"):
+        report(str(result), tmp_path / "rep", data=abb)
+    assert not (tmp_path / "rep").exists()
+    own = robocal.robot("hsr-jr680")
+    own = robocal.Robot("my-arm", own.joints, own.params)
+    mine = tmp_path / "mine.json"
+    save_result(calibrate(replace(cable, notes=[]), robot=own).to_dict(), mine)  # a copy: the note goes to its own list
+    page = report(str(mine), tmp_path / "rep2", data=replace(abb, notes=[])).read_text()
+    assert "The data name robot &#x27;abb-irb120&#x27;; used as asked: robot &#x27;my-arm&#x27;" in page
+    assert "the data name robot 'abb-irb120'" in verify(str(mine), replace(abb, notes=[]))["notes"][-1]
+
+
+def test_row13_report_cli_refuses_the_abb_file_with_an_hsr_result(tmp_path, cable, datasets, capsys):
+    result = tmp_path / "r.json"
+    save_result(calibrate(cable, robot="hsr-jr680").to_dict(), result)
+    d2 = datasets / "robotcali-abb-irb120" / "RobotCali-new.xlsx"
+    for command in (["verify", result, d2], ["report", result, "--data", d2, "--out", tmp_path / "rep"]):
+        assert main([str(a) for a in command]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("robocal: error: ") and "are of robot 'abb-irb120'; the robot given is 'hsr-jr680'" in err, err
+    assert not (tmp_path / "rep").exists()
 
 
 def test_row14_positions_in_metres_are_named(position):

@@ -29,6 +29,7 @@ from typing import Optional, Union
 import numpy as np
 
 from ._robocal import __version__
+from .calibration.api import load_inputs
 from .calibration.metrics import sample_errors
 from .calibration.problem import implausible_parameters, is_kinematic, start_parameters
 from .calibration.result import describe_implausible, implausible_meaning
@@ -74,18 +75,22 @@ class _Data:
     same_file: bool = False
 
 
-def _load_data(doc: dict, data, angle_unit: Optional[str] = None) -> _Data:
+def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optional[Robot] = None) -> _Data:
+    """The measurements of the report: ``data`` when given, read and checked as ``verify`` reads
+    them (:func:`~robocal.calibration.api.load_inputs`: data naming another built-in robot than
+    ``robot``, the result's, are refused; another name is a note), else the file the result names."""
     from .data import load
 
     recorded = (doc.get("dataset") or {}).get("source")
     if isinstance(data, Dataset):
         if data.measurement != doc["measurement"]:
             raise InvalidParameterError(f"`data` hold {data.measurement} measurements; the result is of {doc['measurement']} data")
-        return _Data(data, data.source, ["measurements passed as a Dataset"], same_file=data.source is not None and data.source == recorded)
+        load_inputs(data, robot, doc["measurement"])
+        return _Data(data, data.source, ["measurements passed as a Dataset", *data.notes], same_file=data.source is not None and data.source == recorded)
     if data is not None:
         # An explicit file must load: its errors are the caller's to see.
-        dataset = load(data, measurement=doc["measurement"], angle_unit=angle_unit)
-        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)"], same_file=_same_file(doc, data))
+        dataset, _ = load_inputs(data, robot, doc["measurement"], angle_unit)
+        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=_same_file(doc, data))
     if not recorded:
         return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
     recorded = str(recorded)
@@ -737,7 +742,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     robot, doc = load_result(result)
     implausible = checked_implausible(robot, doc)
     diag = _load_diagnosis(diagnosis)
-    d = _load_data(doc, data, angle_unit)
+    d = _load_data(doc, data, angle_unit, robot)
     out = make_folder(out)
     meas = doc["measurement"]
     notes = list(d.notes)

@@ -93,7 +93,8 @@ def verify(
     Returns
     -------
     dict
-        ``held_out`` (False when ``data`` is the calibration's own file) and ``notes`` (why),
+        ``held_out`` (False when ``data`` is the calibration's own file) and ``notes`` (why, and what
+        reading the data noticed: a robot named by the data other than the result's),
         ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``metrics_covered``
         (the same over the samples every joint map covers; None if none is), ``refit`` (the set-up
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
@@ -116,8 +117,8 @@ def verify(
     nominal_residuals, _, _ = _refit_setup(nominal, read)
     covered = map_coverage_mask(result_maps(carried), read.q)
     return {
-        "held_out": not (notes := _seen_by_fit(doc, dataset)),
-        "notes": notes,
+        "held_out": not (seen := _seen_by_fit(doc, dataset)),
+        "notes": seen + list(dataset.notes),  # and what the reader and load_inputs noticed (data naming another robot)
         "schema": SCHEMA,
         "robot": calibrated.name,
         "measurement": dataset.measurement,
