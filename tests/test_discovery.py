@@ -5,9 +5,13 @@ sign, a compliance whose true masses are not the mass model's, and pairs of effe
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
 import pytest
 
 from robocal.diagnosis import diagnose
+from robocal.diagnosis.structure import Structure, to_readings
 from robocal.simulation import simulate
 
 
@@ -74,3 +78,37 @@ def test_residuals_correlated_in_time_are_not_called_noise():
     verdict = report["final"]["residuals"]
     assert verdict["noise"] is False
     assert any("acquisition order" in f for f in verdict["findings"])
+
+
+@pytest.mark.parametrize(
+    "robot, measurement, conventions",
+    [("hsr-jr680", "pose", [("joint_zero", 1, 90.0), ("joint_zero", 2, 180.0)]), ("ur10", "position", [("joint_sign", 2, 0.0), ("joint_zero", 4, 270.0)])],
+)
+def test_conventions_on_two_joints_at_once_are_found_and_nothing_else(robot, measurement, conventions):
+    """Neither convention helps alone (the geometry stays ~100 mm off); together they make it nominal."""
+    data, _ = simulate(robot, measurement, samples=300, seed=5)
+    hidden = [Structure(kind, joint, np.radians(value)) for kind, joint, value in conventions]
+    report = diagnose(replace(data, q=to_readings(data.q, hidden))).to_dict()
+    assert sorted(e["label"] for e in report["effects"]) == sorted(s.label for s in hidden)
+    assert report["final"]["rmse_heldout"] < 0.05
+
+
+def test_a_wandering_sensor_and_a_robot_cause_tell_themselves_apart_by_the_pairs_they_correlate():
+    """The test on the geometric fit's residuals: a wander correlates samples near in time and far
+    apart in joints; a joint cause, samples near in joints and far apart in time."""
+    wander, _ = simulate("ur10", "position", samples=600, seed=7, effects=["wander:rms=0.3,length=10"])
+    joint, _ = simulate("ur10", "position", samples=600, seed=7, effects=["joint_periodic:joint=2,amplitude=0.05,harmonic=3"])
+    assert diagnose(wander, max_effects=0, maps=False).baseline["residual_correlation"]["time"]["correlation"] > 0.3
+    test = diagnose(joint, max_effects=0, maps=False).baseline["residual_correlation"]
+    assert test["time"]["correlation"] < test["joints"]["correlation"]
+
+
+def test_the_public_d2_residuals_wander_in_time_and_d1_is_a_convention_on_two_joints(datasets):
+    """What the public files are (issue 25): D2's geometric residuals are alike for samples near in
+    time and far apart in joints, not for samples near in joints and far apart in time (a
+    wandering measurement); D1's are alike in joint space, and its readings follow another zero
+    convention on joints 2 and 3."""
+    d2 = diagnose(datasets / "robotcali-abb-irb120" / "RobotCali-new.xlsx", max_effects=0, maps=False).baseline["residual_correlation"]
+    assert d2["verdict"] == "time" and d2["time"]["correlation"] > 0.5 > d2["joints"]["correlation"]
+    d1 = diagnose(datasets / "hsr-robotcali" / "HSR-RobotCali.xlsx", max_effects=0, maps=False)
+    assert sorted(e["label"] for e in d1.effects if e["kind"] == "joint_zero") == ["joint_zero joint 2 offset=90", "joint_zero joint 3 offset=180"]
