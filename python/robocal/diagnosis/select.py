@@ -29,12 +29,14 @@ from typing import Optional, Union
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import chi2, f as f_dist
+from scipy.stats import chi2
+from scipy.stats import f as f_dist
 from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
+from ..calibration.result import GROSS_FACTOR
 from ..core import as_count, as_float, as_tolerance
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
@@ -43,7 +45,8 @@ from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from . import structure
-from .budget import floor as error_floor, repeatability
+from .budget import floor as error_floor
+from .budget import repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage
@@ -241,6 +244,13 @@ SESSION_TERM_COST = 0.01
 
 #: The highest harmonic offered while the geometry is implausible (higher ones are flexible terms).
 MAX_HARMONIC_UNEXPLAINED = 2
+
+
+def grossly_implausible(implausible: list[dict]) -> int:
+    """How many kinematic parameters lie beyond :data:`GROSS_FACTOR` times their plausibility
+    limit (100 mm, 20°): structure, not a cause a flexible term may fit around — a parameter
+    just past its limit (an undetermined last-joint offset) is not."""
+    return sum(abs(f["deviation"]) > GROSS_FACTOR * f["limit"] for f in implausible)
 
 
 def is_flexible(c: Candidate) -> bool:
@@ -450,7 +460,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     # A geometry that stays implausible after the reading conventions is structure not
     # explained: a flexible joint term would only make a wrong geometry fit better (D1: four joint
     # maps took 0.124 -> 0.067 mm beside a1 at -7858 mm). Those are not offered until it is.
-    unexplained_structure = len(base_fit.implausible())
+    unexplained_structure = grossly_implausible(base_fit.implausible())
     if unexplained_structure:
         pool = [c for c in pool if not is_flexible(c)]
     base_residuals = ext.residuals(x).reshape(len(keep), k)
@@ -569,6 +579,8 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
     model = ExtendedProblem(base, causes, dataset, keep)
+    if unexplained_structure:  # the causes found may have been what bent the geometry
+        unexplained_structure = grossly_implausible(_fit(model, x0=x).implausible())
     if maps and not unexplained_structure:
         model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
             model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
@@ -589,6 +601,13 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         for m in rejected_maps:
             c = m["candidate"]
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
+        if accepted_maps and any(c.kind != "joint_map" for c in model.causes):
+            # a map may explain what a cause found before it took (a time term along a path
+            # that sweeps the mapped joint): every earlier cause must earn its place again
+            kept, x, current_cv, fold_x, dropped = backward(model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map")
+            model = ExtendedProblem(base, kept, dataset, keep)
+            for c, why in dropped:
+                rejected.append(_retract(c, effects, plots, None, why))
     model, x, current_cv, fold_x, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
     for c, physical, why in dropped:
         rejected.append(_retract(c, effects, plots, physical, f"dropped once the causes found after it were in: {why}"))
@@ -643,7 +662,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                # Noise or not (tested), and what the selection refused although it would have explained much.
                "structure_unexplained": None if not unexplained_structure else {
                    "implausible": unexplained_structure,
-                   "note": "the geometric fit stays implausible and no reading convention makes it plausible: joint maps and harmonics above "
+                   "note": f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits) and no reading convention makes it plausible: joint maps and harmonics above "
                            f"order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"},
                "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1])},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
@@ -784,7 +803,7 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     return rest[:at] + moved + rest[at:]
 
 
-def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float):
+def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):
     """Every cause of ``model`` must still earn its place once the causes found after it are in.
 
     The forward selection judges a cause against the model before it; leftovers of a cause
@@ -794,13 +813,13 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
     on every fold scheme, from the fold fits of the full model); a cause whose removal costs
     less than the forward test asks of a new one (a held-out gain on every scheme, at least
     ``min_gain`` of the RMSE on the random folds) is dropped, the cheapest first, until every
-    cause earns its place. Returns the causes kept, their fit, held-out errors and fold fits,
-    and ``(cause, reason)`` of each one dropped."""
+    cause earns its place (only the ``droppable`` ones are judged). Returns the causes kept,
+    their fit, held-out errors and fold fits, and ``(cause, reason)`` of each one dropped."""
     causes, dropped = list(model.causes), []
     while len(causes) >= 2:
         full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
         weakest = None
-        for c in causes:
+        for c in filter(droppable, causes):
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
             refits = {name: _nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             cv = {name: err for name, (err, _) in refits.items()}

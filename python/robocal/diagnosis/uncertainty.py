@@ -39,7 +39,8 @@ def uncertainty_entries(problem, x: np.ndarray, causes) -> dict:
         at = [names.index(f"{c.label} c0") for c in compliances]
         sd = np.sqrt(np.diag(cov)[at])
         if np.all(sd > 0):
-            r = cov[np.ix_(at, at)] / np.outer(sd, sd)
+            block = cov[np.ix_(at, at)]
+            r = (block + block.T) / 2.0 / np.outer(sd, sd)  # symmetric to the last bit, as a correlation is
             for i, c in enumerate(compliances):
                 out[c.label] = {"correlation": {o.label: float(r[i, j]) for j, o in enumerate(compliances) if j != i}}
     return out
