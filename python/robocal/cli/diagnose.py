@@ -40,6 +40,7 @@ def summary(report: dict) -> str:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(
             f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}{settling_words(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
+            + (f" ({share:.0%} of what the causes explain)" if isinstance(share := e.get("share_of_explained"), float) else "")
         )
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
     if "rotation_rmse_heldout_deg" in f:

@@ -617,6 +617,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     described = uncertainty_entries(model, x, model.causes)
     for effect in effects:
         effect.update(described.get(effect["label"], {}))
+    explained_shares(effects, reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]))
     budget = error_floor(rob, dataset.subset(keep), model.full(x))
     r = _all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
@@ -667,6 +668,17 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1])},
         model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
     ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
+
+
+def explained_shares(effects: list, baseline: float, final: float) -> None:
+    """Each found cause's ``share_of_explained``: the held-out mean square error its own step
+    removed (``before² − after²``, in the order the causes were found) as a share of all that
+    the causes removed from the geometric baseline (``baseline² − final²``). Reading conventions
+    act before the baseline and outliers are left out of it: None for them."""
+    total = baseline**2 - final**2
+    for e in effects:
+        inside = e["kind"] not in structure.KINDS and e["kind"] != "outliers" and total > 0
+        e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
 
 
 def _rotation_entries(data: Dataset, cv: dict) -> dict:
