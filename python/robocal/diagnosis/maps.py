@@ -156,7 +156,7 @@ def map_stage(
         base_err = screen.errors()
         best: dict = {}
         for c in progress(pool, desc=f"diagnose: joint maps round {len(accepted) + 1}", unit="map"):
-            C = model.columns(x, c)
+            C = model.weighted_columns(x, c)  # weighted as J and r are
             errs = screen.errors(C, c.penalty, c)
             score = sum(np.mean(errs[name]) for name in schemes)
             if c.joint not in best or score < best[c.joint][0]:

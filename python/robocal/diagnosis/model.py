@@ -198,6 +198,16 @@ class ExtendedProblem:
             return cause.basis[self.idx].reshape(len(self.idx) * self.k, -1)
         raise ValueError(f"columns of a parameters cause come from the Jacobian: {cause.label}")
 
+    def weighted_columns(self, x: np.ndarray, cause: Candidate, parts: dict = None, p: np.ndarray = None):
+        """:meth:`columns` weighted as the rows of :meth:`residuals` and :meth:`jacobian` are
+        (pose data: the rotation rows by the noise ratio): what a screening beside them needs."""
+        C = self.columns(x, cause, parts, p)
+        if is_sparse(C):
+            from scipy import sparse
+
+            return sparse.diags_array(self.row_weights) @ C
+        return C * self.row_weights[:, None]
+
     @cached_property
     def row_weights(self) -> np.ndarray:
         """Weights of the data rows in :meth:`residuals` (the base problem's: rotation rows of

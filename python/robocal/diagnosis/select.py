@@ -246,6 +246,27 @@ SESSION_TERM_COST = 0.01
 MAX_HARMONIC_UNEXPLAINED = 2
 
 
+#: Screening gains within this fraction of each other are the same gain.
+SAME_GAIN = 0.01
+
+
+def simplest_first(ranked: list) -> list:
+    """``ranked`` ((gain, candidate, ...) best first) with a joint's candidate of fewer
+    coefficients moved before a richer one of the same joint that gains no more than
+    :data:`SAME_GAIN` above it: over a joint's range a scale error and a first harmonic (or a
+    harmonic and its neighbour) fit alike, and the data then speak for the simpler one."""
+    out = list(ranked)
+    for i in range(len(out)):
+        gain, c = out[i][0], out[i][1]
+        if c.stage != "joints" or gain <= 0:
+            continue
+        simpler = [j for j in range(i + 1, len(out)) if out[j][1].joint == c.joint and out[j][1].stage == "joints"
+                   and out[j][1].size < c.size and out[j][0] >= (1.0 - SAME_GAIN) * gain]  # fmt: skip
+        if simpler:
+            out.insert(i, out.pop(min(simpler, key=lambda j: (out[j][1].size, -out[j][0]))))
+    return out
+
+
 def grossly_implausible(implausible: list[dict]) -> int:
     """How many kinematic parameters lie beyond :data:`GROSS_FACTOR` times their plausibility
     limit (100 mm, 20°): structure, not a cause a flexible term may fit around — a parameter
@@ -484,10 +505,11 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         last_round = (last_round[0], rmse_of_squares(model_err["random"]))
         scored = []
         for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
+            # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
             if c.stage == "parameters":
-                C = parts["extra"][:, [params.index(n) for n in c.params]]
+                C = parts["extra"][:, [params.index(n) for n in c.params]] * ext.row_weights[:, None]
             else:
-                C = ext.columns(x, c, parts, p)
+                C = ext.weighted_columns(x, c, parts, p)
             errs = screen.errors(C)
             p_value = screen.f_test(C)
             gains = {name: rmse_of_squares(model_err[name]) - rmse_of_squares(errs[name]) for name in schemes}
@@ -506,6 +528,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             relevant = gain >= min_gain * rmse_of_squares(model_err["random"])
             return p_value * tests_of(c) < alpha and relevant and gains_everywhere(c, gains)
 
+        scored = simplest_first(scored)
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
         accepted = None
         joint_trials = 0
