@@ -626,8 +626,11 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
         if accepted_maps and any(c.kind != "joint_map" for c in model.causes):
             # a map may explain what a cause found before it took (a time term along a path
-            # that sweeps the mapped joint): every earlier cause must earn its place again
-            kept, x, current_cv, fold_x, dropped = backward(model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map")
+            # that sweeps the mapped joint): every earlier free shape must earn its place again
+            # (a gravity compliance keeps its place before a map, as in the forward selection)
+            kept, x, current_cv, fold_x, dropped = backward(
+                model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map" and c.kind not in PHYSICAL_KINDS
+            )
             model = ExtendedProblem(base, kept, dataset, keep)
             for c, why in dropped:
                 rejected.append(_retract(c, effects, plots, None, why))
