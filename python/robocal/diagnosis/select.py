@@ -598,7 +598,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
-    causes, x, current_cv, fold_x, dropped = backward(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
+    causes, x, current_cv, fold_x, dropped = backward(
+        ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain, shape_kept(causes)
+    )
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
     model = ExtendedProblem(base, causes, dataset, keep)
@@ -839,6 +841,17 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     moved = [item for item in ranked[at + 1 :] if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar]
     rest = [item for item in ranked if all(item is not m for m in moved)]
     return rest[:at] + moved + rest[at:]
+
+
+def shape_kept(causes: list):
+    """Which of ``causes`` the backward check may drop: not a gravity compliance beside a free
+    shape of its own joint (a harmonic takes a compliance's shape within one session and would
+    win by a little, but only the compliance carries to other poses: :func:`physics_first`)."""
+
+    def droppable(c: Candidate) -> bool:
+        return not (c.kind in PHYSICAL_KINDS and any(o.joint == c.joint and o.stage == "joints" and o.kind not in PHYSICAL_KINDS for o in causes))
+
+    return droppable
 
 
 def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):
