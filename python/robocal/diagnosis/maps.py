@@ -26,6 +26,7 @@ from ..core import is_sparse
 from ..stats import rmse_of_squares
 from .candidates import covered_when_fitted_on, map_candidates, map_noise
 from .model import ExtendedProblem, judged_rmse, reported_rmse
+from .structure import EQUAL
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -214,3 +215,45 @@ def _variants(causes: list, joint_map) -> list[list]:
     subsumed = [o for o in causes if o.kind == "joint_periodic" and o.joint == joint_map.joint]
     plain = causes + [joint_map]
     return [[o for o in causes if o not in subsumed] + [joint_map], plain] if subsumed else [plain]
+
+
+def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, fit, nonlinear_cv, progress):
+    """One joint map in the place of two or more harmonics of one joint.
+
+    Harmonics 1-3 are the library's; a joint whose error holds a higher harmonic (a reducer's
+    gear mesh) is approximated by two or three of them, each a claim of a gear harmonic that is
+    not there. Where the model holds two or more harmonics of a joint, the joint's best map
+    (screened against the model without them) is fitted in their place and kept if its held-out
+    error is within :data:`~.structure.EQUAL` of theirs on every scheme: the same error, one
+    honest claim — "a periodic error of this joint", with its curve — instead of several.
+    Returns the model, its ``x``, held-out errors, fold fits and the report entries of the maps
+    merged in (``candidate``, ``replaces``, ``params``, held-out RMSE before and after)."""
+    robot, data = model.robot, model.full_data
+    merged = []
+    for j in sorted({c.joint for c in model.causes if c.kind == "joint_periodic"}):
+        harmonics = [c for c in model.causes if c.kind == "joint_periodic" and c.joint == j]
+        if len(harmonics) < 2 or any(c.kind == "joint_map" and c.joint == j for c in model.causes):
+            continue
+        rest = ExtendedProblem(model.base, [c for c in model.causes if c not in harmonics], data, model.idx)
+        x_rest = fit(rest, rest.start_from(x, model)).x
+        J, r = rest.jacobian(x_rest), rest.residuals(x_rest)
+        screen = _NormalScreen(J, r, schemes, rest.k, len(rest.idx) * rest.k, data.q[rest.idx])
+        pool = map_candidates(robot, data, [j], map_noise(rest.data_residuals(x_rest).reshape(len(rest.idx), rest.k)), rest.idx)
+        scored = [
+            (sum(np.mean(e) for e in screen.errors(rest.weighted_columns(x_rest, c), c.penalty, c).values()), i)
+            for i, c in enumerate(progress(pool, desc=f"diagnose: a map for joint {j + 1}'s harmonics", unit="map"))
+        ]
+        best = pool[min(scored)[1]]
+        trial = ExtendedProblem(model.base, rest.causes + [best], data, model.idx)
+        trial_fit = fit(trial, trial.start_from(x, model))
+        if best.physical(trial.coefficients(trial_fit.x, best), None, robot, robot.params)[1] is not None:
+            continue
+        refits = {name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
+        new_cv = {name: err for name, (err, _) in refits.items()}
+        if all(judged_rmse(new_cv[name]) <= (1.0 + EQUAL) * judged_rmse(current_cv[name]) for name in schemes):
+            before = {name: reported_rmse(current_cv[name]) for name in schemes}
+            model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
+            physical = best.physical(trial.coefficients(x, best), None, robot, robot.params)[0]
+            merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before,
+                           "rmse_heldout_after": {name: reported_rmse(current_cv[name]) for name in schemes}})  # fmt: skip
+    return model, x, current_cv, fold_x, merged

@@ -49,7 +49,7 @@ from .budget import floor as error_floor
 from .budget import repeatability
 from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
 from .leftover import residual_verdict, unexplained
-from .maps import map_stage
+from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
@@ -610,6 +610,21 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     if unexplained_structure:  # the causes found may have been what bent the geometry
         unexplained_structure = grossly_implausible(_fit(model, x0=x).implausible())
     if maps and not unexplained_structure:
+        model, x, current_cv, fold_x, merged = merge_harmonics(
+            model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, progress
+        )
+        for m in merged:
+            c = m["candidate"]
+            for o in m["replaces"]:
+                reason = f"merged with the joint's other harmonics into {c.label} (the same held-out error within {structure.EQUAL:.0%}: one periodic error of the joint, not several gear harmonics)"
+                rejected.append({**_retract(o, effects, plots, None, reason), "replaced_by": c.label})
+            effects.append({
+                "kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
+                "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
+                "significance": {"test": f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme",
+                                 "p_value": None, "p_adjusted": None, "screening_gain_mm": None,
+                                 "rmse_heldout_blocked_before": m["rmse_heldout_before"]["blocked"], "rmse_heldout_blocked_after": m["rmse_heldout_after"]["blocked"]},
+            })  # fmt: skip
         model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
             model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
         )
