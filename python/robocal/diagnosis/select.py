@@ -614,33 +614,18 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, progress
         )
         for m in merged:
-            c = m["candidate"]
-            for o in m["replaces"]:
-                reason = f"merged with the joint's other harmonics into {c.label} (the same held-out error within {structure.EQUAL:.0%}: one periodic error of the joint, not several gear harmonics)"
-                rejected.append({**_retract(o, effects, plots, None, reason), "replaced_by": c.label})
-            effects.append({
-                "kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
-                "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
-                "significance": {"test": f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme",
-                                 "p_value": None, "p_adjusted": None, "screening_gain_mm": None,
-                                 "rmse_heldout_blocked_before": m["rmse_heldout_before"]["blocked"], "rmse_heldout_blocked_after": m["rmse_heldout_after"]["blocked"]},
-            })  # fmt: skip
+            _take_map(m, effects, rejected, plots, "merged with the joint's other harmonics into {label} (the same held-out error within "
+                      f"{structure.EQUAL:.0%}: one periodic error of the joint, not several gear harmonics)",
+                      {"test": f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs "
+                               "on every fold scheme", "p_value": None, "p_adjusted": None, "screening_gain_mm": None})  # fmt: skip
         model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
             model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
         )
         for m in accepted_maps:
-            c = m["candidate"]
-            for o in m["replaces"]:
-                reason = f"replaced by {c.label} (the same joint's error in finer detail; held-out gain of the map in its place)"
-                rejected.append({**_retract(o, effects, plots, None, reason), "replaced_by": c.label})
-            effects.append({
-                "kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
-                "rmse_heldout_before": m["rmse_heldout_before"]["random"], "rmse_heldout_after": m["rmse_heldout_after"]["random"],
-                "significance": {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
-                                         "held-out gain of the penalised map required on every fold scheme",
-                                 "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"],
-                                 "rmse_heldout_blocked_before": m["rmse_heldout_before"]["blocked"], "rmse_heldout_blocked_after": m["rmse_heldout_after"]["blocked"]},
-            })  # fmt: skip
+            _take_map(m, effects, rejected, plots, "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)",
+                      {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
+                               "held-out gain of the penalised map required on every fold scheme",
+                       "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"]})  # fmt: skip
         for m in rejected_maps:
             c = m["candidate"]
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
@@ -725,6 +710,19 @@ def explained_shares(effects: list, baseline: float, final: float) -> None:
     for e in effects:
         inside = e["kind"] not in structure.KINDS and e["kind"] != "outliers" and total > 0
         e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
+
+
+def _take_map(m: dict, effects: list, rejected: list, plots: dict, why_replaced: str, significance: dict) -> None:
+    """A map the map stage accepted (or merged in) into the report: the causes it takes the place
+    of retracted (``why_replaced`` with ``{label}`` the map's), its entry with ``significance``
+    and its held-out figures."""
+    c = m["candidate"]
+    for o in m["replaces"]:
+        rejected.append({**_retract(o, effects, plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
+    before, after = m["rmse_heldout_before"], m["rmse_heldout_after"]
+    effects.append({"kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
+                    "rmse_heldout_before": before["random"], "rmse_heldout_after": after["random"],
+                    "significance": {**significance, "rmse_heldout_blocked_before": before["blocked"], "rmse_heldout_blocked_after": after["blocked"]}})  # fmt: skip
 
 
 def _rotation_entries(data: Dataset, cv: dict) -> dict:
