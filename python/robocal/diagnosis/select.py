@@ -860,12 +860,14 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
 
 
 def shape_kept(causes: list):
-    """Which of ``causes`` the backward check may drop: not a gravity compliance beside a free
-    shape of its own joint (a harmonic takes a compliance's shape within one session and would
-    win by a little, but only the compliance carries to other poses: :func:`physics_first`)."""
+    """Which of ``causes`` the backward check may drop: not a gravity compliance (a harmonic or
+    a joint's other free shapes take a compliance's shape within one session and would win by a
+    little, but only the compliance carries to other poses: :func:`physics_first`; UR10 series A
+    lost joint 3's compliance to harmonics before its maps were in). A compliance is dropped
+    only when its size is implausible or undetermined (:func:`_recheck_compliance`)."""
 
     def droppable(c: Candidate) -> bool:
-        return not (c.kind in PHYSICAL_KINDS and any(o.joint == c.joint and o.stage == "joints" and o.kind not in PHYSICAL_KINDS for o in causes))
+        return c.kind not in PHYSICAL_KINDS
 
     return droppable
 
