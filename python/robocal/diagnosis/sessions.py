@@ -27,14 +27,14 @@ from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
+from ..core import is_sparse
 from ..data.dataset import Dataset
 from ..data.splits import require_distinct_sessions
 from ..exceptions import InvalidParameterError
+from ..physics import DEG
 from ..progress import progress
 from ..robot import Robot
 from . import structure
-from ..core import is_sparse
-from ..physics import DEG
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors
 from .select import (
@@ -49,6 +49,7 @@ from .select import (
     undetermined,
 )
 from .uncertainty import uncertainty_entries
+from .wander import TIME_TERMS
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -65,7 +66,9 @@ class _Session:
 
     def __post_init__(self):
         self.keep = np.asarray(self.diagnosis.model.idx)
-        self.terms = [c for c in self.diagnosis.model.causes if c.kind in SESSION_TERMS]
+        # A wander is the session's own too, but its dozens of coefficients would be fitted on a
+        # left-out session's own samples: that session's figure would not be held out. Left out.
+        self.terms = [c for c in self.diagnosis.model.causes if c.kind in SESSION_TERMS and c.kind not in TIME_TERMS]
 
 
 @dataclass(frozen=True)
