@@ -140,7 +140,10 @@ class Candidate:
             # b < 0 it leads (the encoder behind an elastic stage, a servo's following error,
             # preload). Both are named, with the sign; only the size is limited.
             width = -2.0 * c[0]
-            out = {"width": q(width / DEG, 2.0 * s[0] / DEG, "deg"), "direction": q(1.0 if width > 0 else -1.0, np.nan, "(+1: the link lags its reading, -1: it leads)")}
+            out = {
+                "width": q(width / DEG, 2.0 * s[0] / DEG, "deg"),
+                "direction": q(1.0 if width > 0 else -1.0, np.nan, "(+1: the link lags its reading, -1: it leads)"),
+            }
             bad = not abs(width) < LIMITS["angle"]
             return out, (f"width {width / DEG:.3g} deg is not within ±{LIMITS['angle'] / DEG:g} deg" if bad else None)
         if kind == "drift":
