@@ -487,6 +487,11 @@ class ObservationEffect(Effect):
 
     stage = "observations"
 
+    def check_axis(self, measurement: str) -> None:
+        """Refuses key ``axis`` on cable data: a cable reading has one axis, its length."""
+        if measurement == "cable" and self.values.get("axis") is not None:
+            raise self.error(f"key 'axis' applies to position and pose measurements; a cable's {self.kind} is along its length")
+
     def observe(self, acq: Acquisition) -> np.ndarray:
         """The changed observations (m, k)."""
         raise NotImplementedError
@@ -512,8 +517,7 @@ class Drift(ObservationEffect):
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
-        if measurement == "cable" and self.values["axis"] is not None:
-            raise self.error("key 'axis' applies to position and pose measurements; a cable drifts along its length")
+        self.check_axis(measurement)
         if self.values["exponent"] <= 0:
             raise self.error(f"key 'exponent' must be > 0; got {self.values['exponent']}")
 
@@ -538,8 +542,7 @@ class Step(ObservationEffect):
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
-        if measurement == "cable" and self.values["axis"] is not None:
-            raise self.error("key 'axis' applies to position and pose measurements; a cable steps along its length")
+        self.check_axis(measurement)
 
     def observe(self, acq):
         if not 0 < self.values["sample"] < len(acq.y):
@@ -566,8 +569,7 @@ class Wander(ObservationEffect):
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
-        if measurement == "cable" and self.values["axis"] is not None:
-            raise self.error("key 'axis' applies to position and pose measurements; a cable wanders along its length")
+        self.check_axis(measurement)
         if self.values["rms"] <= 0:
             raise self.error(f"key 'rms' must be > 0 mm; got {self.values['rms']}")
         if not 1.0 <= self.values["length"] <= 1e4:

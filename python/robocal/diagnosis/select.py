@@ -601,9 +601,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
-    causes, x, current_cv, fold_x, dropped = backward(
-        ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain, shape_kept(causes)
-    )
+    causes, x, current_cv, fold_x, dropped = backward(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain, not_physical)
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
     model = ExtendedProblem(base, causes, dataset, keep)
@@ -634,7 +632,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             # that sweeps the mapped joint): every earlier free shape must earn its place again
             # (a gravity compliance keeps its place before a map, as in the forward selection)
             kept, x, current_cv, fold_x, dropped = backward(
-                model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map" and c.kind not in PHYSICAL_KINDS
+                model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map" and not_physical(c)
             )
             model = ExtendedProblem(base, kept, dataset, keep)
             for c, why in dropped:
@@ -859,17 +857,13 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     return rest[:at] + moved + rest[at:]
 
 
-def shape_kept(causes: list):
-    """Which of ``causes`` the backward check may drop: not a gravity compliance (a harmonic or
-    a joint's other free shapes take a compliance's shape within one session and would win by a
+def not_physical(c: Candidate) -> bool:
+    """Whether the backward check may drop ``c``: not a gravity compliance (a harmonic or a
+    joint's other free shapes take a compliance's shape within one session and would win by a
     little, but only the compliance carries to other poses: :func:`physics_first`; UR10 series A
     lost joint 3's compliance to harmonics before its maps were in). A compliance is dropped
     only when its size is implausible or undetermined (:func:`_recheck_compliance`)."""
-
-    def droppable(c: Candidate) -> bool:
-        return c.kind not in PHYSICAL_KINDS
-
-    return droppable
+    return c.kind not in PHYSICAL_KINDS
 
 
 def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):
@@ -887,9 +881,9 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
     causes, dropped = list(model.causes), []
     while len(causes) >= 2:
         full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
-        weakest = None
+        weakest, linear = None, _linearised(full, x)
         for c in filter(droppable, causes):
-            if _clearly_earns(full, x, c, schemes, min_gain):
+            if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
                 continue
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
             refits = {name: _nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
@@ -913,22 +907,29 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
 CLEAR_MARGIN = 3.0
 
 
-def _clearly_earns(full: ExtendedProblem, x: np.ndarray, c: Candidate, schemes: dict, min_gain: float) -> bool:
-    """Whether ``c`` earns its place in ``full`` by a wide margin already in the model
-    linearised at ``x`` (the screening's cross-validation of its columns against the rest, its
-    coefficients set to zero in the residual): the backward check then needs no nonlinear
-    re-fits for it. Only for a dense Jacobian (no joint maps) and a cause with columns of its own."""
-    if c.stage == "parameters":
-        return False
+def _linearised(full: ExtendedProblem, x: np.ndarray) -> Optional[tuple]:
+    """The data rows of ``full``'s Jacobian and residuals at ``x``, once per backward round, or
+    None for a sparse Jacobian (joint maps), which the linear pre-check does not take."""
     J = full.jacobian(x)
     if is_sparse(J):
+        return None
+    rows = len(full.idx) * full.k
+    return J[:rows, : full.n], full.residuals(x)[:rows]
+
+
+def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candidate, schemes: dict, min_gain: float) -> bool:
+    """Whether ``c`` earns its place in ``full`` by a wide margin already in the model
+    linearised at ``x`` (``linear``: :func:`_linearised`; the screening's cross-validation of its
+    columns against the rest, its coefficients set to zero in the residual): the backward check
+    then needs no nonlinear re-fits for it. Only for a cause with columns of its own."""
+    if c.stage == "parameters":
         return False
-    rows, at = len(full.idx) * full.k, full.slices[full.causes.index(c)]
-    C = J[:rows, at]
-    rest = np.delete(J[:rows, : full.n], np.arange(at.start, at.stop), axis=1)
-    r = full.residuals(x)[:rows] + C @ np.asarray(x)[at]  # the residual with the cause taken out
-    screen = _Screen(rest, r, schemes, full.k)
-    base, errs = screen.errors(np.zeros((rows, 0))), screen.errors(C)
+    J, r = linear
+    at = full.slices[full.causes.index(c)]
+    C = J[:, at]
+    rest = np.delete(J, np.arange(at.start, at.stop), axis=1)
+    screen = _Screen(rest, r + C @ np.asarray(x)[at], schemes, full.k)  # the residual with the cause taken out
+    base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C)
     gains = {name: rmse_of_squares(base[name]) - rmse_of_squares(errs[name]) for name in schemes}
     return gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
 
