@@ -58,6 +58,21 @@ def is_kinematic(name: str) -> bool:
     return name.rstrip("0123456789") in KINEMATIC
 
 
+def kinematic_prior_sigmas(kinematic_prior) -> dict:
+    """A ``kinematic_prior`` ``(mm, deg)`` checked, as the sigmas :func:`kinematic_prior_pairs`
+    takes (``{"mm": ..., "rad": ...}``)."""
+    try:
+        length, angle = (float(v) for v in kinematic_prior)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(f"`kinematic_prior` must be (mm, deg); got {kinematic_prior!r}") from None
+    (mm_low, mm_high), (deg_low, deg_high) = KINEMATIC_PRIOR_RANGE["mm"], KINEMATIC_PRIOR_RANGE["deg"]
+    if not (mm_low <= length <= mm_high and deg_low <= angle <= deg_high):
+        raise InvalidParameterError(
+            f"`kinematic_prior` must be (mm, deg) sigmas in [{mm_low:g}, {mm_high:g}] mm and [{deg_low:g}, {deg_high:g}] deg; got ({length:g}, {angle:g})"
+        )
+    return {"mm": length, "rad": np.radians(angle)}
+
+
 def kinematic_prior_pairs(robot: Robot, names, means: dict, sigma: dict) -> dict:
     """``name -> (mean, sigma[unit])`` for the kinematic parameters among ``names`` whose unit
     ``sigma`` gives (mm, rad); ``means`` maps each name to its prior mean."""
@@ -305,18 +320,8 @@ class Problem:
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
         prior = dict(_pairs(prior, "prior"))
         if kinematic_prior is not None:
-            try:
-                length, angle = (float(v) for v in kinematic_prior)
-            except (TypeError, ValueError):
-                raise InvalidParameterError(f"`kinematic_prior` must be (mm, deg); got {kinematic_prior!r}") from None
-            (mm_low, mm_high), (deg_low, deg_high) = KINEMATIC_PRIOR_RANGE["mm"], KINEMATIC_PRIOR_RANGE["deg"]
-            if not (mm_low <= length <= mm_high and deg_low <= angle <= deg_high):
-                raise InvalidParameterError(
-                    f"`kinematic_prior` must be (mm, deg) sigmas in [{mm_low:g}, {mm_high:g}] mm and [{deg_low:g}, {deg_high:g}] deg; "
-                    f"got ({length:g}, {angle:g})"
-                )
             start_of = dict(zip(robot.param_names, start))
-            prior = {**kinematic_prior_pairs(robot, [robot.param_names[k] for k in free], start_of, {"mm": length, "rad": np.radians(angle)}), **prior}
+            prior = {**kinematic_prior_pairs(robot, [robot.param_names[k] for k in free], start_of, kinematic_prior_sigmas(kinematic_prior)), **prior}
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])

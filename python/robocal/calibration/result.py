@@ -100,6 +100,9 @@ class CalibrationResult:
         The held-out samples the test metrics were computed on (for the provenance).
     robust : dict, optional
         A robust fit's ``loss``, ``f_scale`` (mm) and ``outlying_rows``.
+    sessions : list of dict, optional
+        A fit on several sessions at once: each session's provenance, set-up, own terms and
+        metrics (``problem`` is then the stacked :class:`~robocal.calibration.sessions.Sessions`).
     """
 
     method: str
@@ -118,6 +121,7 @@ class CalibrationResult:
     robust: Optional[dict] = None
     njev: Optional[int] = None
     structure: list = field(default_factory=list)
+    sessions: Optional[list] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -216,11 +220,14 @@ class CalibrationResult:
         """The result file (:mod:`robocal.results`, schema ``robocal.result/1``): ``method``,
         ``robot``, ``measurement``, ``parameters``, ``free``, ``fixed`` (name -> reason),
         ``implausible`` (see :meth:`implausible`), ``undetermined`` (:meth:`undetermined`), ``metrics``, ``convergence``, ``causes`` for
-        an extended model, the robot's definition and the dataset's provenance."""
+        an extended model, the robot's definition and the dataset's provenance (per session in
+        ``sessions`` for a fit on several)."""
+        if self.sessions is not None:
+            return result_document(self._core(), self.problem.robot)
         return result_document(self._core(), self.problem.robot, self.problem.data, self.held_out)
 
     def _core(self) -> dict:
-        return self._with_causes(
+        return self._with_model(
             {
                 "method": self.method,
                 "robot": self.problem.robot.name,
@@ -244,14 +251,18 @@ class CalibrationResult:
             }
         )
 
-    def _with_causes(self, doc: dict) -> dict:
-        """An extended model (:class:`robocal.diagnosis.ExtendedProblem`) adds its causes."""
+    def _with_model(self, doc: dict) -> dict:
+        """What goes beyond the geometry: an extended model's causes
+        (:class:`robocal.diagnosis.ExtendedProblem`), a robust fit's outliers, the reading
+        conventions, the sessions of a fit on several."""
         if hasattr(self.problem, "describe_causes"):
             doc["causes"] = self.problem.describe_causes(self.x, self.std)
         if self.robust is not None:
             doc["robust"] = self.robust
         if self.structure:
             doc["structure"] = list(self.structure)  # reading conventions applied to the joint readings
+        if self.sessions is not None:
+            doc["sessions"] = self.sessions
         return doc
 
     @classmethod

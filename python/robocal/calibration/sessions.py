@@ -20,8 +20,11 @@ import numpy as np
 
 from ..core import is_sparse
 from ..data.dataset import Dataset
+from ..data.splits import require_distinct_sessions
+from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
-from .problem import Problem
+from .api import load_inputs
+from .problem import Problem, kinematic_prior_pairs, kinematic_prior_sigmas
 
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
 SESSION_KINDS = ("drift", "step", "wander", "temperature", "outliers")
@@ -34,6 +37,20 @@ def is_private(name: str, measurement: str) -> bool:
     if name.split(" ")[0] in SESSION_KINDS:
         return True
     return name.startswith(("anchor_", "cable_offset") if measurement == "cable" else ("base_", "tool_"))
+
+
+def load_sessions(data, robot=None, measurement=None, angle_unit=None, purpose: str = "a multi-session fit") -> tuple[list[Dataset], Robot]:
+    """The sessions of ``data`` (a list of at least two files or Datasets) and their robot:
+    each session given once, all of one robot and one measurement (else an error naming them)."""
+    if not isinstance(data, (list, tuple)) or len(data) < 2:
+        raise InvalidParameterError(f"{purpose} needs a list of at least two sessions; got {data!r}")
+    loaded = [load_inputs(d, robot, measurement, angle_unit) for d in data]
+    require_distinct_sessions([d for d, _ in loaded])  # one session twice: its held-out figure would be a training error
+    rob, kind = loaded[0][1], loaded[0][0].measurement
+    for i, (d, r) in enumerate(loaded[1:], start=2):
+        if r.name != rob.name or d.measurement != kind:
+            raise InvalidParameterError(f"session {i} ({d.source or 'data'}) holds {d.measurement} data of {r.name}; session 1 holds {kind} data of {rob.name}")
+    return [d for d, _ in loaded], rob
 
 
 def concatenate(datasets: list[Dataset]) -> Dataset:
@@ -54,8 +71,9 @@ def concatenate(datasets: list[Dataset]) -> Dataset:
 REDUNDANT = 1e-7
 
 
-def session_problems(robot: Robot, datasets: list[Dataset], mask) -> list[Problem]:
-    """One :class:`Problem` per session with free sets that fit together.
+def session_problems(robot: Robot, datasets: list[Dataset], mask, kinematic_prior=None) -> list[Problem]:
+    """One :class:`Problem` per session with free sets that fit together (a ``kinematic_prior``
+    ``(mm, deg)`` on the first only: it acts on the shared kinematics once).
 
     Fitted alone, each session resolves its redundancies its own way (``theta1`` or the
     tracker's ``base_rz``, ``d1`` or ``base_z``); stacked, a shared parameter redundant with every
@@ -84,6 +102,11 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask) -> list[Proble
         start = b.start.copy()
         start[shared] = bases[0].start[shared]  # one robot: a shared parameter held fixed holds one value
         out.append(replace(b, free=np.array(sorted(free), dtype=int), fixed=fixed, start=start))
+    if kinematic_prior is not None:
+        first = out[0]
+        out[0] = replace(
+            first, prior=kinematic_prior_pairs(robot, first.names, dict(zip(robot.param_names, first.start)), kinematic_prior_sigmas(kinematic_prior))
+        )
     return out
 
 
@@ -142,6 +165,35 @@ class Sessions:
     @property
     def x0(self) -> np.ndarray:
         return self._x0.copy()
+
+    # A result of the stacked fit states the robot with the first session's set-up (each
+    # session's own is in the result's ``sessions``): its entries come first in ``names``.
+    @property
+    def free(self) -> np.ndarray:
+        return self.problems[0].free
+
+    @property
+    def fixed(self) -> dict:
+        return self.problems[0].fixed
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """The robot's parameter vector with the first session's set-up."""
+        return self.problems[0].full(self.session_x(x, 0))
+
+    def describe_causes(self, x: np.ndarray, std=None) -> list[dict]:
+        """The causes of the sessions' problems (extended ones), each shared cause once and each
+        session term with its ``session`` (1-based)."""
+        out, seen = [], set()
+        for s, p in enumerate(self.problems):
+            if not hasattr(p, "describe_causes"):
+                return []
+            for cause in p.describe_causes(self.session_x(x, s), None if std is None else self.session_x(std, s)):
+                if cause["kind"] in SESSION_KINDS:
+                    out.append({**cause, "session": s + 1})
+                elif cause["label"] not in seen:
+                    seen.add(cause["label"])
+                    out.append(cause)
+        return out
 
     def session_x(self, x: np.ndarray, s: int) -> np.ndarray:
         """Session ``s``'s (0-based) own parameter vector in ``x``."""

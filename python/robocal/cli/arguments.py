@@ -27,7 +27,7 @@ def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) 
     """The arguments of every command that calibrates on a measurement file (``sessions``: on
     one or more, each a session of one robot)."""
     if sessions:
-        parser.add_argument("data", nargs="+", help="measurement file(s); several files are sessions of one robot (judged leave-one-session-out)")
+        parser.add_argument("data", nargs="+", help="measurement file(s); several files are sessions of one robot, each with its own set-up")
     else:
         parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
     parser.add_argument("--robot", help="robot name, or a robot / result .json/.yaml, exported table or .urdf file (default: the one the data name)")

@@ -15,7 +15,7 @@ from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_data_arguments(parser)
+    add_data_arguments(parser, sessions=True)
     parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
@@ -32,7 +32,8 @@ def run(args: argparse.Namespace) -> int:
     report = args.causes[0] if args.causes and len(args.causes) == 1 and args.causes[0].endswith(".json") else None
     if report is not None:
         read_document(report, "diagnose report")  # a corrupt report (too deep, a key twice) is refused naming the file
-    result = calibrate(args.data, robot=args.robot, measurement=args.measurement, method=args.method,
+    data = args.data[0] if len(args.data) == 1 else args.data
+    result = calibrate(data, robot=args.robot, measurement=args.measurement, method=args.method,
                        test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior, angle_unit=args.angle_unit,
                        causes=report or args.causes or None,
                        **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
@@ -48,6 +49,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"  train: RMSE {train['rmse']:.4f}  MAE {train['mae']:.4f}  MAX {train['max']:.4f} mm")
     if test:
         print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
+    for s, session in enumerate(doc.get("sessions", []), start=1):
+        held = session["metrics"]["test"]
+        print(f"  session {s} ({printable(session['source'] or 'data', one_line=True)}): train RMSE {session['metrics']['train']['rmse']:.4f} mm"
+              + (f", test RMSE {held['rmse']:.4f} mm ({held['n']} samples)" if held else "")
+              + (f"; own terms: {', '.join(session['terms'])}" if session["terms"] else ""))  # fmt: skip
     print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
     for cause in doc.get("causes", []):
         shown = ", ".join(f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"

@@ -1,5 +1,6 @@
 """``robocal.calibrate``: a calibration with the geometric model or, given ``causes``, with an
-extended model — the diagnosed causes fitted together with the geometry.
+extended model — the diagnosed causes fitted together with the geometry — on one session or on
+several at once (one robot; each session with its own set-up and its own sensor terms).
 
 It sits above both the calibration (the geometric fit, :func:`robocal.calibration.calibrate`) and
 the diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) and is what
@@ -17,20 +18,24 @@ import numpy as np
 from ..calibration import api
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.metrics import metrics
-from ..calibration.problem import Problem
+from ..calibration.problem import Problem, check_observations
 from ..calibration.result import CalibrationResult
+from ..calibration.sessions import SESSION_KINDS, is_private, load_sessions, session_problems
 from ..data.dataset import Dataset
+from ..data.splits import configuration_groups, random_split
 from ..exceptions import InvalidParameterError
 from ..robot import Robot
+from ..results import file_sha256
 from ..robot_file import read_document
 from . import structure
 from .candidates import MAP_LABEL, library, map_candidate, map_noise, step_candidate
 from .model import ExtendedProblem
+from .sessions import stack
 from .wander import wander_candidate
 
 
 def calibrate(
-    data: Union[str, Path, Dataset],
+    data: Union[str, Path, Dataset, list],
     robot: Union[str, Robot, None] = None,
     measurement: Optional[str] = None,
     method: str = "lm",
@@ -48,9 +53,10 @@ def calibrate(
 
     Parameters
     ----------
-    data : path or Dataset
+    data : path or Dataset, or a list of them
         A measurement file (canonical CSV or a public dataset, see :func:`robocal.data.load`)
-        or a :class:`Dataset`.
+        or a :class:`Dataset`; a list of two or more: sessions of one robot, fitted at once
+        (:func:`calibrate_sessions`).
     robot : str or Robot, optional
         Default: the robot recorded in the data.
     measurement : {"cable", "position", "pose"}, optional
@@ -93,6 +99,10 @@ def calibrate(
         ``to_dict()`` is the result JSON (``method``, ``parameters``, ``metrics`` with ``train``
         and ``test``, ...).
     """
+    if isinstance(data, (list, tuple)):
+        if mask is not None or prior is not None or bounds is not None:
+            raise InvalidParameterError("a fit on several sessions takes no `mask`, `prior` or `bounds`")
+        return calibrate_sessions(data, robot, measurement, method, test_fraction, seed, kinematic_prior, causes, angle_unit, **options)
     if causes is None:
         return api.calibrate(data, robot, measurement, method, test_fraction, seed, mask, prior, bounds, kinematic_prior, angle_unit, **options)
     api.check_method(method)
@@ -117,6 +127,105 @@ def calibrate(
     return result
 
 
+def calibrate_sessions(
+    data: list,
+    robot: Union[str, Robot, None] = None,
+    measurement: Optional[str] = None,
+    method: str = "lm",
+    test_fraction: float = 0.2,
+    seed: int = 0,
+    kinematic_prior=None,
+    causes=None,
+    angle_unit: Optional[str] = None,
+    **options,
+) -> CalibrationResult:
+    """One robot from several sessions: its kinematics, reading conventions and the causes on its
+    joints fitted on every session at once, each session with its own set-up (tracker base and
+    tool, or cable anchor and zero) and its own sensor terms (steps, drift, wander).
+
+    ``data`` is a list of two or more files or Datasets of one robot and measurement, each given
+    once. A joint map covers its joint's angles in the training samples of every session. Each
+    session holds out ``test_fraction`` of its samples (seeded, repeated configurations whole);
+    ``metrics["test"]`` pools them. ``causes`` as for :func:`calibrate`; a multi-session diagnose
+    report also gives each session its own terms (``model.sessions``, matched in order). The other
+    parameters are :func:`calibrate`'s (method ``lm`` only).
+
+    Returns
+    -------
+    CalibrationResult
+        ``to_dict()`` is the result JSON with the robot and the first session's set-up in
+        ``parameters``, and ``sessions``: per session its ``source``, ``sha256``, ``rows_used``,
+        ``rows_held_out``, ``setup`` (name -> value, mm / rad), ``terms`` (labels) and ``metrics``.
+    """
+    if method != "lm":
+        raise InvalidParameterError(f"a fit on several sessions is made by method 'lm' only; got {method!r}")
+    test_fraction = api.check_test_fraction(test_fraction)
+    datasets, r = load_sessions(data, robot, measurement, angle_unit, "a fit on several sessions")
+    labels, reported_prior = read_causes(causes) if causes is not None else ([], None)
+    kinematic_prior = reported_prior if kinematic_prior is None else kinematic_prior
+    structures = [s for s in (structure.parse(label, r.n_joints) for label in labels) if s is not None]
+    shared = [label for label in labels if structure.parse(label, r.n_joints) is None]
+    terms = session_terms(causes, shared, len(datasets))
+    shared = [label for label in shared if not _session_term(label)]
+    datasets = [structure.apply_all(d, structures) for d in datasets]
+    splits = [_split(d, test_fraction, seed) for d in datasets]
+    for d in datasets:
+        check_observations(r, d)
+    bases = session_problems(r, [d.subset(train) for d, (train, _) in zip(datasets, splits)], r.default_mask(datasets[0].measurement), kinematic_prior)
+    covered = np.vstack([d.q[train] for d, (train, _) in zip(datasets, splits)])  # a joint map spans every session's angles
+    problems = [extended_problem(b, d, train, shared + own, covered, every=False) for b, d, (train, _), own in zip(bases, datasets, splits, terms)]
+    acting = {c.label for p in problems for c in p.causes}
+    absent = [label for label in shared + [t for own in terms for t in own] if label not in acting]
+    if absent:
+        raise InvalidParameterError(f"causes {absent} act in none of the sessions (unknown, or their joint does not move)")
+    stacked = stack(problems)
+    result = levenberg_marquardt(stacked, **api.checked_options(levenberg_marquardt, method, options))
+    result.structure = [s.label for s in structures]
+    result.sessions, pooled = [], []
+    for s, (d, (train, test), problem, own) in enumerate(zip(datasets, splits, problems, terms)):
+        x = stacked.session_x(result.x, s)
+        entry = {"source": d.source, "sha256": file_sha256(d.source) if d.source else None, "samples": len(d),
+                 "rows_used": [int(v) for v in d.rows[train]], "rows_held_out": [int(v) for v in d.rows[test]] if test is not None else [],
+                 "rows_excluded": list(d.excluded), "setup": {n: float(v) for n, v in zip(r.param_names, problem.full(x)) if is_private(n, d.measurement)},
+                 "terms": own, "metrics": {"train": metrics(problem.data_residuals(x), d.measurement), "test": None}}  # fmt: skip
+        if test is not None:
+            residuals = problem.with_samples(test).data_residuals(x)
+            entry["metrics"]["test"] = metrics(residuals, d.measurement)
+            pooled.append(residuals)
+        result.sessions.append(entry)
+    if pooled:
+        result.metrics["test"] = metrics(np.concatenate(pooled), datasets[0].measurement)
+    return result
+
+
+def _split(dataset: Dataset, test_fraction: float, seed: int) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """A session's training and held-out samples (repeated configurations whole on one side)."""
+    if test_fraction == 0:
+        return np.arange(len(dataset)), None
+    return random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=configuration_groups(dataset.q))
+
+
+def _session_term(label: str) -> bool:
+    return label.split(" ")[0] in SESSION_KINDS
+
+
+def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
+    """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
+    (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
+    session fits its own). A step sits at one session's sample: it needs the report."""
+    listed = causes.get("model", {}).get("sessions") if isinstance(causes, dict) else None
+    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
+        listed = (read_document(causes, "diagnose report").get("model") or {}).get("sessions")
+    if listed is not None:
+        if not isinstance(listed, list) or len(listed) != n or not all(isinstance(e, dict) and isinstance(e.get("causes"), list) for e in listed):
+            raise InvalidParameterError(f"the diagnose report's model.sessions must list the causes of each of the {n} sessions given, in order")
+        return [[str(c) for c in e["causes"]] for e in listed]
+    steps = [label for label in labels if label.startswith("step ")]
+    if steps:
+        raise InvalidParameterError(f"{steps[0]!r} is a step of one session's sensor: for several sessions pass the multi-session diagnose report")
+    return [[label for label in labels if _session_term(label)] for _ in range(n)]
+
+
 def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     """Cause labels from labels, a diagnose report (dict) or its JSON file — the report's
     reading conventions (``model.structure``) first, then its ``model.causes`` — and the
@@ -137,9 +246,11 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     return list(causes), None if prior is None else tuple(prior)
 
 
-def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str]):
+def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str], map_angles: Optional[np.ndarray] = None, every: bool = True):
     """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
-    ``dataset`` (bases such as backlash and drift need the whole sequence)."""
+    ``dataset`` (bases such as backlash and drift need the whole sequence). A joint map covers
+    the joint angles ``map_angles`` (rows of joint values; default the samples ``idx``). With
+    ``every=False`` a cause the data cannot show (its joint does not move) is left out, not refused."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
     noise = None
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
@@ -155,8 +266,9 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
                 geometric = levenberg_marquardt(problem)
                 noise = map_noise(problem.data_residuals(geometric.x).reshape(len(problem.data), -1))
             j = int(joint_map.group(1)) - 1
-            pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, dataset.q[idx, j])
+            angles = dataset.q[idx, j] if map_angles is None else map_angles[:, j]
+            pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, angles)
     unknown = [c for c in causes if c not in pool]
-    if unknown:
+    if unknown and every:
         raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")
-    return ExtendedProblem(problem, [pool[c] for c in causes], dataset, idx)
+    return ExtendedProblem(problem, [pool[c] for c in causes if c in pool], dataset, idx)

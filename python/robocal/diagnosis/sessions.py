@@ -23,13 +23,11 @@ from typing import Optional
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
-from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, session_problems
+from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
 from ..core import is_sparse
 from ..data.dataset import Dataset
-from ..data.splits import require_distinct_sessions
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
 from ..progress import progress
@@ -92,12 +90,16 @@ class _Model:
         return replace(self, causes=self.causes + (candidate.label,))
 
     def stacked(self, problems: list) -> Sessions:
-        """The sessions' problems stacked, the prior (if any) and the joint maps' roughness
-        penalties on the first one only: they act on the shared entries once."""
-        first, rest = problems[0], [_without_penalties(p) for p in problems[1:]]
-        if self.prior:
-            first = ExtendedProblem(replace(first.base, prior=dict(self.prior)), first.causes, first.full_data, first.idx)
-        return Sessions([first] + rest)
+        return stack(problems, dict(self.prior))
+
+
+def stack(problems: list, prior: Optional[dict] = None) -> Sessions:
+    """The sessions' extended problems stacked, the ``prior`` (if any) and the joint maps'
+    roughness penalties on the first one only: they act on the shared entries once."""
+    first, rest = problems[0], [_without_penalties(p) for p in problems[1:]]
+    if prior:
+        first = ExtendedProblem(replace(first.base, prior=prior), first.causes, first.full_data, first.idx)
+    return Sessions([first] + rest)
 
 
 def _without_penalties(problem: ExtendedProblem) -> ExtendedProblem:
@@ -321,16 +323,10 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     options = {**OPTIONS, **options}
     max_effects, min_gain, hayati = options["max_effects"], options["min_gain"], options["hayati"]
     t0 = time.perf_counter()
-    if not isinstance(data, (list, tuple)) or len(data) < 2:
-        raise InvalidParameterError(f"a multi-session diagnosis needs a list of at least two sessions; got {data!r}")
-    loaded = [load_inputs(d, robot, measurement, angle_unit) for d in data]
-    require_distinct_sessions([d for d, _ in loaded])  # one session twice: its held-out figure would be a training error
-    rob, kind = loaded[0][1], loaded[0][0].measurement
-    for i, (d, r) in enumerate(loaded[1:], start=2):
-        if r.name != rob.name or d.measurement != kind:
-            raise InvalidParameterError(f"session {i} ({d.source or 'data'}) holds {d.measurement} data of {r.name}; session 1 holds {kind} data of {rob.name}")
+    datas, rob = load_sessions(data, robot, measurement, angle_unit, "a multi-session diagnosis")
+    kind = datas[0].measurement
     sessions = []
-    for d, _ in progress(loaded, desc="diagnose: each session on its own", unit="session"):
+    for d in progress(datas, desc="diagnose: each session on its own", unit="session"):
         sessions.append(_Session(d, diagnose(d, rob, **options)))
     evaluator = _Evaluator(rob, sessions, baseline_mask(rob, kind, hayati), hayati)
 
