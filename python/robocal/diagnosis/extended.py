@@ -246,13 +246,15 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     return list(causes), None if prior is None else tuple(prior)
 
 
-def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str], map_angles: Optional[np.ndarray] = None, every: bool = True):
+def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str], map_angles: Optional[np.ndarray] = None, every: bool = True,
+                     noise: Optional[float] = None):  # fmt: skip
     """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
     ``dataset`` (bases such as backlash and drift need the whole sequence). A joint map covers
-    the joint angles ``map_angles`` (rows of joint values; default the samples ``idx``). With
-    ``every=False`` a cause the data cannot show (its joint does not move) is left out, not refused."""
+    the joint angles ``map_angles`` (rows of joint values; default the samples ``idx``), its
+    roughness weighed against ``noise`` (mm; default the geometric fit's residuals: a plan has
+    none). With ``every=False`` a cause the data cannot show (its joint does not move) is left
+    out, not refused."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
-    noise = None
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
         if step:
