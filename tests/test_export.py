@@ -1,12 +1,15 @@
 """``robocal export``: DH / MDH tables and URDF of a calibrated robot that reproduce its tool
-frame (checked by an independent forward kinematics of what was written), the files load back,
-bad input fails clearly, and the round-trip check catches an export that is wrong."""
+frame (the round-trip check reads them back with robocal's readers; a URDF is cross-checked by
+yourdfpy's own forward kinematics), the files load back, bad input fails clearly, and the
+round-trip check catches an export that is wrong."""
 
 from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
+import sys
 import math
 import xml.etree.ElementTree as ET
 
@@ -16,7 +19,7 @@ import pytest
 import robocal
 from robocal import export as ex
 from robocal.cli import export as export_cli
-from robocal.exceptions import InvalidParameterError
+from robocal.exceptions import InvalidParameterError, MissingDependencyError
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -56,6 +59,20 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="robocal export")
     export_cli.add_arguments(parser)
     return parser
+
+
+def _yourdfpy_fkine(urdf: str, q: np.ndarray, link: str) -> np.ndarray:
+    """Poses (mm) of ``link`` in the root link's frame by yourdfpy's scene graph, which shares
+    nothing with robocal's chain: an oracle for the export."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    model = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=True, load_meshes=False)
+    poses = []
+    for qi in q:
+        model.update_cfg({f"joint{j}": v for j, v in enumerate(qi, start=1)})
+        poses.append(model.get_transform(link))
+    poses = np.array(poses)
+    poses[:, :3, 3] *= 1000.0
+    return poses
 
 
 def _assert_exact(check: dict) -> None:
@@ -116,9 +133,24 @@ def test_urdf_round_trip_and_structure(calibrated):
     assert {"base_link", "flange", "tool0"} | {f"link{k}" for k in range(1, 7)} <= links
     base_nonzero = np.any(robot.params[robot.index("base_x") : robot.index("base_x") + 6] != 0)
     assert ("world" in links) == bool(base_nonzero)
-    # The flange link is robocal's flange frame too.
+    # yourdfpy's forward kinematics of the file: tool0 is robocal's tool frame, flange its flange.
     q = np.random.default_rng(3).uniform(-1, 1, (20, 6))
-    assert np.abs(ex.urdf_fkine(urdf, q, tip="flange") - robot.fkine(q)).max() < POS_TOL
+    assert np.abs(_yourdfpy_fkine(urdf, q, "tool0") - robot.fkine(q, tool=True)).max() < POS_TOL
+    assert np.abs(_yourdfpy_fkine(urdf, q, "flange") - robot.fkine(q)).max() < POS_TOL
+
+
+def test_robot_reads_the_urdf_back_with_its_flange_and_tool(calibrated, tmp_path):
+    """Issue 27: ``robocal.robot(exported.urdf).fkine(q)`` is the exporting robot's flange (it
+    was joint 6's frame, 200 mm short on the HSR) and ``fkine(q, tool=True)`` its tool, to 1e-9 mm."""
+    _, robot = calibrated
+    path = tmp_path / "robot.urdf"
+    path.write_text(ex.export_urdf(robot))
+    back = robocal.robot(str(path))
+    q = np.random.default_rng(4).uniform(-3.0, 3.0, (200, robot.n_joints))
+    for tool in (False, True):
+        want, got = robot.fkine(q, tool=tool), back.fkine(q, tool=tool)
+        assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-9
+        assert np.abs(got[:, :3, :3] - want[:, :3, :3]).max() < ROT_TOL
 
 
 def test_ur10_has_a_world_link(ur10_file):
@@ -161,6 +193,16 @@ def test_round_trip_catches_a_dropped_theta_offset(hsr_file):
     naive = robot.with_params(theta3=0.0)  # "URDF has no joint offset": forgetting theta is wrong
     check = ex.roundtrip_check(robot, ex.export_urdf(naive))
     assert check["max_position_error_mm"] > 1.0
+
+
+def test_urdf_export_without_yourdfpy_writes_nothing(ur10_file, tmp_path, monkeypatch):
+    """The URDF is checked by reading it back, which needs yourdfpy: without it the export is
+    refused by name before anything is written."""
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # import yourdfpy now raises ImportError
+    out = tmp_path / "r.urdf"
+    with pytest.raises(MissingDependencyError, match=r"URDF export.*pip install 'robocal\[urdf\]'"):
+        export_cli.run(_parser().parse_args([ur10_file, "--format", "urdf", "--out", str(out)]))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_run_fails_when_the_export_is_wrong(hsr_file, tmp_path, monkeypatch, capsys):

@@ -1,7 +1,7 @@
 """URDF input (``robocal.robot("x.urdf")``): what ``export --format urdf`` writes reads back to
-the same tool kinematics; a hand-written, not DH-shaped URDF gives the forward kinematics an
-independent parser (urdf_parser_py) and a NumPy chain written here compute; bad URDF fails by
-file and joint / link."""
+the same flange and tool kinematics; a hand-written, not DH-shaped URDF gives the forward
+kinematics an independent parser (urdf_parser_py) and a NumPy chain written here compute, at its
+tip and at its flange; bad URDF fails by file and joint / link."""
 
 from __future__ import annotations
 
@@ -26,11 +26,14 @@ from robocal.urdf import read_urdf  # noqa: E402
 REL = 1e-9  # relative to the chain's reach
 
 
-def _same_tool_kinematics(a: Robot, b: Robot, q, rel=REL):
-    A, B = a.fkine(q, tool=True), b.fkine(q, tool=True)
-    reach = max(1.0, float(np.abs(A[:, :3, 3]).max()))
-    assert np.abs(A[:, :3, 3] - B[:, :3, 3]).max() <= rel * reach, np.abs(A[:, :3, 3] - B[:, :3, 3]).max()
-    assert np.abs(A[:, :3, :3] - B[:, :3, :3]).max() <= rel
+def _same_kinematics(a: Robot, b: Robot, q, rel=REL, mm=None, flange=True):
+    """Tool poses and, with ``flange``, flange poses (``fkine(q)``) agree: positions to ``mm``
+    (default ``rel`` of the chain's reach), rotation matrix entries to ``rel``."""
+    for tool in (True, False) if flange else (True,):
+        A, B = a.fkine(q, tool=tool), b.fkine(q, tool=tool)
+        tol = rel * max(1.0, float(np.abs(A[:, :3, 3]).max())) if mm is None else mm
+        assert np.abs(A[:, :3, 3] - B[:, :3, 3]).max() <= tol, (f"tool={tool}", np.abs(A[:, :3, 3] - B[:, :3, 3]).max())
+        assert np.abs(A[:, :3, :3] - B[:, :3, :3]).max() <= rel, (f"tool={tool}", np.abs(A[:, :3, :3] - B[:, :3, :3]).max())
 
 
 def _within_limits(robot: Robot, m: int, seed: int) -> np.ndarray:
@@ -67,7 +70,7 @@ def test_builtin_robot_round_trip(name, tmp_path):
     assert [j.kind for j in back.joints] == [j.kind for j in r.joints]
     assert [j.hayati for j in back.joints] == [j.hayati for j in r.joints]  # parallel axes found where the catalog flags them
     np.testing.assert_allclose([j.limits for j in back.joints], [j.limits for j in r.joints], rtol=1e-15)
-    _same_tool_kinematics(r, back, _within_limits(r, 200, 1))
+    _same_kinematics(r, back, _within_limits(r, 200, 1), mm=1e-9)  # the flange too (issue 27: the HSR's was 200 mm off)
     # the DH lengths of a built-in come back (up to the sign of a and d the normal's direction picks)
     n = r.n_joints
     np.testing.assert_allclose(np.abs(back.params[1 : 5 * (n - 1) : 5]), np.abs(r.params[1 : 5 * (n - 1) : 5]), atol=1e-9)
@@ -77,9 +80,12 @@ def test_builtin_robot_round_trip(name, tmp_path):
 @pytest.mark.parametrize("convention", ["dh", "mdh"])
 def test_perturbed_robot_round_trip(name, convention, tmp_path):
     r = _perturbed(name)
-    back = _through_urdf(r if convention == "dh" else r.to_mdh(), tmp_path, convention=convention)
+    exported = r if convention == "dh" else r.to_mdh()
+    back = _through_urdf(exported, tmp_path, convention=convention)
     assert {j.convention for j in back.joints} == {convention}
-    _same_tool_kinematics(r, back, _within_limits(r, 200, 2))
+    q = _within_limits(r, 200, 2)
+    _same_kinematics(r, back, q, flange=False)  # to_mdh keeps the tool frame, not the flange
+    _same_kinematics(exported, _through_urdf(exported, tmp_path), q)  # read as DH: the exporting robot's flange, whichever convention
 
 
 def test_calibrated_robot_round_trip(tmp_path):
@@ -88,7 +94,7 @@ def test_calibrated_robot_round_trip(tmp_path):
     data, _ = simulate("ur10", "position", samples=120, seed=4)
     calibrated = robocal.calibrate(data, robot="ur10").robot
     assert np.any(calibrated.params[calibrated.index("base_x") : calibrated.index("base_x") + 6] != 0.0)
-    _same_tool_kinematics(calibrated, _through_urdf(calibrated, tmp_path), _within_limits(calibrated, 200, 3))
+    _same_kinematics(calibrated, _through_urdf(calibrated, tmp_path), _within_limits(calibrated, 200, 3), mm=1e-9)
 
 
 def test_prismatic_and_mixed_conventions(tmp_path):
@@ -96,7 +102,7 @@ def test_prismatic_and_mixed_conventions(tmp_path):
     back = _through_urdf(r, tmp_path)
     assert [j.kind for j in back.joints] == ["revolute", "prismatic", "revolute"]
     assert back.joints[1].limits == pytest.approx((0.0, 400.0))  # m in the URDF, mm here
-    _same_tool_kinematics(r, back, _within_limits(r, 200, 4))
+    _same_kinematics(r, back, _within_limits(r, 200, 4))
 
 
 _angle = st.floats(-math.pi, math.pi)
@@ -119,7 +125,7 @@ def test_any_chain_round_trips(links, frames, tmp_path_factory):
     params[5 * len(links) + 9 : 5 * len(links) + 12] = np.array(frames[9:12]) / 160.0
     r = Robot("random", joints, params)
     back = _through_urdf(r, tmp_path_factory.mktemp("h"))
-    _same_tool_kinematics(r, back, _within_limits(r, 50, 5), rel=1e-8)
+    _same_kinematics(r, back, _within_limits(r, 50, 5), rel=1e-8)
 
 
 # --------------------------------------------------------------------------------------------
@@ -203,6 +209,27 @@ def test_not_dh_shaped_urdf_matches_an_independent_parser(tmp_path):
     # the same in MDH
     m = read_urdf(path, convention="mdh")
     np.testing.assert_allclose(m.fkine(q, tool=True)[:, :3, 3] / 1000.0, want[:, :3, 3], rtol=0, atol=1e-12)
+
+
+def test_the_flange_link_is_the_flange_when_the_last_link_can_hold_it(tmp_path):
+    """The default tip is the end of the chain (tcp, past the fixed flange); ``fkine(q)`` is the
+    ``flange`` link when five DH parameters can place it (here: its origin on joint 6's axis),
+    else joint 6's child link (NOT_DH's flange is 34 mm off that axis)."""
+    on_axis = NOT_DH.replace('<origin xyz="0 0 0.09" rpy="3.14159 0 0"/>', '<origin xyz="0.02405349 0.04810698 0.07216056" rpy="3.14159 0.2 -1"/>')
+    assert on_axis != NOT_DH
+    for text, flange in ((on_axis, "flange"), (NOT_DH, "l6")):
+        path = tmp_path / "robot.urdf"
+        path.write_text(text)
+        r = robocal.robot(str(path))
+        q = _within_limits(r, 100, 8)
+        q_si = q.copy()
+        q_si[:, 3] /= 1000.0
+        for tool, link in ((False, flange), (True, "tcp")):
+            want, got = _independent_fkine(text, link, q_si), r.fkine(q, tool=tool)
+            np.testing.assert_allclose(got[:, :3, 3] / 1000.0, want[:, :3, 3], rtol=0, atol=1e-12, err_msg=link)
+            np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], rtol=0, atol=1e-12, err_msg=link)
+    at_flange = read_urdf(path, tip="flange")  # a named tip ends the chain there: no tool
+    np.testing.assert_allclose(at_flange.fkine(q, tool=True)[:, :3, 3] / 1000.0, _independent_fkine(NOT_DH, "flange", q_si)[:, :3, 3], atol=1e-12)
 
 
 def test_a_branch_is_followed_to_the_named_tip(tmp_path):

@@ -2,9 +2,10 @@
 
 ``robocal export RESULT --format {dh,mdh,urdf} [--table-format {csv,json}] --out FILE`` reads a
 calibration result file (schema ``robocal.result/1``, see :mod:`robocal.results`), writes the
-calibrated kinematics in the asked form and then *checks* what it wrote: it reads the file back,
-rebuilds the tool-frame kinematics from it alone and compares them with the calibrated model on
-random joint vectors within the joint limits (:func:`roundtrip_check`). The command fails (exit
+calibrated kinematics in the asked form and then *checks* what it wrote: it reads the file back
+with the reader ``robocal.robot`` uses for it (one URDF reader, :mod:`robocal.urdf`), and
+compares the tool frame of what it read with the calibrated model's on random joint vectors
+within the joint limits (:func:`roundtrip_check`). The command fails (exit
 code 1) when the round trip is off by more than :data:`POSITION_TOL` (mm) or
 :data:`ROTATION_TOL` (rad) — an export that does not reproduce the calibration is not written
 off as done.
@@ -66,6 +67,11 @@ written with ``repr``; ``rpy`` is the fixed-axis roll-pitch-yaw (``R = Rz(yaw)·
 Rx(roll)``). Links carry no inertia or geometry, and a joint's ``effort`` and ``velocity``
 limits are not known from a calibration: they are written as 0 (override them, e.g. in
 MoveIt's ``joint_limits.yaml``).
+
+``robocal.robot(file)`` reads such a URDF back with its ``flange`` link as the flange frame
+(``fkine(q)``) and ``tool0`` as the tool frame (``fkine(q, tool=True)``), as the exporting robot
+has them. Reading it back — for the round-trip check too — needs yourdfpy (``pip install
+'robocal[urdf]'``), the maintained URDF parser robocal reads every URDF with.
 """
 
 from __future__ import annotations
@@ -80,9 +86,10 @@ import numpy as np
 from .core import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
-from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_exp, so3_log
+from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_log
 from .robot import Robot
-from .robot_table import TABLE_COLUMNS, TABLE_SCHEMA, export_table, frame_slice, read_table, robot_from_table  # noqa: F401  (read_table: re-exported)
+from .robot_table import TABLE_COLUMNS, TABLE_SCHEMA, export_table, frame_slice, read_table, robot_from_table
+from .urdf import read_urdf, require_yourdfpy, robot_from_urdf
 
 FORMATS = ("dh", "mdh", "urdf")
 TABLE_FORMATS = ("csv", "json")
@@ -263,81 +270,19 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def urdf_fkine(urdf: str, q, tip: str = "tool0") -> np.ndarray:
-    """Forward kinematics read from a URDF text alone (an independent check of the export).
-
-    Walks the joints from the root link to ``tip``, chaining ``origin · Rot(axis, q)`` for
-    revolute / continuous joints, ``origin · Trans(axis, q)`` for prismatic ones and ``origin``
-    for fixed ones; the movable joints take the columns of ``q`` in chain order.
-
-    Parameters
-    ----------
-    urdf : str
-        URDF XML.
-    q : array_like, shape (m, N)
-        Joint values, rad (mm for prismatic joints).
-    tip : str
-        The link whose pose is returned.
-
-    Returns
-    -------
-    ndarray, shape (m, 4, 4)
-        Poses of ``tip`` in the root link's frame, translations in mm.
-    """
-    root = ET.fromstring(urdf)
-    by_child = {}
-    for joint in root.iter("joint"):
-        by_child[joint.find("child").get("link")] = joint
-    chain, link = [], tip
-    while link in by_child:
-        chain.append(by_child[link])
-        link = by_child[link].find("parent").get("link")
-    chain.reverse()
-    if not chain:
-        raise InvalidParameterError(f"URDF: no joint leads to link {tip!r}")
-    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    movable = [j for j in chain if j.get("type") != "fixed"]
-    if q.shape[1] != len(movable):
-        raise InvalidParameterError(f"`q` must have shape (m, {len(movable)}) for this URDF; got {q.shape}")
-    T = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
-    k = 0
-    for joint in chain:
-        origin = joint.find("origin")
-        xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-        rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-        T = T @ frame_transform(np.concatenate([np.array(xyz) * 1000.0, rpy]))  # m -> mm
-        kind = joint.get("type")
-        if kind == "fixed":
-            continue
-        axis_el = joint.find("axis")
-        axis = np.array([float(v) for v in (axis_el.get("xyz") if axis_el is not None else "1 0 0").split()])
-        axis = axis / np.linalg.norm(axis)
-        value = q[:, k]
-        k += 1
-        M = np.broadcast_to(np.eye(4), (q.shape[0], 4, 4)).copy()
-        if kind in ("revolute", "continuous"):
-            M[:, :3, :3] = so3_exp(value[:, None] * axis)
-        elif kind == "prismatic":
-            M[:, :3, 3] = value[:, None] * axis
-        else:
-            raise InvalidParameterError(f"URDF joint {joint.get('name')!r}: type {kind!r} is not supported here")
-        T = T @ M
-    return T
-
-
 # ---------------------------------------------------------------------------------------------
 # Round trip
 # ---------------------------------------------------------------------------------------------
-def _exported_fkine(exported, q: np.ndarray) -> tuple[np.ndarray, str]:
+def _exported_robot(exported) -> tuple[Robot, str]:
+    """The robot an export holds, read back by robocal's readers, and which form it is."""
     if isinstance(exported, (list, tuple)):
-        return robot_from_table(exported).fkine(q, tool=True), "table"
+        return robot_from_table(exported), "table"
     if isinstance(exported, str) and exported.lstrip().startswith("<"):
-        return urdf_fkine(exported, q), "urdf"
+        return robot_from_urdf(exported, where="the exported URDF"), "urdf"
     path = Path(exported)
-    text = path.read_text()
-    if text.lstrip().startswith("<"):
-        return urdf_fkine(text, q), "urdf"
-    return robot_from_table(read_table(path)).fkine(q, tool=True), "table"
+    if path.read_text().lstrip().startswith("<"):
+        return read_urdf(path), "urdf"
+    return robot_from_table(read_table(path)), "table"
 
 
 def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -> dict:
@@ -353,8 +298,9 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
         The calibrated robot.
     exported : list of dict, str or Path
         Table rows (:func:`export_table`), URDF text, or the path of a written table (CSV /
-        JSON) or URDF file. A URDF is evaluated by its own small forward kinematics
-        (:func:`urdf_fkine`); a table is rebuilt into a :class:`Robot` (:func:`robot_from_table`).
+        JSON) or URDF file. Either is read back into a :class:`Robot` by the reader
+        ``robocal.robot`` uses for it: :func:`robocal.urdf.robot_from_urdf` (yourdfpy's parse,
+        then the chain's DH form) or :func:`robot_from_table`.
     samples : int
     seed : int
 
@@ -370,7 +316,8 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
     hi = np.array([j.limits[1] for j in robot.joints])
     q = lo + (hi - lo) * rng.random((samples, robot.n_joints))
     want = robot.fkine(q, tool=True)
-    got, representation = _exported_fkine(exported, q)
+    exported_robot, representation = _exported_robot(exported)
+    got = exported_robot.fkine(q, tool=True)
     pos = np.linalg.norm(got[:, :3, 3] - want[:, :3, 3], axis=1)
     rot = np.linalg.norm(so3_log(np.swapaxes(want[:, :3, :3], -1, -2) @ got[:, :3, :3]), axis=1)
     return {
@@ -403,6 +350,8 @@ def export_checked(
     passes: a failed export never overwrites a previous good one.
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
+    if fmt == "urdf":
+        require_yourdfpy("checking a URDF export (it is read back)")
     table_format = _table_format(Path(out), table_format) if fmt != "urdf" else table_format
     with Staged(out) as stage:
         export(robot, fmt, stage.tmp, table_format=table_format, name=name)

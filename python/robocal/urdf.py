@@ -16,13 +16,21 @@ at the zero configuration (every joint at 0):
   normal runs in the plane perpendicular to joint ``j``'s axis through the frame origin, and
   ``beta_j`` (about y) with ``alpha_j`` turns z onto the next axis; the joint is flagged
   ``hayati`` (its ``d`` is ill-conditioned there, as for the built-in robots);
-* the last link is the identity (``theta_N = d_N = a_N = alpha_N = 0``) and everything between
-  the last joint's axis frame and the tip link, the fixed joints included, is the **tool** frame.
+* the last link (``theta_N, d_N, a_N, alpha_N, beta_N``) takes joint ``N``'s axis frame to the
+  **flange**: the link named ``flange`` among those after the last movable joint (ROS-Industrial's
+  name, and what ``robocal export --format urdf`` writes), else the last movable joint's child
+  link. Five link parameters cannot hold every placement of a frame (six degrees of freedom): a
+  ``flange`` link they cannot hold to :data:`FLANGE_TOL_MM` / :data:`FLANGE_TOL_RAD` is passed
+  over for the joint's child link, which they always hold (its origin lies on the axis);
+* everything from the flange to the tip link, the fixed joints included, is the **tool** frame.
+  The tip is by default the end of the chain, so a file that ends in fixed ``flange`` and
+  ``tool0`` links reads with ``fkine(q)`` at ``flange`` and ``fkine(q, tool=True)`` at ``tool0``.
 
 Each joint's variable is then the URDF joint position (rad, or mm for a prismatic joint) with
 the same sign: z points along the URDF axis. Because ``Rz(q)`` about an axis through the frame
 origin is the URDF joint's motion (``Tz(q)`` along it for a prismatic joint), the robot's tool
-pose equals the URDF tip link's pose for every joint vector, not only at zero.
+pose equals the URDF tip link's pose, and its flange pose the flange link's, for every joint
+vector, not only at zero.
 
 Units: URDF lengths are metres, robocal's millimetres (× 1000); angles stay radians. Joint limits
 come from ``<limit>``; a ``continuous`` joint (a revolute joint without limits) gets ±π.
@@ -30,6 +38,8 @@ come from ``<limit>``; a ``continuous`` joint (a revolute joint without limits) 
 
 from __future__ import annotations
 
+import io
+import logging
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -38,7 +48,7 @@ from typing import Optional
 import numpy as np
 
 from .exceptions import InvalidParameterError, MissingDependencyError
-from .geometry import X, Y, frame_params, homogeneous, rotation
+from .geometry import X, Y, Z, frame_params, homogeneous, rotation
 from .robot import Joint, Robot
 from .robot_file import read_file
 
@@ -46,26 +56,39 @@ from .robot_file import read_file
 PARALLEL_DEG = 1.0
 #: URDF joint types robocal reads: the movable ones it converts and ``fixed``.
 MOVABLE = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
+#: The link read as the robot's flange when the chain passes through it after the last movable joint.
+FLANGE_LINK = "flange"
+#: How closely (mm, rad) the last link must hold a ``flange`` link's frame for it to be the flange.
+FLANGE_TOL_MM, FLANGE_TOL_RAD = 1e-10, 1e-12
 _M_TO_MM = 1000.0
 
+logger = logging.getLogger(__name__)
 
-def _parse(path: Path):
-    """The yourdfpy model of ``path``, or an error naming the file."""
-    text = read_file(path, "URDF file")
-    try:  # the stdlib names the line and column of malformed XML; yourdfpy does not
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise InvalidParameterError(f"{path}: not well-formed XML ({exc})") from None
-    if root.tag != "robot":
-        raise InvalidParameterError(f"{path}: not a URDF file (root element <{root.tag}>, expected <robot>)")
+
+def require_yourdfpy(purpose: str):
+    """The ``yourdfpy`` module, or a :class:`MissingDependencyError` saying that ``purpose`` needs it."""
     try:
         import yourdfpy
     except ImportError:
-        raise MissingDependencyError(f"{path}: reading URDF needs yourdfpy, an optional dependency: pip install 'robocal[urdf]'") from None
+        raise MissingDependencyError(f"{purpose} needs yourdfpy, an optional dependency: pip install 'robocal[urdf]'") from None
+    return yourdfpy
+
+
+def _parse(text: str, where: str):
+    """The yourdfpy model of the URDF document ``text``, or an error naming ``where``."""
+    try:  # the stdlib names the line and column of malformed XML; yourdfpy does not
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise InvalidParameterError(f"{where}: not well-formed XML ({exc})") from None
+    if root.tag != "robot":
+        raise InvalidParameterError(f"{where}: not a URDF file (root element <{root.tag}>, expected <robot>)")
+    yourdfpy = require_yourdfpy(f"{where}: reading URDF")
     try:
-        return yourdfpy.URDF.load(str(path), build_scene_graph=False, build_collision_scene_graph=False, load_meshes=False, load_collision_meshes=False)
+        return yourdfpy.URDF.load(
+            io.BytesIO(text.encode("utf-8")), build_scene_graph=False, build_collision_scene_graph=False, load_meshes=False, load_collision_meshes=False
+        )
     except Exception as exc:  # yourdfpy reports a missing attribute as a bare KeyError / AttributeError
-        raise InvalidParameterError(f"{path}: not a valid URDF ({type(exc).__name__}: {exc})") from None
+        raise InvalidParameterError(f"{where}: not a valid URDF ({type(exc).__name__}: {exc})") from None
 
 
 def serial_chain(joints, where: str, tip: Optional[str] = None) -> list:
@@ -148,10 +171,44 @@ def _common_normal(O, x, z, p, u) -> tuple[dict, np.ndarray]:
     return {"alpha": alpha, "a": a, "d": d, "theta": theta, "beta": beta, "hayati": bool(hayati)}, frame
 
 
+def _dh_link(link: dict) -> np.ndarray:
+    """``Rz(theta)·Tz(d)·Tx(a)·Rx(alpha)·Ry(beta)`` (4×4): a standard-DH link at its joint's zero."""
+    Rz = rotation(Z, link["theta"])
+    return homogeneous(Rz @ rotation(X, link["alpha"]) @ rotation(Y, link["beta"]), Rz @ np.array([link["a"], 0.0, link["d"]]))
+
+
+def _last_link(F: np.ndarray) -> tuple[dict, float, float]:
+    """The last link's parameters that come closest to ``F`` (4×4, mm): joint ``N``'s axis frame
+    to the flange at the joint's zero; and how far the transform they give is from ``F`` (mm, rad).
+
+    ``Rz(theta)·Rx(alpha)·Ry(beta)`` has no x component of y, so ``theta`` must turn F's y axis
+    into the y-z plane; when that axis lies along z (``alpha`` = ±90°) ``theta`` is free, and the
+    direction of F's origin off the z axis gives it instead (``a`` its distance from the axis).
+    """
+    R, t = F[:3, :3], F[:3, 3]
+    best = None
+    for theta in (math.atan2(-R[0, 1], R[1, 1]), math.atan2(t[1], t[0])):
+        M = rotation(Z, -theta) @ R
+        link = {
+            "alpha": math.atan2(M[2, 1], M[1, 1]),
+            "a": float(t[0] * math.cos(theta) + t[1] * math.sin(theta)),
+            "d": float(t[2]),
+            "theta": theta,
+            "beta": math.atan2(M[0, 2], M[0, 0]),
+            "hayati": False,
+        }
+        G = _dh_link(link)
+        mm, rad = float(np.abs(G[:3, 3] - t).max()), float(np.abs(G[:3, :3] - R).max())
+        if best is None or max(mm / FLANGE_TOL_MM, rad / FLANGE_TOL_RAD) < max(best[1] / FLANGE_TOL_MM, best[2] / FLANGE_TOL_RAD):
+            best = (link, mm, rad)
+    return best
+
+
 def robot_from_chain(chain, where: str, name: str) -> Robot:
-    """A standard-DH :class:`Robot` whose tool pose is the chain's tip pose (see the module
-    docstring). ``chain``: yourdfpy joints in order from the root (origins in metres)."""
-    movable, T, axes = [], np.eye(4), []
+    """A standard-DH :class:`Robot` whose tool pose is the chain's tip pose and whose flange pose
+    is its flange link's (see the module docstring). ``chain``: yourdfpy joints in order from the
+    root (origins in metres)."""
+    movable, T, axes, after = [], np.eye(4), [], []
     for joint in chain:
         if joint.type not in MOVABLE and joint.type != "fixed":
             raise InvalidParameterError(
@@ -163,8 +220,10 @@ def robot_from_chain(chain, where: str, name: str) -> Robot:
         if origin.shape != (4, 4) or not np.all(np.isfinite(origin)):
             raise InvalidParameterError(f"{where}: joint {joint.name!r}: its <origin> must be finite xyz and rpy; got {origin.tolist()}")
         T = T @ homogeneous(origin[:3, :3], origin[:3, 3] * _M_TO_MM)
+        after.append((joint.child, T))  # the links after the last movable joint: where the flange may be
         if joint.type == "fixed":
             continue
+        after = after[-1:]
         axis = np.array([1.0, 0.0, 0.0] if joint.axis is None else joint.axis, dtype=np.float64)
         norm = np.linalg.norm(axis) if axis.shape == (3,) and np.all(np.isfinite(axis)) else 0.0
         if not norm > 0.0:
@@ -186,8 +245,16 @@ def robot_from_chain(chain, where: str, name: str) -> Robot:
     for p, u in axes[1:]:
         link, frame = _common_normal(frame[:3, 3], frame[:3, 0], frame[:3, 2], p, u)
         links.append(link)
-    links.append({"alpha": 0.0, "a": 0.0, "d": 0.0, "theta": 0.0, "beta": 0.0, "hayati": False})
-    tool = np.linalg.solve(frame, tip)
+    flange = next((pose for child, pose in after if child == FLANGE_LINK), None)
+    if flange is not None:
+        link, mm, rad = _last_link(np.linalg.solve(frame, flange))
+        if not (mm <= FLANGE_TOL_MM and rad <= FLANGE_TOL_RAD):
+            logger.info("%s: the last link cannot hold link %r (off by %.3g mm, %.3g rad): the flange is link %r", where, FLANGE_LINK, mm, rad, after[0][0])
+            flange = None
+    if flange is None:
+        link, _, _ = _last_link(np.linalg.solve(frame, after[0][1]))  # the joint's child: its origin is on the axis
+    links.append(link)
+    tool = np.linalg.solve(frame @ _dh_link(link), tip)
 
     joints, values = [], []
     for joint, link in zip(movable, links):
@@ -206,37 +273,54 @@ def robot_from_chain(chain, where: str, name: str) -> Robot:
     return Robot(name, joints, np.array(values))
 
 
-def read_urdf(path, tip: Optional[str] = None, convention: str = "dh") -> Robot:
-    """The robot of a URDF file.
+def robot_from_urdf(text: str, *, where: str = "URDF", tip: Optional[str] = None, convention: str = "dh") -> Robot:
+    """The robot of a URDF document.
 
     Parameters
     ----------
-    path : str or Path
+    text : str
+        The URDF (XML).
+    where : str
+        Names the document in messages, and the robot when the URDF's ``<robot>`` has no name.
     tip : str, optional
-        The link the tool frame is (default: the chain's one leaf; needed when the tree branches).
+        The link the tool frame is. By default the end of the chain: its one leaf, past any fixed
+        joints after the last movable one (a ``tool0`` after ``flange``). Needed when the tree
+        branches.
     convention : {"dh", "mdh"}
-        ``mdh`` converts the DH result with :meth:`Robot.to_mdh` (the tool frame is the same).
+        ``mdh`` converts the DH result with :meth:`Robot.to_mdh` (the tool frame is the same;
+        the flange frame moves, as that method says).
 
     Returns
     -------
     Robot
-        Named after the URDF's ``<robot name>``; joint values in rad (mm for prismatic joints).
+        Named after the URDF's ``<robot name>``; joint values in rad (mm for prismatic joints);
+        ``fkine(q)`` is the flange link's pose, ``fkine(q, tool=True)`` the tip's (module
+        docstring).
 
     Raises
     ------
     InvalidParameterError
-        Unreadable or malformed file, not a serial chain, an unsupported joint type (floating,
-        planar), a mimic joint, a bad origin, axis or limit — naming the file and the joint or link.
+        Malformed document, not a serial chain, an unsupported joint type (floating, planar), a
+        mimic joint, a bad origin, axis or limit — naming ``where`` and the joint or link.
+    MissingDependencyError
+        yourdfpy is not installed.
+    """
+    if convention not in ("dh", "mdh"):
+        raise InvalidParameterError(f"`convention` must be 'dh' or 'mdh'; got {convention!r}")
+    model = _parse(text, where)
+    chain = serial_chain(model.robot.joints, where, tip)
+    robot = robot_from_chain(chain, where, model.robot.name or Path(where).stem)
+    return robot.to_mdh() if convention == "mdh" else robot
+
+
+def read_urdf(path, tip: Optional[str] = None, convention: str = "dh") -> Robot:
+    """The robot of a URDF file: :func:`robot_from_urdf` of its text (``tip`` and ``convention``
+    as there; errors name the file).
 
     Examples
     --------
     >>> import robocal
     >>> r = robocal.robot("ur10.urdf")  # doctest: +SKIP
     """
-    if convention not in ("dh", "mdh"):
-        raise InvalidParameterError(f"`convention` must be 'dh' or 'mdh'; got {convention!r}")
     path = Path(path)
-    model = _parse(path)
-    chain = serial_chain(model.robot.joints, str(path), tip)
-    robot = robot_from_chain(chain, str(path), model.robot.name or path.stem)
-    return robot.to_mdh() if convention == "mdh" else robot
+    return robot_from_urdf(read_file(path, "URDF file"), where=str(path), tip=tip, convention=convention)
