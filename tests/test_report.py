@@ -61,7 +61,10 @@ def test_report_has_header_metrics_tables_and_all_figures(calibrated, tmp_path):
     # Angles are shown in degrees: alpha1 of the IRB 120 is nominally -90 deg.
     assert "-90.0000" in text
     names = {p.name for p in images(page)}
-    assert names == {"residuals_histogram.png", "residuals_samples.png", "parameters.png", "convergence.png", "identifiability.png"}
+    assert names == {"residuals_histogram.png", "residuals_samples.png", "parameters.png", "convergence.png", "identifiability.png", "acceptance.png"}
+    # the acceptance figures of the held-out samples: one visit per target, so AP is the held-out error
+    assert "<h2>Acceptance (ISO 9283)</h2>" in text and f"on the {doc['metrics']['test']['n']} held-out samples" in text
+    assert f"RMS {doc['metrics']['test']['rmse']:.4f}  max {doc['metrics']['test']['max']:.4f} mm over {doc['metrics']['test']['n']} targets" in text
     # Self-contained: no scripts, no external resources.
     assert "<script" not in text and "http://" not in text and "https://" not in text
 
@@ -183,3 +186,48 @@ def test_diagnosis_section_shows_structure_budget_and_sessions(calibrated, tmp_p
     sessions = robocal.diagnose([robocal.simulate("abb-irb120", "position", samples=200, seed=2, session=s)[0] for s in range(2)]).to_dict()
     text = report(path, tmp_path / "two", diagnosis=sessions).read_text()
     assert "<h3>Sessions</h3>" in text and "sessions it was not fitted on" in text
+
+
+def test_an_extended_result_is_reported_with_its_causes(tmp_path):
+    """The figures of an extended result (a UR10 with a gear error on joint 2, diagnosed and
+    calibrated with its cause) come from the model verify applies: the report's "after" RMSE on
+    the calibration's file is verify's on the same file (which re-fits only the set-up), and the
+    metrics the report recomputes from it are the result file's."""
+    data, _ = robocal.simulate("ur10", "position", samples=400, seed=3, effects=["joint_periodic:joint=2,amplitude=0.02,harmonic=2"])
+    csv_path = write_canonical(data, tmp_path / "d.csv")
+    diagnosis = robocal.diagnose(str(csv_path), robot="ur10").to_dict()
+    assert diagnosis["model"]["causes"] == ["joint_periodic joint 2 harmonic=2"]
+    doc = robocal.calibrate(str(csv_path), robot="ur10", causes=diagnosis).to_dict()
+    result = tmp_path / "result.json"
+    result.write_text(json.dumps(doc))
+    text = report(result, tmp_path / "out", diagnosis=diagnosis).read_text()
+    after = float(re.search(r"RMSE [0-9.]+ mm with the nominal kinematics \(measurement set-up refitted\) and ([0-9.]+) mm calibrated", text).group(1))
+    verified = robocal.verify(str(result), str(csv_path))
+    assert after == pytest.approx(verified["metrics"]["rmse"], rel=2e-3)
+    assert "they match the result file" in text and "not in the result file" not in text
+    # the geometry alone is far off: the figures are not its
+    geometric = np.sqrt(np.mean(np.sum(load_result(doc)[0].residuals("position", data.q, data.y) ** 2, axis=1)))
+    assert geometric > 2 * after
+
+
+def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
+    """Titles, labels and annotations of every figure lie within its canvas, long cause labels
+    included (the diagnosis chart's title ran off its right edge)."""
+    path, _, _ = calibrated
+    save, outside = report_module._save, []
+
+    def checked(fig, where):
+        fig.canvas.draw()
+        drawn = fig.get_tightbbox(fig.canvas.get_renderer())  # inches, of everything drawn
+        width, height = fig.get_size_inches()
+        if drawn.x0 < -0.01 or drawn.y0 < -0.01 or drawn.x1 > width + 0.01 or drawn.y1 > height + 0.01:
+            outside.append((where.name, drawn.bounds))
+        return save(fig, where)
+
+    monkeypatch.setattr(report_module, "_save", checked)
+    long = "joint_map joint 3 spacing=5 roughness=0.01 beside joint_coupling joint 3 source=2"
+    diagnosis = {"robot": "abb-irb120", "measurement": "position", "samples": 200, "source": None,
+                 "baseline": {"rmse_heldout": 0.05, "folds": 5}, "rejected": [], "final": {"rmse_heldout": 0.03},
+                 "effects": [{"kind": "joint_map", "joint": 3, "label": long, "params": {}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03}]}  # fmt: skip
+    report(path, tmp_path / "out", diagnosis=diagnosis)
+    assert outside == []

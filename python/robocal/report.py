@@ -22,6 +22,7 @@ moved or archived as a whole.
 from __future__ import annotations
 
 import html
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
@@ -29,6 +30,7 @@ from typing import Optional, Union
 import numpy as np
 
 from ._robocal import __version__
+from .acceptance import iso9283, summary_rows
 from .calibration.api import load_inputs
 from .calibration.metrics import sample_errors
 from .calibration.problem import implausible_parameters, is_kinematic, start_parameters
@@ -36,6 +38,7 @@ from .calibration.result import describe_implausible, implausible_meaning
 from .data.dataset import Dataset
 from .diagnosis import structure
 from .diagnosis.leftover import leftover_words
+from .diagnosis.result_model import ResultModel, result_model
 from .exceptions import InvalidParameterError, RobocalError
 from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
@@ -142,14 +145,21 @@ class _Evaluation:
     held_out: Optional[np.ndarray]
     singular: Optional[np.ndarray]
     n_cols: int
+    #: The result's model on the data (the one ``verify`` evaluates) and its residuals (m, k).
+    model: ResultModel
+    residuals: np.ndarray
 
 
 def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Evaluation:
+    """The nominal and the calibrated model's errors on ``dataset``: the calibrated one is the
+    result's model as ``verify`` applies it (reading conventions, joint causes), at the
+    calibrated set-up; the nominal one reads the joints in the same convention."""
     meas = dataset.measurement
-    nominal = nominal_robot(robot, doc)
-    p0 = start_parameters(nominal, dataset)
-    before = sample_errors(nominal.residuals(meas, dataset.q, dataset.y, params=p0), meas)
-    after = sample_errors(robot.residuals(meas, dataset.q, dataset.y), meas)
+    model = result_model(robot, doc, dataset)
+    p0 = start_parameters(model.nominal, model.read)
+    before = sample_errors(model.nominal.residuals(meas, model.read.q, model.read.y, params=p0), meas)
+    residuals = model.residuals(robot)
+    after = sample_errors(residuals, meas)
     held_out = None
     if same_file:
         held_out = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_held_out") or [], dtype=np.int64))
@@ -157,11 +167,11 @@ def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Ev
     cols = [robot.index(n) for n in doc.get("free", []) if n in names]
     singular = None
     if cols:
-        J = robot.jacobian(meas, dataset.q, y=dataset.y, cols=cols)
+        J = robot.jacobian(meas, model.links.q, y=model.links.y, cols=cols)
         norm = np.linalg.norm(J, axis=0)
         J = J / np.where(norm > 0, norm, 1.0)
         singular = np.linalg.svd(J, compute_uv=False)
-    return _Evaluation(before, after, held_out, singular, len(cols))
+    return _Evaluation(before, after, held_out, singular, len(cols), model, residuals)
 
 
 def _condition(s: np.ndarray) -> float:
@@ -193,7 +203,11 @@ def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
     what = {"cable": "|cable length residual|", "position": "position error", "pose": "position error (of the pose)"}[meas]
     colours = {"before": "tab:orange", "after": "tab:blue"}
     errors = {"before": ev.before, "after": ev.after}
-    labels = {"before": "before: nominal kinematics", "after": "after: calibrated"}
+    causes = len(ev.model.carried)
+    labels = {
+        "before": "before: nominal kinematics",
+        "after": "after: calibrated" + (f" with its {causes} joint cause{'s' if causes > 1 else ''}" if causes else ""),
+    }
 
     # (a) Histograms on log-spaced bins: before and after often differ by orders of magnitude.
     positive = np.concatenate([e[e > 0] for e in errors.values()])
@@ -336,6 +350,53 @@ def _fig_identifiability(ev: _Evaluation, out: Path) -> Optional[Path]:
     return _save(fig, out / "identifiability.png")
 
 
+def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
+    """The ISO 9283 figures of the calibrated model on the held-out samples (all samples when they
+    are not known) and which samples they are, in words."""
+    held = ev.held_out is not None and ev.held_out.any()
+    mask = ev.held_out if held else np.ones(len(ev.after), dtype=bool)
+    read = ev.model.read
+    figures = iso9283(ev.residuals[mask], read.y[mask], read.q[mask], read.measurement, covered=ev.model.covered[mask], rows=read.rows[mask])
+    which = (f"the {int(mask.sum())} held-out samples (the fit saw none of their joint configurations)" if held
+             else f"all {len(mask)} samples at the calibrated set-up (held-out samples unknown: not an acceptance test unless these are new measurements)")  # fmt: skip
+    return figures, which
+
+
+def _fig_acceptance(figures: dict, maps: bool, out: Path) -> Path:
+    """Position (or cable length) accuracy per target, coloured by whether the joint maps cover it."""
+    plt = _pyplot()
+    t = figures["targets"]
+    error, covered = np.asarray(t["position_error_mm"]), np.asarray(t["covered"])
+    idx = np.arange(error.size)
+    fig, ax = plt.subplots(figsize=(7.0, 3.8), layout="constrained")
+    size = 10 if error.size <= 500 else 4
+    if maps:
+        ax.scatter(idx[covered], error[covered], s=size, color="tab:blue", lw=0, label="within every joint map's range")
+        ax.scatter(idx[~covered], error[~covered], s=size * 2, color="tab:red", marker="x", lw=1.0, label="beyond a joint map's range (not corrected)")
+    else:
+        ax.scatter(idx, error, s=size, color="tab:blue", lw=0, label="target (no joint map in the model)")
+    ax.axhline(figures["position_accuracy_mm"]["rms"], color="tab:blue", ls="--", lw=1.0, label="RMS over the targets")
+    if figures["repeatability_mm"] is not None:
+        ax.axhline(figures["repeatability_mm"]["rp"], color="0.3", ls=":", lw=1.2, label="repeatability RP")
+    what = "length" if figures["measurement"] == "cable" else "position"
+    ax.set(xlabel="target (order of its first sample)", ylabel=f"{what} accuracy AP (mm)", ylim=(0, None))
+    ax.set_title(f"ISO 9283 {what} accuracy per target ({error.size} targets)", fontsize=10)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8, frameon=False)
+    return _save(fig, out / "acceptance.png")
+
+
+def _acceptance_section(ev: _Evaluation, out: Path) -> str:
+    figures, which = _acceptance(ev)
+    rows = [[_esc(name), _esc(value)] for name, value in summary_rows(figures)]
+    maps = any(c.get("kind") == "joint_map" for c in ev.model.carried)
+    caption = ("Accuracy of each target: the distance from the barycentre of its measurements to the calibrated model's prediction"
+               + (", red where a joint map of the model does not reach." if maps else "."))  # fmt: skip
+    return (f"<p>ISO 9283:1998 figures on {_esc(which)}: {figures['n_targets']} targets (joint configurations), the command being the calibrated "
+            "model's prediction at the target's joints and the attained pose the measurement. Distance accuracy compares measured and predicted "
+            "distances between targets: it does not depend on how the instrument was registered to the robot.</p>"
+            + _table(["figure", "value"], rows) + _figure(_fig_acceptance(figures, maps, out), caption))  # fmt: skip
+
+
 def _held(report: dict) -> str:
     """The key of a report's held-out RMSE: cross-validated within one session, or
     leave-one-session-out over several."""
@@ -361,18 +422,20 @@ def diagnosis_figure(report: dict, path: Path) -> Path:
     plt = _pyplot()
     steps = _diagnosis_steps(report)
     names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
-    fig, ax = plt.subplots(figsize=(7.0, 0.45 * len(steps) + 1.5))
+    # Constrained layout and a figure title: long cause labels push the axes right, and a title
+    # centred on them would run off the figure's right edge.
+    fig, ax = plt.subplots(figsize=(7.0, 0.45 * len(steps) + 1.7), layout="constrained")
     y = np.arange(len(steps))[::-1]
     ax.barh(y, rmse, color=["0.6" if n.endswith("outliers kept") else "tab:blue" for n in names], height=0.6)
     for i, (yi, v) in enumerate(zip(y, rmse)):
         change = f" ({(v - rmse[i - 1]) / rmse[i - 1]:+.1%})" if i > 0 and rmse[i - 1] > 0 else ""
         ax.text(v, yi, f" {v:.4g} mm{change}", va="center", fontsize=8)
-    ax.set_yticks(y, names, fontsize=9)
+    ax.set_yticks(y, [textwrap.fill(n, 34) for n in names], fontsize=9)
     ax.set_xlim(0, rmse.max() * 1.3)
     folds = report["baseline"].get("folds")
     how = ", leave-one-session-out" if "sessions" in report else (f", {folds}-fold cross-validation" if folds else "")
-    ax.set(xlabel=f"held-out RMSE (mm){how}", title="Held-out error as the diagnosed causes are added")
-    fig.tight_layout()
+    ax.set(xlabel=f"held-out RMSE (mm){how}")
+    fig.suptitle("Held-out error as the diagnosed causes are added", fontsize=11)
     return _save(fig, Path(path))
 
 
@@ -477,8 +540,10 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
     m = doc.get("metrics") or {}
     if ev is None or ev.held_out is None:
         return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)"
-    if doc.get("causes") or doc.get("structure") or doc.get("method") == "rbf":
-        return m, "copied from the result file: its causes, reading conventions or network are not held in it, so its values alone do not reproduce them"
+    if doc.get("method") == "rbf":
+        return m, "copied from the result file: its network is not held in it, so its values alone do not reproduce them"
+    if ev.model.session_terms:
+        return m, "copied from the result file: the terms of its own session are not applied here (they are not the robot's), so they cannot be reproduced"
     used = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_used") or [], dtype=np.int64))
     recomputed = {"train": used, "test": ev.held_out}
     out, differ = dict(m), []
@@ -755,10 +820,9 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         if d.path is not None and not d.same_file:
             notes.append("the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
                          if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
-        if doc.get("causes"):
-            notes.append(
-                "the figures use the calibrated geometric parameters only: the fitted causes' contribution is not in the result file, so the errors may exceed the metrics above"
-            )
+        if ev.model.session_terms:
+            notes.append(f"the figures show the robot's model as verify applies it: the terms of the calibration's own session ({'; '.join(ev.model.session_terms)}) "
+                         "are not applied, so the errors may exceed the metrics above")  # fmt: skip
         if doc.get("method") == "rbf":
             notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
     paths_residuals = _fig_residuals(ev, meas, out) if ev is not None else []
@@ -767,7 +831,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         figures.append(
             _figure(
                 paths_residuals[0],
-                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated.",
+                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated"
+                + (" (geometry and joint causes, the model robocal verify applies)." if ev.model.carried else "."),
             )
         )
         figures.append(
@@ -821,6 +886,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 {_header(doc, d)}
 <h2>Accuracy</h2>
 {_metrics(doc, *checked_metrics(doc, ev, d.dataset))}
+{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
 <h2>Figures</h2>

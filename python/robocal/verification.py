@@ -8,42 +8,29 @@ only what belongs to the new *session* (:func:`~robocal.robot.setup_names`): the
 tracker's base frame and the tool point, or the cable's anchor and zero. The old session's own
 terms (a step of its sensor's zero, its drift, its outliers) are not carried. Beside the
 calibrated model's eq. (28) metrics it reports the nominal model's on the same data, set-up
-re-fitted the same way: what the calibration gains where it was not fitted.
+re-fitted the same way: what the calibration gains where it was not fitted; and the acceptance
+figures of ISO 9283 (:mod:`robocal.acceptance`). The model is the one ``robocal report`` draws
+(:func:`~robocal.diagnosis.result_model.result_model`).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import Optional, Union
 
 import numpy as np
 
-
+from .acceptance import iso9283
 from .calibration.api import load_inputs
 from .calibration.lm import levenberg_marquardt
 from .calibration.metrics import metrics
 from .calibration.problem import Problem
-from .calibration.sessions import SESSION_KINDS
 from .data.dataset import Dataset
-from .diagnosis import structure
-from .diagnosis.candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report, result_maps
+from .diagnosis.result_model import result_model
 from .results import file_sha256, load_result
 from .robot import Robot, setup_names
 
 SCHEMA = "robocal.verify/1"
-
-
-def _with_joint_causes(robot: Robot, data: Dataset, causes: list[dict]) -> Dataset:
-    """``data`` with the joint angles the links take: readings plus the causes' ``Δq``
-    (evaluated in acquisition order, which backlash needs)."""
-    offsets = joint_offsets(robot, causes, kinds=JOINT_KINDS)
-    if offsets is None:
-        return data
-    order = acquisition_order(data)
-    q = data.q.copy()
-    q[order] += offsets(data.q[order])
-    return replace(data, q=q)
 
 
 def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[str]]:
@@ -100,22 +87,17 @@ def verify(
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
         ``metrics`` and ``metrics_covered``), ``applied`` (``structure`` and ``causes`` labels), ``not_applied``
         (``{label, reason}``), ``coverage`` (per joint map: the samples beyond its fitted range,
-        :func:`~robocal.diagnosis.candidates.map_coverage_report`), ``robot``, ``measurement``,
+        :func:`~robocal.diagnosis.candidates.map_coverage_report`), ``iso9283`` (the acceptance
+        figures of the calibrated model, :func:`robocal.acceptance.iso9283`: position,
+        orientation and distance accuracy, repeatability), ``robot``, ``measurement``,
         ``samples``, ``data`` (its source).
     """
     calibrated, doc = load_result(result)
     dataset, _ = load_inputs(data, calibrated, measurement or doc["measurement"], angle_unit)
-    conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
-    read = structure.apply_all(dataset, conventions)  # the readings in the model's convention
-    causes = doc.get("causes", [])
-    carried = [c for c in causes if c.get("kind") in JOINT_KINDS]
-    not_applied = [{"label": c.get("label", c.get("kind")),
-                    "reason": "a term of the calibration's own session (its sensor), not of the robot" if c.get("kind") in SESSION_KINDS
-                    else "a parameter of the robot: in the calibrated parameters"} for c in causes if c not in carried]  # fmt: skip
-    residuals, setup, refit = _refit_setup(calibrated, _with_joint_causes(calibrated, read, carried))
-    nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)
-    nominal_residuals, _, _ = _refit_setup(nominal, read)
-    covered = map_coverage_mask(result_maps(carried), read.q)
+    model = result_model(calibrated, doc, dataset)
+    residuals, setup, refit = _refit_setup(calibrated, model.links)
+    nominal_residuals, _, _ = _refit_setup(model.nominal, model.read)
+    covered = model.covered
     return {
         "held_out": not (seen := _seen_by_fit(doc, dataset)),
         "notes": seen + list(dataset.notes),  # and what the reader and load_inputs noticed (data naming another robot)
@@ -135,8 +117,9 @@ def verify(
             "metrics": metrics(nominal_residuals, dataset.measurement),
             "metrics_covered": metrics(nominal_residuals[covered], dataset.measurement) if covered.any() else None,
         },
-        "applied": {"structure": list(doc.get("structure", [])), "causes": [c.get("label", c["kind"]) for c in carried]},
-        "not_applied": not_applied,
+        "applied": model.applied,
+        "not_applied": model.not_applied,
         # Joint maps correct nothing beyond the range they were fitted on.
-        "coverage": map_coverage_report(carried, read.q, read.rows),
+        "coverage": model.coverage(),
+        "iso9283": iso9283(residuals, model.read.y, model.read.q, dataset.measurement, covered=covered, rows=model.read.rows),
     }

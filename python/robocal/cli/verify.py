@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..acceptance import summary_rows
 from ..diagnosis.candidates import uncovered_words
 from ..outputs import printable, write_text
 from ..verification import verify
@@ -33,6 +34,12 @@ def summary(report: dict) -> str:
         if c["outside"]:
             lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
                          f"(its fit had no data there; first rows {c['rows'][:5]})")  # fmt: skip
+    iso = report.get("iso9283")
+    if iso is not None:
+        lines.append(f"  ISO 9283 ({iso['n_targets']} targets, {iso['n_measurements']} measurements; command = the calibrated model's prediction):")
+        rows = summary_rows(iso)
+        width = max(len(name) for name, _ in rows)
+        lines += [f"    {name:<{width}}  {value}" for name, value in rows]
     if "rotation_rmse_deg" in m:
         lines.insert(2, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
     return "\n".join(lines)
