@@ -5,7 +5,11 @@
 
 1. the per-sample error before calibration (nominal kinematics, measurement set-up refitted by
    :func:`~robocal.calibration.problem.start_parameters`) and after it, as histograms and along
-   the samples, held-out samples marked;
+   the samples, held-out samples marked. "After" is the model ``verify`` evaluates
+   (:func:`~robocal.diagnosis.result_model.result_model`: the result's reading conventions and
+   joint causes), so an extended result's figures include its causes; beside them the ISO 9283
+   acceptance figures of the held-out samples (:mod:`robocal.acceptance`) with the accuracy of
+   each target;
 2. the estimated parameters' deviations from nominal with ±2 std error bars (mm, deg);
 3. the solver's cost per iteration;
 4. the singular values of the column-scaled identification Jacobian at the calibrated
@@ -13,7 +17,7 @@
 5. with ``--diagnosis REPORT.json`` (``robocal diagnose --json``): the held-out RMSE as the
    diagnosed causes are added, and a table of the causes.
 
-Figures 1 and 4 need the measurements: the file the result names (``dataset.source``) or
+Figures 1 and 4 and the acceptance figures need the measurements: the file the result names (``dataset.source``) or
 ``--data FILE``. Without them the page says so and shows the rest. The page has no scripts and
 loads nothing from elsewhere; the PNGs are referenced by relative path, so the folder can be
 moved or archived as a whole.
@@ -358,7 +362,7 @@ def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     read = ev.model.read
     figures = iso9283(ev.residuals[mask], read.y[mask], read.q[mask], read.measurement, covered=ev.model.covered[mask], rows=read.rows[mask])
     which = (f"the {int(mask.sum())} held-out samples (the fit saw none of their joint configurations)" if held
-             else f"all {len(mask)} samples at the calibrated set-up (held-out samples unknown: not an acceptance test unless these are new measurements)")  # fmt: skip
+             else f"all {len(mask)} samples at the calibrated set-up (the held-out samples are unknown; on new measurements `robocal verify` re-fits the set-up first)")  # fmt: skip
     return figures, which
 
 
