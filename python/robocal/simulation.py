@@ -149,6 +149,19 @@ def acquisition_path(r: Robot, measurement: str, samples: int, rng: np.random.Ge
     return q
 
 
+def _checked_poses(r: Robot, poses) -> np.ndarray:
+    """``poses`` as joint values (m, N) within ``r``'s limits, or an error naming the first that is not."""
+    q = as_float_array(poses, "poses")
+    if q.ndim != 2 or q.shape[1] != r.n_joints or not len(q):
+        raise InvalidParameterError(f"`poses` must have shape (m, {r.n_joints}) with m >= 1; got {q.shape}")
+    lo, hi = np.array([j.limits for j in r.joints]).T
+    bad = np.argwhere(~np.isfinite(q) | (q < lo) | (q > hi))
+    if bad.size:
+        i, j = bad[0]
+        raise InvalidParameterError(f"`poses`: pose {i} joint {j + 1} is {q[i, j]:.6g}, outside the joint's limits {lo[j]:.6g}..{hi[j]:.6g}")
+    return q
+
+
 def geometric_errors(r: Robot, measurement: str, q: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Random geometric errors on the identifiable subset of the default mask.
 
@@ -218,6 +231,7 @@ def simulate(
     tool: Optional[Sequence[float]] = None,
     anchor: Optional[Sequence[float]] = None,
     session: int = 0,
+    poses=None,
 ) -> tuple[Dataset, dict]:
     """Simulates an acquisition of ``robot`` with known ground truth.
 
@@ -251,6 +265,11 @@ def simulate(
         session 0 with the same ``samples``, the same draws of the effects) measured in another
         session: a new path and noise, and the set-up (base, tool, anchor, zero errors) drawn
         anew.
+    poses : array_like, shape (m, N), optional
+        Joint values (rad; mm for prismatic joints) to measure at, in this order, instead of a
+        random path — a plan of :func:`robocal.planning.plan`, say. The true robot is still drawn
+        on the seed's path of ``samples`` configurations, so that one seed is one robot whatever
+        the poses: two plans compare on it.
 
     Returns
     -------
@@ -299,6 +318,8 @@ def simulate(
         errors[placed] = setup_errors[placed]
         if measurement != "cable":  # the tracker stands elsewhere: a translation of SESSION_SHIFT_MM per axis
             errors[[nominal.index(f"base_{c}") for c in "xyz"]] += rng_setup.normal(0.0, SESSION_SHIFT_MM, 3)
+    if poses is not None:
+        q = _checked_poses(nominal, poses)
     t = dt * np.arange(len(q))
     true = nominal.params + errors
     acq = Acquisition(nominal, measurement, q, t, np.tile(true, (len(q), 1)), np.zeros_like(q), rng_effects)

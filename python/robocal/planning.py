@@ -1,0 +1,836 @@
+"""Planning a measurement (``robocal plan``): which joint configurations to measure, in which
+order, so that the model's parameters are best determined.
+
+The poses come from a pool of candidates drawn uniformly within the joint ranges and kept where
+the cell allows them (:class:`Constraints`). Each candidate contributes the rows ``J_i`` of the
+identification Jacobian of the model a calibration will fit — the identifiable geometry of
+:meth:`~robocal.calibration.problem.Problem.build` and, given a diagnosis or an extended result,
+the causes acting on the joints (:class:`~robocal.diagnosis.model.ExtendedProblem`) — so the
+plan is judged on the same Jacobian the fit uses, evaluated by the Rust core.
+
+Criterion: D-optimality, ``max log det(M_0 + Σ J_iᵀJ_i)`` over the chosen poses (``M_0``: what
+the data already measured say, the joint maps' roughness prior, a vanishing ridge). It minimises
+the volume of the parameters' confidence ellipsoid, does not depend on the parameters' units
+(any column scaling multiplies the determinant by a constant) and, unlike a sum of variances,
+cannot be bought by one well-determined parameter — the reason Borm & Menq's observability
+index O1 (the product of singular values) is its square root. Solver: Wynn's greedy selection
+with rank-k determinant updates (``det(M + JᵀJ) = det(M)·det(I + J M⁻¹ Jᵀ)``, ``M⁻¹`` by
+Woodbury) and then Fedorov's exchange (swap a chosen pose for a candidate while the determinant
+grows). Design libraries (pyDOE, dexpy, OApackage, pyoptex) build designs for polynomial models
+of factors; none takes a user's Jacobian blocks of k rows per pose with a prior information
+matrix, and the two algorithms are a few lines on NumPy.
+
+Order: a short tour through the poses (nearest neighbour, then 2-opt on the sum of joint moves)
+is dealt into ``passes`` interleaved passes — pass ``b`` takes every ``passes``-th pose of the
+tour, alternate passes run backwards — so each pass sweeps the whole workspace and a sensor that
+drifts or wanders in time cannot pass for a joint cause: no joint sweeps slowly across the
+session. The report gives the travel (sum of joint moves) and each joint's correlation with the
+acquisition order.
+
+Units: mm and rad inside; degrees in the plan file and the report's angles.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Mapping, Optional, Sequence, Union
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from .calibration.api import load_inputs
+from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
+from .calibration.sessions import SESSION_KINDS, concatenate
+from .core import as_count, as_float_array, as_positive, is_sparse, seeded_rng
+from .data.canonical import write_canonical
+from .data.dataset import Dataset
+from .diagnosis import structure
+from .diagnosis.extended import extended_problem, read_causes
+from .exceptions import InvalidParameterError
+from .outputs import Staged
+from .physics import DEG
+from .results import load_result
+from .robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, robot as load_robot, setup_names
+from .sensors import DEFAULT_NOISE
+from .simulation import CABLE_RANGE, RANGE_MARGIN, setup
+
+logger = logging.getLogger(__name__)
+
+SCHEMA = "robocal.plan/1"
+#: Candidates drawn within the constraints; the draws stop after this many times as many tries.
+CANDIDATES = 10_000
+MAX_DRAW_FACTOR = 200
+#: The greedy start's ridge, in columns scaled to one candidate's information each: a millionth
+#: of a pose, enough to invert the information before there are as many poses as parameters.
+RIDGE = 1e-6
+#: Fedorov exchange passes over the chosen poses (each stops early once no swap helps).
+EXCHANGE_PASSES = 3
+#: Poses on which the predicted position's standard deviation over the workspace is averaged.
+WORKSPACE_POSES = 500
+#: A direction of the information matrix weaker than this (relative to its largest) is undetermined.
+UNDETERMINED = 1e-10
+#: Causes whose columns depend on the pose alone: the poses can determine them.
+POSE_KINDS = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling", "joint_map", "cable_scale", "axis_misalignment", "frame")
+#: Distances (mm) a laser tracker measures at, when only its position is given: beyond the
+#: near limit of common trackers' specifications, within their 20 m or more.
+TRACKER_RANGE = (1000.0, 20000.0)
+#: What the plan does not check.
+NOT_CHECKED = (
+    "collisions of the robot with itself, the cell or the sensor",
+    "the cable touching or wrapping around the robot's links",
+    "the tracker's line of sight and the reflector's acceptance angle",
+    "singular configurations and how the robot moves between poses (only the joint values are planned)",
+)
+
+
+def _ranges(robot: Robot, joint_ranges) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds (rad; mm for prismatic joints) of every joint: the robot's limits,
+    narrowed by ``joint_ranges`` (1-based joint -> (lower, upper))."""
+    lo, hi = (np.array(v, dtype=np.float64) for v in zip(*(j.limits for j in robot.joints)))
+    if joint_ranges is None:
+        return lo, hi
+    if not isinstance(joint_ranges, Mapping):
+        raise InvalidParameterError(f"`joint_ranges` must map a 1-based joint to (lower, upper); got {joint_ranges!r}")
+    for joint, bounds in joint_ranges.items():
+        if isinstance(joint, bool) or not isinstance(joint, (int, np.integer)) or not 1 <= joint <= robot.n_joints:
+            raise InvalidParameterError(f"`joint_ranges`: joint {joint!r} is not a joint of {robot.name} (1..{robot.n_joints})")
+        pair = as_float_array(bounds, f"joint_ranges[{joint}]")
+        if pair.shape != (2,) or not np.all(np.isfinite(pair)) or pair[0] >= pair[1]:
+            raise InvalidParameterError(f"`joint_ranges[{joint}]` must be finite (lower, upper) with lower < upper; got {bounds!r}")
+        j = joint - 1
+        if pair[1] < lo[j] or pair[0] > hi[j]:
+            unit, f = ("mm", 1.0) if robot.joints[j].kind == "prismatic" else ("deg", 1 / DEG)
+            raise InvalidParameterError(
+                f"joint range: joint {joint} within {pair[0] * f:g}..{pair[1] * f:g} {unit} lies outside its limits "
+                f"{lo[j] * f:g}..{hi[j] * f:g} {unit}: no candidate"
+            )
+        lo[j], hi[j] = max(lo[j], pair[0]), min(hi[j], pair[1])
+    return lo, hi
+
+
+def _vector(value, name: str, size: int) -> Optional[np.ndarray]:
+    """``value`` as ``size`` finite floats (None stays None), or an error naming ``name``."""
+    if value is None:
+        return None
+    v = as_float_array(value, name).ravel()
+    if v.shape != (size,) or not np.all(np.isfinite(v)):
+        raise InvalidParameterError(f"`{name}` must be {size} finite numbers; got {value!r}")
+    return v
+
+
+@dataclass
+class Constraints:
+    """What a cell allows: joint ranges (the controller's readings, rad), the cable sensor's
+    reading range (mm; kept :data:`~robocal.simulation.RANGE_MARGIN` inside), the tracker's
+    position (robot base frame, mm) and the distances it measures at, and a box the tool point
+    must stay in (robot base frame, ``(xmin, xmax, ymin, ymax, zmin, zmax)`` mm; default: above
+    the mounting plane, ``z > 0``)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    cable_range: Optional[np.ndarray] = None
+    tracker: Optional[np.ndarray] = None
+    tracker_range: Optional[np.ndarray] = None
+    box: Optional[np.ndarray] = None
+
+    def masks(self, robot: Robot, measurement: str, params: np.ndarray, q: np.ndarray) -> dict:
+        """``description -> bool (m,)`` for the model's joint angles ``q`` (m, N): which
+        configurations each constraint allows (the joint ranges are applied when drawing)."""
+        zeroed = params.copy()  # the tool point in the robot's base frame, whatever the tracker's frame
+        zeroed[[robot.index(f"base_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]] = 0.0
+        point = robot.fkine(q, params=zeroed, tool=True)[:, :3, 3]
+        out = {}
+        if self.box is None:
+            out["the tool point above the mounting plane (z > 0 mm in the base frame)"] = point[:, 2] > 0.0
+        else:
+            b = self.box
+            inside = np.all((point >= b[[0, 2, 4]]) & (point <= b[[1, 3, 5]]), axis=1)
+            out[f"the tool point inside the box x {b[0]:g}..{b[1]:g}, y {b[2]:g}..{b[3]:g}, z {b[4]:g}..{b[5]:g} mm"] = inside
+        if measurement == "cable":
+            low, high = self.cable_range + np.array([RANGE_MARGIN, -RANGE_MARGIN])
+            reading = robot.predict("cable", q, params)[:, 0]
+            anchor = params[[robot.index(f"anchor_{c}") for c in "xyz"]]
+            where = ", ".join(f"{v:.0f}" for v in anchor)
+            out[f"the cable reading within {low:g}..{high:g} mm (sensor range {self.cable_range[0]:g}..{self.cable_range[1]:g} mm, anchor at {where} mm)"] = (
+                reading > low
+            ) & (reading < high)
+        if self.tracker is not None:
+            near, far = self.tracker_range
+            distance = np.linalg.norm(point - self.tracker, axis=1)
+            where = ", ".join(f"{v:.0f}" for v in self.tracker)
+            out[f"the tool point {near:g}..{far:g} mm from the tracker at {where} mm"] = (distance >= near) & (distance <= far)
+        return out
+
+    def describe(self, robot: Robot, measurement: str, params: np.ndarray, structures: list) -> list[str]:
+        """Every constraint in words: the joint ranges (deg; mm for prismatic joints; the
+        controller's readings), then those of :meth:`masks`."""
+        parts = []
+        for j, joint in enumerate(robot.joints):
+            f, unit = (1.0, "mm") if joint.kind == "prismatic" else (1 / DEG, "deg")
+            parts.append(f"q{j + 1} {self.lower[j] * f:.4g}..{self.upper[j] * f:.4g} {unit}")
+        read = " (the controller's readings; the model's angles follow its reading conventions)" if structures else ""
+        return ["joint ranges " + ", ".join(parts) + read, *self.masks(robot, measurement, params, self.lower[None, :])]
+
+
+def candidate_poses(robot: Robot, measurement: str, params: np.ndarray, constraints: Constraints, structures: list, count: int,
+                    rng: np.random.Generator, least: int = 1) -> tuple[np.ndarray, list[str]]:  # fmt: skip
+    """Up to ``count`` joint configurations (readings, rad) drawn uniformly within the joint
+    ranges that every constraint allows, and notes; an error naming the constraint that leaves
+    fewer than ``least``."""
+    kept, drawn, passed = [], 0, {}
+    found = 0
+    while found < count and drawn < MAX_DRAW_FACTOR * count:
+        batch = max(1000, 2 * (count - found))
+        q = rng.uniform(constraints.lower, constraints.upper, (batch, robot.n_joints))
+        masks = constraints.masks(robot, measurement, params, structure.to_model(q, structures))
+        ok = np.ones(batch, dtype=bool)
+        for name, mask in masks.items():
+            passed[name] = passed.get(name, 0) + int(mask.sum())
+            ok &= mask
+        kept.append(q[ok])
+        found += int(ok.sum())
+        drawn += batch
+    pool = np.vstack(kept)[:count]
+    notes = []
+    if len(pool) < least:
+        blocking = [name for name, n in passed.items() if n == 0]
+        rates = "; ".join(f"{name}: {n / drawn:.2%}" for name, n in passed.items())
+        if blocking:
+            raise InvalidParameterError(f"no joint configuration within the joint ranges satisfies {blocking[0]} (0 of {drawn:,} drawn): relax it")
+        raise InvalidParameterError(
+            f"only {len(pool)} of {drawn:,} joint configurations drawn within the joint ranges satisfy every constraint, fewer than the {least} "
+            f"poses asked; each alone passes: {rates}"
+        )
+    if len(pool) < count:
+        notes.append(f"only {len(pool)} of {drawn:,} configurations drawn satisfy the constraints: the poses are chosen among those")
+    return pool, notes
+
+
+# -- the D-optimal design --------------------------------------------------------------------------
+def _gains(S: np.ndarray) -> np.ndarray:
+    """``log det(I + S_i)`` of every block ``S_i`` (n, k, k): what adding pose ``i`` adds to
+    ``log det M``."""
+    if S.shape[1] == 1:
+        return np.log1p(S[:, 0, 0])
+    return np.linalg.slogdet(np.eye(S.shape[1]) + S)[1]
+
+
+def _update(A: np.ndarray, Minv: np.ndarray, S: np.ndarray, i: int, sign: float) -> tuple[np.ndarray, np.ndarray]:
+    """``M⁻¹`` and the blocks ``S_j = A_j M⁻¹ A_jᵀ`` after adding (``sign`` +1) or removing (−1)
+    candidate ``i``'s rows ``A_i`` to ``M``, by Woodbury: ``M⁻¹ − s·U W Uᵀ`` with ``U = M⁻¹A_iᵀ``
+    and ``W = (I + s·S_i)⁻¹``; each ``S_j`` loses ``s·C_j W C_jᵀ``, ``C_j = A_j U``."""
+    n, k, p = A.shape
+    U = Minv @ A[i].T
+    W = np.linalg.inv(np.eye(k) + sign * S[i])
+    Minv = Minv - sign * U @ W @ U.T
+    C = A.reshape(n * k, p) @ U
+    CW = (C @ W).reshape(n, k, k)
+    return Minv, S - sign * np.matmul(CW, C.reshape(n, k, k).transpose(0, 2, 1))
+
+
+def _blocks(A: np.ndarray, Minv: np.ndarray) -> np.ndarray:
+    """``A_j M⁻¹ A_jᵀ`` (n, k, k) of every candidate's rows ``A_j``."""
+    n, k, p = A.shape
+    return np.matmul((A.reshape(n * k, p) @ Minv).reshape(n, k, p), A.transpose(0, 2, 1))
+
+
+#: Candidates an exchange pass considers: the best by the current design, at least this many
+#: (and ten per pose); the others gain too little from any one swap to matter.
+SHORTLIST = 2000
+
+
+def _greedy(A: np.ndarray, Minv: np.ndarray, chosen: list, size: int) -> list:
+    """Adds the candidate of largest gain until ``size`` are chosen (Wynn), every candidate's
+    block ``S_j`` kept current by rank-k updates (:func:`_update`). (Lazy evaluation does not
+    pay here: from the ridge start every gain falls at each step, so the stale bounds all lead.)"""
+    free = np.ones(len(A), dtype=bool)
+    free[chosen] = False
+    S = _blocks(A, Minv)
+    while len(chosen) < size:
+        i = int(np.argmax(np.where(free, _gains(S), -np.inf)))
+        chosen.append(i)
+        free[i] = False
+        Minv, S = _update(A, Minv, S, i, 1.0)
+    return chosen
+
+
+def _exchange(A: np.ndarray, M0: np.ndarray, chosen: list, fixed: int) -> int:
+    """One Fedorov exchange pass over the slots after ``fixed``: each chosen pose is swapped for
+    the candidate of :data:`SHORTLIST` that raises the determinant most, if any does; returns
+    the number of swaps (``chosen`` is changed in place)."""
+    Minv = np.linalg.inv(M0 + sum(A[i].T @ A[i] for i in chosen))  # afresh: no drift from the updates
+    gain = _gains(_blocks(A, Minv))
+    gain[chosen] = np.inf
+    size = min(len(A), max(SHORTLIST, 11 * len(chosen)))
+    short = np.argpartition(-gain, size - 1)[:size]
+    At = A[short]
+    at = {int(c): int(np.flatnonzero(short == c)[0]) for c in chosen}
+    S = _blocks(At, Minv)
+    free = np.ones(len(short), dtype=bool)
+    free[list(at.values())] = False
+    swaps = 0
+    for slot in range(fixed, len(chosen)):
+        i = at[chosen[slot]]
+        if 1.0 - float(np.max(np.linalg.eigvalsh(S[i]))) < 1e-9:  # the design cannot do without it
+            continue
+        without, S_without = _update(At, Minv, S, i, -1.0)
+        gains = _gains(S_without)
+        j = int(np.argmax(np.where(free, gains, -np.inf)))
+        if gains[j] <= gains[i] + 1e-9:
+            continue
+        chosen[slot] = int(short[j])
+        free[i], free[j] = True, False
+        Minv, S = _update(At, without, S_without, j, 1.0)
+        swaps += 1
+    return swaps
+
+
+# Hundreds of rank-k updates of skinny products: a multi-threaded BLAS only adds hand-over cost
+# (4x slower on this 2-core machine while others work), as in diagnose.
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def d_optimal(A: np.ndarray, M0: np.ndarray, size: int, required: Sequence[int] = (), passes: int = EXCHANGE_PASSES) -> np.ndarray:
+    """Indices of ``size`` distinct candidates that (nearly) maximise ``log det(M0 + Σ A_iᵀA_i)``:
+    greedy selection (:func:`_greedy`), then up to ``passes`` Fedorov exchange passes
+    (:func:`_exchange`).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, k, p)
+        Each candidate's rows.
+    M0 : ndarray, shape (p, p)
+        Positive definite information before the plan.
+    size : int
+    required : sequence of int
+        Candidates that must be among the chosen (never exchanged).
+    passes : int
+    """
+    chosen = [int(i) for i in list(required)[:size]]
+    Minv = np.linalg.inv(M0 + sum(A[i].T @ A[i] for i in chosen))
+    chosen = _greedy(A, Minv, chosen, size)
+    for _ in range(passes):
+        swaps = _exchange(A, M0, chosen, min(len(required), size))
+        logger.debug("exchange pass: %d swaps", swaps)
+        if not swaps:
+            break
+    return np.array(chosen, dtype=int)
+
+
+def map_bins(q: np.ndarray, lower: float, upper: float, spacing: float) -> np.ndarray:
+    """Bin (0-based) of each angle ``q`` (rad) in ``lower..upper`` cut into bins of ``spacing``
+    (rad): a pose in every bin leaves no stretch longer than two spacings without one (what a
+    joint map needs, :data:`~robocal.diagnosis.candidates.MAP_GAP_SPACINGS`)."""
+    bins = max(1, int(math.ceil((upper - lower) / spacing - 1e-9)))
+    return np.clip(((q - lower) / spacing).astype(int), 0, bins - 1)
+
+
+def _coverage(A: np.ndarray, M0: np.ndarray, bins: list[np.ndarray], covered: list[np.ndarray]) -> list[int]:
+    """Candidates that put a pose in every bin no measured pose covers, each the best by the
+    D-criterion among its bin's candidates (``bins``: per map, each candidate's bin;
+    ``covered``: per map, the bins the data already cover)."""
+    required = []
+    Minv = np.linalg.inv(M0)
+    S = _blocks(A, Minv)
+    for bin_of, done in zip(bins, covered):
+        for b in np.setdiff1d(np.unique(bin_of), done):
+            members = np.flatnonzero(bin_of == b)
+            members = members[~np.isin(members, required)]
+            if not members.size:
+                continue
+            i = int(members[np.argmax(_gains(S[members]))])
+            required.append(i)
+            Minv, S = _update(A, Minv, S, i, 1.0)
+    return required
+
+
+# -- the order of measuring ------------------------------------------------------------------------
+def travel(q: np.ndarray) -> float:
+    """Sum of the joint moves from one pose to the next (rows of ``q``, in the order given)."""
+    return float(np.abs(np.diff(q, axis=0)).sum())
+
+
+def _tour(q: np.ndarray) -> np.ndarray:
+    """A short open path through the rows of ``q`` (L1 distances): nearest neighbour from the
+    pose nearest the middle of them, then 2-opt (reverse a segment while that shortens it)."""
+    n = len(q)
+    D = np.abs(q[:, None, :] - q[None, :, :]).sum(axis=2)
+    start = int(np.argmin(np.abs(q - np.median(q, axis=0)).sum(axis=1)))
+    tour, left = [start], np.ones(n, dtype=bool)
+    left[start] = False
+    for _ in range(n - 1):
+        d = np.where(left, D[tour[-1]], np.inf)
+        nxt = int(np.argmin(d))
+        tour.append(nxt)
+        left[nxt] = False
+    tour = np.array(tour)
+    improved = True
+    while improved and n > 3:
+        improved = False
+        for i in range(n - 2):
+            a, b = tour[i], tour[i + 1]
+            c, d = tour[i + 2 :], np.append(tour[i + 3 :], -1)
+            # Reversing tour[i+1..j] replaces edges (a,b), (c,d) with (a,c), (b,d); the last pose has no d.
+            old = D[a, b] + np.where(d >= 0, D[c, d], 0.0)
+            new = D[a, c] + np.where(d >= 0, D[b, d], 0.0)
+            j = int(np.argmax(old - new))
+            if old[j] - new[j] > 1e-9:
+                tour[i + 1 : i + 3 + j] = tour[i + 1 : i + 3 + j][::-1]
+                improved = True
+    return tour
+
+
+def default_passes(n: int) -> int:
+    """Passes over the workspace for ``n`` poses: about √n / 2 (3 for 40 poses, 5 for 100),
+    each of at least 4 poses."""
+    return int(max(1, min(round(math.sqrt(n) / 2.0), n // 4)))
+
+
+def measuring_order(q: np.ndarray, passes: int) -> np.ndarray:
+    """The order to measure the rows of ``q`` in: a short tour (:func:`_tour`) dealt into
+    ``passes`` passes, pass ``b`` taking every ``passes``-th pose of it from the ``b``-th, the odd
+    passes backwards (each starts near where the last ended)."""
+    tour = _tour(q)
+    parts = [tour[b::passes] for b in range(passes)]
+    return np.concatenate([p[::-1] if b % 2 else p for b, p in enumerate(parts)])
+
+
+def order_correlations(q: np.ndarray) -> list[float]:
+    """Each joint's correlation with the acquisition order (rows of ``q``); 0 for a joint that does not move."""
+    t = np.arange(len(q), dtype=np.float64)
+    out = []
+    for j in range(q.shape[1]):
+        s = np.std(q[:, j])
+        out.append(float(np.corrcoef(t, q[:, j])[0, 1]) if s > 0 and len(q) > 1 else 0.0)
+    return out
+
+
+# -- the model and what it determines ----------------------------------------------------------
+@dataclass
+class _Design:
+    """The model the calibration will fit, linearised: its entries' names, the robot's parameter
+    units (None for a cause's coefficient), the column scales (each column's RMS over the
+    candidates), every candidate's rows (scaled, (n, k, p)), the information of the measured data
+    and of the joint maps' roughness priors (scaled, (p, p)), the Jacobian of the tool point over a
+    sample of the workspace (scaled, (w, 3, p)), the causes with their slices of the entries, and
+    the parameters left out with why."""
+
+    names: list
+    units: list
+    scale: np.ndarray
+    A: np.ndarray
+    M_data: np.ndarray
+    M_prior: np.ndarray
+    position: np.ndarray
+    causes: list
+    slices: list
+    fixed: dict
+
+
+def _design(robot: Robot, measurement: str, params: np.ndarray, data: Optional[Dataset], pool: np.ndarray, labels: list, sigma: float,
+            rng: np.random.Generator) -> _Design:  # fmt: skip
+    """The model over the measured samples and the candidates (model angles, (n, N)), linearised at ``params``."""
+    k = RESIDUAL_WIDTH[measurement]
+    expected = Dataset(q=pool, y=robot.predict(measurement, pool, params), measurement=measurement, robot=robot.name)
+    both = expected if data is None else concatenate([replace(data, extra={}), expected])
+    m = 0 if data is None else len(data)
+    problem = Problem.build(robot, both, params=params)
+    problem.start = params.copy()  # linearised at the set-up given or fitted before, not re-fitted on expected readings
+    model = problem if not labels else extended_problem(problem, both, np.arange(len(both)), labels, noise=sigma)
+    J = model.jacobian(model.x0)
+    J = J.toarray() if is_sparse(J) else np.asarray(J)
+    data_rows, pool_rows, prior_rows = J[: m * k], J[m * k : (m + len(pool)) * k], J[(m + len(pool)) * k :]
+    scale = np.sqrt(np.sum(pool_rows**2, axis=0) / len(pool))
+    scale = np.where(scale > 0, scale, 1.0)
+    names = list(model.names)
+    causes, slices = list(getattr(model, "causes", [])), list(getattr(model, "slices", []))
+    # The tool point in the robot's base frame: the robot's own entries move it (kinematics, the
+    # tool, the causes acting on the joints: ∂p/∂q_j·B), the sensor's set-up does not.
+    w = rng.choice(len(pool), size=min(WORKSPACE_POSES, len(pool)), replace=False)
+    zeroed = params.copy()
+    zeroed[[robot.index(f"base_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]] = 0.0
+    own = [i for i, n in enumerate(names) if n in robot.param_names and (is_kinematic(n) or n.startswith("tool_"))]
+    thetas = [robot.index(f"theta{j + 1}") for j in range(robot.n_joints)]
+    Jp = robot.jacobian("position", pool[w], params=zeroed, cols=[robot.index(names[i]) for i in own] + thetas)
+    position = np.zeros((len(w) * 3, len(names)))
+    position[:, own] = Jp[:, : len(own)]
+    for c, s in zip(causes, slices):
+        if c.stage == "joints":
+            B = c.basis[m + w]
+            B = B.toarray() if is_sparse(B) else np.asarray(B)
+            position[:, s] = Jp[:, len(own) + c.joint][:, None] * np.repeat(B, 3, axis=0)
+    units = dict(zip(robot.param_names, robot.param_units))
+    return _Design(names=names, units=[units.get(n) for n in names], scale=scale, A=(pool_rows / scale).reshape(len(pool), k, -1),
+                   M_data=(data_rows / scale).T @ (data_rows / scale), M_prior=(prior_rows / scale).T @ (prior_rows / scale),
+                   position=(position / scale).reshape(len(w), 3, -1), causes=causes, slices=slices, fixed=dict(problem.fixed))  # fmt: skip
+
+
+@dataclass
+class _Uncertainty:
+    """What an information matrix determines: the covariance of the model's entries (physical
+    units; the pseudo-inverse's), which entries are undetermined, the tool point's standard
+    deviation (mm) at each workspace pose (NaN where undetermined) and ``log det`` with the ridge."""
+
+    cov: np.ndarray
+    loose: np.ndarray
+    position: np.ndarray
+    undetermined: int
+    logdet: float
+
+    @classmethod
+    def of(cls, design: _Design, M: np.ndarray, sigma: float) -> "_Uncertainty":
+        values, V = np.linalg.eigh(M)
+        keep = values > UNDETERMINED * max(float(values[-1]), 0.0) if values[-1] > 0 else np.zeros(len(values), dtype=bool)
+        cov, null = (V[:, keep] / values[keep]) @ V[:, keep].T, V[:, ~keep]
+        P = design.position
+        spread = np.sqrt(np.maximum(np.einsum("wap,pq,waq->w", P, cov, P), 0.0)) * sigma
+        loose = np.linalg.norm(null, axis=1) > 1e-6
+        unsure = np.linalg.norm(np.einsum("wap,pr->war", P, null), axis=(1, 2)) > 1e-6 * np.linalg.norm(P, axis=(1, 2))
+        return cls(cov=sigma**2 * cov / np.outer(design.scale, design.scale), loose=loose, position=np.where(unsure, np.nan, spread),
+                   undetermined=int(null.shape[1]), logdet=float(np.linalg.slogdet(M + RIDGE * np.eye(len(M)))[1]))  # fmt: skip
+
+    def std(self, i) -> Optional[np.ndarray]:
+        """Standard deviations of the entries ``i`` (mm, rad, ...), None if any is undetermined."""
+        return None if np.any(self.loose[i]) else np.sqrt(np.maximum(np.diag(self.cov)[i], 0.0))
+
+    def position_summary(self) -> dict:
+        """RMS and largest standard deviation of the tool point over the workspace (mm, over the
+        poses where it is determined: None if nowhere) and the share where it is not."""
+        known = self.position[np.isfinite(self.position)]
+        return {"rms_mm": float(np.sqrt(np.mean(known**2))) if known.size else None, "max_mm": float(known.max()) if known.size else None,
+                "undetermined_share": float(np.mean(~np.isfinite(self.position)))}  # fmt: skip
+
+
+def _shown(std: Optional[np.ndarray], unit: str) -> Optional[float]:
+    """One standard deviation as the report states it (deg for an angle), None if undetermined."""
+    return None if std is None else float(std[0] / DEG if unit == "rad" else std[0])
+
+
+def _cause_std(design: _Design, u: _Uncertainty, robot: Robot) -> list:
+    """Per cause acting on the joints or the readings, its physical quantities' standard
+    deviations (a joint map: its largest over the range), None where undetermined."""
+    from .diagnosis.candidates import map_curve
+
+    out = []
+    for c, s in zip(design.causes, design.slices):
+        if c.stage == "parameters":  # its parameters are among the parameters
+            continue
+        std = u.std(s)
+        if std is None:
+            out.append(None)
+        elif c.kind == "joint_map":
+            curve = map_curve(c.detail, np.zeros(c.size), u.cov[s, s])
+            out.append({"largest": {"std": float(np.max(curve["std_deg"])), "unit": "deg"}})
+        else:
+            physical, _ = c.physical(np.zeros(c.size), std, robot, robot.params)
+            out.append({name: {"std": q["std"], "unit": q["unit"]} for name, q in physical.items() if q.get("std") is not None})
+    return out
+
+
+# -- the plan --------------------------------------------------------------------------------------
+@dataclass
+class Plan:
+    """A measurement plan.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, n_joints)
+        The poses in the order to measure them: the controller's joint readings, rad (mm for
+        prismatic joints).
+    expected : Dataset
+        The same poses with the readings the model expects there (cable length, or the tool
+        point in the tracker's frame): what :meth:`write` puts in the observation columns.
+    report : dict
+        What the plan buys (see :func:`plan`); :meth:`to_dict` is it as JSON.
+    """
+
+    q: np.ndarray
+    expected: Dataset
+    report: dict
+
+    def to_dict(self) -> dict:
+        return self.report
+
+    def write(self, path) -> Path:
+        """The plan as a canonical CSV (joint columns in degrees, measuring order); the
+        observation columns hold the expected readings — overwrite them with the measured ones."""
+        with Staged(path) as stage:
+            write_canonical(self.expected, stage.tmp)
+        return Path(path)
+
+
+def _sources(robot, measurement, result, causes, data, angle_unit):
+    """The robot, the measurement, the parameters a result gives (or None), the cause labels,
+    the reading conventions and the measured data (in the model's angles, or None)."""
+    params, labels = None, []
+    if result is not None:
+        calibrated, doc = load_result(result)
+        named = None if robot is None else (robot if isinstance(robot, Robot) else load_robot(robot)).name
+        if named not in (None, calibrated.name):
+            raise InvalidParameterError(f"the result is a calibration of {calibrated.name}, not of {named}")
+        robot, params = calibrated, calibrated.params.copy()
+        if measurement is not None and measurement != doc["measurement"]:
+            raise InvalidParameterError(f"the result is a {doc['measurement']} calibration; the plan is for {measurement} measurements")
+        measurement = doc["measurement"]
+        labels = list(doc.get("structure", [])) + [c.get("label", c.get("kind")) for c in doc.get("causes", [])]
+    if causes is not None:
+        labels += read_causes(causes)[0]
+    datasets = []
+    for d in [] if data is None else ([data] if isinstance(data, (str, Path, Dataset)) else list(data)):
+        dataset, robot = load_inputs(d, robot, measurement, angle_unit)
+        measurement = dataset.measurement
+        datasets.append(dataset)
+    if robot is None:
+        raise InvalidParameterError("no robot: pass `robot`, a result or data that name it")
+    robot = robot if isinstance(robot, Robot) else load_robot(robot)
+    if measurement is None:
+        raise InvalidParameterError(f"no measurement: pass `measurement`, one of {MEASUREMENTS}")
+    if measurement not in MEASUREMENTS:
+        raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
+    structures = [s for s in (structure.parse(label, robot.n_joints) for label in labels) if s is not None]
+    datasets = [structure.apply_all(d, structures) for d in datasets]
+    return robot, measurement, params, labels, structures, datasets
+
+
+def _check_setups(robot: Robot, datasets: list[Dataset], params: np.ndarray) -> None:
+    """An error when the data files were measured with the sensor in different places: the plan
+    continues one session."""
+    if len(datasets) < 2:
+        return
+    names = setup_names(robot, datasets[0].measurement)
+    cols = [robot.index(n) for n in names]
+    fits = [start_parameters(robot, d, params)[cols] for d in datasets]
+    units = np.array([robot.param_units[c] for c in cols])
+    limit = np.where(units == "rad", math.radians(1.0), 10.0)
+    for d, fit in zip(datasets[1:], fits[1:]):
+        far = np.flatnonzero(np.abs(fit - fits[0]) > limit)
+        if far.size:
+            c = far[0]
+            f, unit = (1 / DEG, "deg") if units[c] == "rad" else (1.0, units[c])
+            raise InvalidParameterError(
+                f"{datasets[0].source or 'data 1'} and {d.source or 'the other data'} were measured with the sensor in different places "
+                f"({names[c]} {fits[0][c] * f:.4g} vs {fit[c] * f:.4g} {unit}): a plan continues one session — pass the files of one set-up"
+            )
+
+
+def _checked_setup(robot: Robot, measurement: str, params, tool, anchor, tracker, tracker_range, box, cable_range, has_data: bool) -> tuple:
+    """The parameters the plan is linearised at (before any data) and its :class:`Constraints`
+    beside the joint ranges, from the arguments — or an error naming the one that is wrong."""
+    anchor, tool, tracker, box = _vector(anchor, "anchor", 3), _vector(tool, "tool", 3), _vector(tracker, "tracker", 3), _vector(box, "box", 6)
+    if box is not None and not np.all(box[[0, 2, 4]] < box[[1, 3, 5]]):
+        raise InvalidParameterError(f"`box` must be (xmin, xmax, ymin, ymax, zmin, zmax) with each min < max; got {box.tolist()}")
+    if has_data and (anchor is not None or tool is not None):
+        raise InvalidParameterError("`anchor` and `tool` are fitted on the data: give the data or the set-up, not both")
+    if measurement == "cable" and tracker is not None:
+        raise InvalidParameterError("`tracker` places a laser tracker: it applies to position and pose measurements, not cable")
+    if measurement != "cable" and anchor is not None:
+        raise InvalidParameterError(f"`anchor` places a cable sensor: it applies to cable measurements, not {measurement}")
+    if tracker is None and tracker_range is not None:
+        raise InvalidParameterError("`tracker_range` needs `tracker`, the tracker's position")
+    cable = None
+    if measurement == "cable":
+        cable = _vector(cable_range, "cable_range", 2)
+        if not 0 <= cable[0] < cable[1] - 2 * RANGE_MARGIN:
+            raise InvalidParameterError(f"`cable_range` must be (min, max) mm with 0 <= min and max - min > {2 * RANGE_MARGIN:g}; got {cable.tolist()}")
+    distances = None
+    if tracker is not None:
+        distances = _vector(TRACKER_RANGE if tracker_range is None else tracker_range, "tracker_range", 2)
+        if not 0 <= distances[0] < distances[1]:
+            raise InvalidParameterError(f"`tracker_range` must be (near, far) mm with 0 <= near < far; got {distances.tolist()}")
+    if params is None:
+        params = setup(robot, measurement, tool, anchor).params
+    else:
+        params = params.copy()
+        for names, value in ((("tool_x", "tool_y", "tool_z"), tool), (("anchor_x", "anchor_y", "anchor_z"), anchor)):
+            if value is not None:
+                params[[robot.index(n) for n in names]] = value
+    return params, (cable, tracker, distances, box)
+
+
+def plan(
+    robot: Union[str, Robot, None] = None,
+    measurement: Optional[str] = None,
+    poses: int = 40,
+    *,
+    result=None,
+    causes=None,
+    data=None,
+    candidates: int = CANDIDATES,
+    seed: int = 0,
+    joint_ranges: Optional[Mapping] = None,
+    cable_range: Sequence[float] = CABLE_RANGE,
+    anchor: Optional[Sequence[float]] = None,
+    tool: Optional[Sequence[float]] = None,
+    tracker: Optional[Sequence[float]] = None,
+    tracker_range: Optional[Sequence[float]] = None,
+    box: Optional[Sequence[float]] = None,
+    noise: Optional[float] = None,
+    passes: Optional[int] = None,
+    angle_unit: Optional[str] = None,
+) -> Plan:
+    """Chooses ``poses`` joint configurations, and the order to measure them in, that determine
+    the model's parameters best (see the module notes).
+
+    Parameters
+    ----------
+    robot : str or Robot, optional
+        Default: the result's, or the one the data name.
+    measurement : {"cable", "position", "pose"}, optional
+        Default: the result's or the data's.
+    poses : int
+        How many poses to plan.
+    result : path or dict, optional
+        A calibration result: the plan is linearised at its calibrated robot and set-up (the
+        cable's anchor, the tracker's frame) and its model includes the result's causes.
+    causes : list of str, dict or path, optional
+        Causes the model will include: labels as ``robocal diagnose`` prints them, or a diagnose
+        report (dict or JSON file). Causes acting on the joints and parameters shape the poses
+        (a joint map also asks for a pose every ``spacing`` along its joint's range); causes in
+        time (drift, steps, a wander) are met by the order; backlash depends on the direction
+        each pose is approached from, which the plan does not choose. Reading conventions
+        (``joint_zero``, ...) convert the readings to the model's angles.
+    data : path, Dataset or list of them, optional
+        What is already measured, with the sensor where it still is (one set-up, fitted on them):
+        the plan adds the poses that best determine what these leave open.
+    candidates : int
+        Candidate poses drawn within the constraints.
+    seed : int
+        Seeds the candidates, the workspace sample and the random poses compared with.
+    joint_ranges : mapping, optional
+        ``1-based joint -> (lower, upper)``, rad (mm for prismatic joints), in the controller's
+        readings: narrows the robot's joint limits.
+    cable_range : (float, float)
+        The cable sensor's reading range, mm; readings are kept 25 mm inside it.
+    anchor : (3,) float, optional
+        The cable's anchor in the robot's base frame, mm (default: the result's, the one fitted
+        on the data, else the simulator's placement, :func:`robocal.simulation.setup`).
+    tool : (3,) float, optional
+        The measured point on the flange, mm (default: the result's, the data's, else the
+        simulator's).
+    tracker : (3,) float, optional
+        The laser tracker's position in the robot's base frame, mm: the tool point must lie
+        ``tracker_range`` from it.
+    tracker_range : (float, float), optional
+        Distances (mm) the tracker measures at (default :data:`TRACKER_RANGE`).
+    box : (6,) float, optional
+        ``(xmin, xmax, ymin, ymax, zmin, zmax)`` mm in the robot's base frame that the tool point
+        must stay in (default: above the mounting plane, ``z > 0``).
+    noise : float, optional
+        The reading's standard deviation, mm (default: the sensor's, :data:`robocal.sensors.DEFAULT_NOISE`).
+    passes : int, optional
+        Interleaved passes over the workspace (default :func:`default_passes`).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns of canonical ``data`` files.
+
+    Returns
+    -------
+    Plan
+        Its ``report`` (JSON): ``parameters`` (each estimated parameter's standard deviation
+        ``before`` — from ``data`` alone —, ``after`` and with as many ``random`` poses within the
+        same constraints; mm or deg; None where undetermined; ``within_tolerance`` of 1 mm /
+        0.1°), ``causes`` (the same for the causes' physical quantities), ``position`` (the
+        predicted tool point's standard deviation over the workspace: RMS and largest, mm),
+        ``d_efficiency_random`` (what a random pose is worth against a planned one), ``order``
+        (``passes``, ``travel_deg`` beside a single tour's and a random order's, each joint's
+        ``correlation`` with the acquisition order), ``constraints`` and ``not_checked``,
+        ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
+    """
+    robot, measurement, params, labels, structures, datasets = _sources(robot, measurement, result, causes, data, angle_unit)
+    poses = as_count(poses, "poses", least=1)
+    candidates = as_count(candidates, "candidates", least=poses)
+    rng = seeded_rng(seed)
+    sigma = DEFAULT_NOISE[measurement].sigma if noise is None else as_positive(noise, "noise")
+    passes = default_passes(poses) if passes is None else as_count(passes, "passes", least=1, most=poses)
+    lower, upper = _ranges(robot, joint_ranges)
+    params, (cable, tracker, distances, box) = _checked_setup(
+        robot, measurement, params, tool, anchor, tracker, tracker_range, box, cable_range, bool(datasets)
+    )
+    measured = None
+    if datasets:
+        _check_setups(robot, datasets, params)
+        measured = concatenate(datasets) if len(datasets) > 1 else datasets[0]
+        params = start_parameters(robot, measured, params)
+    constraints = Constraints(lower, upper, cable, tracker, distances, box)
+    readings, notes = candidate_poses(robot, measurement, params, constraints, structures, candidates, rng, least=poses)
+    pool = structure.to_model(readings, structures)
+
+    kinds = [label.split()[0] for label in labels]
+    used = [label for label, kind in zip(labels, kinds) if kind in POSE_KINDS]
+    design = _design(robot, measurement, params, measured, pool, used, sigma, rng)
+    before_info = design.M_data + design.M_prior
+    start = before_info + RIDGE * np.eye(len(design.names))
+    bins, covered = [], []
+    for c in design.causes:
+        if c.kind == "joint_map":  # its range as the map's support: the candidates' and the data's angles
+            span = (float(c.detail["lo"]) * DEG, float(c.detail["hi"]) * DEG, float(c.detail["spacing"]) * DEG)
+            bins.append(map_bins(pool[:, c.joint], *span))
+            covered.append(np.unique([] if measured is None else map_bins(measured.q[:, c.joint], *span)))
+    required = _coverage(design.A, start, bins, covered) if bins else []
+    if len(required) > poses:
+        notes.append(f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned: "
+                     "a map corrects nothing where its joint's range is left without poses")  # fmt: skip
+    chosen = d_optimal(design.A, start, poses, required=required)
+    chosen = chosen[measuring_order(readings[chosen] / _per_degree(robot), passes)]
+    planned = readings[chosen]
+    random_pick = rng.choice(len(pool), size=poses, replace=False)
+
+    def with_poses(idx) -> _Uncertainty:
+        A = design.A[idx]
+        return _Uncertainty.of(design, before_info + np.einsum("nkp,nkq->pq", A, A), sigma)
+
+    states = {"before": _Uncertainty.of(design, before_info, sigma), "after": with_poses(chosen), "random": with_poses(random_pick)}
+    entries = []
+    for i, (name, unit) in enumerate(zip(design.names, design.units)):
+        if unit is not None:
+            std = {key: _shown(u.std([i]), unit) for key, u in states.items()}
+            within = None if std["after"] is None or unit not in TOLERANCE else bool(states["after"].std([i])[0] <= TOLERANCE[unit])
+            entries.append({"name": name, "unit": "deg" if unit == "rad" else unit, **std, "within_tolerance": within})
+    cause_std = {key: _cause_std(design, u, robot) for key, u in states.items()}
+    shown_causes = [c for c in design.causes if c.stage != "parameters"]
+    in_degrees = planned / _per_degree(robot)
+    report = {
+        "schema": SCHEMA,
+        "robot": robot.name,
+        "measurement": measurement,
+        "poses": poses,
+        "candidates": len(pool),
+        "noise_mm": sigma,
+        "criterion": "D-optimal: log det of the parameters' information (greedy selection, Fedorov exchange)",
+        "parameters": entries,
+        "tolerance": {"mm": TOLERANCE["mm"], "deg": float(TOLERANCE["rad"] / DEG), "beyond": [e["name"] for e in entries if e["within_tolerance"] is False]},
+        "causes": [{"label": c.label, **{key: cause_std[key][n] for key in states}} for n, c in enumerate(shown_causes)],
+        "undetermined": {key: u.undetermined for key, u in states.items()},
+        "position": {key: u.position_summary() for key, u in states.items()},
+        "d_efficiency_random": float(np.exp((states["random"].logdet - states["after"].logdet) / len(design.names))),
+        "order": {
+            "passes": passes,
+            "travel_deg": travel(in_degrees),
+            "travel_single_tour_deg": travel(in_degrees[_tour(in_degrees)]),
+            "travel_random_order_deg": travel(in_degrees[rng.permutation(poses)]),
+            "correlation": order_correlations(planned),
+        },
+        "constraints": constraints.describe(robot, measurement, params, structures),
+        "not_checked": list(NOT_CHECKED),
+        "fixed": design.fixed,
+        "structure": [s.label for s in structures],
+        "causes_not_by_poses": [{"label": label, "reason": _why_not(kind)} for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + structure.KINDS],
+        "data": {"samples": 0 if measured is None else len(measured), "files": [d.source for d in datasets]},
+        "notes": notes,
+    }
+    expected = Dataset(q=planned, y=robot.predict(measurement, pool[chosen], params), measurement=measurement, robot=robot.name,
+                       prismatic=robot.prismatic, notes=["a measurement plan: the observation columns hold the readings the model expects"])  # fmt: skip
+    return Plan(q=planned, expected=expected, report=report)
+
+
+def _per_degree(robot: Robot) -> np.ndarray:
+    """Per joint, the joint value of one degree (rad) — or of 1 mm for a prismatic joint: joint moves as the report states them."""
+    return np.array([1.0 if j.kind == "prismatic" else DEG for j in robot.joints])
+
+
+def _why_not(kind: str) -> str:
+    if kind in SESSION_KINDS:
+        return "a term of the session in time, not of the pose: the interleaved order keeps it apart from the joints"
+    if kind == "backlash":
+        return "depends on the direction each pose is approached from, which the plan does not choose"
+    return "not a cause the poses determine"
