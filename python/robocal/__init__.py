@@ -29,6 +29,7 @@ __all__ = [
     "load",
     "load_result",
     "merwe_sigma_points",
+    "plan",
     "robot",
     "simulate",
     "solve_damped",
@@ -48,6 +49,7 @@ _LAZY = {
     "compensate": ("robocal.compensation", "compensate"),
     "load_result": ("robocal.results", "load_result"),
     "verify": ("robocal.verification", "verify"),
+    "plan": ("robocal.planning", "plan"),
     "from_roboticstoolbox": ("robocal.rtb", "from_roboticstoolbox"),
 }
 
