@@ -455,6 +455,22 @@ SPECS = {
     "verify": (["result", "data"], {"--measurement": "text", "--angle-unit": "text", "--json": "out"}),
     "report": (["result"], {"--out": "folder", "--data": "data", "--diagnosis": "diagnosis", "--force": None, "--angle-unit": "text"}),
     "export": (["result"], {"--format": "text", "--table-format": "text", "--out": "out", "--name": "text", "--samples": "int", "--seed": "int"}),
+    "plan": (
+        [],
+        {
+            "--robot": "robot",
+            "--measurement": "text",
+            "--poses": "int",
+            "--from": "result",
+            "--data": "data",
+            "--out": "out",
+            "--json": "out",
+            "--seed": "int",
+            "--noise": "float",
+            "--passes": "int",
+            "--angle-unit": "text",
+        },
+    ),
 }
 #: Values of the options that take a word: the valid ones and some that are not.
 CHOICES = {"--format": ["dh", "mdh", "urdf", "canonical", "sdf"], "--angle-unit": ["deg", "rad", "grad"],
@@ -463,8 +479,9 @@ CHOICES = {"--format": ["dh", "mdh", "urdf", "canonical", "sdf"], "--angle-unit"
            "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"], "--name": ["r", "<b>&"]}  # fmt: skip
 #: Options always drawn (required, or without which the canonical file cannot be calibrated).
 REQUIRED = {"export": ["--format", "--out"], "compensate": ["--out"], "report": ["--out"], "simulate": ["--out"], "compare": ["--out", "--robot"],
-            "calibrate": ["--robot"], "diagnose": ["--robot"]}  # fmt: skip
-PINNED = {"compare": ["--methods", "lm", "--repeats", "1", "--protocol", "80-20"], "diagnose": ["--folds", "2"], "demo": ["--samples", "60"]}
+            "calibrate": ["--robot"], "diagnose": ["--robot"], "plan": ["--out", "--poses"]}  # fmt: skip
+PINNED = {"compare": ["--methods", "lm", "--repeats", "1", "--protocol", "80-20"], "diagnose": ["--folds", "2"], "demo": ["--samples", "60"],
+          "plan": ["--candidates", "500"]}  # fmt: skip
 READS = ("data", "result", "targets", "diagnosis", "robot")
 
 
