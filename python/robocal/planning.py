@@ -755,7 +755,10 @@ def plan(
     readings, notes = candidate_poses(robot, measurement, params, constraints, structures, candidates, rng, least=poses)
     pool = structure.to_model(readings, structures)
 
-    kinds = [label.split()[0] for label in labels]
+    kinds = [label.split()[0] if label.strip() else "" for label in labels]
+    unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
+    if unknown:
+        raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
     used = [label for label, kind in zip(labels, kinds) if kind in POSE_KINDS]
     design = _design(robot, measurement, params, measured, pool, used, sigma, rng)
     before_info = design.M_data + design.M_prior
@@ -770,6 +773,9 @@ def plan(
     if len(required) > poses:
         notes.append(f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned: "
                      "a map corrects nothing where its joint's range is left without poses")  # fmt: skip
+    readings_per_pose = RESIDUAL_WIDTH[measurement]
+    if measured is None and poses * readings_per_pose <= len(design.names):
+        notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
     chosen = d_optimal(design.A, start, poses, required=required)
     chosen = chosen[measuring_order(readings[chosen] / _per_degree(robot), passes)]
     planned = readings[chosen]

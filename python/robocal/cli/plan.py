@@ -99,9 +99,8 @@ def summary(report: dict, out: str, seconds: float) -> str:
         return "undetermined" if entry["rms_mm"] is None else f"{entry['rms_mm']:.4f} mm RMS (largest {entry['max_mm']:.4f})"
 
     params = report["parameters"]
-    worst = max(
-        (p for p in params if p["after"] is not None), key=lambda p: p["after"] / (report["tolerance"][p["unit"]] if p["unit"] in ("mm", "deg") else 1.0)
-    )
+    determined = [p for p in params if p["after"] is not None]
+    worst = max(determined, key=lambda p: p["after"] / report["tolerance"].get(p["unit"], 1.0), default=None)
     beyond = report["tolerance"]["beyond"]
     undetermined = [p["name"] for p in params if p["after"] is None]
     order = report["order"]
@@ -115,7 +114,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
         f"{report['poses']} random poses: {mm(position['random'])}",
         f"  every parameter within {report['tolerance']['mm']:g} mm / {report['tolerance']['deg']:g} deg: "
         + ("yes" if not beyond and not undetermined else f"no — {len(beyond)} beyond, {len(undetermined)} undetermined")
-        + f" (the largest against it: {worst['name']} ± {worst['after']:.3g} {worst['unit']})",
+        + (f" (the largest against it: {worst['name']} ± {worst['after']:.3g} {worst['unit']})" if worst else ""),
         f"  order: {order['passes']} interleaved passes, travel {order['travel_deg']:,.0f} deg of joint moves (one tour {order['travel_single_tour_deg']:,.0f}, "
         f"a random order {order['travel_random_order_deg']:,.0f}); correlation with the order: "
         + ", ".join(f"q{j + 1} {c:+.2f}" for j, c in enumerate(order["correlation"])),

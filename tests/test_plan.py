@@ -1,0 +1,211 @@
+"""The measurement planner (``robocal plan``): better determined parameters than random poses,
+the cell's constraints kept, an order that does not sweep a joint, bad input refused by name."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal.cli import main
+from robocal.exceptions import InvalidParameterError
+from robocal.planning import Constraints, candidate_poses, d_optimal, measuring_order, order_correlations, plan, travel
+from robocal.simulation import CABLE_RANGE, RANGE_MARGIN, setup, simulate
+
+SMALL = {"candidates": 1500, "seed": 1}
+
+
+def test_d_optimal_beats_every_random_subset_of_a_linear_model():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(400, 2, 5)) * np.array([1.0, 0.2, 5.0, 1.0, 0.5])
+    M0 = 1e-6 * np.eye(5)
+    chosen = d_optimal(A, M0, 12)
+    assert len(set(chosen.tolist())) == 12
+
+    def logdet(idx):
+        return np.linalg.slogdet(M0 + np.einsum("nkp,nkq->pq", A[idx], A[idx]))[1]
+
+    best_random = max(logdet(rng.choice(400, 12, replace=False)) for _ in range(200))
+    assert logdet(chosen) > best_random
+
+
+def test_required_candidates_stay_in_the_design():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(200, 1, 4))
+    chosen = d_optimal(A, 1e-6 * np.eye(4), 8, required=[3, 7])
+    assert {3, 7} <= set(chosen.tolist())
+
+
+@pytest.mark.parametrize("robot,measurement", [("hsr-jr680", "cable"), ("ur10", "position")])
+def test_planned_poses_determine_the_parameters_better_than_random_ones(robot, measurement):
+    report = plan(robot, measurement, 30, **SMALL).report
+    position = report["position"]
+    assert position["before"]["rms_mm"] is None and report["undetermined"]["after"] == 0
+    assert position["after"]["rms_mm"] < position["random"]["rms_mm"]
+    assert position["after"]["max_mm"] < position["random"]["max_mm"]
+    assert report["d_efficiency_random"] < 1.0
+    after = np.array([p["after"] for p in report["parameters"]])
+    random = np.array([p["random"] for p in report["parameters"]])
+    assert np.median(after / random) < 1.0
+
+
+def test_a_plan_is_deterministic_for_a_seed():
+    a, b = plan("abb-irb120", "cable", 12, **SMALL), plan("abb-irb120", "cable", 12, **SMALL)
+    np.testing.assert_array_equal(a.q, b.q)
+
+
+def test_constraints_are_respected():
+    box = (-800.0, 800.0, -800.0, 800.0, 100.0, 900.0)
+    ranges = {1: np.radians((-60.0, 60.0)), 4: np.radians((-90.0, 10.0))}
+    p = plan("abb-irb120", "cable", 20, joint_ranges=ranges, box=box, cable_range=(100.0, 700.0), anchor=(400.0, 0.0, 0.0), **SMALL)
+    r = setup(robocal.robot("abb-irb120"), "cable", anchor=(400.0, 0.0, 0.0))
+    lo, hi = np.array([j.limits for j in r.joints]).T
+    for joint, (a, b) in ranges.items():
+        lo[joint - 1], hi[joint - 1] = a, b
+    assert np.all((p.q >= lo) & (p.q <= hi))
+    point = r.fkine(p.q, tool=True)[:, :3, 3]
+    assert np.all((point >= np.array(box[::2])) & (point <= np.array(box[1::2])))
+    reading = r.predict("cable", p.q)[:, 0]
+    assert np.all((reading > 100.0 + RANGE_MARGIN) & (reading < 700.0 - RANGE_MARGIN))
+    np.testing.assert_allclose(p.expected.y[:, 0], reading)  # the file's L column: what the model expects there
+    words = " ".join(p.report["constraints"])
+    assert "q1 -60..60 deg" in words and "box" in words and "100..700" in words and "collisions" in " ".join(p.report["not_checked"])
+
+
+def test_a_tracker_keeps_the_tool_point_within_its_range():
+    tracker = np.array([2500.0, 0.0, 0.0])
+    p = plan("ur10", "position", 15, tracker=tracker, tracker_range=(1800.0, 3000.0), **SMALL)
+    point = setup(robocal.robot("ur10"), "position").fkine(p.q, tool=True)[:, :3, 3]
+    distance = np.linalg.norm(point - tracker, axis=1)
+    assert np.all((distance >= 1800.0) & (distance <= 3000.0))
+
+
+@pytest.mark.parametrize(
+    "kwargs,words",
+    [
+        ({"box": (3000.0, 3100.0, 0.0, 10.0, 0.0, 10.0)}, "no joint configuration within the joint ranges satisfies the tool point inside the box"),
+        ({"anchor": (9000.0, 0.0, 0.0)}, "satisfies the cable reading within 25..1975 mm"),
+        ({"joint_ranges": {2: np.radians((200.0, 210.0))}}, "joint 2 within 200..210 deg lies outside its limits"),
+        ({"joint_ranges": {7: (0.0, 1.0)}}, "joint 7 is not a joint"),
+        ({"joint_ranges": {2: (1.0, 0.0)}}, "lower < upper"),
+        ({"poses": 50, "candidates": 20}, "`candidates` must be an integer >= 50"),
+        ({"poses": 0}, "`poses` must be an integer >= 1"),
+        ({"tracker": (1.0, 2.0, 3.0)}, "applies to position and pose measurements, not cable"),
+        ({"cable_range": (0.0, 30.0)}, "`cable_range` must be (min, max)"),
+        ({"box": (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)}, "each min < max"),
+        ({"anchor": (1.0, 2.0)}, "`anchor` must be 3 finite numbers"),
+        ({"noise": -1.0}, "`noise` must be finite and > 0"),
+        ({"passes": 99}, "`passes` must be at most 12"),
+        ({"causes": ["joint_wobble joint 2"]}, "unknown causes ['joint_wobble joint 2']"),
+        ({"causes": ["joint_periodic joint 9 harmonic=2"]}, "unknown causes"),
+    ],
+)
+def test_bad_input_is_refused_by_name(kwargs, words):
+    args = {"poses": 12, "candidates": 500, **kwargs}
+    with pytest.raises(InvalidParameterError) as info:
+        plan("hsr-jr680", "cable", **args)
+    assert words in str(info.value)
+
+
+def test_every_constraint_met_alone_but_not_together_is_named_with_its_share():
+    r = setup(robocal.robot("hsr-jr680"), "cable")
+    lo, hi = np.array([j.limits for j in r.joints]).T
+    # the cable's reading needs the tool near the anchor (x > 0); the box keeps it at x < -500
+    constraints = Constraints(lo, hi, np.array(CABLE_RANGE), box=np.array([-3000.0, -500.0, -3000.0, 3000.0, 0.0, 3000.0]))
+    with pytest.raises(InvalidParameterError, match="fewer than the 5 poses asked; each alone passes"):
+        candidate_poses(r.with_params(anchor_x=1500.0), "cable", r.with_params(anchor_x=1500.0).params, constraints, [], 5, np.random.default_rng(0), least=5)
+
+
+def test_the_order_interleaves_passes_and_reports_its_travel():
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-180.0, 180.0, (60, 6))
+    tour = measuring_order(q, 1)
+    assert sorted(tour.tolist()) == list(range(60))
+    random_travel = np.median([travel(q[rng.permutation(60)]) for _ in range(20)])
+    assert travel(q[tour]) < 0.5 * random_travel
+    interleaved = measuring_order(q, 4)
+    assert sorted(interleaved.tolist()) == list(range(60))
+    # each pass sweeps the whole tour: its first pose and the next pass's last are the tour's first ones
+    assert set(interleaved[:15].tolist()) == set(tour[0::4].tolist())
+    p = plan("hsr-jr680", "cable", 24, passes=3, **SMALL)
+    order = p.report["order"]
+    assert order["passes"] == 3 and order["correlation"] == pytest.approx(order_correlations(p.q))
+    assert order["travel_deg"] == pytest.approx(travel(np.degrees(p.q)))
+    assert order["travel_single_tour_deg"] <= order["travel_deg"]
+
+
+def test_a_joint_map_gets_its_range_covered_without_gaps():
+    label = "joint_map joint 2 spacing=15.0 roughness=0.01"
+    p = plan("hsr-jr680", "cable", 30, causes=[label], **SMALL)
+    assert p.report["causes"][0]["label"] == label and p.report["causes"][0]["after"]["largest"]["unit"] == "deg"
+    angles = np.sort(np.degrees(p.q[:, 1]))
+    assert np.max(np.diff(angles)) <= 2 * 15.0
+    lo, hi = robocal.robot("hsr-jr680").joints[1].limits
+    assert angles[0] - np.degrees(lo) < 30.0 and np.degrees(hi) - angles[-1] < 30.0
+
+
+def test_causes_are_planned_for_or_said_why_not():
+    labels = ["joint_compliance joint 2", "drift", "backlash joint 3"]
+    report = plan("abb-irb120", "cable", 40, causes=labels, **SMALL).report
+    compliance = report["causes"][0]
+    assert compliance["label"] == "joint_compliance joint 2" and compliance["before"] is None
+    assert compliance["after"]["compliance"]["std"] < compliance["random"]["compliance"]["std"]
+    reasons = {c["label"]: c["reason"] for c in report["causes_not_by_poses"]}
+    assert "order" in reasons["drift"] and "approached" in reasons["backlash joint 3"]
+
+
+def test_the_next_poses_fill_what_the_data_leave_open():
+    data, _ = simulate("hsr-jr680", "cable", samples=60, seed=2)
+    narrow = data.subset(np.argsort(data.q[:, 1])[:30])  # the measured half of joint 2's sweep
+    report = plan("hsr-jr680", "cable", 20, data=narrow, **SMALL).report
+    assert report["data"]["samples"] == 30
+    before, after = report["position"]["before"], report["position"]["after"]
+    assert after["rms_mm"] < (before["rms_mm"] if before["rms_mm"] is not None else np.inf)
+    assert report["undetermined"]["before"] > 0 or before["rms_mm"] > after["rms_mm"]
+    with pytest.raises(InvalidParameterError, match="fitted on the data"):
+        plan("hsr-jr680", "cable", 5, data=narrow, anchor=(1.0, 2.0, 3.0), **SMALL)
+
+
+def test_a_result_gives_the_robot_set_up_and_causes(tmp_path):
+    data, _ = simulate("abb-irb120", "cable", samples=80, seed=4, effects=["joint_periodic:joint=2,amplitude=0.02,harmonic=2"])
+    result = robocal.calibrate(data, causes=["joint_periodic joint 2 harmonic=2"], test_fraction=0).to_dict()
+    report = plan(poses=15, result=result, **SMALL).report
+    assert report["robot"] == "abb-irb120" and report["measurement"] == "cable"
+    assert [c["label"] for c in report["causes"]] == ["joint_periodic joint 2 harmonic=2"]
+    anchor = [result["parameters"][i]["value"] for i, p in enumerate(result["parameters"]) if p["name"] in ("anchor_x", "anchor_y", "anchor_z")]
+    assert ", ".join(f"{v:.0f}" for v in anchor) in " ".join(report["constraints"])
+    with pytest.raises(InvalidParameterError, match="a calibration of abb-irb120, not of ur10"):
+        plan("ur10", poses=5, result=result, **SMALL)
+
+
+def test_simulate_measures_given_poses_on_the_seeds_robot():
+    q = np.radians([[0, -30, 20, 0, 40, 0], [10, -20, 10, 30, 30, 60], [-20, -40, 30, -30, 50, 90]] * 4)
+    a, truth_a = simulate("ur10", "position", seed=5, poses=q, noise=0)
+    b, truth_b = simulate("ur10", "position", seed=5, poses=q[::-1], noise=0)
+    np.testing.assert_array_equal(a.q, q)
+    assert truth_a["parameters"] == truth_b["parameters"]
+    true = robocal.robot("ur10")
+    params = np.array([truth_a["parameters"][n]["value"] for n in true.param_names])
+    np.testing.assert_allclose(a.y, true.predict("position", q, params))
+    with pytest.raises(InvalidParameterError, match="pose 0 joint 1 is 7, outside the joint's limits"):
+        simulate("ur10", "position", seed=5, poses=[[7.0, 0, 0, 0, 0, 0]])
+
+
+def test_the_cli_writes_a_canonical_plan_the_loader_reads_back(tmp_path, capsys):
+    out = tmp_path / "plan.csv"
+    code = main(["plan", "--robot", "abb-irb120", "--measurement", "cable", "--poses", "40", "--candidates", "800", "--joint-range", "1=-30,30",
+                 "--out", str(out), "--json", str(tmp_path / "plan.json")])  # fmt: skip
+    printed = capsys.readouterr().out
+    assert code == 0 and "40 poses" in printed and "not checked" in printed
+    data = robocal.load(out)
+    assert data.q.shape == (40, 6) and data.measurement == "cable"
+    assert np.all(np.abs(np.degrees(data.q[:, 0])) <= 30.0)
+    report = __import__("json").loads((tmp_path / "plan.json").read_text())
+    assert report["poses"] == 40 and len(report["order"]["correlation"]) == 6
+
+
+def test_the_cli_names_the_constraint_that_leaves_no_candidate(tmp_path, capsys):
+    code = main(["plan", "--robot", "hsr-jr680", "--measurement", "cable", "--poses", "5", "--anchor", "9000,0,0", "--out", str(tmp_path / "p.csv")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "the cable reading within 25..1975 mm" in err[0] and err[0].startswith("robocal: error: ")
+    assert not (tmp_path / "p.csv").exists()
