@@ -95,8 +95,11 @@ def summary(report: dict, out: str, seconds: float) -> str:
     """A few lines for the terminal."""
     position = report["position"]
 
-    def mm(entry):
-        return "undetermined" if entry["rms_mm"] is None else f"{entry['rms_mm']:.4f} mm RMS (largest {entry['max_mm']:.4f})"
+    def mm(key):
+        entry, open_ = position[key], report["undetermined"][key]
+        if entry["rms_mm"] is None:
+            return f"undetermined ({open_} directions the data leave open)" if key == "before" and report["data"]["samples"] else "undetermined"
+        return f"{entry['rms_mm']:.4f} mm RMS (largest {entry['max_mm']:.4f})" + (f", {entry['undetermined_share']:.0%} of it undetermined" if open_ else "")
 
     params = report["parameters"]
     determined = [p for p in params if p["after"] is not None]
@@ -110,8 +113,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
         f"  model: {len(params)} parameters"
         + (f" and the causes {', '.join(c['label'] for c in report['causes'])}" if report["causes"] else "")
         + (f"; left out (redundant or no effect here): {', '.join(report['fixed'])}" if report["fixed"] else ""),
-        f"  the tool point's standard deviation over the workspace: {mm(position['before'])} before, {mm(position['after'])} after; "
-        f"{report['poses']} random poses: {mm(position['random'])}",
+        f"  the tool point's standard deviation over the workspace: {mm('before')} before, {mm('after')} after; {report['poses']} random poses: {mm('random')}",
         f"  every parameter within {report['tolerance']['mm']:g} mm / {report['tolerance']['deg']:g} deg: "
         + ("yes" if not beyond and not undetermined else f"no — {len(beyond)} beyond, {len(undetermined)} undetermined")
         + (f" (the largest against it: {worst['name']} ± {worst['after']:.3g} {worst['unit']})" if worst else ""),
