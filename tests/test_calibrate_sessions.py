@@ -97,3 +97,12 @@ def test_cli_calibrates_sessions_and_refuses_a_file_twice(tmp_path, capsys):
     assert main(["calibrate", str(files[0]), str(files[1]), str(copy), "--robot", "ur10", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "the same samples" in err and "Traceback" not in err
+
+
+def test_verify_on_a_session_the_robot_was_fitted_on_says_so(tmp_path):
+    data, _ = sessions(n=2, samples=120)
+    files = [write_canonical(d, tmp_path / f"s{i}.csv") for i, d in enumerate(data)]
+    path = tmp_path / "robot.json"
+    path.write_text(json.dumps(robocal.calibrate([str(f) for f in files], robot="ur10").to_dict()))
+    seen = robocal.verify(path, str(files[1]), measurement="position")
+    assert seen["held_out"] is False and "a file the result was calibrated on" in seen["notes"][0]

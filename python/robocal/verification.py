@@ -47,15 +47,17 @@ def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[st
 
 
 def _seen_by_fit(doc: dict, dataset: Dataset) -> list[str]:
-    """Notes when ``dataset`` is the file ``doc`` was calibrated on (its SHA-256 recorded in the
-    result): its figures are then no test on new samples."""
-    recorded = (doc.get("dataset") or {}).get("sha256")
-    if not recorded or not dataset.source or file_sha256(dataset.source) != recorded:
+    """Notes when ``dataset`` is a file ``doc`` was calibrated on (its SHA-256 recorded in the
+    result, or in one of its ``sessions``): its figures are then no test on new samples."""
+    if not dataset.source:
         return []
-    used = len((doc.get("dataset") or {}).get("rows_used") or [])
-    note = (f"these are not new samples: {dataset.source} is the file the result was calibrated on (same SHA-256); "
-            f"{used} of its rows trained the fit, so these figures are no held-out error")  # fmt: skip
-    return [note]
+    digest = file_sha256(dataset.source)
+    for fitted in [doc.get("dataset") or {}] + list(doc.get("sessions") or []):
+        if fitted.get("sha256") and fitted["sha256"] == digest:
+            used = len(fitted.get("rows_used") or [])
+            return [f"these are not new samples: {dataset.source} is a file the result was calibrated on (same SHA-256); "
+                    f"{used} of its rows trained the fit, so these figures are no held-out error"]  # fmt: skip
+    return []
 
 
 def verify(
