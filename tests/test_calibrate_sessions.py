@@ -106,3 +106,13 @@ def test_verify_on_a_session_the_robot_was_fitted_on_says_so(tmp_path):
     path.write_text(json.dumps(robocal.calibrate([str(f) for f in files], robot="ur10").to_dict()))
     seen = robocal.verify(path, str(files[1]), measurement="position")
     assert seen["held_out"] is False and "a file the result was calibrated on" in seen["notes"][0]
+
+
+def test_report_of_sessions_draws_the_first_session(tmp_path):
+    data, _ = sessions(n=2, samples=120)
+    files = [write_canonical(d, tmp_path / f"s{i}.csv") for i, d in enumerate(data)]
+    path = tmp_path / "robot.json"
+    path.write_text(json.dumps(robocal.calibrate([str(f) for f in files], robot="ur10", causes=["backlash joint 2"]).to_dict()))
+    assert main(["report", str(path), "--out", str(tmp_path / "report"), "--quiet"]) == 0
+    page = (tmp_path / "report" / "index.html").read_text()
+    assert "session 1 of 2" in page and (tmp_path / "report" / "residuals_samples.png").is_file()

@@ -88,7 +88,7 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     ``robot``, the result's, are refused; another name is a note), else the file the result names."""
     from .data import load
 
-    recorded = (doc.get("dataset") or {}).get("source")
+    recorded = _fitted(doc).get("source")
     if isinstance(data, Dataset):
         if data.measurement != doc["measurement"]:
             raise InvalidParameterError(f"`data` hold {data.measurement} measurements; the result is of {doc['measurement']} data")
@@ -117,8 +117,17 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     return _Data(dataset, recorded, [], same_file=True)
 
 
+def _fitted(doc: dict) -> dict:
+    """The provenance of the file the result's set-up belongs to: its ``dataset``, or for a fit
+    on several sessions the first session (whose set-up ``parameters`` state)."""
+    sessions = doc.get("sessions")
+    if isinstance(sessions, list) and sessions and isinstance(sessions[0], dict):
+        return sessions[0]
+    return doc.get("dataset") or {}
+
+
 def _same_file(doc: dict, path) -> bool:
-    recorded = (doc.get("dataset") or {}).get("sha256")
+    recorded = _fitted(doc).get("sha256")
     return isinstance(recorded, str) and file_sha256(path) == recorded
 
 
@@ -166,7 +175,7 @@ def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Ev
     after = sample_errors(residuals, meas)
     held_out = None
     if same_file:
-        held_out = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_held_out") or [], dtype=np.int64))
+        held_out = np.isin(dataset.rows, np.asarray(_fitted(doc).get("rows_held_out") or [], dtype=np.int64))
     names = set(robot.param_names)
     cols = [robot.index(n) for n in doc.get("free", []) if n in names]
     singular = None
@@ -509,14 +518,14 @@ def _table(header: list[str], rows: list[list[str]], numeric: set = frozenset(),
 
 
 def _header(doc: dict, data: _Data) -> str:
-    ds = doc.get("dataset") or {}
+    ds = _fitted(doc)
     conv = doc.get("convergence") or {}
     rows = [
         ("robot", doc.get("robot")),
         ("method", doc.get("method")),
         ("measurement", doc.get("measurement")),
         ("written by", f"robocal {doc.get('robocal_version')} (this report: robocal {__version__})"),
-        ("source file", ds.get("source") or "not recorded"),
+        ("source file", (ds.get("source") or "not recorded") + (f" (session 1 of {len(doc['sessions'])})" if doc.get("sessions") else "")),
         ("sha256", ds.get("sha256") or "not recorded"),
         ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
         ("figures computed on", _data_row(data)),
@@ -548,7 +557,7 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
         return m, "copied from the result file: its network is not held in it, so its values alone do not reproduce them"
     if ev.model.session_terms:
         return m, "copied from the result file: the terms of its own session are not applied here (they are not the robot's), so they cannot be reproduced"
-    used = np.isin(dataset.rows, np.asarray((doc.get("dataset") or {}).get("rows_used") or [], dtype=np.int64))
+    used = np.isin(dataset.rows, np.asarray(_fitted(doc).get("rows_used") or [], dtype=np.int64))
     recomputed = {"train": used, "test": ev.held_out}
     out, differ = dict(m), []
     for key, mask in recomputed.items():
@@ -820,7 +829,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     ev = None
     if d.dataset is not None:
         ev = _evaluate(robot, doc, d.dataset, d.same_file)
-        recorded = (doc.get("dataset") or {}).get("sha256")
+        recorded = _fitted(doc).get("sha256")
         if d.path is not None and not d.same_file:
             notes.append("the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
                          if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
