@@ -115,6 +115,12 @@ RESTARTS_POSE = 256
 ROTATION_WEIGHT_MM = 1000.0
 
 
+def residual_weights(measurement: str) -> np.ndarray:
+    """Weights of a target's residual rows: 1 on x, y, z (mm), :data:`ROTATION_WEIGHT_MM` on the
+    rotation vector (rad) of a pose."""
+    return np.array([1.0, 1.0, 1.0] + [ROTATION_WEIGHT_MM] * 3)[: 3 if measurement == "position" else 6]
+
+
 def _limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     return np.array([j.limits[0] for j in robot.joints]), np.array([j.limits[1] for j in robot.joints])
 
@@ -186,7 +192,7 @@ def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float 
     cols = _joint_columns(robot)
     lower, upper = _limits(robot)
     y = target[None, :]
-    weight = np.array([1.0, 1.0, 1.0] + [ROTATION_WEIGHT_MM] * 3)[: 3 if measurement == "position" else 6]
+    weight = residual_weights(measurement)
 
     def actual(q):
         return q[None, :] if offsets is None else q[None, :] + offsets(q[None, :])
