@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import robocal
 from robocal.cli import main
-from robocal.exceptions import InvalidParameterError
+from robocal.exceptions import InvalidParameterError, RobocalError
 from robocal.planning import Constraints, candidate_poses, d_optimal, measuring_order, order_correlations, plan, travel
 from robocal.simulation import CABLE_RANGE, RANGE_MARGIN, setup, simulate
 
@@ -209,3 +211,37 @@ def test_the_cli_names_the_constraint_that_leaves_no_candidate(tmp_path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "the cable reading within 25..1975 mm" in err[0] and err[0].startswith("robocal: error: ")
     assert not (tmp_path / "p.csv").exists()
+
+
+ODD = [None, 0, -1, 2.5, "x", float("nan"), np.inf, [], [1.0, 2.0], (np.nan, 1.0), {"a": 1}, True]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(key=st.sampled_from(["poses", "candidates", "seed", "joint_ranges", "cable_range", "anchor", "tool", "box", "noise", "passes", "causes", "measurement", "robot"]),
+       value=st.sampled_from(ODD) | st.integers(-3, 3) | st.lists(st.floats(allow_nan=True), max_size=7))  # fmt: skip
+def test_fuzz_the_arguments(key, value):
+    """Any odd argument: a plan, or a robocal error naming the problem — never another exception."""
+    args = {"robot": "abb-irb120", "measurement": "cable", "poses": 30, "candidates": 300, key: value}
+    try:
+        p = plan(**args)
+    except RobocalError as exc:
+        assert str(exc)
+    else:
+        assert np.all(np.isfinite(p.q)) and len(p.q) == p.report["poses"]
+
+
+def test_the_cli_plans_from_a_result_or_a_diagnosis_and_data(tmp_path, capsys):
+    data, truth = simulate("abb-irb120", "position", samples=80, seed=6)
+    robocal.simulation.write_simulation(data, truth, tmp_path / "d.csv")
+    assert main(["calibrate", str(tmp_path / "d.csv"), "--robot", "abb-irb120", "--out", str(tmp_path / "result.json")]) == 0
+    (tmp_path / "diag.json").write_text('{"model": {"structure": [], "causes": ["joint_scale joint 3", "drift"]}}')
+    for source in ("result.json", "diag.json"):
+        out = tmp_path / f"plan-{source}.csv"
+        code = main(["plan", "--from", str(tmp_path / source), "--data", str(tmp_path / "d.csv"), "--robot", "abb-irb120", "--poses", "15",
+                     "--candidates", "600", "--out", str(out), "--json", str(tmp_path / f"{source}.plan.json")])  # fmt: skip
+        printed = capsys.readouterr().out
+        assert code == 0, printed
+        assert robocal.load(out).q.shape == (15, 6)
+    report = __import__("json").loads((tmp_path / "diag.json.plan.json").read_text())
+    assert report["data"]["samples"] == 80 and [c["label"] for c in report["causes"]] == ["joint_scale joint 3"]
+    assert report["causes_not_by_poses"][0]["label"] == "drift" and "drift" in printed
