@@ -172,7 +172,7 @@ class Constraints:
             f, unit = (1.0, "mm") if joint.kind == "prismatic" else (1 / DEG, "deg")
             parts.append(f"q{j + 1} {self.lower[j] * f:.4g}..{self.upper[j] * f:.4g} {unit}")
         read = " (the controller's readings; the model's angles follow its reading conventions)" if structures else ""
-        return ["joint ranges " + ", ".join(parts) + read, *self.masks(robot, measurement, params, self.lower[None, :])]
+        return ["joint ranges " + ", ".join(parts) + read, *self.masks(robot, measurement, params, self.lower[None, :])]  # the names alone
 
 
 def candidate_poses(robot: Robot, measurement: str, params: np.ndarray, constraints: Constraints, structures: list, count: int,
@@ -748,6 +748,10 @@ def plan(
         ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
     """
     robot, measurement, params, labels, structures, datasets = _sources(robot, measurement, result, causes, data, angle_unit)
+    kinds = [label.split()[0] if label.strip() else "" for label in labels]
+    unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
+    if unknown:
+        raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
     poses = as_count(poses, "poses", least=1)
     candidates = as_count(candidates, "candidates", least=poses)
     rng = seeded_rng(seed)
@@ -766,10 +770,6 @@ def plan(
     readings, notes = candidate_poses(robot, measurement, params, constraints, structures, candidates, rng, least=poses)
     pool = structure.to_model(readings, structures)
 
-    kinds = [label.split()[0] if label.strip() else "" for label in labels]
-    unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
-    if unknown:
-        raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
     used = [label for label, kind in zip(labels, kinds) if kind in POSE_KINDS]
     design = _design(robot, measurement, params, measured, pool, used, sigma, rng)
     before_info = design.M_data + design.M_prior
