@@ -53,7 +53,7 @@ from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
-from .wander import TIME_TERMS, residual_correlation, wander_candidate, wander_within
+from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, wander_within
 
 
 @dataclass
@@ -173,9 +173,10 @@ class _Screen:
             out[name] = err
         return out
 
-    def f_test(self, C: np.ndarray) -> float:
-        """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for Gaussian noise
-        in the linearised model)."""
+    def f_test(self, C: np.ndarray, inflation: float = 1.0) -> float:
+        """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for independent
+        Gaussian noise in the linearised model; for residuals correlated in time, the statistic
+        and the residual degrees of freedom divided by their variance ``inflation``)."""
         C = _unit_columns(C)
         _, _, _, U, sv, _, coef, r_perp = self.all
         _, c, extra = self._solve(self.all, C)
@@ -184,7 +185,7 @@ class _Screen:
         rss1, dof = float(e @ e), len(self.r) - len(sv) - extra
         if extra < 1 or dof < 1 or rss1 <= 0:
             return 1.0
-        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof))
+        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0)))
 
 
 def _fit(problem: ExtendedProblem, x0=None):
@@ -505,6 +506,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
         screen = _Screen(J, r, schemes, k)
         model_err = screen.errors(np.zeros((len(r), 0)))
+        # What is left alike in time (a wandering reading, a drift that is not linear) is no
+        # independent evidence for the candidates that do not model it.
+        inflation = time_inflation(residual_correlation(dataset, keep, r.reshape(len(keep), k)))
         last_round = (last_round[0], rmse_of_squares(model_err["random"]))
         scored = []
         for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
@@ -514,7 +518,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             else:
                 C = ext.weighted_columns(x, c, parts, p)
             errs = screen.errors(C)
-            p_value = screen.f_test(C)
+            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation)
             gains = {name: rmse_of_squares(model_err[name]) - rmse_of_squares(errs[name]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
@@ -533,6 +537,8 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
 
         scored = simplest_first(scored)
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
+        if inflation > 1.0:  # the residuals wander in time: a wander is judged before the steps and trends that would chop it up
+            scored = sorted(scored, key=lambda s: not (s[1].kind in TIME_TERMS and is_significant(*s)))
         accepted = None
         joint_trials = 0
         for gain, c, p_value, gains in scored:

@@ -194,3 +194,21 @@ def wander_within(c: Candidate, data: Dataset, fitted: np.ndarray) -> Candidate:
     at = np.clip(np.searchsorted(seen, rank), 1, len(seen) - 1)
     gap = np.minimum(np.abs(rank - seen[at - 1]), np.abs(seen[at] - rank))
     return replace(c, basis=np.where((gap <= c.detail["spacing"])[:, None, None], c.basis, 0.0))
+
+
+#: The largest lag-1 correlation :func:`time_inflation` takes (beyond it the residuals are one
+#: slow curve, and the inflation factor would exceed 39).
+MAX_LAG1 = 0.95
+
+
+def time_inflation(test: Optional[dict]) -> float:
+    """How many consecutive residuals count as one independent piece of evidence when the
+    :func:`residual_correlation` ``test`` says they are alike in time (verdict ``time`` or
+    ``both``): the AR(1) variance inflation ``(1 + ρ₁)/(1 − ρ₁)`` of the lag-1 correlation
+    (Bartlett's effective sample size); 1 otherwise. A least-squares test that counts every
+    sample as independent finds a step, a drift or a harmonic in the bends of a wandering
+    reading; divided by this it weighs them as what they are."""
+    if not test or test.get("verdict") not in ("time", "both"):
+        return 1.0
+    rho = min(max(float(test["lag1"]["correlation"]), 0.0), MAX_LAG1)
+    return (1.0 + rho) / (1.0 - rho)
