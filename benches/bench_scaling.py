@@ -109,11 +109,11 @@ def part_samples(args) -> None:
 
 def part_params(args) -> None:
     import robocal
+    from robocal import Robot
     from robocal.calibration.kalman import ukf
     from robocal.calibration.lm import levenberg_marquardt
     from robocal.calibration.problem import Problem
     from robocal.calibration.vslm import vslm
-    from robocal.robot import Robot
 
     hsr = robocal.robot("hsr-jr680")
     cases = [("3-joint (HSR JR680's first 3 links)", Robot.from_dh("hsr-3", hsr_rows()[:3]), None)]

@@ -153,7 +153,7 @@ def random_spd(rng: np.random.Generator, n: int, scales=None) -> np.ndarray:
 def three_joint_robot(conventions, kinds, beta: bool = True, name: str = "custom"):
     """A 3-joint robot off every default: skew links, base and tool frames, Hayati ``beta`` on
     joints 2 and 3 unless ``beta`` is False; revolute limits ±3 rad, prismatic 0–400 mm."""
-    from robocal.robot import Joint, Robot
+    from robocal.serial_robot import Joint, Robot
 
     limits = {"revolute": (-3.0, 3.0), "prismatic": (0.0, 400.0)}
     params = np.zeros(5 * 3 + 17)

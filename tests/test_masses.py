@@ -140,7 +140,7 @@ def my_robot(compliance=1.5e-5) -> robocal.Robot:
 @pytest.mark.parametrize("compliance", [1.5e-5, None])
 def test_masses_round_trip(tmp_path, suffix, compliance):
     r = my_robot(compliance)
-    back = robocal.Robot.from_file(r.to_file(tmp_path / f"r{suffix}"))
+    back = robocal.robot(robocal.write_robot(r, tmp_path / f"r{suffix}"))
     assert back.mass_model == r.mass_model
     np.testing.assert_array_equal(back.params, r.params)
     doc = robot_document(r)["masses"]
@@ -182,12 +182,12 @@ def test_bad_masses_are_named(tmp_path, masses, message):
     doc["masses"] = masses
     (tmp_path / "bad.json").write_text(json.dumps(doc))
     with pytest.raises(InvalidParameterError, match=r"bad.json: " + message):
-        robocal.Robot.from_file(tmp_path / "bad.json")
+        robocal.robot(tmp_path / "bad.json")
 
 
 # -- a user's robot with masses: simulator and diagnosis ---------------------------------------------
 def test_a_robot_file_with_masses_gets_compliance(tmp_path):
-    r = robocal.robot(str(my_robot().to_file(tmp_path / "my-robot.yaml")))
+    r = robocal.robot(str(robocal.write_robot(my_robot(), tmp_path / "my-robot.yaml")))
     assert r.name == "my-robot" and r.name not in MASS_MODELS and has_mass_model(r)
     assert not has_mass_model(robocal.Robot("my-robot", r.joints, r.params))
 

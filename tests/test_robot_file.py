@@ -1,4 +1,4 @@
-"""One robot schema (``robocal.robot/1``): ``Robot.to_file`` / ``from_file`` round-trip every
+"""One robot schema (``robocal.robot/1``): ``robocal.write_robot`` / ``robocal.robot`` round-trip every
 field exactly; the result file's ``robot_model`` is the same document (older result files still
 read); ``robocal.robot(path)`` reads robot, result and robot_model files; robot files written
 before the schema still read; optional dependencies fail with a clear error."""
@@ -18,7 +18,7 @@ import robocal
 from robocal.catalog import BUILTIN
 from robocal.exceptions import InvalidParameterError, MissingDependencyError, RobocalError
 from robocal.results import load_result
-from robocal.robot import Joint, Robot
+from robocal.serial_robot import Joint, Robot
 from robocal.robot_file import robot_document
 from robocal.robot_table import export_table, robot_from_table
 
@@ -41,10 +41,10 @@ def _everything(name="everything") -> Robot:
 @pytest.mark.parametrize("which", sorted(BUILTIN) + ["everything"])
 def test_to_file_from_file_is_exact(which, suffix, tmp_path):
     r = _everything() if which == "everything" else robocal.robot(which)
-    path = r.to_file(tmp_path / f"robot{suffix}")
-    _assert_identical(Robot.from_file(path), r)
+    path = robocal.write_robot(r, tmp_path / f"robot{suffix}")
+    _assert_identical(robocal.robot(path), r)
     _assert_identical(robocal.robot(str(path)), r)
-    in_degrees = Robot.from_file(r.to_file(tmp_path / f"deg{suffix}", degrees=True))
+    in_degrees = robocal.robot(robocal.write_robot(r, tmp_path / f"deg{suffix}", degrees=True))
     assert in_degrees.joints == r.joints or np.allclose([j.limits for j in in_degrees.joints], [j.limits for j in r.joints], rtol=1e-15)
     np.testing.assert_allclose(in_degrees.params, r.params, rtol=1e-15, atol=1e-15)
 
@@ -60,7 +60,7 @@ def test_any_robot_round_trips_exactly(values, conventions, kinds, hayati, tmp_p
     r = Robot("h", [Joint(c, k, h, (-1.5, 2.5)) for c, k, h in zip(conventions, kinds, hayati)], np.array(values))
     folder = tmp_path_factory.mktemp("rf")
     for suffix in (".json", ".yml"):
-        _assert_identical(Robot.from_file(r.to_file(folder / f"r{suffix}")), r)
+        _assert_identical(robocal.robot(robocal.write_robot(r, folder / f"r{suffix}")), r)
 
 
 def test_the_document_has_every_field_and_units():
@@ -87,7 +87,7 @@ def test_files_written_before_the_schema_still_read(tmp_path):
 def test_the_export_table_and_the_robot_file_are_one_robot(tmp_path):
     r = robocal.robot("hsr-jr680").with_params(beta2=1e-3, base_x=10.0, tool_z=100.0, tool_rx=0.2)
     from_table = robot_from_table(export_table(r, "dh"))
-    from_file = Robot.from_file(r.to_file(tmp_path / "r.json"))
+    from_file = robocal.robot(robocal.write_robot(r, tmp_path / "r.json"))
     np.testing.assert_allclose(from_table.params, from_file.params, rtol=1e-15, atol=1e-15)
     assert from_table.joints == from_file.joints
 
@@ -183,4 +183,4 @@ def test_missing_optional_dependencies_say_what_to_install(monkeypatch, tmp_path
         robocal.robot(str(tmp_path / "r.urdf"))
     assert isinstance(info.value, ImportError) and isinstance(info.value, RobocalError)
     with pytest.raises(MissingDependencyError, match=r"to_roboticstoolbox needs roboticstoolbox-python.*pip install 'robocal\[rtb\]'"):
-        robocal.robot("ur10").to_roboticstoolbox()
+        robocal.to_roboticstoolbox(robocal.robot("ur10"))

@@ -37,7 +37,7 @@ def files(tmp_path_factory):
     data, truth = simulate(ROBOT, "position", samples=80, seed=2)
     write_simulation(data, truth, w / "pos.csv")
     assert main(["calibrate", str(w / "pos.csv"), "--robot", ROBOT, "--out", str(w / "res.json")]) == 0
-    robocal.robot(ROBOT).to_file(w / "ur10.json", degrees=True)
+    robocal.write_robot(robocal.robot(ROBOT), w / "ur10.json", degrees=True)
     return w
 
 

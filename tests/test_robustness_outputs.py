@@ -278,7 +278,7 @@ HOSTILE = "ur10\x1b[2K\r  train: RMSE 0.0001 (faked)\n  fake \u202eline"
 
 
 def test_a_robot_name_cannot_drive_the_terminal(tmp_path, capsys):
-    robocal.robot("ur10").to_file(tmp_path / "ur10.json", degrees=True)
+    robocal.write_robot(robocal.robot("ur10"), tmp_path / "ur10.json", degrees=True)
     spec = json.loads((tmp_path / "ur10.json").read_text())
     spec["name"] = HOSTILE
     (tmp_path / "ansi.json").write_text(json.dumps(spec))

@@ -1,4 +1,4 @@
-"""roboticstoolbox interop: ``Robot.to_roboticstoolbox()`` gives a ``DHRobot`` whose ``fkine`` is
+"""roboticstoolbox interop: ``robocal.to_roboticstoolbox(robot)`` gives a ``DHRobot`` whose ``fkine`` is
 robocal's tool pose, ``robocal.from_roboticstoolbox`` takes it (and the toolbox's own models)
 back, and what a DHRobot cannot hold (Hayati beta, mixed conventions) is refused by joint."""
 
@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import robocal
 from robocal.catalog import BUILTIN
 from robocal.exceptions import InvalidParameterError
-from robocal.robot import Joint, Robot
+from robocal.serial_robot import Joint, Robot
 
 from helpers import three_joint_robot
 
@@ -51,7 +51,7 @@ def _with_frames(robot: Robot) -> Robot:
 def test_builtin_robots_agree_with_fkine(name, convention):
     robot = _with_frames(robocal.robot(name))
     robot = robot.to_mdh() if convention == "mdh" else robot
-    dh = robot.to_roboticstoolbox()
+    dh = robocal.to_roboticstoolbox(robot)
     assert isinstance(dh, rtb.DHRobot) and dh.n == robot.n_joints and dh.mdh == (convention == "mdh") and dh.name == name
     np.testing.assert_allclose(dh.qlim.T, [j.limits for j in robot.joints])
     _assert_same(robot, dh, _q(robot, 100, 1))
@@ -64,10 +64,10 @@ def test_builtin_robots_agree_with_fkine(name, convention):
 def test_millimetres_and_prismatic_joints():
     robot = three_joint_robot(["dh"] * 3, ["revolute", "prismatic", "revolute"], beta=False, name="rpr")
     for unit in ("m", "mm"):
-        dh = robot.to_roboticstoolbox(length_unit=unit)
+        dh = robocal.to_roboticstoolbox(robot, length_unit=unit)
         assert dh.links[1].isprismatic and dh.links[1].qlim[1] == pytest.approx(400.0 if unit == "mm" else 0.4)
         _assert_same(robot, dh, _q(robot, 50, 2), unit)
-        back = Robot.from_roboticstoolbox(dh, length_unit=unit)
+        back = robocal.from_roboticstoolbox(dh, length_unit=unit)
         np.testing.assert_allclose(back.params, robot.params, rtol=1e-14, atol=1e-12)
         assert [j.kind for j in back.joints] == ["revolute", "prismatic", "revolute"]
 
@@ -96,19 +96,19 @@ def test_random_chains_agree(links, mdh, seed):
         ]
     )
     robot = Robot("random", joints, params)
-    dh = robot.to_roboticstoolbox()
+    dh = robocal.to_roboticstoolbox(robot)
     _assert_same(robot, dh, _q(robot, 20, seed))
     np.testing.assert_allclose(robocal.from_roboticstoolbox(dh).params, robot.params, rtol=1e-13, atol=1e-9)
 
 
 def test_what_a_dhrobot_cannot_hold_is_refused():
     with pytest.raises(InvalidParameterError, match=r"joint 2 \(beta = 0\.0572958 deg\).*no Hayati beta.*URDF"):
-        robocal.robot("ur10").with_params(beta2=1e-3).to_roboticstoolbox()
+        robocal.to_roboticstoolbox(robocal.robot("ur10").with_params(beta2=1e-3))
     mixed = Robot("mixed", [Joint("dh"), Joint("mdh")], np.r_[np.zeros(10 + 16), 1.0])
     with pytest.raises(InvalidParameterError, match=r"mixes conventions \['dh', 'mdh'\]"):
-        mixed.to_roboticstoolbox()
+        robocal.to_roboticstoolbox(mixed)
     with pytest.raises(InvalidParameterError, match="length_unit"):
-        robocal.robot("ur10").to_roboticstoolbox(length_unit="inch")
+        robocal.to_roboticstoolbox(robocal.robot("ur10"), length_unit="inch")
     with pytest.raises(InvalidParameterError, match="takes a roboticstoolbox DHRobot; got dict"):
         robocal.from_roboticstoolbox({})
     flipped = rtb.DHRobot([rtb.RevoluteDH(a=0.1, flip=True)], name="f")

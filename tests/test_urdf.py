@@ -16,7 +16,7 @@ import robocal
 from robocal import export as ex
 from robocal.catalog import BUILTIN
 from robocal.exceptions import InvalidParameterError
-from robocal.robot import Joint, Robot
+from robocal.serial_robot import Joint, Robot
 
 from helpers import three_joint_robot
 

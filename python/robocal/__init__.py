@@ -10,7 +10,7 @@ from __future__ import annotations
 from . import exceptions
 from ._robocal import __version__
 from .core import cable_initial_guess, covariance, identifiability, merwe_sigma_points, solve_damped, unscented_transform
-from .robot import MEASUREMENTS, Joint, Robot, robot
+from .robot import MEASUREMENTS, Joint, Robot, robot, write_robot
 
 __all__ = [
     "MEASUREMENTS",
@@ -32,9 +32,11 @@ __all__ = [
     "plan",
     "robot",
     "simulate",
+    "to_roboticstoolbox",
     "solve_damped",
     "unscented_transform",
     "verify",
+    "write_robot",
 ]
 
 
@@ -51,6 +53,7 @@ _LAZY = {
     "verify": ("robocal.verification", "verify"),
     "plan": ("robocal.planning", "plan"),
     "from_roboticstoolbox": ("robocal.rtb", "from_roboticstoolbox"),
+    "to_roboticstoolbox": ("robocal.rtb", "to_roboticstoolbox"),
 }
 
 

@@ -44,7 +44,7 @@ from .core import seeded_rng
 from .exceptions import InvalidParameterError
 from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress
-from .robot import Robot
+from .serial_robot import Robot
 
 PROTOCOLS = ("paper", "kfold", "80-20", "chronological")
 

@@ -41,7 +41,7 @@ from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
 from .results import load_result
-from .robot import Robot
+from .serial_robot import Robot
 
 
 @dataclass

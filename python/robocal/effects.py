@@ -32,7 +32,7 @@ import numpy as np
 
 from .exceptions import InvalidParameterError
 from .physics import DEG, MASS_MODELS, MassModel, approach_directions, gravity_torques, mass_model
-from .robot import MEASUREMENTS, Robot
+from .serial_robot import MEASUREMENTS, Robot
 
 
 # ---------------------------------------------------------------------------------------------

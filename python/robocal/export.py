@@ -87,7 +87,7 @@ from .core import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
 from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_log
-from .robot import Robot
+from .serial_robot import Robot
 from .robot_table import TABLE_COLUMNS, TABLE_SCHEMA, export_table, frame_slice, read_table, robot_from_table
 from .urdf import read_urdf, require_yourdfpy, robot_from_urdf
 

@@ -8,13 +8,12 @@ and the diagnosis (:mod:`robocal.diagnosis.candidates`) fits the same signatures
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
 from .exceptions import InvalidParameterError
-from .robot import Robot
+from .serial_robot import MassModel, Robot
 
 DEG = math.pi / 180.0
 GRAVITY = 9.81  # m/s², acting along −z of the robot base frame (a floor-mounted robot)
@@ -48,43 +47,6 @@ GRAVITY = 9.81  # m/s², acting along −z of the robot base frame (a floor-moun
 # identification of six-revolute industrial serial robots", RCIM 2011); small robots and
 # harmonic-drive cobots ~1e4-1e5 N·m/rad.
 # ---------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class MassModel:
-    """The masses of a robot's links for gravity torques.
-
-    Attributes
-    ----------
-    link_masses : tuple of float
-        Mass of link j (moved by joint j) in kg, one per joint.
-    rated_payload : float
-        The robot's rated payload in kg (for reference; the effect's payload defaults to 0).
-    compliance : float or None
-        Default joint compliance in rad/(N·m) (the simulator's ``joint_compliance`` default);
-        None: none known, the effect must be given one.
-    centres_of_mass : tuple or None
-        Per link, its centre of mass ``(x, y, z)`` in mm in the link's own DH frame j, or None:
-        lumped at the midpoint of DH frame origins ``o_{j-1}`` and ``o_j`` (the default for
-        every link when the tuple is None).
-    """
-
-    link_masses: tuple
-    rated_payload: float = 0.0
-    compliance: Optional[float] = None
-    centres_of_mass: Optional[tuple] = None
-
-    def __post_init__(self):  # plain tuples of floats, so that equal models compare equal
-        masses = tuple(float(m) for m in self.link_masses)
-        centres = self.centres_of_mass
-        if centres is not None:
-            if len(centres) != len(masses):
-                raise InvalidParameterError(f"centres_of_mass has {len(centres)} entries; expected one per link ({len(masses)})")
-            centres = tuple(None if c is None else tuple(float(v) for v in c) for c in centres)
-            if any(c is not None and len(c) != 3 for c in centres):
-                raise InvalidParameterError(f"each centre of mass must be (x, y, z) in mm or None; got {self.centres_of_mass!r}")
-        object.__setattr__(self, "link_masses", masses)
-        object.__setattr__(self, "centres_of_mass", centres)
 
 
 def _mm(metres) -> tuple:

@@ -46,8 +46,8 @@ from .diagnosis.result_model import ResultModel, result_model
 from .exceptions import InvalidParameterError, RobocalError
 from .outputs import make_folder, save_figure, write_text
 from .results import file_sha256, load_result
-from .robot import Robot
 from .robot_file import read_document
+from .serial_robot import Robot
 
 #: deviation display: unit in the file -> (unit shown, factor)
 _SHOWN = {"mm": ("mm", 1.0), "rad": ("deg", float(np.degrees(1.0))), "1": ("ppm", 1e6)}

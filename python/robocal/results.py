@@ -36,9 +36,9 @@ from typing import Optional
 from ._robocal import __version__
 from .exceptions import InvalidParameterError
 from .outputs import write_json
-from .robot import Robot
 from .robot_file import RESULT_SCHEMA as SCHEMA
 from .robot_file import calibrated_robot, check_nesting, read_document, robot_document
+from .serial_robot import Robot
 
 
 def robot_model(robot: Robot) -> dict:

@@ -1,5 +1,5 @@
 """The robot document (schema ``robocal.robot/1``): one shape for robot files (JSON or YAML,
-:meth:`Robot.to_file` / :meth:`Robot.from_file`) and the result file's ``robot_model``.
+:func:`robocal.write_robot` / :func:`robocal.robot`) and the result file's ``robot_model``.
 
 Keys (docs/data-format.md, "Robot files"): ``schema``, ``name``, ``description``, ``units``
 (``length`` ``mm``; ``angle`` ``deg``, the default, or ``rad``), ``convention`` (the joints'
@@ -7,9 +7,9 @@ default), ``joints`` (``convention, kind, alpha, a, d, theta, beta, hayati, limi
 and ``tool`` (``x, y, z, rx, ry, rz``: ``Tx Ty Tz Rz Ry Rx``), ``sensor`` (``anchor_x,
 anchor_y, anchor_z, cable_offset, cable_scale``) and ``masses`` (``links``: ``mass_kg`` and
 ``com_mm`` per joint, ``rated_payload_kg``, ``compliance_rad_per_Nm``: the robot's
-:class:`robocal.physics.MassModel`, written only when the robot has its own). Only ``joints`` and their ``alpha, a, d, theta``
+:class:`robocal.serial_robot.MassModel`, written only when the robot has its own). Only ``joints`` and their ``alpha, a, d, theta``
 are required, so hand-written files stay short and the files written before this schema read.
-:func:`write_robot_file` writes every key, angles in rad by default: ``from_file(to_file(r))``
+:func:`write_robot_file` writes every key, angles in rad by default: ``read_robot_file(write_robot_file(r))``
 gives ``r`` back bit for bit (in degrees the conversion may move a value by one unit in the last
 place). The export table (:mod:`robocal.robot_table`) holds the same fields, one row per joint.
 """
@@ -27,8 +27,7 @@ import numpy as np
 from .exceptions import InvalidParameterError, RobocalError
 from .files import read_regular
 from .outputs import write_json, write_text
-from .physics import MassModel
-from .robot import Joint, Robot
+from .serial_robot import Joint, MassModel, Robot
 
 SCHEMA = "robocal.robot/1"
 #: The result file's schema (:mod:`robocal.results`): :func:`read_robot_file` reads its calibrated robot.

@@ -16,8 +16,8 @@ from typing import Sequence
 import numpy as np
 
 from .exceptions import InvalidParameterError
-from .robot import Joint, Robot
 from .robot_file import parse_document, read_document, read_file
+from .serial_robot import Joint, Robot
 
 TABLE_SCHEMA = "robocal.export.table/1"
 

@@ -1,4 +1,4 @@
-"""roboticstoolbox-python interop: a robocal :class:`~robocal.robot.Robot` as a
+"""roboticstoolbox-python interop: a robocal :class:`~robocal.serial_robot.Robot` as a
 ``roboticstoolbox.DHRobot`` and back (the optional extra ``robocal[rtb]``, imported on use).
 
 The two models are the same equations: roboticstoolbox's standard DH link is
@@ -33,7 +33,7 @@ import numpy as np
 
 from .exceptions import InvalidParameterError, MissingDependencyError
 from .geometry import frame_params, frame_transform
-from .robot import Joint, Robot
+from .serial_robot import Joint, Robot
 
 _SCALE = {"m": 1000.0, "mm": 1.0}  # mm per unit of the toolbox's lengths
 
@@ -53,7 +53,7 @@ def _scale(length_unit: str) -> float:
     return _SCALE[length_unit]
 
 
-def to_roboticstoolbox(robot: Robot, length_unit: str = "m"):
+def to_roboticstoolbox(robot: Robot, *, length_unit: str = "m"):
     """The robot as a ``roboticstoolbox.DHRobot`` (see the module docstring for the mapping).
 
     Parameters
@@ -76,7 +76,7 @@ def to_roboticstoolbox(robot: Robot, length_unit: str = "m"):
         A non-zero ``beta`` or mixed conventions, naming the joints.
     """
     scale = _scale(length_unit)
-    rtb, SE3 = _toolbox("Robot.to_roboticstoolbox")
+    rtb, SE3 = _toolbox("to_roboticstoolbox")
     conventions = {j.convention for j in robot.joints}
     if len(conventions) != 1:
         raise InvalidParameterError(
@@ -110,7 +110,7 @@ def to_roboticstoolbox(robot: Robot, length_unit: str = "m"):
     return rtb.DHRobot(links, name=robot.name, base=frame("base"), tool=frame("tool"))
 
 
-def from_roboticstoolbox(dhrobot, length_unit: str = "m") -> Robot:
+def from_roboticstoolbox(dhrobot, *, length_unit: str = "m") -> Robot:
     """A :class:`Robot` from a ``roboticstoolbox.DHRobot`` (the inverse of
     :func:`to_roboticstoolbox`).
 

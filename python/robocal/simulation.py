@@ -27,8 +27,9 @@ from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError
 from .geometry import matrix_from_quaternion, quaternion_from_matrix, so3_exp
 from .outputs import Staged, check_outputs
-from .robot import MEASUREMENTS, Robot, robot as load_robot, setup_names
+from .robot import robot as load_robot
 from .sensors import DEFAULT_NOISE, SensorNoise
+from .serial_robot import MEASUREMENTS, Robot, setup_names
 
 #: The cable sensor (a HY150-2000 draw-wire encoder): readings 0..2000 mm.
 CABLE_SENSOR = "HY150-2000"

@@ -49,8 +49,8 @@ import numpy as np
 
 from .exceptions import InvalidParameterError, MissingDependencyError
 from .geometry import X, Y, Z, frame_params, homogeneous, rotation
-from .robot import Joint, Robot
 from .robot_file import read_file
+from .serial_robot import Joint, Robot
 
 #: Consecutive joint axes closer to parallel than this (degrees) get Hayati's ``beta`` instead of ``d``.
 PARALLEL_DEG = 1.0

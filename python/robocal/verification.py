@@ -28,7 +28,7 @@ from .calibration.problem import Problem
 from .data.dataset import Dataset
 from .diagnosis.result_model import result_model
 from .results import file_sha256, load_result
-from .robot import Robot, setup_names
+from .serial_robot import Robot, setup_names
 
 SCHEMA = "robocal.verify/1"
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..effects import EFFECTS
 from ..outputs import printable
-from ..robot import MEASUREMENTS
+from ..serial_robot import MEASUREMENTS
 from ..simulation import simulate, write_simulation
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..data.dataset import Dataset
-from ..robot import RESIDUAL_WIDTH, Robot
+from ..serial_robot import RESIDUAL_WIDTH, Robot
 
 #: Decimal grids tried, as powers of ten (10⁰ … 10⁻⁸ of the unit).
 DECIMALS = range(0, 9)

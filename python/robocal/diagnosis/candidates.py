@@ -30,7 +30,7 @@ from ..data.dataset import Dataset
 from ..physics import DEG, approach_directions, gravity_torques, mass_model
 from ..core import as_float_array, is_sparse
 from ..exceptions import InvalidParameterError
-from ..robot import RESIDUAL_WIDTH, Robot
+from ..serial_robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma
 
 #: Physically plausible ranges of the fitted quantities (a fit outside is rejected as implausible).

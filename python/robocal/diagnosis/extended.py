@@ -24,7 +24,7 @@ from ..calibration.sessions import SESSION_KINDS, is_private, load_sessions, ses
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, random_split
 from ..exceptions import InvalidParameterError
-from ..robot import Robot
+from ..serial_robot import Robot
 from ..results import file_sha256
 from ..robot_file import read_document
 from . import structure

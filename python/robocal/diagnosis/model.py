@@ -15,7 +15,7 @@ import numpy as np
 from ..calibration.problem import Problem, fit_row_weights, rotation_weight
 from ..core import is_sparse
 from ..data.dataset import Dataset
-from ..robot import RESIDUAL_WIDTH
+from ..serial_robot import RESIDUAL_WIDTH
 from ..stats import rmse_of_squares
 from .candidates import Candidate
 

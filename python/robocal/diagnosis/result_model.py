@@ -19,7 +19,7 @@ import numpy as np
 
 from ..calibration.sessions import SESSION_KINDS
 from ..data.dataset import Dataset
-from ..robot import Robot
+from ..serial_robot import Robot
 from . import structure
 from .candidates import JOINT_KINDS, acquisition_order, joint_offsets, map_coverage_mask, map_coverage_report, result_maps
 

@@ -31,7 +31,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
 from ..progress import progress
-from ..robot import Robot
+from ..serial_robot import Robot
 from . import structure
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors
