@@ -41,6 +41,7 @@ def main() -> None:
     import numpy as np
 
     import robocal
+    from robocal import kernels
     from robocal import reference as ref
 
     r = robocal.robot("hsr-jr680")
@@ -77,7 +78,7 @@ def main() -> None:
             "rows",
         )
         n = len(cols)
-        sigmas, _, _ = robocal.merwe_sigma_points(params[cols], np.eye(n) * 1e-4, 1e-3, 2.0, 0.0)
+        sigmas, _, _ = kernels.merwe_sigma_points(params[cols], np.eye(n) * 1e-4, 1e-3, 2.0, 0.0)
         row(
             f"sigma residuals ({2 * n + 1} points)",
             m,
@@ -92,7 +93,7 @@ def main() -> None:
             row(
                 f"damped solve (n={n_par})",
                 m,
-                lambda: robocal.solve_damped(J, res, 1e-3),
+                lambda: kernels.solve_damped(J, res, 1e-3),
                 lambda: ref.solve_damped(J, res, 1e-3),
                 1,
                 "solves",

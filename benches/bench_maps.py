@@ -5,7 +5,7 @@
 One UR10 series (positions; A: 11 911 samples, 35 733 residual rows) with a joint map on every
 joint (cubic B-splines, ``--spacing`` degrees, roughness 0.03°) fitted together with the
 geometry by robocal's LM from the same start, twice: with the model's sparse Jacobian (normal
-equations, :class:`robocal.core.DampedNormal`) and with the same Jacobian made dense (the Rust
+equations, :class:`robocal.kernels.DampedNormal`) and with the same Jacobian made dense (the Rust
 column-pivoted QR every other fit uses). Both runs reach the same cost; the table gives the
 median wall time of ``--repeats`` runs, the Jacobian's size and the machine. Diagnose runs its
 fits with one BLAS thread (``threadpool_limits``), as this script asks for through the variable.

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import robocal
+from robocal import kernels
 from robocal import _robocal
 from robocal.exceptions import (
     InvalidParameterError,
@@ -94,15 +95,15 @@ def test_jacobian_column_indices_are_checked():
 
 def test_solver_and_sigma_point_errors():
     with pytest.raises(InvalidParameterError, match="`lam`"):
-        robocal.solve_damped(np.eye(3), np.ones(3), -1.0)
+        kernels.solve_damped(np.eye(3), np.ones(3), -1.0)
     with pytest.raises(ShapeError, match=r"`r` must have shape \(3,\)"):
-        robocal.solve_damped(np.eye(3), np.ones(4), 0.1)
+        kernels.solve_damped(np.eye(3), np.ones(4), 0.1)
     with pytest.raises(NotPositiveDefiniteError):
-        robocal.merwe_sigma_points(np.zeros(2), [[1.0, 2.0], [2.0, 1.0]])
+        kernels.merwe_sigma_points(np.zeros(2), [[1.0, 2.0], [2.0, 1.0]])
     with pytest.raises(InvalidParameterError, match="symmetric"):
-        robocal.merwe_sigma_points(np.zeros(2), [[1.0, 0.5], [0.0, 1.0]])
+        kernels.merwe_sigma_points(np.zeros(2), [[1.0, 0.5], [0.0, 1.0]])
     with pytest.raises(InvalidParameterError, match="alpha"):
-        robocal.merwe_sigma_points(np.zeros(2), np.eye(2), alpha=0.0)
+        kernels.merwe_sigma_points(np.zeros(2), np.eye(2), alpha=0.0)
 
 
 def test_exceptions_derive_from_the_stdlib_types():
@@ -116,13 +117,13 @@ def test_identical_configurations_report_rank_not_garbage():
     q = np.tile(Q[:1], (30, 1))
     cols = np.flatnonzero(R.default_mask("cable"))
     J = R.jacobian("cable", q, cols=cols)
-    ident = robocal.identifiability(J)
+    ident = kernels.identifiability(J)
     assert ident["rank"] == 1
     assert np.all(np.isfinite(ident["singular_values"])) and np.isfinite(ident["condition_number"])
-    step, method = robocal.solve_damped(J, np.ones(30), 0.0)
+    step, method = kernels.solve_damped(J, np.ones(30), 0.0)
     assert method == "svd" and np.all(np.isfinite(step))
     with pytest.raises(SingularError, match="do not determine the cable anchor"):
-        robocal.cable_initial_guess(R.fkine(q)[:, :3, 3], np.full(30, 500.0))
+        kernels.cable_initial_guess(R.fkine(q)[:, :3, 3], np.full(30, 500.0))
 
 
 @given(arrays(np.float64, st.tuples(st.integers(0, 4), st.integers(0, 8)), elements=st.floats(allow_nan=True, allow_infinity=True)))

@@ -128,9 +128,9 @@ SCRIPT = textwrap.dedent(
         out[f"residuals_{m}"] = r.residuals(m, q, r.predict(m, q[::-1]))
     out["sigma_residuals"] = r.residuals_at("cable", q, np.ones(len(q)) * 800.0, [1, 6, 30], np.random.default_rng(1).normal(size=(9, 3)))
     J = out["jacobian_cable"]
-    out["identifiability_sv"] = robocal.identifiability(J)["singular_values"]
-    out["solve"] = robocal.solve_damped(J, np.ones(len(J)), 1e-3)[0]
-    out["covariance"] = robocal.covariance(J[:, :20], np.linspace(0, 1, len(J)))[0]
+    out["identifiability_sv"] = robocal.kernels.identifiability(J)["singular_values"]
+    out["solve"] = robocal.kernels.solve_damped(J, np.ones(len(J)), 1e-3)[0]
+    out["covariance"] = robocal.kernels.covariance(J[:, :20], np.linspace(0, 1, len(J)))[0]
     for method, options in (("lm", {}), ("ukf-vslm", {}), ("de", {"seed": 1, "population": 10, "max_iter": 10})):
         result = robocal.calibrate(data, method=method, **options)
         out[f"calibrate_{method}_x"] = result.x
@@ -184,7 +184,7 @@ def test_concurrent_kernels_on_shared_robots_equal_serial():
             r.jacobian("cable", q),
             r.jacobian("pose", q, y=y),
             r.residuals("position", q, r.predict("position", q[::-1])),
-            robocal.identifiability(r.jacobian("position", q))["singular_values"],
+            robocal.kernels.identifiability(r.jacobian("position", q))["singular_values"],
         ]
 
     jobs = [(r, q) for r in robots for q in qs]

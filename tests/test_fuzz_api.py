@@ -24,6 +24,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import array_shapes, arrays
 
 import robocal
+from robocal import kernels
 from robocal.compensation import Targets
 from robocal.data import Dataset, write_canonical
 from robocal.exceptions import InvalidParameterError, RobocalError, ShapeError
@@ -231,9 +232,9 @@ def test_option_type_errors_name_the_argument():
     with pytest.raises(InvalidParameterError, match="`cols` must hold booleans, integer indices or parameter names"):
         R.jacobian("position", Q, cols=[0.5])
     with pytest.raises(InvalidParameterError, match="`tol` must be numeric"):
-        robocal.identifiability(np.eye(3), tol="x")
+        kernels.identifiability(np.eye(3), tol="x")
     with pytest.raises(InvalidParameterError, match="`damping` must be a string; got int"):
-        robocal.solve_damped(np.eye(3), np.ones(3), 0.1, 5)
+        kernels.solve_damped(np.eye(3), np.ones(3), 0.1, 5)
     with pytest.raises(InvalidParameterError, match="`robot` must be a robot name"):
         robocal.robot(5)
 
@@ -245,16 +246,16 @@ def test_singular_geometry_and_degenerate_configurations():
         J = outcome(r.jacobian, "position", qq, cols=np.flatnonzero(r.default_mask("position")))
         ident = outcome(identifiability, J)
         assert ident["rank"] < J.shape[1]
-        outcome(robocal.solve_damped, J, np.ones(J.shape[0]), 0.0)
-        outcome(robocal.covariance, J, np.ones(J.shape[0]))
-        outcome(robocal.cable_initial_guess, r.fkine(qq, tool=True)[:, :3, 3], np.full(len(qq), 500.0))
+        outcome(kernels.solve_damped, J, np.ones(J.shape[0]), 0.0)
+        outcome(kernels.covariance, J, np.ones(J.shape[0]))
+        outcome(kernels.cable_initial_guess, r.fkine(qq, tool=True)[:, :3, 3], np.full(len(qq), 500.0))
 
 
 # -- the core's free functions ----------------------------------------------------------------
 def identifiability(J, tol=1e-9) -> dict:
-    """:func:`robocal.identifiability` with the condition number of rank 0 left out: it is
+    """:func:`robocal.kernels.identifiability` with the condition number of rank 0 left out: it is
     documented as inf (``sigma_1 / sigma_rank`` has no denominator)."""
-    ident = robocal.identifiability(J, tol)
+    ident = kernels.identifiability(J, tol)
     assert ident["rank"] > 0 or ident["condition_number"] == math.inf
     return {**ident, "condition_number": 0.0 if ident["rank"] == 0 else ident["condition_number"]}
 
@@ -287,8 +288,8 @@ J0 = np.random.default_rng(1).normal(size=(6, 3))
 def test_linear_algebra(args):
     J, r = args["J"], args["r"]
     outcome(identifiability, J, tol=args["tol"])
-    outcome(robocal.solve_damped, J, r, args["lam"], args["damping"])
-    outcome(robocal.covariance, J, r, args["tol"])
+    outcome(kernels.solve_damped, J, r, args["lam"], args["damping"])
+    outcome(kernels.covariance, J, r, args["tol"])
 
 
 P_CABLE = R.fkine(np.vstack([Q, -Q]), tool=True)[:, :3, 3]
@@ -298,10 +299,10 @@ P_CABLE = R.fkine(np.vstack([Q, -Q]), tool=True)[:, :3, 3]
 @given(args=arguments(valid={"p": layouts(P_CABLE), "L": layouts(np.linalg.norm(P_CABLE - [900.0, 100.0, -50.0], axis=1))},
                       bad={"p": st.one_of(nearly_valid(P_CABLE), malformed((16, 3))), "L": st.one_of(nearly_valid(np.full(16, 500.0)), malformed((16,)))}))  # fmt: skip
 def test_cable_initial_guess(args):
-    outcome(robocal.cable_initial_guess, args["p"], args["L"])
+    outcome(kernels.cable_initial_guess, args["p"], args["L"])
 
 
-SIGMAS, WM, WC = robocal.merwe_sigma_points(np.zeros(3), np.eye(3))
+SIGMAS, WM, WC = kernels.merwe_sigma_points(np.zeros(3), np.eye(3))
 
 
 @FAST
@@ -328,8 +329,8 @@ SIGMAS, WM, WC = robocal.merwe_sigma_points(np.zeros(3), np.eye(3))
     )
 )
 def test_sigma_points(args):
-    outcome(robocal.merwe_sigma_points, args["x"], args["P"], args["alpha"], args["beta"], args["kappa"])
-    outcome(robocal.unscented_transform, SIGMAS, args["sigmas_y"], WM, args["Wc"])
+    outcome(kernels.merwe_sigma_points, args["x"], args["P"], args["alpha"], args["beta"], args["kappa"])
+    outcome(kernels.unscented_transform, SIGMAS, args["sigmas_y"], WM, args["Wc"])
 
 
 # -- simulate ---------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from robocal.data.canonical import write_canonical
 from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
-from robocal.core import DampedNormal, factor_damped, sparse_gram
+from robocal.kernels import DampedNormal, factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.select import _fold_maps
 from robocal.physics import DEG

@@ -191,7 +191,7 @@ def test_a_robot_file_with_masses_gets_compliance(tmp_path):
     assert r.name == "my-robot" and r.name not in MASS_MODELS and has_mass_model(r)
     assert not has_mass_model(robocal.Robot("my-robot", r.joints, r.params))
 
-    data, truth = sim.simulate(r, "position", 80, seed=5, noise=0, effects=["joint_compliance:joint=2,payload=5"])
+    data, truth = sim.simulate(r, "position", samples=80, seed=5, noise=0, effects=["joint_compliance:joint=2,payload=5"])
     record = truth["effects"][0]
     assert record["kind"] == "joint_compliance"
     assert record["parameters"]["compliance"]["value"] == pytest.approx(np.degrees(1.5e-5) * 1000)  # the file's default
@@ -206,7 +206,7 @@ def test_a_robot_file_with_masses_gets_compliance(tmp_path):
     # without a default compliance the effect asks for one
     bare = robocal.Robot("my-robot", r.joints, r.params, replace(r.mass_model, compliance=None))
     with pytest.raises(InvalidParameterError, match="no default compliance: give key 'compliance'"):
-        sim.simulate(bare, "position", 20, effects=["joint_compliance:joint=2"])
-    sim.simulate(bare, "position", 20, effects=["joint_compliance:joint=2,compliance=0.5"])
+        sim.simulate(bare, "position", samples=20, effects=["joint_compliance:joint=2"])
+    sim.simulate(bare, "position", samples=20, effects=["joint_compliance:joint=2,compliance=0.5"])
     with pytest.raises(InvalidParameterError, match="no mass model for robot 'my-robot': give its robot file a 'masses' section"):
-        sim.simulate(robocal.Robot("my-robot", r.joints, r.params), "position", 20, effects=["joint_compliance:joint=2"])
+        sim.simulate(robocal.Robot("my-robot", r.joints, r.params), "position", samples=20, effects=["joint_compliance:joint=2"])

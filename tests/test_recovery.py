@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import robocal
+from robocal import kernels
 
 
 def simulate(r: robocal.Robot, measurement: str, m: int, noise: float, seed: int):
@@ -19,7 +20,7 @@ def simulate(r: robocal.Robot, measurement: str, m: int, noise: float, seed: int
     start = r.with_params(tool_x=30.0, tool_y=-10.0, tool_z=80.0, anchor_x=1800.0, anchor_y=400.0, anchor_z=-300.0, cable_offset=900.0,
                           base_x=2000.0, base_y=-500.0, base_z=100.0, base_rz=0.4)  # fmt: skip
     cols = np.flatnonzero(r.default_mask(measurement))
-    ident = robocal.identifiability(start.jacobian(measurement, q, y=start.predict(measurement, q), cols=cols))
+    ident = kernels.identifiability(start.jacobian(measurement, q, y=start.predict(measurement, q), cols=cols))
     free = cols[ident["identifiable"]]
     true = start.params.copy()
     units = np.array(r.param_units)[free]
@@ -36,11 +37,11 @@ def gauss_newton(r, measurement, q, y, params, free, iterations=8):
     params = params.copy()
     for _ in range(iterations):
         res = r.residuals(measurement, q, y, params=params).ravel()
-        step, _ = robocal.solve_damped(r.jacobian(measurement, q, y=y, params=params, cols=free), res, lam=0.0)
+        step, _ = kernels.solve_damped(r.jacobian(measurement, q, y=y, params=params, cols=free), res, lam=0.0)
         params[free] += step
     J = r.jacobian(measurement, q, y=y, params=params, cols=free)
     res = r.residuals(measurement, q, y, params=params).ravel()
-    return params, robocal.covariance(J, res)
+    return params, kernels.covariance(J, res)
 
 
 @pytest.mark.parametrize("name", ["hsr-jr680", "abb-irb120", "ur10"])
@@ -66,7 +67,7 @@ def test_pose_data_recover_base_and_tool_frames():
     true = start.with_params(base_x=1000.6, base_y=-0.4, base_rz=0.3012, tool_x=0.3, tool_z=50.2, tool_ry=0.002).params
     y = start.predict("pose", q, params=true)
     cols = np.flatnonzero(r.default_mask("pose"))
-    free = cols[robocal.identifiability(start.jacobian("pose", q, y=y, cols=cols))["identifiable"]]
+    free = cols[kernels.identifiability(start.jacobian("pose", q, y=y, cols=cols))["identifiable"]]
     est, (cov, sigma2, dof, rank) = gauss_newton(r, "pose", q, y, start.params, free)
     np.testing.assert_allclose(r.residuals("pose", q, y, params=est), 0.0, atol=1e-8)
     for name in ("base_x", "base_y", "tool_ry"):  # not redundant with any DH parameter of the UR10

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import robocal
+from robocal import kernels
 from robocal import simulation as sim
 from robocal.cli import simulate as simulate_cli
 from robocal.data.canonical import read_canonical
@@ -24,7 +25,7 @@ M = 60  # samples of the per-effect tests
 def run(name="hsr-jr680", measurement="cable", effects=(), **kw):
     """A noiseless simulation, its recorded q, observations and true parameter vector."""
     kw.setdefault("noise", 0)
-    data, truth = sim.simulate(name, measurement, kw.pop("samples", M), kw.pop("seed", 3), effects=effects, **kw)
+    data, truth = sim.simulate(name, measurement, samples=kw.pop("samples", M), seed=kw.pop("seed", 3), effects=effects, **kw)
     return data, truth, sim.true_params(truth, robocal.robot(name))
 
 
@@ -34,9 +35,9 @@ def predict(name, measurement, q, params):
 
 # -- the acquisition ----------------------------------------------------------------------------
 def test_same_seed_same_simulation_other_seed_other():
-    a, ta = sim.simulate("ur10", "position", 50, seed=7, effects=["outliers:fraction=0.1"])
-    b, tb = sim.simulate("ur10", "position", 50, seed=7, effects=["outliers:fraction=0.1"])
-    c, _ = sim.simulate("ur10", "position", 50, seed=8, effects=["outliers:fraction=0.1"])
+    a, ta = sim.simulate("ur10", "position", samples=50, seed=7, effects=["outliers:fraction=0.1"])
+    b, tb = sim.simulate("ur10", "position", samples=50, seed=7, effects=["outliers:fraction=0.1"])
+    c, _ = sim.simulate("ur10", "position", samples=50, seed=8, effects=["outliers:fraction=0.1"])
     np.testing.assert_array_equal(a.q, b.q)
     np.testing.assert_array_equal(a.y, b.y)
     assert ta == tb
@@ -58,7 +59,7 @@ def test_exact_count_within_limits_and_sensor_range(name, measurement):
 
 
 def test_the_acquisition_is_a_path_of_small_steps():
-    data, _ = sim.simulate("hsr-jr680", "cable", 300, seed=4)
+    data, _ = sim.simulate("hsr-jr680", "cable", samples=300, seed=4)
     steps = np.degrees(np.abs(np.diff(data.q, axis=0)))
     assert np.median(steps) < 2 * sim.STEP_DEG
     lo, hi = np.degrees(np.array([j.limits for j in robocal.robot("hsr-jr680").joints]).T)
@@ -66,8 +67,8 @@ def test_the_acquisition_is_a_path_of_small_steps():
 
 
 def test_effects_leave_path_errors_and_noise_unchanged():
-    a, ta = sim.simulate("abb-irb120", "cable", 40, seed=5)
-    b, tb = sim.simulate("abb-irb120", "cable", 40, seed=5, effects=["joint_scale:joint=3", "drift"])
+    a, ta = sim.simulate("abb-irb120", "cable", samples=40, seed=5)
+    b, tb = sim.simulate("abb-irb120", "cable", samples=40, seed=5, effects=["joint_scale:joint=3", "drift"])
     np.testing.assert_array_equal(a.q, b.q)
     assert ta["parameters"] == tb["parameters"]
 
@@ -81,7 +82,7 @@ def test_without_effects_and_noise_observations_are_the_true_model():
 
 
 def test_true_parameters_differ_from_nominal_at_the_stated_scale():
-    _, truth = sim.simulate("ur10", "position", 200, seed=1)
+    _, truth = sim.simulate("ur10", "position", samples=200, seed=1)
     errors = {n: p["value"] - p["nominal"] for n, p in truth["parameters"].items()}
     perturbed = set(truth["perturbed"])
     assert all(errors[n] == 0 for n in errors if n not in perturbed)
@@ -89,7 +90,7 @@ def test_true_parameters_differ_from_nominal_at_the_stated_scale():
     rad = [abs(errors[n]) for n in perturbed if truth["parameters"][n]["unit"] == "rad"]
     assert 0.1 < np.sqrt(np.mean(np.square(mm))) < 1.5
     assert np.radians(0.01) < np.sqrt(np.mean(np.square(rad))) < np.radians(0.15)
-    _, flat = sim.simulate("ur10", "position", 20, seed=1, geometric_error=False)
+    _, flat = sim.simulate("ur10", "position", samples=20, seed=1, geometric_error=False)
     assert all(p["value"] == p["nominal"] for p in flat["parameters"].values())
 
 
@@ -189,7 +190,7 @@ def test_axis_misalignment_is_a_hayati_beta():
     np.testing.assert_array_equal(np.delete(P, i), np.delete(P0, i))
     np.testing.assert_array_equal(data.y, predict("ur10", "position", data.q, P))
     with pytest.raises(InvalidParameterError, match="joint 4 of ur10 is not nominally parallel"):
-        sim.simulate("ur10", "position", 10, effects=["axis_misalignment:joint=4"])
+        sim.simulate("ur10", "position", samples=10, effects=["axis_misalignment:joint=4"])
 
 
 def test_temperature_expands_links_along_a_warm_up_curve():
@@ -211,7 +212,7 @@ def test_temperature_of_the_cable_sensor_scales_the_reading():
     factor = 1 + 17e-6 * 5 * (1 - np.exp(-data.t / 600))
     np.testing.assert_allclose(data.y[:, 0], factor * base.y[:, 0], rtol=1e-14)
     with pytest.raises(InvalidParameterError, match="target 'cable' needs cable measurements"):
-        sim.simulate("ur10", "position", 10, effects=["temperature:target=cable"])
+        sim.simulate("ur10", "position", samples=10, effects=["temperature:target=cable"])
 
 
 def test_cable_scale():
@@ -219,7 +220,7 @@ def test_cable_scale():
     data, _, _ = run(effects=["cable_scale:scale=3e-4"])
     np.testing.assert_allclose(data.y, (1 + 3e-4) * base.y, rtol=1e-15)
     with pytest.raises(InvalidParameterError, match="cable_scale.*applies to \\['cable'\\]"):
-        sim.simulate("ur10", "position", 10, effects=["cable_scale"])
+        sim.simulate("ur10", "position", samples=10, effects=["cable_scale"])
 
 
 @pytest.mark.parametrize("measurement, spec, column", [("cable", "drift:rate=0.36", 0), ("position", "drift:rate=0.36,axis=y", 1),
@@ -280,7 +281,7 @@ def test_bad_specs_name_spec_and_key(spec, message):
 )
 def test_effects_are_checked_against_the_robot(effect, message):
     with pytest.raises(InvalidParameterError, match=message):
-        sim.simulate("hsr-jr680", "cable", 10, effects=[effect])
+        sim.simulate("hsr-jr680", "cable", samples=10, effects=[effect])
 
 
 def test_bad_arguments():
@@ -289,7 +290,7 @@ def test_bad_arguments():
     with pytest.raises(InvalidParameterError, match="`noise` has unknown key"):
         sim.simulate(samples=5, noise={"sd": 1})
     with pytest.raises(InvalidParameterError, match="outside the HY150-2000 range"):
-        sim.simulate("hsr-jr680", "cable", 50, effects=["drift:rate=100000"])
+        sim.simulate("hsr-jr680", "cable", samples=50, effects=["drift:rate=100000"])
 
 
 # -- files and command line -----------------------------------------------------------------------
@@ -300,7 +301,7 @@ def test_write_simulation_and_cli(tmp_path):
                               "--effect", "backlash:joint=2", "--out", str(tmp_path / "d.csv"), "--truth", str(tmp_path / "t.json")])  # fmt: skip
     assert simulate_cli.run(args) == 0
     back = read_canonical(tmp_path / "d.csv")
-    data, truth = sim.simulate("abb-irb120", "cable", 30, 4, effects=["temperature", "backlash:joint=2"])
+    data, truth = sim.simulate("abb-irb120", "cable", samples=30, seed=4, effects=["temperature", "backlash:joint=2"])
     np.testing.assert_allclose(back.q, data.q, rtol=1e-14)
     np.testing.assert_array_equal(back.y, data.y)
     np.testing.assert_array_equal(back.temp, data.temp)
@@ -317,10 +318,10 @@ def test_core_recovers_simulated_geometry_within_its_uncertainty(name, measureme
     free = np.array([r.index(n) for n in truth["perturbed"]])
     for _ in range(8):
         res = r.residuals(measurement, data.q, data.y, params).ravel()
-        step, _ = robocal.solve_damped(r.jacobian(measurement, data.q, data.y, params, cols=free), res, lam=0.0)
+        step, _ = kernels.solve_damped(r.jacobian(measurement, data.q, data.y, params, cols=free), res, lam=0.0)
         params[free] += step
     J = r.jacobian(measurement, data.q, data.y, params, cols=free)
-    cov, sigma2, _, rank = robocal.covariance(J, r.residuals(measurement, data.q, data.y, params).ravel())
+    cov, sigma2, _, rank = kernels.covariance(J, r.residuals(measurement, data.q, data.y, params).ravel())
     assert rank == free.size
     assert np.sqrt(sigma2) == pytest.approx(truth["noise"]["sigma"]["value"], rel=0.2)
     z = (params[free] - true[free]) / np.sqrt(np.diag(cov))

@@ -1,47 +1,54 @@
 """robocal — fast, honest kinematic calibration of industrial robots.
 
 The hot core (kinematics, identification Jacobians, sigma points, damped solves,
-identifiability) is Rust in :mod:`robocal._robocal`; this package is the thin Python layer.
-Units: mm and radians everywhere inside.
+identifiability) is Rust in :mod:`robocal._robocal`, wrapped for NumPy in
+:mod:`robocal.kernels`; this package is the thin Python layer. Units: mm and radians everywhere
+inside.
+
+The public API: the functions that mirror the command line (``load``, ``simulate``,
+``calibrate``, ``diagnose``, ``verify``, ``compensate``, ``plan`` …; positional for their data
+or file arguments, keyword-only options), robots (``robot``, ``write_robot``, the
+roboticstoolbox bridge) and the types they take and return (``Robot``, ``Dataset``,
+``CalibrationResult``, ``Diagnosis``, ``SessionsDiagnosis``, ``Plan`` …).
 """
 
 from __future__ import annotations
 
 from . import exceptions
 from ._robocal import __version__
-from .core import cable_initial_guess, covariance, identifiability, merwe_sigma_points, solve_damped, unscented_transform
-from .robot import MEASUREMENTS, Joint, Robot, robot, write_robot
+from .robot import MEASUREMENTS, Joint, MassModel, Robot, robot, write_robot
 
 __all__ = [
     "MEASUREMENTS",
+    "CalibrationResult",
+    "Constraints",
+    "Dataset",
+    "Diagnosis",
     "Joint",
+    "MassModel",
+    "Plan",
     "Robot",
+    "SessionsDiagnosis",
     "__version__",
-    "cable_initial_guess",
     "calibrate",
     "calibrate_many",
     "compensate",
-    "covariance",
     "diagnose",
     "exceptions",
     "from_roboticstoolbox",
-    "identifiability",
     "load",
     "load_result",
-    "merwe_sigma_points",
     "plan",
     "robot",
     "simulate",
     "to_roboticstoolbox",
-    "solve_damped",
-    "unscented_transform",
     "verify",
     "write_robot",
 ]
 
 
-#: The API that mirrors the command line, loaded on first use (with scipy) rather than at
-#: ``import robocal``: name -> (module, attribute).
+#: The API that mirrors the command line and the types it returns, loaded on first use (with
+#: scipy) rather than at ``import robocal``: name -> (module, attribute).
 _LAZY = {
     "load": ("robocal.data", "load"),
     "simulate": ("robocal.simulation", "simulate"),
@@ -54,6 +61,12 @@ _LAZY = {
     "plan": ("robocal.planning", "plan"),
     "from_roboticstoolbox": ("robocal.rtb", "from_roboticstoolbox"),
     "to_roboticstoolbox": ("robocal.rtb", "to_roboticstoolbox"),
+    "Dataset": ("robocal.data.dataset", "Dataset"),
+    "CalibrationResult": ("robocal.calibration.result", "CalibrationResult"),
+    "Diagnosis": ("robocal.diagnosis", "Diagnosis"),
+    "SessionsDiagnosis": ("robocal.diagnosis", "SessionsDiagnosis"),
+    "Plan": ("robocal.planning", "Plan"),
+    "Constraints": ("robocal.planning", "Constraints"),
 }
 
 
@@ -64,3 +77,7 @@ def __getattr__(name: str):
         module, attribute = _LAZY[name]
         return getattr(importlib.import_module(module), attribute)
     raise AttributeError(f"module 'robocal' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

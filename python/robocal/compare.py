@@ -40,7 +40,7 @@ from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
 from .data.dataset import Dataset
 from .data.splits import chronological, configuration_groups, kfold, paper_split, random_split
-from .core import seeded_rng
+from .kernels import seeded_rng
 from .exceptions import InvalidParameterError
 from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress

@@ -33,7 +33,7 @@ from typing import Optional
 
 import numpy as np
 
-from .core import as_float_array, solve_damped
+from .kernels import as_float_array, solve_damped
 from .diagnosis import structure
 from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
 from .data.table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
@@ -234,7 +234,7 @@ def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:
     return q
 
 
-def compensate(result, targets, angle_unit: Optional[str] = None) -> list[dict]:
+def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dict]:
     """Joint commands for every target (see the module notes).
 
     Parameters

@@ -83,7 +83,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .core import MAX_SAMPLES, as_count, seeded_rng
+from .kernels import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
 from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_log

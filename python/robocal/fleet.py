@@ -41,7 +41,7 @@ def _single_threaded_core() -> None:
     os.environ["RAYON_NUM_THREADS"] = "1"
 
 
-def calibrate_many(datasets: Iterable[Union[str, Path, Dataset]], workers: Optional[int] = None, backend: str = "process", **options) -> list[dict]:
+def calibrate_many(datasets: Iterable[Union[str, Path, Dataset]], *, workers: Optional[int] = None, backend: str = "process", **options) -> list[dict]:
     """Calibrates every dataset; results in the order given.
 
     Parameters

@@ -17,7 +17,7 @@ import numpy as np
 
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem, start_parameters
-from .core import as_float
+from .kernels import as_float
 from .data.dataset import Dataset, angle_unit_check
 from .data.public import detect_format, load
 from .exceptions import DataError, InvalidParameterError, RobocalError
@@ -72,7 +72,8 @@ def inspect(
         dataset, fmt, unit = source, None, "rad"
     else:
         fmt = format or detect_format(source)
-        dataset = load(source, fmt, measurement, angle_unit, robot, exclude_bad_rows=True, check_units=False)  # reported below
+        options = dict(measurement=measurement, angle_unit=angle_unit, robot=robot)
+        dataset = load(source, format=fmt, exclude_bad_rows=True, check_units=False, **options)  # bad rows and units: reported below
         unit = angle_unit or {"ipa": "rad"}.get(fmt, "deg")
     name = robot or dataset.robot
     model = load_robot(name) if name else None

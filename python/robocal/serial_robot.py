@@ -17,7 +17,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from . import _robocal
-from .core import MAX_ABS, as_float, as_float_array, as_str
+from .kernels import MAX_ABS, as_float, as_float_array, as_str
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 from .geometry import frame_params, frame_transform, rotation
 

@@ -20,7 +20,7 @@ from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .core import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed, identifiability
+from .kernels import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed, identifiability
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
@@ -222,6 +222,7 @@ SESSION_SHIFT_MM = 200.0
 def simulate(
     robot: Union[str, Robot] = "hsr-jr680",
     measurement: str = "cable",
+    *,
     samples: int = 400,
     seed: int = 1,
     effects: Sequence[Union[str, Effect]] = (),

@@ -63,6 +63,7 @@ def _seen_by_fit(doc: dict, dataset: Dataset) -> list[str]:
 def verify(
     result: Union[str, Path, dict],
     data: Union[str, Path, Dataset],
+    *,
     measurement: Optional[str] = None,
     angle_unit: Optional[str] = None,
 ) -> dict:

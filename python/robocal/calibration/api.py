@@ -96,6 +96,7 @@ def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
 
 def calibrate(
     data: Union[str, Path, Dataset],
+    *,
     robot: Union[str, Robot, None] = None,
     measurement: Optional[str] = None,
     method: str = "lm",

@@ -15,7 +15,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    rows = compensate(args.result, args.targets, args.angle_unit)
+    rows = compensate(args.result, args.targets, angle_unit=args.angle_unit)
     n_joints = len(rows[0]["q"]) if rows else 0
     write_joints(rows, args.out, n_joints)
     bad = [r for r in rows if not r["status"].startswith("ok")]

@@ -28,8 +28,8 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Runs ``robocal simulate``; returns the exit code."""
-    dataset, truth = simulate(args.robot, args.measurement, args.samples, args.seed, args.effect, noise=args.noise,
-                              geometric_error=args.geometric_error, outliers=args.outliers, session=args.session)  # fmt: skip
+    options = dict(samples=args.samples, seed=args.seed, effects=args.effect, noise=args.noise, geometric_error=args.geometric_error)
+    dataset, truth = simulate(args.robot, args.measurement, outliers=args.outliers, session=args.session, **options)
     csv_path, json_path = write_simulation(dataset, truth, args.out, args.truth)
     effects = ", ".join(e["spec"] for e in truth["effects"]) or "none"
     print(

@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core import as_float_array
+from ..kernels import as_float_array
 from ..exceptions import InvalidParameterError, ShapeError
 
 #: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).

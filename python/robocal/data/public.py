@@ -446,6 +446,7 @@ def _prismatic(robot) -> tuple:
 
 def load(
     path,
+    *,
     format: Optional[str] = None,
     measurement: Optional[str] = None,
     angle_unit: Optional[str] = None,

@@ -20,7 +20,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..core import as_count, seeded_rng
+from ..kernels import as_count, seeded_rng
 from ..exceptions import InvalidParameterError
 
 #: Joint readings within this of each other on every joint (rad, 0.06°; mm for a prismatic

@@ -30,7 +30,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from ..core import MAX_ABS, QUATERNION_NORM_TOL
+from ..kernels import MAX_ABS, QUATERNION_NORM_TOL
 from ..exceptions import DataError
 from ..files import MAX_FILE_BYTES, open_regular, read_regular
 

@@ -9,7 +9,7 @@ from .sessions import SessionsDiagnosis, diagnose_sessions
 __all__ = ["LIMITS", "Candidate", "Diagnosis", "ExtendedProblem", "SessionsDiagnosis", "diagnose", "diagnose_session", "diagnose_sessions", "library"]
 
 
-def diagnose(data, robot=None, **options):
+def diagnose(data, *, robot=None, **options):
     """What the geometric model gets wrong, its causes and their held-out gain: on one session
     (a file or Dataset, :func:`~robocal.diagnosis.select.diagnose`) or on a list of sessions of
     one robot (:func:`~robocal.diagnosis.sessions.diagnose_sessions`, leave-one-session-out).

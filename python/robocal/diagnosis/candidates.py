@@ -28,7 +28,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..physics import DEG, approach_directions, gravity_torques, mass_model
-from ..core import as_float_array, is_sparse
+from ..kernels import as_float_array, is_sparse
 from ..exceptions import InvalidParameterError
 from ..serial_robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma

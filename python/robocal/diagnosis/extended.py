@@ -28,7 +28,7 @@ from ..serial_robot import Robot
 from ..results import file_sha256
 from ..robot_file import read_document
 from . import structure
-from .candidates import MAP_LABEL, library, map_candidate, map_noise, step_candidate
+from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .model import ExtendedProblem
 from .sessions import stack
 from .wander import wander_candidate
@@ -36,6 +36,7 @@ from .wander import wander_candidate
 
 def calibrate(
     data: Union[str, Path, Dataset, list],
+    *,
     robot: Union[str, Robot, None] = None,
     measurement: Optional[str] = None,
     method: str = "lm",
@@ -104,7 +105,20 @@ def calibrate(
             raise InvalidParameterError("a fit on several sessions takes no `mask`, `prior` or `bounds`")
         return calibrate_sessions(data, robot, measurement, method, test_fraction, seed, kinematic_prior, causes, angle_unit, **options)
     if causes is None:
-        return api.calibrate(data, robot, measurement, method, test_fraction, seed, mask, prior, bounds, kinematic_prior, angle_unit, **options)
+        return api.calibrate(
+            data,
+            robot=robot,
+            measurement=measurement,
+            method=method,
+            test_fraction=test_fraction,
+            seed=seed,
+            mask=mask,
+            prior=prior,
+            bounds=bounds,
+            kinematic_prior=kinematic_prior,
+            angle_unit=angle_unit,
+            **options,
+        )
     api.check_method(method)
     test_fraction = api.check_test_fraction(test_fraction)
     dataset, r = api.load_inputs(data, robot, measurement, angle_unit)
@@ -262,6 +276,12 @@ def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes
         wander = re.fullmatch(r"wander spacing=([0-9.]+)", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
             pool[label] = wander_candidate(dataset, float(wander.group(1)))
+        curved = re.fullmatch(r"drift degree=(\d+)", label)
+        if curved:  # the session's own drift, refitted on these data
+            pool[label] = drift_candidate(dataset, int(curved.group(1)))
+        periodic = re.fullmatch(r"joint_periodic joint (\d+) harmonic=(\d+)", label)
+        if periodic and 1 <= int(periodic.group(1)) <= problem.robot.n_joints and label not in pool:  # a harmonic found in the place of several
+            pool[label] = periodic_candidate(problem.robot, dataset, int(periodic.group(1)) - 1, int(periodic.group(2)))
         joint_map = MAP_LABEL.fullmatch(label)
         if joint_map and 1 <= int(joint_map.group(1)) <= problem.robot.n_joints:
             if noise is None:  # the roughness is weighed against the geometric fit's residuals

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import f as f_dist
 
-from ..core import is_sparse
+from ..kernels import is_sparse
 from ..stats import rmse_of_squares
 from .candidates import covered_when_fitted_on, map_candidates, map_noise
 from .model import ExtendedProblem, judged_rmse, reported_rmse

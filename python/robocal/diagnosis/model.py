@@ -13,7 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from ..calibration.problem import Problem, fit_row_weights, rotation_weight
-from ..core import is_sparse
+from ..kernels import is_sparse
 from ..data.dataset import Dataset
 from ..serial_robot import RESIDUAL_WIDTH
 from ..stats import rmse_of_squares

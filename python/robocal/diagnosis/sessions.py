@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
-from ..core import is_sparse
+from ..kernels import is_sparse
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..physics import DEG

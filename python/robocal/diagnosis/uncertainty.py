@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import covariance
+from ..kernels import covariance
 from .candidates import PHYSICAL_KINDS, map_curve
 
 

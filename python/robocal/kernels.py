@@ -1,0 +1,233 @@
+"""The Python wrapper around the compiled kernels (:mod:`robocal._robocal`, the Rust core):
+its free functions (sigma points, the unscented transform, damped solves, identifiability,
+covariance, the cable's initial guess) with NumPy-friendly arguments, and the argument checks
+every layer shares (``as_float_array``, ``as_count``, ``seeded_rng`` …).
+
+Inputs may be any array-like; they are converted here to contiguous float64 (the compiled
+module takes nothing else) with errors that name the argument. Shapes, finiteness and values are
+checked again in Rust. The kernels are library internals rather than the user API: reach them as
+``robocal.kernels.solve_damped`` etc.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from . import _robocal
+from .exceptions import InvalidParameterError
+
+#: Largest magnitude of a kinematic input (mm, rad): beyond ±1e12 the core's squares overflow.
+#: The core refuses such inputs by index; readers check first, to name the cell or parameter.
+MAX_ABS = 1e12
+#: How far from 1 the norm of an observed quaternion may be: the core refuses a pose beyond it
+#: (by sample index); readers check first, to name the file and row.
+QUATERNION_NORM_TOL = 1e-3
+
+
+def _real_array(value, name: str) -> np.ndarray:
+    """``value`` as a float64 array of any shape. Complex values are refused rather than cast
+    (the cast would silently drop the imaginary part)."""
+    try:
+        array = np.asarray(value)
+        if array.dtype.kind == "c":
+            raise TypeError(f"complex dtype {array.dtype}")
+        return array.astype(np.float64, copy=False)
+    except (TypeError, ValueError) as exc:
+        raise InvalidParameterError(f"`{name}` must be numeric array-like; got {type(value).__name__} ({exc})") from None
+
+
+def as_float_array(value, name: str) -> np.ndarray:
+    """``value`` as a C-contiguous float64 array, or an error naming ``name``."""
+    return np.ascontiguousarray(_real_array(value, name))
+
+
+def as_float(value, name: str) -> float:
+    """``value`` as a real scalar (float), or an error naming ``name``."""
+    array = _real_array(value, name)
+    if array.ndim != 0:
+        raise InvalidParameterError(f"`{name}` must be a real number; got {value!r}")
+    return float(array)
+
+
+def as_str(value, name: str) -> str:
+    """``value`` if it is a string, else an error naming ``name``."""
+    if not isinstance(value, str):
+        raise InvalidParameterError(f"`{name}` must be a string; got {type(value).__name__} {value!r}")
+    return value
+
+
+def merwe_sigma_points(x, P, alpha: float = 1e-3, beta: float = 2.0, kappa: float = 0.0):
+    """Merwe scaled sigma points (filterpy's ``MerweScaledSigmaPoints``).
+
+    Parameters
+    ----------
+    x : array_like, shape (n,)
+    P : array_like, shape (n, n)
+        Symmetric positive definite covariance.
+    alpha, beta, kappa : float
+
+    Returns
+    -------
+    sigmas : ndarray, shape (2n+1, n)
+    Wm, Wc : ndarray, shape (2n+1,)
+    """
+    return _robocal.merwe_sigma_points(
+        as_float_array(x, "x"), as_float_array(P, "P"), as_float(alpha, "alpha"), as_float(beta, "beta"), as_float(kappa, "kappa")
+    )
+
+
+def unscented_transform(sigmas_x, sigmas_y, Wm, Wc):
+    """Mean and covariance of propagated sigma points and their cross-covariance.
+
+    Returns ``(mean_y (k,), cov_y (k, k), cross (n, k))`` — the paper's eq. (10)-(11).
+    """
+    return _robocal.unscented_transform(
+        as_float_array(sigmas_x, "sigmas_x"), as_float_array(sigmas_y, "sigmas_y"), as_float_array(Wm, "Wm"), as_float_array(Wc, "Wc")
+    )
+
+
+def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "normal"):
+    """Damped step ``(JᵀJ + λD) δ = Jᵀr``.
+
+    ``damping="marquardt"`` uses ``D = diag(JᵀJ)``, ``"identity"`` the paper's ``D = I`` (eq. 14).
+    ``factor="normal"`` solves the normal equations as the paper writes them (Cholesky, or an SVD
+    for a matrix that is not positive definite); ``"lstsq"`` solves the same step as the least
+    squares of ``[J; √λ·D^½] δ ≈ [r; 0]`` by QR of ``J`` itself (an SVD if rank-deficient), which
+    keeps directions the normal equations lose to their squared condition number.
+    Returns ``(delta (n,), method)`` with method ``"cholesky"``, ``"qr"`` or ``"svd"``.
+    """
+    return _robocal.solve_damped(as_float_array(J, "J"), as_float_array(r, "r"), as_float(lam, "lam"), as_str(damping, "damping"), as_str(factor, "factor"))
+
+
+def factor_damped(J):
+    """``J`` (m, n) factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
+    damped steps ``min ‖J·δ − b‖² + λ‖δ‖²``; a sparse ``J`` (scipy.sparse, a model with joint
+    maps) through its normal equations (:class:`DampedNormal`).
+
+    Returns a ``DampedQr`` with ``project(b)`` → ``c = Qᵀb`` (n,) — ``‖c‖`` is the norm of
+    ``b``'s part that ``J`` explains — and ``solve(c, lam)`` → the step ``δ`` (n,). Scale the
+    columns of ``J`` beforehand for Marquardt's damping.
+    """
+    if is_sparse(J):
+        return DampedNormal(J)
+    return _robocal.DampedQr(as_float_array(J, "J"))
+
+
+def is_sparse(J) -> bool:
+    """True for a scipy.sparse matrix (tested without importing scipy)."""
+    return type(J).__module__.startswith("scipy.sparse")
+
+
+def sparse_gram(J) -> np.ndarray:
+    """``JᵀJ`` (n, n) of a scipy.sparse ``J``, in Rust from its CSR rows (each row's pairs of
+    entries: a tenth of the dense product for a model with joint maps)."""
+    J = J.tocsr()
+    return _robocal.sparse_gram(J.indptr, J.indices, as_float_array(J.data, "J"), J.shape[1])
+
+
+class DampedNormal:
+    """The damped steps of a sparse ``J`` from its normal equations ``N = JᵀJ = L·Lᵀ``.
+
+    ``JᵀJ`` of a model with joint maps is cheap to form (each sample touches four spline
+    coefficients per map) and small (n × n), where a QR of ``J`` would fill it in. The same
+    ``project``/``solve`` as ``DampedQr`` in the basis ``Q = J·L⁻ᵀ`` (orthonormal columns):
+    ``c = L⁻¹·Jᵀb`` and the step ``(N + λI)⁻¹·L·c``, one Cholesky factor per damping. A
+    relative ridge of :data:`RIDGE` keeps ``N`` definite where the data leave a direction free.
+    """
+
+    RIDGE = 1e-12
+
+    def __init__(self, J):
+        from scipy.linalg import cholesky
+
+        self.J = J
+        N = sparse_gram(J)
+        self.N = N + self.RIDGE * max(float(np.max(np.diag(N))), 1e-300) * np.eye(len(N))
+        self.L = cholesky(self.N, lower=True)
+
+    def project(self, b: np.ndarray) -> np.ndarray:
+        from scipy.linalg import solve_triangular
+
+        return solve_triangular(self.L, self.J.T @ b, lower=True)
+
+    def solve(self, c: np.ndarray, lam: float) -> np.ndarray:
+        from scipy.linalg import cho_factor, cho_solve
+
+        return cho_solve(cho_factor(self.N + lam * np.eye(len(self.N)), lower=True), self.L @ c)
+
+
+def identifiability(J, tol: float = 1e-9) -> dict:
+    """Rank, singular values, identifiable subset and redundancies of a Jacobian (m, n).
+
+    Computed on unit-norm columns. ``redundant`` lists, for each parameter outside the subset,
+    ``(j, [(k, c_k), ...])`` with scaled column ``j ≈ Σ c_k · column k``.
+    """
+    return _robocal.identifiability(as_float_array(J, "J"), as_float(tol, "tol"))
+
+
+def covariance(J, r, tol: float = 1e-9):
+    """Parameter covariance ``σ̂²(JᵀJ)⁺`` with ``σ̂² = ‖r‖²/(rows − rank)``.
+
+    Returns ``(cov (n, n), sigma2, dof, rank)``. A sparse ``J`` goes through its normal equations.
+    """
+    if is_sparse(J):
+        r = as_float_array(r, "r")
+        s2, V = np.linalg.eigh(sparse_gram(J))
+        keep = s2 > as_float(tol, "tol") ** 2 * max(float(s2[-1]), 1e-300)
+        rank = int(np.count_nonzero(keep))
+        dof = max(J.shape[0] - rank, 1)
+        sigma2 = float(r @ r) / dof
+        cov = (V[:, keep] / s2[keep]) @ V[:, keep].T * sigma2
+        return cov, sigma2, dof, rank
+    return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), as_float(tol, "tol"))
+
+
+def cable_initial_guess(p, L):
+    """Closed-form cable anchor ``P0`` (mm) and sensor zero ``L0`` (mm) from tool points ``p``
+    (m, 3) and cable lengths ``L`` (m,). Exact on noiseless data."""
+    return _robocal.cable_initial_guess(as_float_array(p, "p"), as_float_array(L, "L"))
+
+
+def check_seed(seed, name: str = "seed"):
+    """``seed`` if it is None (fresh entropy) or an integer >= 0 (what NumPy's generators take),
+    else an error naming ``name``."""
+    if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        return seed
+    raise InvalidParameterError(f"`{name}` must be None or an integer >= 0; got {seed!r}")
+
+
+def seeded_rng(seed, name: str = "seed") -> np.random.Generator:
+    """``numpy.random.default_rng(seed)`` after :func:`check_seed`."""
+    return np.random.default_rng(check_seed(seed, name))
+
+
+#: Upper bound of sample counts a user asks for (simulate, export's round trip): a million
+#: samples is far beyond any calibration and still fits in memory; a typo of 1e8 does not.
+MAX_SAMPLES = 1_000_000
+
+
+def as_count(value, name: str, least: int = 1, most: Optional[int] = None) -> int:
+    """``value`` as an int if it is an integer in ``[least, most]`` (not a bool), else an error naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise InvalidParameterError(f"`{name}` must be an integer >= {least}; got {value!r}")
+    if most is not None and value > most:
+        raise InvalidParameterError(f"`{name}` must be at most {most:,}; got {value:,}")
+    return int(value)
+
+
+def as_positive(value, name: str) -> float:
+    """``value`` as a float if it is finite and > 0, else an error naming ``name``."""
+    number = as_float(value, name)
+    if not (np.isfinite(number) and number > 0):
+        raise InvalidParameterError(f"`{name}` must be finite and > 0; got {value!r}")
+    return number
+
+
+def as_tolerance(value, name: str) -> float:
+    """``value`` as a float if it is finite and >= 0, else an error naming ``name``."""
+    number = as_float(value, name)
+    if not (np.isfinite(number) and number >= 0):
+        raise InvalidParameterError(f"`{name}` must be finite and >= 0; got {value!r}")
+    return number
