@@ -183,14 +183,14 @@ def pybotics_lm(r, problem, args):
     from pybotics.predefined_models import ur10
     from pybotics.robot import Robot as PyboticsRobot
 
-    from robocal.calibration.problem import _kabsch
+    from robocal.geometry import kabsch
 
     if problem.data.measurement != "position":
         raise NotImplementedError("pybotics' calibration fits positions only (optimize_accuracy / compute_absolute_errors); it has no cable-length model")
     q, y = problem.data.q, problem.data.y
     pr = PyboticsRobot.from_parameters(ur10())
     flange = np.array([pr.fk(qi)[:3, 3] for qi in q])
-    pr.world_frame = _kabsch(flange, y)
+    pr.world_frame = kabsch(flange, y)
 
     def solve():
         handler = OptimizationHandler(robot=pr, kinematic_chain_mask=[False] * 4 + [True] * 20, tool_mask=[True] * 3 + [False] * 3, world_mask=[True] * 6)

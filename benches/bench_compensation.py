@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
 import robocal  # noqa: E402
-from robocal.compensation import Targets, _joint_columns, _limits, compensate, nominal_seed, residual_weights, solve_joints  # noqa: E402
+from robocal.compensation import Targets, compensate, joint_columns, joint_limits, nominal_seed, residual_weights, solve_joints  # noqa: E402
 from robocal.simulation import simulate  # noqa: E402
 
 TOL_MM = 1e-4
@@ -33,7 +33,7 @@ TOL_RAD = 1e-7
 
 
 def scipy_solve(robot, measurement, target, seed, lower, upper):
-    cols = _joint_columns(robot)
+    cols = joint_columns(robot)
     y = target[None, :]
     w = residual_weights(measurement)
     fun = lambda q: -robot.residuals(measurement, q[None, :], y).ravel() * w  # noqa: E731  h - y
@@ -65,7 +65,7 @@ def main() -> None:
     nominal = robocal.Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])
     setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
     nominal.params[setup] = calibrated.params[setup]  # as compensate() builds it
-    lower, upper = _limits(calibrated)
+    lower, upper = joint_limits(calibrated)
     rng = np.random.default_rng(args.seed)
     q_true = lower + (upper - lower) * rng.random((args.targets, calibrated.n_joints))
     with open("/proc/loadavg") as f:

@@ -116,12 +116,12 @@ def test_targets_from_configurations_within_the_limits_are_reached_within_them()
     """Issue 14: every target made from joints inside the limits is reachable inside them; the
     bounded LM with restarts reaches at least 99 % (the former solver called 47 of 200
     unreachable) and never answers with a joint outside its limits."""
-    from robocal.compensation import Targets, _limits
+    from robocal.compensation import Targets, joint_limits
 
     data, _ = simulate("hsr-jr680", "position", samples=300, seed=2)
     doc = robocal.calibrate(data, robot="hsr-jr680", test_fraction=0.0).to_dict()
     robot, _ = robocal.load_result(doc)
-    lower, upper = _limits(robot)
+    lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(1).random((100, 6))
     rows = compensate(doc, Targets(robot.predict("position", q), None, np.arange(2, 102)))
     reached = [r for r in rows if r["status"] == "ok"]
@@ -156,7 +156,7 @@ def _assert_pose_targets_reached(doc: dict, m: int, seed: int) -> None:
     """Pose targets the result's model (with its joint causes) reaches at ``m`` random joint
     vectors within the limits: compensate, given the targets alone, reaches every one within
     the limits — checked on the model, not taken from the status."""
-    from robocal.compensation import Targets, _limits
+    from robocal.compensation import Targets, joint_limits
     from robocal.diagnosis.candidates import joint_offsets
 
     robot, _ = robocal.load_result(doc)
@@ -165,7 +165,7 @@ def _assert_pose_targets_reached(doc: dict, m: int, seed: int) -> None:
     def actual(q):  # the angles the links take
         return q if offsets is None else q + offsets(q)
 
-    lower, upper = _limits(robot)
+    lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(seed).random((m, robot.n_joints))
     targets = robot.predict("pose", actual(q))
     rows = compensate(doc, Targets(targets, None, np.arange(2, m + 2)))

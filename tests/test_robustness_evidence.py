@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robocal.calibration.api import calibrate
 from robocal.cli import main
-from robocal.compensation import _limits, compensate
+from robocal.compensation import compensate, joint_limits
 from robocal.data import configuration_groups, kfold, random_split, write_canonical
 from robocal.data.dataset import angle_unit_check
 from robocal.data.splits import chronological, paper_split, require_distinct_sessions
@@ -258,7 +258,7 @@ def test_row34_no_nan_when_nothing_is_reached(tmp_path, position_result, capsys)
 def test_row18_every_reachable_pose_target_is_reached(position_result):
     result, _ = position_result
     robot, _ = robocal.load_result(result)
-    lower, upper = _limits(robot)
+    lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(11).random((40, 6))
     rows = compensate(result, robot.predict("pose", q))
     assert all(r["status"].startswith("ok") for r in rows), [r["status"] for r in rows if not r["status"].startswith("ok")]

@@ -95,7 +95,9 @@ def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targe
     return Targets(values, seeds, rows)
 
 
-def _joint_columns(robot: Robot) -> list[int]:
+def joint_columns(robot: Robot) -> list[int]:
+    """Indices of the joint offsets ``theta1..thetaN`` in the parameter vector: the columns the
+    inverse kinematics solves for (revolute joints only)."""
     if any(j.kind != "revolute" for j in robot.joints):
         raise InvalidParameterError("compensation handles revolute joints only")
     return [robot.index(f"theta{j}") for j in range(1, robot.n_joints + 1)]
@@ -121,7 +123,8 @@ def residual_weights(measurement: str) -> np.ndarray:
     return np.array([1.0, 1.0, 1.0] + [ROTATION_WEIGHT_MM] * 3)[: 3 if measurement == "position" else 6]
 
 
-def _limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+def joint_limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' lower and upper limits (rad), each of shape (N,)."""
     return np.array([j.limits[0] for j in robot.joints]), np.array([j.limits[1] for j in robot.joints])
 
 
@@ -189,8 +192,8 @@ def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float 
     Returns ``(q, residual_mm, status)``; ``status`` is ``"ok"`` or the reason it is not.
     """
     measurement = "pose" if target.size == 7 else "position"
-    cols = _joint_columns(robot)
-    lower, upper = _limits(robot)
+    cols = joint_columns(robot)
+    lower, upper = joint_limits(robot)
     y = target[None, :]
     weight = residual_weights(measurement)
 
@@ -229,7 +232,7 @@ def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float 
 
 def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:
     """The nominal model's solution within the limits (a start for the calibrated one)."""
-    lower, upper = _limits(nominal)
+    lower, upper = joint_limits(nominal)
     q, _, _ = solve_joints(nominal, target, 0.5 * (lower + upper))
     return q
 
