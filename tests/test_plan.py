@@ -11,7 +11,21 @@ from hypothesis import strategies as st
 import robocal
 from robocal.cli import main
 from robocal.exceptions import InvalidParameterError, RobocalError
-from robocal.planning import Constraints, candidate_poses, d_optimal, measuring_order, order_correlations, plan, travel
+from robocal.planning import (
+    Constraints,
+    _i_blocks,
+    _i_update,
+    candidate_poses,
+    d_optimal,
+    i_bound,
+    i_criterion,
+    i_optimal,
+    measuring_order,
+    order_correlations,
+    plan,
+    workspace_weights,
+    travel,
+)
 from robocal.simulation import CABLE_RANGE, RANGE_MARGIN, setup, simulate
 
 SMALL = {"candidates": 1500, "seed": 1}
@@ -38,6 +52,50 @@ def test_required_candidates_stay_in_the_design():
     assert {3, 7} <= set(chosen.tolist())
 
 
+@pytest.mark.parametrize("k", [1, 3])
+def test_the_i_criterions_rank_k_updates_match_a_fresh_computation(k):
+    rng = np.random.default_rng(k)
+    A = rng.normal(size=(120, k, 6))
+    W = (lambda B: B @ B.T)(rng.normal(size=(6, 6)))
+    M = np.eye(6) + np.einsum("nkp,nkq->pq", A[:10], A[:10])
+    Minv = np.linalg.inv(M)
+    S, T = _i_blocks(A, Minv, W)
+    Minv, S, T = _i_update(A, Minv, W, S, T, 40, 1.0)
+    Minv, S, T = _i_update(A, Minv, W, S, T, 3, -1.0)
+    M += A[40].T @ A[40] - A[3].T @ A[3]
+    fresh = _i_blocks(A, np.linalg.inv(M), W)
+    np.testing.assert_allclose(Minv, np.linalg.inv(M), atol=1e-12)
+    np.testing.assert_allclose(S, fresh[0], atol=1e-10)
+    np.testing.assert_allclose(T, fresh[1], atol=1e-10)
+
+
+def test_i_optimal_lowers_the_mean_prediction_variance_below_d_optimal_and_random_designs():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(400, 2, 5)) * np.array([1.0, 0.2, 5.0, 1.0, 0.5])
+    W = np.diag([0.0, 4.0, 0.0, 1.0, 1.0])  # only some directions are predicted: D-optimality spends poses on the others too
+    M0 = 1e-6 * np.eye(5)
+    d = d_optimal(A, M0, 12)
+    chosen = i_optimal(A, M0, W, 12, start=d)
+    assert len(set(chosen.tolist())) == 12
+    phi = i_criterion(A, M0, W, chosen)
+    assert phi < 0.9 * i_criterion(A, M0, W, d)
+    assert phi < min(i_criterion(A, M0, W, rng.choice(400, 12, replace=False)) for _ in range(200))
+    assert i_criterion(A, M0, W, i_optimal(A, M0, W, 12)) < i_criterion(A, M0, W, d)  # from its own greedy start as well
+    assert {3, 7} <= set(i_optimal(A, M0, W, 12, required=[3, 7]).tolist())
+    least = i_bound(A, M0, W, 12)
+    assert 0.5 * phi < least <= phi  # a lower bound of every design of 12, and not a vacuous one
+
+
+def test_the_weights_eliminate_the_set_up():
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(300, 1, 4))
+    A[:, 0, 3] = 2.0  # a reading offset, re-fitted on every session
+    W = workspace_weights(A, ["a", "b", "c", "cable_offset"], ["cable_offset"])
+    assert np.all(W[3] == 0.0) and np.all(W[:, 3] == 0.0)
+    centred = A[:, 0, :3] - A[:, 0, :3].mean(axis=0)
+    np.testing.assert_allclose(W[:3, :3], centred.T @ centred / 300, atol=1e-12)  # what an offset leaves: the spread about the mean
+
+
 @pytest.mark.parametrize("robot,measurement", [("hsr-jr680", "cable"), ("ur10", "position")])
 def test_planned_poses_determine_the_parameters_better_than_random_ones(robot, measurement):
     report = plan(robot, measurement, 30, **SMALL).report
@@ -49,6 +107,17 @@ def test_planned_poses_determine_the_parameters_better_than_random_ones(robot, m
     after = np.array([p["after"] for p in report["parameters"]])
     random = np.array([p["random"] for p in report["parameters"]])
     assert np.median(after / random) < 1.0
+
+
+def test_the_criteria_predict_the_error_of_a_new_session_and_its_least_possible():
+    plans = {c: plan("abb-irb120", "cable", 30, criterion=c, causes=["joint_compliance joint 2"], bound=c == "I", **SMALL) for c in ("I", "D")}
+    i, d = (plans[c].report["prediction"] for c in ("I", "D"))
+    assert "I-optimal" in plans["I"].report["criterion"] and "D-optimal" in plans["D"].report["criterion"]
+    assert i["before"] is None and i["random"] == d["random"]  # same candidates, same random draw
+    assert i["least_possible"] <= i["after"] <= d["after"] * (1 + 1e-9) and i["after"] < i["random"]
+    assert "least_possible" not in d
+    with pytest.raises(InvalidParameterError, match="`criterion` must be one of"):
+        plan("abb-irb120", "cable", 10, criterion="A", **SMALL)
 
 
 def test_a_plan_is_deterministic_for_a_seed():
@@ -198,7 +267,7 @@ def test_the_cli_writes_a_canonical_plan_the_loader_reads_back(tmp_path, capsys)
     code = main(["plan", "--robot", "abb-irb120", "--measurement", "cable", "--poses", "40", "--candidates", "800", "--joint-range", "1=-30,30",
                  "--out", str(out), "--json", str(tmp_path / "plan.json")])  # fmt: skip
     printed = capsys.readouterr().out
-    assert code == 0 and "40 poses" in printed and "not checked" in printed
+    assert code == 0 and "40 poses" in printed and "not checked" in printed and "I-optimal" in printed
     data = robocal.load(out)
     assert data.q.shape == (40, 6) and data.measurement == "cable"
     assert np.all(np.abs(np.degrees(data.q[:, 0])) <= 30.0)
@@ -211,6 +280,15 @@ def test_the_cli_names_the_constraint_that_leaves_no_candidate(tmp_path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "the cable reading within 25..1975 mm" in err[0] and err[0].startswith("robocal: error: ")
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_the_cli_takes_the_criterion_and_the_bound(tmp_path, capsys):
+    args = ["plan", "--robot", "ur10", "--measurement", "position", "--poses", "12", "--candidates", "400", "--out", str(tmp_path / "p.csv")]
+    assert main([*args, "--criterion", "D", "--bound"]) == 0
+    printed = capsys.readouterr().out
+    assert "D-optimal" in printed and "the least any 12 poses could reach" in printed
+    with pytest.raises(SystemExit):
+        main([*args, "--criterion", "E"])
 
 
 ODD = [None, 0, -1, 2.5, "x", float("nan"), np.inf, [], [1.0, 2.0], (np.nan, 1.0), {"a": 1}, True]

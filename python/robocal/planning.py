@@ -66,8 +66,15 @@ MAX_DRAW_FACTOR = 200
 #: The greedy start's ridge, in columns scaled to one candidate's information each: a millionth
 #: of a pose, enough to invert the information before there are as many poses as parameters.
 RIDGE = 1e-6
+#: The design criteria :func:`plan` offers, as its report names them.
+CRITERIA = {
+    "I": "I-optimal: the least mean variance of a new session's readings over the workspace, its set-up re-fitted (Fedorov exchange from the D-optimal design)",
+    "D": "D-optimal: log det of the parameters' information (greedy selection, Fedorov exchange)",
+}
 #: Fedorov exchange passes over the chosen poses (each stops early once no swap helps).
 EXCHANGE_PASSES = 3
+#: Iterations of the multiplicative algorithm behind :func:`i_bound` (its bound is valid after any number).
+BOUND_ITERATIONS = 300
 #: Poses on which the predicted position's standard deviation over the workspace is averaged.
 WORKSPACE_POSES = 500
 #: A direction of the information matrix weaker than this (relative to its largest) is undetermined.
@@ -327,6 +334,169 @@ def d_optimal(A: np.ndarray, M0: np.ndarray, size: int, required: Sequence[int] 
         if not swaps:
             break
     return np.array(chosen, dtype=int)
+
+
+# -- the I-optimal design --------------------------------------------------------------------------
+def _i_blocks(A: np.ndarray, Minv: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``S_j = A_j M⁻¹ A_jᵀ`` and ``T_j = A_j M⁻¹ W M⁻¹ A_jᵀ`` (n, k, k) of every candidate."""
+    n, k, p = A.shape
+    H = A.reshape(n * k, p) @ Minv
+    Ht = H.reshape(n, k, p).transpose(0, 2, 1)
+    return np.matmul(A, Ht), np.matmul((H @ W).reshape(n, k, p), Ht)
+
+
+def _i_gains(S: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """``tr((I + S_i)⁻¹ T_i)`` of every candidate: what adding pose ``i`` takes off ``tr(W M⁻¹)``."""
+    if S.shape[1] == 1:
+        return T[:, 0, 0] / (1.0 + S[:, 0, 0])
+    return np.trace(np.linalg.solve(np.eye(S.shape[1]) + S, T), axis1=1, axis2=2)
+
+
+def _i_update(A: np.ndarray, Minv: np.ndarray, W: np.ndarray, S: np.ndarray, T: np.ndarray, i: int, sign: float) -> tuple:
+    """``M⁻¹``, ``S`` and ``T`` (:func:`_i_blocks`) after adding (``sign`` +1) or removing (−1)
+    candidate ``i``: with ``U = M⁻¹A_iᵀ`` and ``R = (I + s·S_i)⁻¹``, ``M⁻¹`` loses ``s·U R Uᵀ``,
+    each ``S_j`` loses ``s·C_j R C_jᵀ`` and ``T_j`` becomes
+    ``T_j − s(C_j R E_jᵀ + E_j R C_jᵀ) + C_j R Q R C_jᵀ`` (``C_j = A_j U``, ``E_j = A_j M⁻¹ W U``,
+    ``Q = Uᵀ W U``)."""
+    n, k, p = A.shape
+    U = Minv @ A[i].T
+    R = np.linalg.inv(np.eye(k) + sign * S[i])
+    flat = A.reshape(n * k, p)
+    C = (flat @ U).reshape(n, k, k)
+    E = (flat @ (Minv @ (W @ U))).reshape(n, k, k)
+    CR = C @ R
+    cross = np.matmul(CR, E.transpose(0, 2, 1))
+    T = T - sign * (cross + cross.transpose(0, 2, 1)) + np.matmul(CR @ (U.T @ W @ U), CR.transpose(0, 2, 1))
+    return Minv - sign * U @ R @ U.T, S - sign * np.matmul(CR, C.transpose(0, 2, 1)), T
+
+
+def _i_exchange(A: np.ndarray, W: np.ndarray, chosen: list, fixed: int) -> int:
+    """One Fedorov exchange pass for the I-criterion (whitened: the prior is the identity): each
+    chosen pose after ``fixed`` is swapped for the candidate of :data:`SHORTLIST` that lowers
+    ``tr(W M⁻¹)`` most, if any does; returns the number of swaps."""
+    p = A.shape[2]
+    Minv = np.linalg.inv(np.eye(p) + sum(A[i].T @ A[i] for i in chosen))
+    S, T = _i_blocks(A, Minv, W)
+    gain = _i_gains(S, T)
+    gain[chosen] = np.inf
+    size = min(len(A), max(SHORTLIST, 11 * len(chosen)))
+    short = np.argpartition(-gain, size - 1)[:size]
+    At = A[short]
+    at = {int(c): int(np.flatnonzero(short == c)[0]) for c in chosen}
+    S, T = S[short], T[short]
+    free = np.ones(len(short), dtype=bool)
+    free[list(at.values())] = False
+    swaps = 0
+    for slot in range(fixed, len(chosen)):
+        i = at[chosen[slot]]
+        if 1.0 - float(np.max(np.linalg.eigvalsh(S[i]))) < 1e-9:  # the design cannot do without it
+            continue
+        without = _i_update(At, Minv, W, S, T, i, -1.0)
+        gains = _i_gains(without[1], without[2])
+        j = int(np.argmax(np.where(free, gains, -np.inf)))
+        if gains[j] <= gains[i] * (1.0 + 1e-9):
+            continue
+        chosen[slot] = int(short[j])
+        free[i], free[j] = True, False
+        Minv, S, T = _i_update(At, without[0], W, without[1], without[2], j, 1.0)
+        swaps += 1
+    return swaps
+
+
+def i_criterion(A: np.ndarray, M0: np.ndarray, W: np.ndarray, chosen) -> float:
+    """``tr(W M⁻¹)``, ``M = M0 + Σ A_iᵀA_i`` over ``chosen``: the average prediction variance
+    (in units of the reading's variance) over the poses ``W`` averages."""
+    idx = np.asarray(chosen, dtype=int)
+    M = M0 + np.einsum("nkp,nkq->pq", A[idx], A[idx])
+    return float(np.trace(np.linalg.solve(M, W)))
+
+
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def i_optimal(A: np.ndarray, M0: np.ndarray, W: np.ndarray, size: int, required: Sequence[int] = (), passes: int = EXCHANGE_PASSES,
+              start: Optional[Sequence[int]] = None) -> np.ndarray:  # fmt: skip
+    """Indices of ``size`` distinct candidates that (nearly) minimise ``tr(W M⁻¹)``,
+    ``M = M0 + Σ A_iᵀA_i``: the I-optimal (V-optimal) design, the average variance of what is
+    predicted with weights ``W`` (the mean of the test poses' ``JᵀJ``). Fedorov exchange passes
+    from ``start`` (a design of ``size``, e.g. the D-optimal one: greedy steps for a trace from a
+    near-singular start pick what the ridge leaves loose, not what the test poses need), else
+    from a greedy selection."""
+    L = np.linalg.cholesky(M0)
+    A, _ = _whitened(A, M0)
+    W = np.linalg.solve(L, np.linalg.solve(L, W).T)  # L⁻¹ W L⁻ᵀ: the same trace in whitened coordinates
+    fixed = min(len(required), size)
+    if start is not None:
+        chosen = [int(i) for i in start]
+    else:
+        chosen = [int(i) for i in list(required)[:size]]
+        p = A.shape[2]
+        Minv = np.linalg.inv(np.eye(p) + sum(A[i].T @ A[i] for i in chosen))
+        S, T = _i_blocks(A, Minv, W)
+        free = np.ones(len(A), dtype=bool)
+        free[chosen] = False
+        while len(chosen) < size:
+            i = int(np.argmax(np.where(free, _i_gains(S, T), -np.inf)))
+            chosen.append(i)
+            free[i] = False
+            Minv, S, T = _i_update(A, Minv, W, S, T, i, 1.0)
+    for _ in range(passes):
+        swaps = _i_exchange(A, W, chosen, fixed)
+        logger.debug("I exchange pass: %d swaps", swaps)
+        if not swaps:
+            break
+    return np.array(chosen, dtype=int)
+
+
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def i_bound(A: np.ndarray, M0: np.ndarray, W: np.ndarray, size: int, iterations: int = BOUND_ITERATIONS) -> float:
+    """A lower bound of ``tr(W M⁻¹)`` over every design of ``size`` poses among the candidates
+    ``A`` (repeats allowed): the continuous relaxation — weights ``ξ`` on the candidates, summing
+    to one, ``M = M0 + size·Σ ξ_i A_iᵀA_i`` — improved by the multiplicative algorithm
+    (``ξ_i ∝ ξ_i √d_i``, ``d_i = tr(A_i M⁻¹ W M⁻¹ A_iᵀ)``), and bounded by its convexity:
+    ``Φ* ≥ Φ(ξ) − size·(max d_i − Σ ξ_i d_i)`` (the Frank–Wolfe gap), whatever the iterations."""
+    n, k, p = A.shape
+    flat = A.reshape(n * k, p)
+    xi = np.full(n, 1.0 / n)
+    best = 0.0
+    for _ in range(iterations):
+        M = M0 + size * (flat.T @ (flat * np.repeat(xi, k)[:, None]))
+        Minv = np.linalg.inv((M + M.T) / 2)
+        H = flat @ Minv
+        d = np.maximum(np.sum((H @ W) * H, axis=1).reshape(n, k).sum(axis=1), 0.0)
+        phi = float(np.trace(W @ Minv))
+        mean = float(xi @ d)
+        best = max(best, phi - size * (float(d.max()) - mean))
+        xi = xi * np.sqrt(d / max(mean, 1e-300))
+        xi /= xi.sum()
+    return best
+
+
+def workspace_weights(A: np.ndarray, names: Sequence[str], setup: Sequence[str]) -> np.ndarray:
+    """``W``, the mean over the candidates of ``JᵀJ`` with the set-up's columns eliminated (the
+    Schur complement): ``tr(W Cov)`` is the mean variance of a new session's readings at poses
+    drawn like the candidates, its set-up fitted anew on them (as ``robocal verify`` does)."""
+    F = _information(A) / len(A)
+    s = [i for i, n in enumerate(names) if n in setup]
+    r = [i for i in range(len(names)) if i not in s]
+    W = np.zeros_like(F)
+    W[np.ix_(r, r)] = F[np.ix_(r, r)] - F[np.ix_(r, s)] @ np.linalg.pinv(F[np.ix_(s, s)]) @ F[np.ix_(s, r)] if s else F
+    return (W + W.T) / 2
+
+
+def _information(A: np.ndarray) -> np.ndarray:
+    """``Σ A_iᵀA_i`` of the candidates' rows ``A`` (n, k, p)."""
+    return np.einsum("nkp,nkq->pq", A, A)
+
+
+def _prediction_rms(M: np.ndarray, W: np.ndarray, sigma: float) -> Optional[float]:
+    """The RMS over the workspace of the error (mm; the norm of a pose's readings, as
+    ``robocal verify``'s RMSE) predicted on a new session, ``σ·√tr(W M⁺)``; None where ``W``
+    needs a direction ``M`` leaves undetermined."""
+    values, V = np.linalg.eigh(M)
+    keep = values > UNDETERMINED * max(float(values[-1]), 0.0) if values[-1] > 0 else np.zeros(len(values), dtype=bool)
+    null = V[:, ~keep]
+    if null.size and np.linalg.norm(W @ null) > 1e-9 * max(np.linalg.norm(W), 1e-300):
+        return None
+    return float(sigma * math.sqrt(max(np.trace(W @ (V[:, keep] / values[keep]) @ V[:, keep].T), 0.0)))
 
 
 def map_bins(q: np.ndarray, lower: float, upper: float, spacing: float) -> np.ndarray:
@@ -679,6 +849,8 @@ def plan(
     noise: Optional[float] = None,
     passes: Optional[int] = None,
     angle_unit: Optional[str] = None,
+    criterion: str = "I",
+    bound: bool = False,
 ) -> Plan:
     """Chooses ``poses`` joint configurations, and the order to measure them in, that determine
     the model's parameters best (see the module notes).
@@ -733,6 +905,13 @@ def plan(
         Interleaved passes over the workspace (default :func:`default_passes`).
     angle_unit : {"deg", "rad"}, optional
         Unit of the joint columns of canonical ``data`` files.
+    criterion : {"I", "D"}
+        ``"I"`` (default): the I-optimal design, the least average variance of a new session's
+        readings over the workspace (the set-up re-fitted), started from the D-optimal one;
+        ``"D"``: the D-optimal design, the least volume of the parameters' confidence ellipsoid.
+    bound : bool
+        Also state the least predicted error any ``poses`` poses among the candidates could reach
+        (``prediction["least_possible"]``, :func:`i_bound`; seconds more).
 
     Returns
     -------
@@ -742,7 +921,9 @@ def plan(
         same constraints; mm or deg; None where undetermined; ``within_tolerance`` of 1 mm /
         0.1°), ``causes`` (the same for the causes' physical quantities), ``position`` (the
         predicted tool point's standard deviation over the workspace: RMS and largest, mm),
-        ``d_efficiency_random`` (what a random pose is worth against a planned one), ``order``
+        ``d_efficiency_random`` (what a random pose is worth against a planned one),
+        ``prediction`` (the predicted RMS error of a new session's readings over the workspace,
+        the set-up re-fitted, mm: ``before``, ``after``, ``random``; None where undetermined), ``order``
         (``passes``, ``travel_deg`` beside a single tour's and a random order's, each joint's
         ``correlation`` with the acquisition order), ``constraints`` and ``not_checked``,
         ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
@@ -752,6 +933,8 @@ def plan(
     unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
     if unknown:
         raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
+    if criterion not in CRITERIA:
+        raise InvalidParameterError(f"`criterion` must be one of {sorted(CRITERIA)}; got {criterion!r}")
     poses = as_count(poses, "poses", least=1)
     candidates = as_count(candidates, "candidates", least=poses)
     rng = seeded_rng(seed)
@@ -787,7 +970,10 @@ def plan(
     readings_per_pose = RESIDUAL_WIDTH[measurement]
     if measured is None and poses * readings_per_pose <= len(design.names):
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
+    weights = workspace_weights(design.A, design.names, setup_names(robot, measurement))
     chosen = d_optimal(design.A, start, poses, required=required)
+    if criterion == "I":
+        chosen = i_optimal(design.A, start, weights, poses, required=required, start=chosen)
     chosen = chosen[measuring_order(readings[chosen] / _per_degree(robot), passes)]
     planned = readings[chosen]
     random_pick = rng.choice(len(pool), size=poses, replace=False)
@@ -804,6 +990,10 @@ def plan(
             within = None if std["after"] is None or unit not in TOLERANCE else bool(states["after"].std([i])[0] <= TOLERANCE[unit])
             entries.append({"name": name, "unit": "deg" if unit == "rad" else unit, **std, "within_tolerance": within})
     cause_std = {key: _cause_std(design, u, robot) for key, u in states.items()}
+    prediction = {key: _prediction_rms(before_info + (0.0 if idx is None else _information(design.A[idx])), weights, sigma)
+                  for key, idx in (("before", None), ("after", chosen), ("random", random_pick))}  # fmt: skip
+    if bound:
+        prediction["least_possible"] = float(sigma * math.sqrt(max(i_bound(design.A, start, weights, poses), 0.0)))
     shown_causes = [c for c in design.causes if c.stage != "parameters"]
     in_degrees = planned / _per_degree(robot)
     report = {
@@ -813,13 +1003,14 @@ def plan(
         "poses": poses,
         "candidates": len(pool),
         "noise_mm": sigma,
-        "criterion": "D-optimal: log det of the parameters' information (greedy selection, Fedorov exchange)",
+        "criterion": CRITERIA[criterion],
         "parameters": entries,
         "tolerance": {"mm": TOLERANCE["mm"], "deg": float(TOLERANCE["rad"] / DEG), "beyond": [e["name"] for e in entries if e["within_tolerance"] is False]},
         "causes": [{"label": c.label, **{key: cause_std[key][n] for key in states}} for n, c in enumerate(shown_causes)],
         "undetermined": {key: u.undetermined for key, u in states.items()},
         "position": {key: u.position_summary() for key, u in states.items()},
         "d_efficiency_random": float(np.exp((states["random"].logdet - states["after"].logdet) / len(design.names))),
+        "prediction": prediction,
         "order": {
             "passes": passes,
             "travel_deg": travel(in_degrees),

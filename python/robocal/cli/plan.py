@@ -11,7 +11,7 @@ import time
 from ..data.dataset import OBSERVATION_COLUMNS
 from ..exceptions import InvalidParameterError
 from ..outputs import printable, write_text
-from ..planning import CANDIDATES, TRACKER_RANGE, plan
+from ..planning import CANDIDATES, CRITERIA, TRACKER_RANGE, plan
 from ..results import load_result
 from ..robot import MEASUREMENTS
 from ..robot import robot as load_robot
@@ -66,6 +66,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a box in the robot base frame the tool point must stay in, mm (default: above the mounting plane, z > 0)")  # fmt: skip
     parser.add_argument("--noise", type=float, metavar="MM", help="the reading's standard deviation, mm (default: the sensor's)")
     parser.add_argument("--passes", type=int, help="interleaved passes over the workspace (default about sqrt(N)/2)")
+    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="I",
+                        help="I: the least mean error predicted over the workspace on a new session (default); D: the least volume of the parameters' "
+                        "confidence ellipsoid (log det)")  # fmt: skip
+    parser.add_argument("--bound", action="store_true", help="also state the least predicted error any N poses among the candidates could reach (seconds more)")
     add_angle_unit_argument(parser, "q columns of canonical --data files")
 
 
@@ -91,6 +95,10 @@ def _source(path):
     return None, document
 
 
+def _mm(value) -> str:
+    return "undetermined" if value is None else f"{value:.4f} mm RMS"
+
+
 def summary(report: dict, out: str, seconds: float) -> str:
     """A few lines for the terminal."""
     position = report["position"]
@@ -101,6 +109,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
             return f"undetermined ({open_} directions the data leave open)" if key == "before" and report["data"]["samples"] else "undetermined"
         return f"{entry['rms_mm']:.4f} mm RMS (largest {entry['max_mm']:.4f})" + (f", {entry['undetermined_share']:.0%} of it undetermined" if open_ else "")
 
+    prediction = report["prediction"]
     params = report["parameters"]
     determined = [p for p in params if p["after"] is not None]
     worst = max(determined, key=lambda p: p["after"] / report["tolerance"].get(p["unit"], 1.0), default=None)
@@ -114,6 +123,9 @@ def summary(report: dict, out: str, seconds: float) -> str:
         + (f" and the causes {', '.join(c['label'] for c in report['causes'])}" if report["causes"] else "")
         + (f"; left out (redundant or no effect here): {', '.join(report['fixed'])}" if report["fixed"] else ""),
         f"  the tool point's standard deviation over the workspace: {mm('before')} before, {mm('after')} after; {report['poses']} random poses: {mm('random')}",
+        f"  predicted error of a new session over the workspace (its set-up re-fitted): {_mm(prediction['before'])} before, "
+        f"{_mm(prediction['after'])} after; {report['poses']} random poses: {_mm(prediction['random'])}"
+        + (f"; the least any {report['poses']} poses could reach: {_mm(prediction['least_possible'])}" if "least_possible" in prediction else ""),
         f"  every parameter within {report['tolerance']['mm']:g} mm / {report['tolerance']['deg']:g} deg: "
         + ("yes" if not beyond and not undetermined else f"no — {len(beyond)} beyond, {len(undetermined)} undetermined")
         + (f" (the largest against it: {worst['name']} ± {worst['after']:.3g} {worst['unit']})" if worst else ""),
@@ -140,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
     ranges = {j: tuple(v if j - 1 in prismatic else math.radians(v) for v in bounds) for j, bounds in args.joint_range}
     planned = plan(args.robot, args.measurement, args.poses, result=result, causes=causes, data=args.data, candidates=args.candidates, seed=args.seed,
                    joint_ranges=ranges or None, cable_range=args.cable_range, anchor=args.anchor, tool=args.tool, tracker=args.tracker,
-                   tracker_range=args.tracker_range, box=args.box, noise=args.noise, passes=args.passes, angle_unit=args.angle_unit)  # fmt: skip
+                   tracker_range=args.tracker_range, box=args.box, noise=args.noise, passes=args.passes, angle_unit=args.angle_unit,
+                   criterion=args.criterion, bound=args.bound)  # fmt: skip
     planned.write(args.out)
     report = planned.to_dict()
     text = json.dumps(report, indent=2)
