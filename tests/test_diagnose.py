@@ -487,7 +487,7 @@ def test_outliers_that_follow_long_joint_moves_are_named_as_unsettled_readings()
     the outliers follow long moves far more often than the samples do; outliers spread over the
     path are not. The command line and the HTML report say it."""
     from robocal.diagnosis.settling import after_long_moves, preceding_move_deg
-    from robocal.report import settling_words
+    from robocal.report.text import settling_words
 
     data, _ = simulate("ur10", "position", samples=400, seed=3)
     rng = np.random.default_rng(0)

@@ -18,7 +18,7 @@ from robocal.kernels import DampedNormal, factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.select import _fold_maps
 from robocal.physics import DEG
-from robocal.report import map_figure
+from robocal.report.figures import map_figure
 from robocal.simulation import simulate
 
 #: A transmission error of joint 2 at 9 and 14 cycles per revolution: far beyond the harmonics

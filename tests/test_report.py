@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import robocal
-from robocal import report as report_module
+from robocal.report import figures as report_figures
+from robocal.report import page as report_page
 from robocal.cli import report as report_cli
 from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
@@ -74,9 +75,9 @@ def test_evaluation_reproduces_the_recorded_metrics(calibrated):
     the held-out rows are the recorded ones, and the nominal model is worse."""
     path, doc, csv_path = calibrated
     robot, doc = load_result(path)
-    d = report_module._load_data(doc, None)
+    d = report_page._load_data(doc, None)
     assert d.same_file and len(d.dataset) == 200
-    ev = report_module._evaluate(robot, doc, d.dataset, d.same_file)
+    ev = report_page._evaluate(robot, doc, d.dataset, d.same_file)
     assert ev.held_out.sum() == len(doc["dataset"]["rows_held_out"]) == doc["metrics"]["test"]["n"]
     train = ev.after[~ev.held_out]
     assert np.sqrt(np.mean(train**2)) == pytest.approx(doc["metrics"]["train"]["rmse"], rel=1e-6)
@@ -112,7 +113,7 @@ def test_cli_with_a_diagnosis(calibrated, tmp_path, capsys):
     # Labels are escaped, the cause's parameters shown.
     assert "joint_periodic joint 2 &lt;harmonic=1&gt;" in text and "<harmonic=1>" not in text
     assert "amplitude 0.01 ± 0.001 deg" in text
-    assert [s[0] for s in report_module._diagnosis_steps(diagnosis)] == [
+    assert [s[0] for s in report_figures._diagnosis_steps(diagnosis)] == [
         "geometric, outliers kept",
         "geometric baseline (outliers removed)",
         "+ joint_periodic joint 2 <harmonic=1>",
@@ -214,7 +215,7 @@ def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
     """Titles, labels and annotations of every figure lie within its canvas, long cause labels
     included (the diagnosis chart's title ran off its right edge)."""
     path, _, _ = calibrated
-    save, outside = report_module._save, []
+    save, outside = report_figures._save, []
 
     def checked(fig, where):
         fig.canvas.draw()
@@ -224,7 +225,7 @@ def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
             outside.append((where.name, drawn.bounds))
         return save(fig, where)
 
-    monkeypatch.setattr(report_module, "_save", checked)
+    monkeypatch.setattr(report_figures, "_save", checked)
     long = "joint_map joint 3 spacing=5 roughness=0.01 beside joint_coupling joint 3 source=2"
     diagnosis = {"robot": "abb-irb120", "measurement": "position", "samples": 200, "source": None,
                  "baseline": {"rmse_heldout": 0.05, "folds": 5}, "rejected": [], "final": {"rmse_heldout": 0.03},

@@ -12,7 +12,8 @@ from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..diagnosis.leftover import leftover_words
 from ..outputs import make_folder, printable, save_figure, write_text
-from ..report import correlation_words, diagnosis_figure, map_figure, map_tables, settling_words
+from ..report.figures import diagnosis_figure, map_figure
+from ..report.text import correlation_words, map_tables, settling_words
 from .arguments import add_data_arguments
 
 

@@ -1,5 +1,8 @@
 """The calibration report: one self-contained HTML page with figures, from a result file.
 
+The page, the inputs it reads and their evaluation; the figures are in
+:mod:`robocal.report.figures`, the words shared with the command line in :mod:`robocal.report.text`.
+
 ``robocal report RESULT --out DIR`` reads a result file (:mod:`robocal.results`, written by
 ``robocal calibrate --out``) and writes ``DIR/index.html`` with PNG figures beside it:
 
@@ -26,32 +29,40 @@ moved or archived as a whole.
 from __future__ import annotations
 
 import html
-import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
 
 import numpy as np
 
-from ._robocal import __version__
-from .acceptance import iso9283, summary_rows
-from .calibration.api import load_inputs
-from .calibration.metrics import sample_errors
-from .calibration.problem import implausible_parameters, is_kinematic, start_parameters
-from .calibration.result import describe_implausible, implausible_meaning
-from .data.dataset import Dataset
-from .diagnosis import structure
-from .diagnosis.leftover import leftover_words
-from .diagnosis.result_model import ResultModel, result_model
-from .exceptions import InvalidParameterError, RobocalError
-from .outputs import make_folder, save_figure, write_text
-from .results import file_sha256, load_result
-from .robot_file import read_document
-from .serial_robot import Robot
-
-#: deviation display: unit in the file -> (unit shown, factor)
-_SHOWN = {"mm": ("mm", 1.0), "rad": ("deg", float(np.degrees(1.0))), "1": ("ppm", 1e6)}
-_DPI = 120
+from .._robocal import __version__
+from ..acceptance import iso9283, summary_rows
+from ..calibration.api import load_inputs
+from ..calibration.metrics import sample_errors
+from ..calibration.problem import implausible_parameters, start_parameters
+from ..calibration.result import describe_implausible, implausible_meaning
+from ..data.dataset import Dataset
+from ..diagnosis import structure
+from ..diagnosis.leftover import leftover_words
+from ..diagnosis.result_model import ResultModel, result_model
+from ..exceptions import InvalidParameterError, RobocalError
+from ..outputs import make_folder, write_text
+from ..results import file_sha256, load_result
+from ..robot_file import read_document
+from ..serial_robot import Robot
+from .figures import (
+    acceptance_figure,
+    condition_number,
+    convergence_figure,
+    diagnosis_figure,
+    estimated,
+    identifiability_figure,
+    map_figure,
+    parameter_figure,
+    residual_figures,
+    rms,
+)
+from .text import SHOWN, correlation_words, held_key, settling_words
 
 
 def _esc(value) -> str:
@@ -71,7 +82,6 @@ def _fixed(value, decimals: int) -> str:
     return "–" if value is None else f"{float(value):.{decimals}f}"
 
 
-# -- inputs -----------------------------------------------------------------------------------
 @dataclass
 class _Data:
     """The measurements a report evaluates on, or why there are none."""
@@ -86,7 +96,7 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     """The measurements of the report: ``data`` when given, read and checked as ``verify`` reads
     them (:func:`~robocal.calibration.api.load_inputs`: data naming another built-in robot than
     ``robot``, the result's, are refused; another name is a note), else the file the result names."""
-    from .data import load
+    from ..data import load
 
     recorded = _fitted(doc).get("source")
     if isinstance(data, Dataset):
@@ -138,7 +148,7 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
         report = read_document(diagnosis, "diagnose report")
     if report is not None:
         ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
-        if not ok or _held(report) not in report["baseline"]:
+        if not ok or held_key(report) not in report["baseline"]:
             raise InvalidParameterError(f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report "
                                         "(needs baseline.rmse_heldout, or baseline.rmse_loso for several sessions, and effects)")  # fmt: skip
     return report
@@ -150,7 +160,6 @@ def nominal_robot(robot: Robot, doc: dict) -> Robot:
     return Robot(robot.name, robot.joints, np.array([nominal[n] for n in robot.param_names]), mass_model=robot.mass_model)
 
 
-# -- evaluation -------------------------------------------------------------------------------
 @dataclass
 class _Evaluation:
     before: np.ndarray
@@ -187,182 +196,6 @@ def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Ev
     return _Evaluation(before, after, held_out, singular, len(cols), model, residuals)
 
 
-def _condition(s: np.ndarray) -> float:
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-
-
-# -- figures ----------------------------------------------------------------------------------
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    save_figure(fig, path, dpi=_DPI)
-    _pyplot().close(fig)
-    return path
-
-
-def _rms(e: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(e**2)))
-
-
-def _fig_residuals(ev: _Evaluation, meas: str, out: Path) -> list[Path]:
-    plt = _pyplot()
-    what = {"cable": "|cable length residual|", "position": "position error", "pose": "position error (of the pose)"}[meas]
-    colours = {"before": "tab:orange", "after": "tab:blue"}
-    errors = {"before": ev.before, "after": ev.after}
-    causes = len(ev.model.carried)
-    labels = {
-        "before": "before: nominal kinematics",
-        "after": "after: calibrated" + (f" with its {causes} joint cause{'s' if causes > 1 else ''}" if causes else ""),
-    }
-
-    # (a) Histograms on log-spaced bins: before and after often differ by orders of magnitude.
-    positive = np.concatenate([e[e > 0] for e in errors.values()])
-    lo = float(positive.min()) if positive.size else 1e-6
-    hi = float(max(e.max() for e in errors.values()))
-    hi = max(hi, lo * 10)
-    bins = np.geomspace(lo, hi * 1.0001, 45)
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
-    for key in ("before", "after"):
-        e = np.clip(errors[key], lo, None)
-        ax.hist(e, bins=bins, color=colours[key], alpha=0.55, label=f"{labels[key]} (RMSE {_rms(errors[key]):.4g} mm)")
-        ax.axvline(_rms(errors[key]), color=colours[key], lw=1.5, ls="--")
-    ax.set_xscale("log")
-    ax.set(xlabel=f"per-sample {what} (mm, log scale)", ylabel="samples", title=f"Per-sample error before and after calibration ({len(ev.after)} samples)")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2, fontsize=8, frameon=False, title="dashed lines: RMSE", title_fontsize=8)
-    fig.tight_layout()
-    paths = [_save(fig, out / "residuals_histogram.png")]
-
-    # (b) Along the samples (file order), held-out samples marked.
-    idx = np.arange(len(ev.after))
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
-    small, cross = (6, 22) if len(idx) <= 500 else (4, 12)
-    held = ev.held_out if ev.held_out is not None else np.zeros(len(idx), dtype=bool)
-    for key in ("before", "after"):
-        e = np.clip(errors[key], lo, None)
-        name = key
-        ax.scatter(idx[~held], e[~held], s=small, color=colours[key], alpha=0.6, lw=0, label=f"{name}, training" if held.any() else name)
-        if held.any():
-            ax.scatter(idx[held], e[held], s=cross, marker="x", color=colours[key], lw=1.0, label=f"{name}, held out")
-    ax.set_yscale("log")
-    ax.set_xlim(-0.01 * len(idx), 1.01 * len(idx))
-    ax.set(xlabel="sample (order in the measurement file)", ylabel=f"{what} (mm, log scale)", title="Per-sample error along the acquisition")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=4, fontsize=8, frameon=False, markerscale=1.5)
-    fig.tight_layout()
-    paths.append(_save(fig, out / "residuals_samples.png"))
-    return paths
-
-
-def _estimated(doc: dict) -> list[dict]:
-    """The estimated joint parameters. Base, tool and sensor parameters are fitted from scratch
-    (their nominal values are placeholders), so their "deviation" means nothing and would set the
-    scale: they are in the table only."""
-    return [p for p in doc["parameters"] if p.get("std") is not None and is_kinematic(p["name"])]
-
-
-def _fig_parameters(doc: dict, out: Path) -> Optional[Path]:
-    groups = []
-    for unit, title in (("mm", "joint lengths"), ("rad", "joint angles")):
-        ps = [p for p in _estimated(doc) if p["unit"] == unit]
-        if ps:
-            shown, factor = _SHOWN[unit]
-            dev = np.array([(p["value"] - p["nominal"]) * factor for p in ps])
-            err = np.array([2.0 * p["std"] * factor for p in ps])
-            groups.append((title, shown, [p["name"] for p in ps], dev, err))
-    if not groups:
-        return None
-    plt = _pyplot()
-    heights = [max(len(g[2]), 2) + 1.6 for g in groups]
-    fig, axes = plt.subplots(len(groups), 1, figsize=(7.0, 0.22 * sum(heights) + 0.6), gridspec_kw={"height_ratios": heights}, squeeze=False)
-    for ax, (title, unit, names, dev, err) in zip(axes[:, 0], groups):
-        y = np.arange(len(names))[::-1]
-        colour = np.where(np.abs(dev) > err, "tab:red", "tab:blue")
-        ax.barh(y, dev, color=colour, alpha=0.7, height=0.7)
-        ax.errorbar(dev, y, xerr=err, fmt="none", ecolor="k", elinewidth=0.9, capsize=2.5)
-        ax.axvline(0.0, color="k", lw=0.8)
-        ax.set_yticks(y, names, fontsize=9)
-        ax.set_ylim(-0.7, len(names) - 0.3)
-        size = np.abs(dev)
-        scale = ""
-        typical = float(np.median(size))
-        if size.max() > 50 * max(typical, 1e-12):
-            # Deviations spanning decades (one parameter 1000 mm off beside 0.1 mm ones): a
-            # linear axis would show one bar.
-            linthresh = 10.0 ** np.floor(np.log10(max(typical, 1e-12)))
-            ax.set_xscale("symlog", linthresh=linthresh, linscale=1.0)
-            scale = f"; symmetric log scale, linear within ±{linthresh:g}"
-            # Each side to the decade above its largest deviation: no empty decades.
-            lo = -(10.0 ** np.ceil(np.log10(max(-dev.min(), linthresh) * 1.05)))
-            hi = 10.0 ** np.ceil(np.log10(max(dev.max(), linthresh) * 1.05))
-        else:
-            # Deviations set the scale; an error bar much longer than the largest deviation
-            # runs off it, labelled.
-            reach = np.minimum(size + err, 1.5 * size.max())
-            hi = 1.08 * max(size.max(), float(reach.max()), float(np.median(err)), 1e-12)
-            lo = -hi
-        ax.set_xlim(lo, hi)
-        for yi, d, e in zip(y, dev, err):
-            if d - e < lo or d + e > hi:
-                right = d < 0  # on the side the bar leaves free
-                ax.text(0.99 if right else 0.01, yi, f"±{e:.3g} {unit}, off scale", transform=ax.get_yaxis_transform(), ha="right" if right else "left",
-                        va="center", fontsize=7, color="0.25", bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.85})  # fmt: skip
-        ax.grid(axis="x", alpha=0.3)
-        ax.set_xlabel(f"calibrated − nominal ({unit}{scale})", fontsize=9)
-        ax.set_title(f"{title} ({len(names)} estimated): deviation ± 2 std (red: beyond 2 std)", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, out / "parameters.png")
-
-
-def _fig_convergence(doc: dict, out: Path) -> Optional[Path]:
-    conv = doc.get("convergence") or {}
-    history = np.asarray([c for c in conv.get("history") or [] if c is not None], dtype=np.float64)
-    history = history[np.isfinite(history)]
-    if history.size == 0:
-        return None
-    plt = _pyplot()
-    positive = history[history > 0]
-    floor = positive.min() * 1e-3 if positive.size else 1e-300
-    fig, ax = plt.subplots(figsize=(7.0, 3.6))
-    ax.plot(np.arange(history.size), np.maximum(history, floor), "o-", color="tab:blue", ms=4 if history.size < 60 else 0, lw=1.3)
-    ax.set_yscale("log")
-    ax.grid(alpha=0.3, which="both")
-    ax.set_xlim(-0.5, max(history.size - 0.5, 1.5))
-    if history.size < 15:
-        ax.set_xticks(np.arange(history.size))
-    status = "converged" if conv.get("success") else "did not converge"
-    ax.set(xlabel="iteration (0: start)", ylabel="cost ½‖r‖² (mm², log scale)",
-           title=f"{doc.get('method', '')}: {status} after {conv.get('nit', history.size - 1)} iterations, final cost {history[-1]:.4g}")  # fmt: skip
-    fig.tight_layout()
-    return _save(fig, out / "convergence.png")
-
-
-def _fig_identifiability(ev: _Evaluation, out: Path) -> Optional[Path]:
-    s = ev.singular
-    if s is None or s.size == 0:
-        return None
-    plt = _pyplot()
-    floor = s[0] * 1e-16
-    fig, ax = plt.subplots(figsize=(7.0, 3.6))
-    k = np.arange(1, s.size + 1)
-    ax.semilogy(k, np.maximum(s, floor), "o-", color="tab:purple", ms=4, lw=1.0)
-    ax.axhline(s[0] * 1e-3, color="0.5", ls=":", lw=1, label="σ₁ / 1000")
-    ax.grid(alpha=0.3, which="both")
-    ax.set_xticks(k if s.size <= 40 else k[::5])
-    ax.tick_params(axis="x", labelsize=8)
-    ax.legend(loc="lower left", fontsize=8)
-    ax.set(xlabel="singular value index", ylabel="singular value (log scale)",
-           title=f"Column-scaled identification Jacobian ({ev.n_cols} parameters): condition number {_condition(s):.4g}")  # fmt: skip
-    ax.title.set_fontsize(10)
-    fig.tight_layout()
-    return _save(fig, out / "identifiability.png")
-
-
 def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     """The ISO 9283 figures of the calibrated model on the held-out samples (all samples when they
     are not known) and which samples they are, in words."""
@@ -375,29 +208,6 @@ def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     return figures, which
 
 
-def _fig_acceptance(figures: dict, maps: bool, out: Path) -> Path:
-    """Position (or cable length) accuracy per target, coloured by whether the joint maps cover it."""
-    plt = _pyplot()
-    t = figures["targets"]
-    error, covered = np.asarray(t["position_error_mm"]), np.asarray(t["covered"])
-    idx = np.arange(error.size)
-    fig, ax = plt.subplots(figsize=(7.0, 3.8), layout="constrained")
-    size = 10 if error.size <= 500 else 4
-    if maps:
-        ax.scatter(idx[covered], error[covered], s=size, color="tab:blue", lw=0, label="within every joint map's range")
-        ax.scatter(idx[~covered], error[~covered], s=size * 2, color="tab:red", marker="x", lw=1.0, label="beyond a joint map's range (not corrected)")
-    else:
-        ax.scatter(idx, error, s=size, color="tab:blue", lw=0, label="target (no joint map in the model)")
-    ax.axhline(figures["position_accuracy_mm"]["rms"], color="tab:blue", ls="--", lw=1.0, label="RMS over the targets")
-    if figures["repeatability_mm"] is not None:
-        ax.axhline(figures["repeatability_mm"]["rp"], color="0.3", ls=":", lw=1.2, label="repeatability RP")
-    what = "length" if figures["measurement"] == "cable" else "position"
-    ax.set(xlabel="target (order of its first sample)", ylabel=f"{what} accuracy AP (mm)", ylim=(0, None))
-    ax.set_title(f"ISO 9283 {what} accuracy per target ({error.size} targets)", fontsize=10)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8, frameon=False)
-    return _save(fig, out / "acceptance.png")
-
-
 def _acceptance_section(ev: _Evaluation, out: Path) -> str:
     figures, which = _acceptance(ev)
     rows = [[_esc(name), _esc(value)] for name, value in summary_rows(figures)]
@@ -407,87 +217,9 @@ def _acceptance_section(ev: _Evaluation, out: Path) -> str:
     return (f"<p>ISO 9283:1998 figures on {_esc(which)}: {figures['n_targets']} targets (joint configurations), the command being the calibrated "
             "model's prediction at the target's joints and the attained pose the measurement. Distance accuracy compares measured and predicted "
             "distances between targets: it does not depend on how the instrument was registered to the robot.</p>"
-            + _table(["figure", "value"], rows) + _figure(_fig_acceptance(figures, maps, out), caption))  # fmt: skip
+            + _table(["figure", "value"], rows) + _figure(acceptance_figure(figures, maps, out), caption))  # fmt: skip
 
 
-def _held(report: dict) -> str:
-    """The key of a report's held-out RMSE: cross-validated within one session, or
-    leave-one-session-out over several."""
-    return "rmse_loso" if "sessions" in report else "rmse_heldout"
-
-
-def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
-    effects, key = report["effects"], _held(report)
-    steps = []
-    outliers = [e for e in effects if e.get("kind") == "outliers"]
-    if outliers and outliers[0].get("rmse_heldout_before") is not None:
-        steps.append(("geometric, outliers kept", float(outliers[0]["rmse_heldout_before"])))
-    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), float(report["baseline"][key])))
-    for e in effects:
-        if e.get("kind") != "outliers":
-            steps.append((f"+ {e.get('label') or e.get('kind')}", float(e[f"{key}_after"])))
-    return steps
-
-
-def diagnosis_figure(report: dict, path: Path) -> Path:
-    """A bar chart of the held-out RMSE of a diagnose report (one session or several) as its
-    causes are added, written to ``path``."""
-    plt = _pyplot()
-    steps = _diagnosis_steps(report)
-    names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
-    # Constrained layout and a figure title: long cause labels push the axes right, and a title
-    # centred on them would run off the figure's right edge.
-    fig, ax = plt.subplots(figsize=(7.0, 0.45 * len(steps) + 1.7), layout="constrained")
-    y = np.arange(len(steps))[::-1]
-    ax.barh(y, rmse, color=["0.6" if n.endswith("outliers kept") else "tab:blue" for n in names], height=0.6)
-    for i, (yi, v) in enumerate(zip(y, rmse)):
-        change = f" ({(v - rmse[i - 1]) / rmse[i - 1]:+.1%})" if i > 0 and rmse[i - 1] > 0 else ""
-        ax.text(v, yi, f" {v:.4g} mm{change}", va="center", fontsize=8)
-    ax.set_yticks(y, [textwrap.fill(n, 34) for n in names], fontsize=9)
-    ax.set_xlim(0, rmse.max() * 1.3)
-    folds = report["baseline"].get("folds")
-    how = ", leave-one-session-out" if "sessions" in report else (f", {folds}-fold cross-validation" if folds else "")
-    ax.set(xlabel=f"held-out RMSE (mm){how}")
-    fig.suptitle("Held-out error as the diagnosed causes are added", fontsize=11)
-    return _save(fig, Path(path))
-
-
-def map_figure(effect: dict, path: Path) -> Path:
-    """A joint map of a diagnose report (an effect with a ``curve``): the correction of the
-    joint's angle against its reading, with its ±2 std band, written to ``path``."""
-    plt = _pyplot()
-    curve = effect["curve"]
-    angle, value = np.asarray(curve["angle_deg"]), np.asarray(curve["value_deg"]) * 3600.0
-    band = 2.0 * np.asarray(curve.get("std_deg", np.zeros(len(angle)))) * 3600.0
-    # the curve leaves out the gaps of the map's data (it corrects nothing there): break the line
-    steps = np.diff(angle)
-    breaks = np.flatnonzero(steps > 1.5 * np.median(steps)) + 1 if len(steps) else []
-    angle, value, band = (np.insert(a, breaks, np.nan) for a in (angle, value, band))
-    fig, ax = plt.subplots(figsize=(7.0, 3.4))
-    if "std_deg" in curve:
-        ax.fill_between(angle, value - band, value + band, color="tab:blue", alpha=0.25, lw=0, label="±2 std")
-    ax.plot(angle, value, color="tab:blue", lw=1.2, label="map")
-    ax.axhline(0.0, color="0.5", lw=0.6)
-    ax.set(xlabel=f"joint {effect['joint']} reading (deg)", ylabel="correction (arcsec)", title=effect["label"])
-    ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    return _save(fig, Path(path))
-
-
-def map_tables(report: dict) -> list[tuple[str, str]]:
-    """``(file name, CSV text)`` of every joint map of a diagnose report: angle, correction and
-    its standard deviation in degrees, one row per point of the curve."""
-    out = []
-    for e in report.get("effects", []):
-        if e.get("kind") == "joint_map" and "curve" in e:
-            c = e["curve"]
-            rows = zip(c["angle_deg"], c["value_deg"], c.get("std_deg", [float("nan")] * len(c["angle_deg"])))
-            text = "angle_deg,correction_deg,std_deg\n" + "".join(f"{a:.6f},{v:.9g},{sd:.9g}\n" for a, v, sd in rows)
-            out.append((f"map_joint{e['joint']}.csv", text))
-    return out
-
-
-# -- the page ---------------------------------------------------------------------------------
 _CSS = """
 body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; max-width: 980px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.45; }
 h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.8em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
@@ -564,7 +296,7 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
         if not mask.any() or not isinstance(m.get(key), dict):
             continue
         e = ev.after[mask]
-        mine = {"rmse": _rms(e), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(mask.sum())}
+        mine = {"rmse": rms(e), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(mask.sum())}
         if not all(isinstance(m[key].get(k), (int, float)) and np.isclose(m[key][k], v, rtol=1e-6, atol=1e-9) for k, v in mine.items()):
             said = m[key].get("rmse")
             differ.append(
@@ -610,7 +342,7 @@ def _implausible(flags: list[dict], note: str) -> str:
         return note + '<p class="note">No kinematic parameter moved beyond 10 mm / 2 deg from nominal.</p>'
     items = []
     for f in sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"]):
-        unit, factor = _SHOWN.get(f["unit"], (f["unit"], 1.0))
+        unit, factor = SHOWN.get(f["unit"], (f["unit"], 1.0))
         items.append(f"<li><code>{_esc(f['name'])}</code>: {f['deviation'] * factor:+.4g} {_esc(unit)} (limit ±{f['limit'] * factor:.3g} {_esc(unit)})</li>")
     return note + (f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
             "the data do not determine them (the fit bends weakly determined directions to absorb other errors); "
@@ -630,7 +362,7 @@ def _parameters(doc: dict, flags: list[dict]) -> str:
     fixed = doc.get("fixed") or {}
     rows, classes = [], []
     for p in doc["parameters"]:
-        unit, factor = _SHOWN.get(p["unit"], (p["unit"], 1.0))
+        unit, factor = SHOWN.get(p["unit"], (p["unit"], 1.0))
         value_unit, value_factor = ("deg", factor) if p["unit"] == "rad" else (p["unit"], 1.0)
         decimals = 6 if p["unit"] == "1" else 4
         dev = (p["value"] - p["nominal"]) * factor
@@ -669,30 +401,8 @@ def _causes(doc: dict) -> str:
             + _table(["cause", "parameters", "implausible"], rows))  # fmt: skip
 
 
-def correlation_words(effect: dict) -> str:
-    """A compliance's correlation with the other compliances (how well the data split them), as
-    plain text; entries a hand-edited file makes other than numbers are left out."""
-    others = effect.get("correlation")
-    if not isinstance(others, dict):
-        return ""
-    return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
-
-
-def settling_words(effect: dict) -> str:
-    """Whether an outliers entry's readings follow long joint moves beyond chance (readings taken
-    before the arm settled), as plain text; "" otherwise or for a hand-edited entry."""
-    moves = effect.get("after_long_moves")
-    if not isinstance(moves, dict) or not moves.get("settling"):
-        return ""
-    try:
-        return (f"; {int(moves['outliers'])} of {int(moves['of'])} follow a joint move of {float(moves['threshold_deg']):g} deg or more "
-                f"({float(moves['share_of_samples']):.1%} of all samples do; p = {float(moves['p_value']):.1g}): readings taken before the arm settled")  # fmt: skip
-    except (KeyError, TypeError, ValueError):
-        return ""
-
-
 def _diagnosis_table(report: dict) -> str:
-    key, rows = _held(report), []
+    key, rows = held_key(report), []
     for e in report["effects"]:
         rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _esc(correlation_words(e) + settling_words(e)),
                      _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])  # fmt: skip
@@ -759,7 +469,7 @@ def _budget_section(report: dict) -> str:
     if prior:
         if prior.get("accepted"):
             part += (f'<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
-                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get(_held(report) + '_unconstrained'), 4)} mm.</p>")  # fmt: skip
+                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get(held_key(report) + '_unconstrained'), 4)} mm.</p>")  # fmt: skip
         else:
             part += f'<p class="warn">No physical model: a tolerance prior (±{_esc(prior["sigma_mm"])} mm, ±{_esc(prior["sigma_deg"])}°) was tried; {_esc(prior.get("reason", ""))}.</p>'
     if f.get("implausible"):
@@ -787,7 +497,6 @@ def _figure(path: Path, caption: str) -> str:
     return f'<figure><img src="{_esc(path.name)}" alt="{_esc(caption)}"><figcaption>{_esc(caption)}</figcaption></figure>'
 
 
-# -- entry points -----------------------------------------------------------------------------
 def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None,
            angle_unit: Optional[str] = None) -> Path:  # fmt: skip
     """Writes the HTML report of a calibration result and its figures; returns the page's path.
@@ -838,9 +547,9 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
                          "are not applied, so the errors may exceed the metrics above")  # fmt: skip
         if doc.get("method") == "rbf":
             notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
-    paths_residuals = _fig_residuals(ev, meas, out) if ev is not None else []
+    paths_residuals = residual_figures(ev.before, ev.after, ev.held_out, len(ev.model.carried), meas, out) if ev is not None else []
     if paths_residuals:
-        before_rms, after_rms = _rms(ev.before), _rms(ev.after)
+        before_rms, after_rms = rms(ev.before), rms(ev.after)
         figures.append(
             _figure(
                 paths_residuals[0],
@@ -855,20 +564,20 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
                 + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else "."),
             )
         )
-    p = _fig_parameters(doc, out)
+    p = parameter_figure(doc, out)
     if p is not None:
-        figures.append(_figure(p, f"Deviation from nominal of the {len(_estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
+        figures.append(_figure(p, f"Deviation from nominal of the {len(estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
                                   "base, tool and sensor parameters, fitted from scratch, are in the table below."))  # fmt: skip
     else:
         figures.append(
             '<p class="note">No joint parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>'
         )
-    p = _fig_convergence(doc, out)
+    p = convergence_figure(doc, out)
     if p is not None:
         figures.append(_figure(p, "Cost ½‖r‖² of the training residuals after each iteration of the solver."))
-    p = _fig_identifiability(ev, out) if ev is not None else None
+    p = identifiability_figure(ev.singular, ev.n_cols, out) if ev is not None else None
     if p is not None:
-        kappa = _condition(ev.singular)
+        kappa = condition_number(ev.singular)
         figures.append(
             _figure(
                 p,
