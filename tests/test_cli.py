@@ -47,6 +47,19 @@ def test_every_subcommand_end_to_end(workdir):
     assert (w / "cmp" / "table_VIII.md").exists()
 
 
+def test_debug_shows_the_diagnostic_log_and_quiet_nothing(workdir):
+    """``--debug`` adds the package's log (``logging``, one line per message, the module named)
+    on stderr and leaves the results on stdout as they were; ``--quiet`` leaves stderr empty."""
+    w = workdir
+    ok(robocal("simulate", "--robot", "abb-irb120", "--measurement", "position", "--samples", "60", "--seed", "3", "--out", w / "log.csv"))
+    run = [sys.executable, "-m", "robocal", "inspect", str(w / "log.csv"), "--robot", "abb-irb120"]
+    quiet = subprocess.run(run + ["--quiet"], capture_output=True, text=True, timeout=600)
+    debug = subprocess.run(run + ["--debug"], capture_output=True, text=True, timeout=600)
+    assert quiet.returncode == debug.returncode == 0 and quiet.stderr == ""
+    assert debug.stdout == quiet.stdout
+    assert "robocal: INFO: robocal.data.public: load: " in debug.stderr and "60 position samples" in debug.stderr
+
+
 @pytest.mark.parametrize(
     "args, fragment",
     [

@@ -14,9 +14,15 @@ roboticstoolbox bridge) and the types they take and return (``Robot``, ``Dataset
 
 from __future__ import annotations
 
+import logging
+
 from . import exceptions
 from ._robocal import __version__
 from .robot import MEASUREMENTS, Joint, MassModel, Robot, robot, write_robot
+
+# Diagnostic messages go to the standard ``logging`` module, one logger per module under
+# "robocal"; silent unless the application (or ``robocal --debug``) configures logging.
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
     "MEASUREMENTS",

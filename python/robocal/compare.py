@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -45,6 +46,8 @@ from .exceptions import InvalidParameterError
 from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress
 from .serial_robot import Robot
+
+logger = logging.getLogger(__name__)
 
 PROTOCOLS = ("paper", "kfold", "80-20", "chronological")
 
@@ -220,6 +223,7 @@ def compare(
                 record = _run(problem, test, method, method_options.get(method, {}))
             else:
                 record = {"status": "failed", "error": f"problem set-up failed: {split['error']}"}
+            logger.debug("compare: split %d, %s: %s", k, method, record.get("error") or record.get("status"))
             runs.append({"method": method, "split": k, "test_rows": split["test_rows"], **record})
     config = {
         "data": str(data) if not isinstance(data, Dataset) else (data.source or repr(data)),

@@ -26,6 +26,7 @@ the reach rate and time with scipy's ``least_squares(bounds=...)``.
 from __future__ import annotations
 
 import csv
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +43,8 @@ from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
 from .results import load_result
 from .serial_robot import Robot
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass
@@ -287,6 +290,7 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dic
         out.append(
             {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
         )
+        logger.debug("compensate: target row %d: %s", targets.rows[i], status)
     return out
 
 

@@ -16,6 +16,7 @@ or Ray ``ray.remote(calibrate_one)``; ``benches/bench_fleet.py`` runs it on a lo
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
@@ -26,15 +27,20 @@ from .data.dataset import Dataset
 from .diagnosis.extended import calibrate
 from .exceptions import InvalidParameterError, RobocalError
 
+logger = logging.getLogger(__name__)
+
 
 def calibrate_one(data: Union[str, Path, Dataset], **options) -> dict:
     """:func:`robocal.calibrate` of one dataset as its result document, or ``{"error", "data"}``
     if it fails with a robocal error (bad data, a problem that cannot be set up)."""
+    where = str(data) if not isinstance(data, Dataset) else (data.source or repr(data))
     try:
-        return calibrate(data, **options).to_dict()
+        doc = calibrate(data, **options).to_dict()
     except RobocalError as exc:
-        where = str(data) if not isinstance(data, Dataset) else (data.source or repr(data))
+        logger.info("calibrate_many: %s failed: %s", where, exc)
         return {"error": f"{type(exc).__name__}: {exc}", "data": where}
+    logger.info("calibrate_many: %s calibrated", where)
+    return doc
 
 
 def _single_threaded_core() -> None:

@@ -15,6 +15,8 @@ figures of ISO 9283 (:mod:`robocal.acceptance`). The model is the one ``robocal 
 
 from __future__ import annotations
 
+import logging
+
 from pathlib import Path
 from typing import Optional, Union
 
@@ -29,6 +31,8 @@ from .data.dataset import Dataset
 from .diagnosis.result_model import result_model
 from .results import file_sha256, load_result
 from .serial_robot import Robot, setup_names
+
+logger = logging.getLogger(__name__)
 
 SCHEMA = "robocal.verify/1"
 
@@ -99,6 +103,7 @@ def verify(
     dataset, _ = load_inputs(data, calibrated, measurement or doc["measurement"], angle_unit)
     model = result_model(calibrated, doc, dataset)
     residuals, setup, refit = _refit_setup(calibrated, model.links)
+    logger.info("verify: %d samples, the session set-up re-fitted (%s)", len(dataset), ", ".join(refit) if isinstance(refit, list) else refit)
     nominal_residuals, _, _ = _refit_setup(model.nominal, model.read)
     covered = model.covered
     return {

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import os
 import sys
 from dataclasses import dataclass
@@ -53,8 +54,8 @@ def command_module(name: str):
 def _global_options(parser: argparse.ArgumentParser, default) -> None:
     # Added to the main parser and to every subparser so that they work on either side of the
     # subcommand; the subparsers' default SUPPRESS keeps a value given before it.
-    parser.add_argument("--debug", action="store_true", default=default, help="show tracebacks")
-    parser.add_argument("--quiet", action="store_true", default=default, help="no progress bars")
+    parser.add_argument("--debug", action="store_true", default=default, help="show tracebacks and the diagnostic log")
+    parser.add_argument("--quiet", action="store_true", default=default, help="no progress bars and no warnings")
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -72,6 +73,32 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         if paths.folders:
             parser_of.add_argument("--force", action="store_true", help="write into an existing, non-empty output folder (its files are overwritten)")
     return parser
+
+
+#: Formats of the diagnostic log on stderr: one line per message, the module's name with --debug.
+LOG_FORMAT = "robocal: %(levelname)s: %(message)s"
+DEBUG_LOG_FORMAT = "robocal: %(levelname)s: %(name)s: %(message)s"
+
+
+class _Log:
+    """The package's logger (``logging.getLogger("robocal")``) for one run of the command line:
+    warnings on stderr by default, nothing below errors with ``--quiet``, every message (debug
+    included) with ``--debug``; its earlier state is restored at the end of the run, so that
+    :func:`main` called from Python leaves the caller's logging as it was."""
+
+    def __init__(self, quiet: bool, debug: bool):
+        self.logger = logging.getLogger("robocal")
+        self.saved = (self.logger.level, self.logger.propagate)
+        self.handler = logging.StreamHandler(sys.stderr)
+        self.handler.setFormatter(logging.Formatter(DEBUG_LOG_FORMAT if debug else LOG_FORMAT))
+        self.logger.addHandler(self.handler)
+        self.logger.setLevel(logging.DEBUG if debug else logging.ERROR if quiet else logging.WARNING)
+        self.logger.propagate = False
+
+    def close(self) -> None:
+        self.logger.removeHandler(self.handler)
+        self.logger.setLevel(self.saved[0])
+        self.logger.propagate = self.saved[1]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -96,6 +123,7 @@ def _run(argv: list[str]) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(command).parse_args(argv)
     progress.QUIET = args.quiet
+    log = _Log(args.quiet, args.debug)
     paths = COMMANDS[args.command][1]
     claims = []
     stdout = sys.stdout
@@ -121,6 +149,7 @@ def _run(argv: list[str]) -> int:
         print("robocal: error: " + printable(" ".join(str(exc).split()), one_line=True), file=sys.stderr)
         return 2
     finally:
+        log.close()
         for claim in claims:
             claim.release()
         if isinstance(sys.stdout, PrintableStream):  # a command may have replaced it

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import os
 import re
 from datetime import datetime
@@ -35,6 +36,8 @@ from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
 from .table import UncachedFormula, check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
+
+logger = logging.getLogger(__name__)
 
 FORMATS = ("canonical", "hsr", "robotcali", "ipa")
 #: The robot each public format belongs to.
@@ -537,4 +540,9 @@ def load(
             raise DataError(f"{check['message']}; {read_as}confirm {unit} with angle_unit={unit!r} (--angle-unit {unit})", path)
         if not check["plausible"]:
             dataset.notes.append(f"{check['message']} (kept in {unit} as asked)")
+    logger.info(
+        "load: %s read as %s, %d %s samples (%d rows excluded)", dataset.source or "a DataFrame", fmt, len(dataset), dataset.measurement, len(dataset.excluded)
+    )
+    for note in dataset.notes:
+        logger.debug("load: %s", note)
     return _check_robot(dataset, fmt, robot, path)

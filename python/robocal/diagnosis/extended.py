@@ -9,6 +9,7 @@ the diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) an
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 from typing import Optional, Union
@@ -32,6 +33,8 @@ from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_
 from .model import ExtendedProblem
 from .sessions import stack
 from .wander import wander_candidate
+
+logger = logging.getLogger(__name__)
 
 
 def calibrate(
@@ -132,7 +135,9 @@ def calibrate(
     if method != "lm":
         raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
     model = extended_problem(problem, dataset, train_idx, labels)
+    logger.info("calibrate: %d training samples, %d causes, %d reading conventions", len(train_idx), len(labels), len(structures))
     result = levenberg_marquardt(model, **api.checked_options(levenberg_marquardt, method, options))
+    logger.info("calibrate: %s after %d iterations, training RMSE %.4g", result.message, result.nit, result.metrics["train"]["rmse"])
     result.structure = [s.label for s in structures]
     if test_idx is not None:
         test = dataset.subset(test_idx)

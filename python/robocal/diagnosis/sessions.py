@@ -16,6 +16,7 @@ session to another.
 from __future__ import annotations
 
 import inspect
+import logging
 import time
 from dataclasses import dataclass, field, replace
 from typing import Optional
@@ -48,6 +49,8 @@ from .select import (
 )
 from .uncertainty import uncertainty_entries
 from .wander import TIME_TERMS
+
+logger = logging.getLogger(__name__)
 
 #: Kinds of a session's own diagnosis that stay with the session (its sensor and set-up).
 SESSION_TERMS = SESSION_KINDS + ("frame",)
@@ -328,6 +331,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     sessions = []
     for d in progress(datas, desc="diagnose: each session on its own", unit="session"):
         sessions.append(_Session(d, diagnose(d, rob, **options)))
+        logger.info("diagnose: session %d of %d (%s): %s", len(sessions), len(datas), d.source, [c.label for c in sessions[-1].diagnosis.model.causes])
     evaluator = _Evaluator(rob, sessions, baseline_mask(rob, kind, hayati), hayati)
 
     found: dict = {}  # label -> (candidate, sessions it was found in)
@@ -397,7 +401,9 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 break
         else:
             rejected += [_entry(label, candidate, where, current, errors, reasons[label]) for _, label, candidate, where, errors in trials]
+            logger.info("diagnose: no further cause lowers the pooled held-out error (%d tried)", len(trials))
             break
+        logger.info("diagnose: %s kept: pooled held-out RMSE %.4g %s", label, rmse, judged_unit(kind))
         effects.append(_entry(label, candidate, where, current, errors, None))
         model, current = model.plus(candidate), errors
         del pending[label]

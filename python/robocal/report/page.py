@@ -29,6 +29,7 @@ moved or archived as a whole.
 from __future__ import annotations
 
 import html
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
@@ -63,6 +64,8 @@ from .figures import (
     rms,
 )
 from .text import SHOWN, correlation_words, held_key, settling_words
+
+logger = logging.getLogger(__name__)
 
 
 def _esc(value) -> str:
@@ -593,6 +596,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
                      + _diagnosis_table(diag) + "".join(maps) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
 
+    for n in notes:
+        logger.info("report: %s", n)
     title = f"robocal calibration report: {doc.get('robot', '')}"
     note_html = "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in notes)
     page = f"""<!DOCTYPE html>
