@@ -41,7 +41,7 @@ LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h
 
 #: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
 #: only describe it).
-LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness")
+LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness", "degree")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -146,6 +146,16 @@ class Candidate:
             }
             bad = not abs(width) < LIMITS["angle"]
             return out, (f"width {width / DEG:.3g} deg is not within ±{LIMITS['angle'] / DEG:g} deg" if bad else None)
+        if kind == "drift" and self.detail.get("degree", 1) > 1:  # curved: the change over the session and its mean rate
+            offsets = self.basis @ c  # (m, k): the sensor's offset at every sample
+            first, last = self.detail["first"], self.detail["last"]
+            change = [float(offsets[last, a] - offsets[first, a]) for a in range(len(self.detail["axes"]))]
+            rates = np.array(change) / max(self.detail["span"], 1e-12)
+            out = {f"change_{a}": q(v, np.nan, "mm") for a, v in zip(self.detail["axes"], change)}
+            out.update({f"mean_rate_{a}": q(v, np.nan, "mm/" + self.detail["unit"]) for a, v in zip(self.detail["axes"], rates)})
+            fastest = float(np.max(np.abs(rates)))
+            bad = self.detail["unit"] == "h" and fastest > LIMITS["drift_mm_per_h"]
+            return out, (f"drift {fastest:.3g} mm/h exceeds {LIMITS['drift_mm_per_h']:g} mm/h" if bad else None)
         if kind == "drift":
             unit = "mm/" + self.detail["unit"]
             out = {f"rate_{a}": q(v, sd, unit) for a, v, sd in zip(self.detail["axes"], c, s)}
@@ -389,6 +399,56 @@ def map_candidate(data: Dataset, joint: int, spacing: float, roughness: float, n
 MAP_LABEL = re.compile(r"joint_map joint (\d+) spacing=([0-9.]+) roughness=([0-9.eE+-]+)")
 
 
+#: Harmonics the library offers one at a time; higher ones (a reducer's gear mesh) are found
+#: where several of these fit together (:func:`~.maps.merge_harmonics`).
+LIBRARY_HARMONICS = (1, 2, 3)
+#: The highest harmonic tried in the place of several.
+MAX_HARMONIC = 8
+
+
+#: A curved drift: powers of acquisition time up to this degree (a warm-up, a settling stand).
+CURVED_DRIFT_DEGREE = 3
+
+
+def natural_spline(t: np.ndarray, knots: int) -> np.ndarray:
+    """The natural cubic spline basis of ``t`` (m, knots − 1) without its constant, knots at
+    equal steps over ``t``'s range (Hastie, Tibshirani & Friedman, eq. 5.4-5.5): ``t`` itself,
+    then terms straight beyond the end knots, so that a fit without the first or last stretch
+    of the session continues it by a line, not by a cubic's swing."""
+    xi = np.linspace(t.min(), t.max(), knots)
+    span = max(xi[-1] - xi[0], 1e-12)
+    s = (t - xi[0]) / span  # on [0, 1]: cubes of hours stay O(1)
+    xi = (xi - xi[0]) / span
+
+    def d(k):
+        return (np.maximum(s - xi[k], 0.0) ** 3 - np.maximum(s - xi[-1], 0.0) ** 3) / (xi[-1] - xi[k])
+
+    columns = [t] + [d(k) - d(knots - 2) for k in range(knots - 2)]
+    return np.column_stack([c - (c.mean() if i else 0.0) for i, c in enumerate(columns)])
+
+
+def drift_candidate(data: Dataset, degree: int = 1) -> Candidate:
+    """The sensor's offset drifting with acquisition time, per axis: linear (``degree`` 1, its
+    coefficient the rate), or a natural cubic spline of time with ``degree`` coefficients (its
+    constant is the set-up's) whose coefficients :meth:`Candidate.physical` turns into the change
+    over the session."""
+    order, unit = _order(data)
+    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
+    powers = order[:, None] if degree == 1 else natural_spline(order, degree + 1)
+    drift = np.zeros((len(data), RESIDUAL_WIDTH[data.measurement], len(axes) * degree))
+    for a in range(len(axes)):
+        drift[:, a, a * degree : (a + 1) * degree] = powers
+    ends = {"span": float(np.ptp(order)), "first": int(np.argmin(order)), "last": int(np.argmax(order))}
+    detail = {"unit": unit, "axes": axes, **({"degree": degree, **ends} if degree > 1 else {})}
+    return Candidate("drift", None, "observations", drift, detail=detail)
+
+
+def periodic_candidate(robot: Robot, data: Dataset, joint: int, harmonic: int) -> Candidate:
+    """Joint ``joint``'s error ``a·sin(h·q) + b·cos(h·q)`` of harmonic ``h``, over every sample of ``data``."""
+    detail = {"harmonic": harmonic}
+    return Candidate("joint_periodic", joint, "joints", joint_basis(robot, data.q, "joint_periodic", joint, detail), detail=detail)
+
+
 def map_candidates(robot: Robot, data: Dataset, joints: list[int], noise: float, idx: Optional[np.ndarray] = None) -> list[Candidate]:
     """Joint maps of every spacing and roughness in :data:`MAP_SPACINGS_DEG` ×
     :data:`MAP_ROUGHNESS_DEG` for the revolute ``joints``, each over the joint's range in the
@@ -425,16 +485,11 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     for j in moving:
         if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
             out.append(joint_candidate("joint_compliance", j))
-        out += [joint_candidate("joint_periodic", j, harmonic=h) for h in (1, 2, 3)]
+        out += [joint_candidate("joint_periodic", j, harmonic=h) for h in LIBRARY_HARMONICS]
         out.append(joint_candidate("joint_scale", j))
         out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j]
         out.append(joint_candidate("backlash", j))
-    order, unit = _order(data)
-    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
-    drift = np.zeros((m, k, len(axes)))
-    for a in range(len(axes)):
-        drift[:, a, a] = order
-    out.append(Candidate("drift", None, "observations", drift, detail={"unit": unit, "axes": axes}))
+    out.append(drift_candidate(data))
     if data.temp is not None and np.ptp(data.temp) > 0:
         dT = data.temp - data.temp[0]
         out.append(Candidate("temperature", None, "observations", None, detail={"target": "links"}, signal=dT))

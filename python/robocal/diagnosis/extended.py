@@ -203,10 +203,17 @@ def calibrate_sessions(
     result.sessions, pooled = [], []
     for s, (d, (train, test), problem, own) in enumerate(zip(datasets, splits, problems, terms)):
         x = stacked.session_x(result.x, s)
-        entry = {"source": d.source, "sha256": file_sha256(d.source) if d.source else None, "samples": len(d),
-                 "rows_used": [int(v) for v in d.rows[train]], "rows_held_out": [int(v) for v in d.rows[test]] if test is not None else [],
-                 "rows_excluded": list(d.excluded), "setup": {n: float(v) for n, v in zip(r.param_names, problem.full(x)) if is_private(n, d.measurement)},
-                 "terms": own, "metrics": {"train": metrics(problem.data_residuals(x), d.measurement), "test": None}}  # fmt: skip
+        entry = {
+            "source": d.source,
+            "sha256": file_sha256(d.source) if d.source else None,
+            "samples": len(d),
+            "rows_used": [int(v) for v in d.rows[train]],
+            "rows_held_out": [int(v) for v in d.rows[test]] if test is not None else [],
+            "rows_excluded": list(d.excluded),
+            "setup": {n: float(v) for n, v in zip(r.param_names, problem.full(x)) if is_private(n, d.measurement)},
+            "terms": own,
+            "metrics": {"train": metrics(problem.data_residuals(x), d.measurement), "test": None},
+        }
         if test is not None:
             residuals = problem.with_samples(test).data_residuals(x)
             entry["metrics"]["test"] = metrics(residuals, d.measurement)
@@ -265,8 +272,15 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     return list(causes), None if prior is None else tuple(prior)
 
 
-def extended_problem(problem: Problem, dataset: Dataset, idx: np.ndarray, causes: list[str], map_angles: Optional[np.ndarray] = None, every: bool = True,
-                     noise: Optional[float] = None):  # fmt: skip
+def extended_problem(
+    problem: Problem,
+    dataset: Dataset,
+    idx: np.ndarray,
+    causes: list[str],
+    map_angles: Optional[np.ndarray] = None,
+    every: bool = True,
+    noise: Optional[float] = None,
+):
     """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
     ``dataset`` (bases such as backlash and drift need the whole sequence). A joint map covers
     the joint angles ``map_angles`` (rows of joint values; default the samples ``idx``), its

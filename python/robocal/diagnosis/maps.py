@@ -24,7 +24,7 @@ from scipy.stats import f as f_dist
 
 from ..kernels import is_sparse
 from ..stats import rmse_of_squares
-from .candidates import covered_when_fitted_on, map_candidates, map_noise
+from .candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from .model import ExtendedProblem, judged_rmse, reported_rmse
 from .structure import EQUAL
 
@@ -86,7 +86,8 @@ class _NormalScreen:
                 delta = _solve(N, b)
                 e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
                 if C is not None:
-                    e = e - (C[rows] @ delta[self.J.shape[1] :]) * self._covered_rows(joint_map, train, test)
+                    covered = self._covered_rows(joint_map, train, test) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
+                    e = e - (C[rows] @ delta[self.J.shape[1] :]) * covered
                 err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
             out[name] = err
         return out
@@ -218,16 +219,17 @@ def _variants(causes: list, joint_map) -> list[list]:
 
 
 def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, fit, nonlinear_cv, progress):
-    """One joint map in the place of two or more harmonics of one joint.
+    """One periodic error in the place of two or more harmonics of one joint.
 
     Harmonics 1-3 are the library's; a joint whose error holds a higher harmonic (a reducer's
     gear mesh) is approximated by two or three of them, each a claim of a gear harmonic that is
-    not there. Where the model holds two or more harmonics of a joint, the joint's best map
-    (screened against the model without them) is fitted in their place and kept if its held-out
-    error is within :data:`~.structure.EQUAL` of theirs on every scheme: the same error, one
-    honest claim — "a periodic error of this joint", with its curve — instead of several.
-    Returns the model, its ``x``, held-out errors, fold fits and the report entries of the maps
-    merged in (``candidate``, ``replaces``, ``params``, held-out RMSE before and after)."""
+    not there. Where the model holds two or more harmonics of a joint, first the single harmonic
+    (1 to :data:`~.candidates.MAX_HARMONIC`), then the joint's map, each the best screened
+    against the model without them, is fitted in their place and kept if its held-out error is
+    within :data:`~.structure.EQUAL` of theirs on every scheme: the same error, one honest claim
+    — "harmonic h of this joint" or "a periodic error of this joint", with its curve — instead of
+    several. Returns the model, its ``x``, held-out errors, fold fits and the report entries of
+    the causes merged in (``candidate``, ``replaces``, ``params``, held-out RMSE before and after)."""
     robot, data = model.robot, model.full_data
     merged = []
     for j in sorted({c.joint for c in model.causes if c.kind == "joint_periodic"}):
@@ -238,22 +240,28 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
         x_rest = fit(rest, rest.start_from(x, model)).x
         J, r = rest.jacobian(x_rest), rest.residuals(x_rest)
         screen = _NormalScreen(J, r, schemes, rest.k, len(rest.idx) * rest.k, data.q[rest.idx])
-        pool = map_candidates(robot, data, [j], map_noise(rest.data_residuals(x_rest).reshape(len(rest.idx), rest.k)), rest.idx)
-        scored = [
-            (sum(np.mean(e) for e in screen.errors(rest.weighted_columns(x_rest, c), c.penalty, c).values()), i)
-            for i, c in enumerate(progress(pool, desc=f"diagnose: a map for joint {j + 1}'s harmonics", unit="map"))
-        ]
-        best = pool[min(scored)[1]]
-        trial = ExtendedProblem(model.base, rest.causes + [best], data, model.idx)
-        trial_fit = fit(trial, trial.start_from(x, model))
-        if best.physical(trial.coefficients(trial_fit.x, best), None, robot, robot.params)[1] is not None:
-            continue
-        refits = {name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
-        new_cv = {name: err for name, (err, _) in refits.items()}
-        if all(judged_rmse(new_cv[name]) <= (1.0 + EQUAL) * judged_rmse(current_cv[name]) for name in schemes):
-            before = {name: reported_rmse(current_cv[name]) for name in schemes}
-            model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
-            physical = best.physical(trial.coefficients(x, best), None, robot, robot.params)[0]
-            merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before,
-                           "rmse_heldout_after": {name: reported_rmse(current_cv[name]) for name in schemes}})  # fmt: skip
+        present = {c.detail["harmonic"] for c in harmonics}  # one of them alone was not enough (the backward check)
+        singles = [periodic_candidate(robot, data, j, h) for h in range(1, MAX_HARMONIC + 1) if h not in present]
+        maps = map_candidates(robot, data, [j], map_noise(rest.data_residuals(x_rest).reshape(len(rest.idx), rest.k)), rest.idx)
+        for pool in (singles, maps):
+            scored = [
+                (sum(np.mean(e) for e in screen.errors(rest.weighted_columns(x_rest, c), c.penalty, c).values()), i)
+                for i, c in enumerate(progress(pool, desc=f"diagnose: one error for joint {j + 1}'s harmonics", unit="candidate"))
+            ]
+            if not scored:
+                continue
+            best = pool[min(scored)[1]]
+            trial = ExtendedProblem(model.base, rest.causes + [best], data, model.idx)
+            trial_fit = fit(trial, trial.start_from(x, model))
+            if best.physical(trial.coefficients(trial_fit.x, best), None, robot, robot.params)[1] is not None:
+                continue
+            refits = {name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
+            new_cv = {name: err for name, (err, _) in refits.items()}
+            if all(judged_rmse(new_cv[name]) <= (1.0 + EQUAL) * judged_rmse(current_cv[name]) for name in schemes):
+                before = {name: reported_rmse(current_cv[name]) for name in schemes}
+                model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
+                physical = best.physical(trial.coefficients(x, best), None, robot, robot.params)[0]
+                merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before,
+                               "rmse_heldout_after": {name: reported_rmse(current_cv[name]) for name in schemes}})  # fmt: skip
+                break
     return model, x, current_cv, fold_x, merged

@@ -47,13 +47,13 @@ from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor
 from .budget import repeatability
-from .candidates import PHYSICAL_KINDS, Candidate, acquisition_order, library, map_within, step_candidates
+from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, Candidate, acquisition_order, drift_candidate, library, map_within, step_candidates
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
-from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, wander_within
+from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, wander_within, within_session
 
 
 @dataclass
@@ -288,7 +288,7 @@ def gains_everywhere(c: Candidate, gains: dict) -> bool:
     """A screening gain on every fold scheme (a time term: on the random folds; the linear
     screening extrapolates it into a held-out block, so the nonlinear check, which does not,
     judges it there)."""
-    if c.kind in TIME_TERMS:
+    if within_session(c):
         return gains["random"] > 0
     return all(g > 0 for g in gains.values())
 
@@ -296,7 +296,7 @@ def gains_everywhere(c: Candidate, gains: dict) -> bool:
 def improves(c: Candidate, scheme: str, before: float, after: float) -> bool:
     """Whether the held-out error ``after`` adding ``c`` counts as a gain on ``scheme`` (a time
     term must only do no harm beyond the random folds)."""
-    if c.kind in TIME_TERMS and scheme != "random":
+    if within_session(c) and scheme != "random":
         return after <= (1.0 + SESSION_TERM_COST) * before
     return after < before
 
@@ -328,11 +328,32 @@ def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.
         x = fit.x
         r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
         sigma = robust_sigma(r[~flagged])
-        now = (np.sum((r / sigma) ** 2, axis=1) > bound) | always
+        now = _isolated_in_time((np.sum((r / sigma) ** 2, axis=1) > bound), acquisition_order(data)) | always
         if np.array_equal(now, flagged):
             break
         flagged = now
     return np.flatnonzero(flagged), float(np.sqrt(bound)), x
+
+
+#: Samples beyond the bound this many in a row in acquisition order are an event in time (a step
+#: the geometry half absorbed, a sensor that jumped), not independent gross errors: the step and
+#: wander candidates judge them.
+RUN = 3
+
+
+def _isolated_in_time(beyond: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """``beyond`` (m,) without the samples that lie in runs of :data:`RUN` or more consecutive
+    flagged samples in acquisition ``order``."""
+    flagged = beyond[order].astype(np.int64)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged, [0]])))
+    starts, ends = edges[::2], edges[1::2]
+    in_run = np.zeros(len(order), dtype=bool)
+    for a, b in zip(starts, ends):
+        if b - a >= RUN:
+            in_run[a:b] = True
+    out = beyond.copy()
+    out[order[in_run]] = False
+    return out
 
 
 def _all_residuals(model: ExtendedProblem, x: np.ndarray) -> np.ndarray:
@@ -607,6 +628,12 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
+    causes, x, current_cv, fold_x, curved = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
+    if curved is not None:  # in the linear drift's place, in the report too
+        linear = next(e for e in effects if e["kind"] == "drift")
+        effects[effects.index(linear)] = curved
+        if linear["label"] in plots:
+            plots[curved["label"]] = plots.pop(linear["label"])
     causes, x, current_cv, fold_x, dropped = backward(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain, not_physical)
     for c, why in dropped:
         rejected.append(_retract(c, effects, plots, None, why))
@@ -870,6 +897,38 @@ def not_physical(c: Candidate) -> bool:
     lost joint 3's compliance to harmonics before its maps were in). A compliance is dropped
     only when its size is implausible or undetermined (:func:`_recheck_compliance`)."""
     return c.kind not in PHYSICAL_KINDS
+
+
+def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float):
+    """A drift that is not linear (a warm-up, a stand settling): the model's linear drift, if it
+    has one, replaced by a polynomial of time (:data:`~.candidates.CURVED_DRIFT_DEGREE`) when that
+    lowers the random folds' held-out RMSE by ``min_gain`` of it and does no harm on the others.
+    Its leftovers would otherwise be taken by steps, harmonics and couplings that the backward
+    check then no longer needs. Returns the causes, fit, held-out errors, fold fits and the
+    report entry of the curved drift (None if it was not taken)."""
+    linear = [c for c in model.causes if c.kind == "drift"]
+    if not linear:
+        return list(model.causes), x, current_cv, fold_x, None
+    curved = drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)
+    trial = ExtendedProblem(model.base, [curved if c is linear[0] else c for c in model.causes], model.full_data, model.idx)
+    fit = _fit(trial, x0=trial.start_from(x, model))
+    refits = {name: _nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+    cv = {name: err for name, (err, _) in refits.items()}
+    before, after = judged_rmse(current_cv["random"]), judged_rmse(cv["random"])
+    physical, why = curved.physical(trial.coefficients(fit.x, curved), _std(trial, fit, curved), model.robot, model.robot.params)
+    if (
+        why is not None
+        or before - after < min_gain * before
+        or not all(improves(curved, name, judged_rmse(current_cv[name]), judged_rmse(cv[name])) for name in schemes)
+    ):
+        return list(model.causes), x, current_cv, fold_x, None
+    entry = {"kind": "drift", "joint": None, "label": curved.label, "params": physical,
+             "rmse_heldout_before": reported_rmse(current_cv["random"]), "rmse_heldout_after": reported_rmse(cv["random"]),
+             "significance": {"test": f"a polynomial of time of degree {CURVED_DRIFT_DEGREE} in the place of the linear drift: held-out gain of at least "
+                                      f"{min_gain:.1%} on the random folds, no harm on the others",
+                              "p_value": None, "p_adjusted": None, "screening_gain_mm": None,
+                              "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": reported_rmse(cv["blocked"])}}  # fmt: skip
+    return list(trial.causes), fit.x, cv, {name: xs for name, (_, xs) in refits.items()}, entry
 
 
 def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):

@@ -41,6 +41,18 @@ from .candidates import Candidate, acquisition_order
 
 #: Kinds that are smooth functions of time within one session (this module's term).
 TIME_TERMS = ("wander",)
+#: Terms of acquisition time within one session (a wander, a step): a block of the session the
+#: fit never saw cannot tell where or how far they go, so the blocked folds judge only that they
+#: do no harm (a step in the first block is not even estimable without it).
+SESSION_EVENTS = TIME_TERMS + ("step",)
+
+
+def within_session(c: Candidate) -> bool:
+    """Whether ``c`` is judged within its session only (:data:`SESSION_EVENTS`, and a curved
+    drift, whose powers of time a held-out end block would extrapolate)."""
+    return c.kind in SESSION_EVENTS or (c.kind == "drift" and c.detail.get("degree", 1) > 1)
+
+
 #: Pairs up to this many samples apart in acquisition order are "near in time".
 MAX_LAG = 20
 #: Nearest neighbours in joint space per sample (among samples far apart in time).
