@@ -364,7 +364,8 @@ def table(title: str, intro: str, problem: str, solvers: list[str], args, refere
 
     print(f"### {title}\n\n{intro}\n")
     print(
-        "| solver | wall time | × robocal | time to robocal's final RMSE | × robocal | final RMSE (mm) | max abs(x − x_robocal) | peak RSS of the solve | tracemalloc peak | notes |"
+        "| solver | wall time | × robocal | time to robocal's final RMSE | × robocal | "
+        "final RMSE (mm) | max abs(x − x_robocal) | peak RSS of the solve | tracemalloc peak | notes |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     ref = run_case(problem, reference, args, extra)
@@ -386,7 +387,8 @@ def table(title: str, intro: str, problem: str, solvers: list[str], args, refere
         else:
             reach = f"{out['hit_s']:.3f} s", f"{out['hit_s'] / ref['time_s']:.1f}×"
         print(
-            f"| {label} | {out['time_s']:.3f} s | {ratio:.1f}× | {reach[0]} | {reach[1]} | {out['rmse']:.6f} | {dx} | {mib(out['rss_peak_kib'])} | {traced} | {out['note']} |"
+            f"| {label} | {out['time_s']:.3f} s | {ratio:.1f}× | {reach[0]} | {reach[1]} | "
+            f"{out['rmse']:.6f} | {dx} | {mib(out['rss_peak_kib'])} | {traced} | {out['note']} |"
         )
     print()
     return results
@@ -445,10 +447,17 @@ def main() -> None:
         worker(args)
         return
     args.passthrough = [
-        f"--sim-samples={args.sim_samples}", f"--ukf-sweeps={args.ukf_sweeps}", f"--repeats={args.repeats}", f"--repeat-below-s={args.repeat_below_s}",
-        f"--tracemalloc-max-s={args.tracemalloc_max_s}", f"--budget-s={args.budget_s}", f"--pybotics-budget-s={args.pybotics_budget_s}", f"--blas-threads={args.blas_threads}",
-        f"--d1={args.d1}", f"--d3={args.d3}",
-    ]  # fmt: skip
+        f"--sim-samples={args.sim_samples}",
+        f"--ukf-sweeps={args.ukf_sweeps}",
+        f"--repeats={args.repeats}",
+        f"--repeat-below-s={args.repeat_below_s}",
+        f"--tracemalloc-max-s={args.tracemalloc_max_s}",
+        f"--budget-s={args.budget_s}",
+        f"--pybotics-budget-s={args.pybotics_budget_s}",
+        f"--blas-threads={args.blas_threads}",
+        f"--d1={args.d1}",
+        f"--d3={args.d3}",
+    ]
 
     import filterpy
     import numpy as np
@@ -464,10 +473,12 @@ def main() -> None:
         pyb = "not installed"
     print("## robocal vs the alternatives\n")
     print(
-        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
+        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; "
+        f"NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
     )
     print(
-        f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}"
+        f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, "
+        f"filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}"
     )
     print(f"* command: `python benches/bench_alternatives.py {' '.join(sys.argv[1:])}`".rstrip())
     print(
@@ -487,17 +498,42 @@ def main() -> None:
         "robocal-lm",
     )
     target("robocal's production LM ≥ 100× faster than scipy with finite differences on D1, at equal final RMSE", d1, "robocal-lm", "scipy-lm-fd", 100)
-    table("D3 (UR10 Series B, laser-tracker position), least squares",
-          "UR10, 1495 samples, default mask → 27 free parameters; pybotics fits its own MDH model (20 link + 3 tool + 6 world = 29 parameters, redundant ones included) from its own start; its solve is stopped at a wall-time budget (`--pybotics-budget-s`), so its row is a time per evaluation and the RMSE reached by then, not a converged fit.",
-          "D3", lm, args, "robocal-lm")  # fmt: skip
-    table(f"Simulated HSR JR680 cable, {args.sim_samples:,} samples, least squares",
-          f"`robocal.simulate('hsr-jr680', 'cable', samples={args.sim_samples}, seed=1)`, default mask → 25 free parameters.", "SIM", lm, args, "robocal-lm")  # fmt: skip
-    table(f"D1, the UKF stage of M9 ({args.ukf_stage_sweeps} sweep{'s' if args.ukf_stage_sweeps > 1 else ''}, the same for each implementation)",
-          "Same P0, Q, R, Merwe sigma points (alpha 0.1, beta 2, kappa 0), P reset to P0 at each sweep (Algorithm 1).",
-          "D1", ["robocal-ukf", "filterpy-ukf", "numpy-ukf"], args, "robocal-ukf", [f"--ukf-sweeps={args.ukf_stage_sweeps}"])  # fmt: skip
-    m9 = table(f"D1, the whole M9 cascade ({args.ukf_sweeps} UKF sweeps + VSLM ≤ 200 iterations)",
-               "As in `bench_calibration.py` part 2 (the VSLM stage diverges on D1 with the default damping: compare speed, not RMSE).",
-               "D1", ["robocal-m9", "numpy-m9"], args, "robocal-m9")  # fmt: skip
+    table(
+        "D3 (UR10 Series B, laser-tracker position), least squares",
+        "UR10, 1495 samples, default mask → 27 free parameters; pybotics fits its own MDH model "
+        "(20 link + 3 tool + 6 world = 29 parameters, redundant ones included) from its own start; "
+        "its solve is stopped at a wall-time budget (`--pybotics-budget-s`), so its row is a time per evaluation "
+        "and the RMSE reached by then, not a converged fit.",
+        "D3",
+        lm,
+        args,
+        "robocal-lm",
+    )
+    table(
+        f"Simulated HSR JR680 cable, {args.sim_samples:,} samples, least squares",
+        f"`robocal.simulate('hsr-jr680', 'cable', samples={args.sim_samples}, seed=1)`, default mask → 25 free parameters.",
+        "SIM",
+        lm,
+        args,
+        "robocal-lm",
+    )
+    table(
+        f"D1, the UKF stage of M9 ({args.ukf_stage_sweeps} sweep{'s' if args.ukf_stage_sweeps > 1 else ''}, the same for each implementation)",
+        "Same P0, Q, R, Merwe sigma points (alpha 0.1, beta 2, kappa 0), P reset to P0 at each sweep (Algorithm 1).",
+        "D1",
+        ["robocal-ukf", "filterpy-ukf", "numpy-ukf"],
+        args,
+        "robocal-ukf",
+        [f"--ukf-sweeps={args.ukf_stage_sweeps}"],
+    )
+    m9 = table(
+        f"D1, the whole M9 cascade ({args.ukf_sweeps} UKF sweeps + VSLM ≤ 200 iterations)",
+        "As in `bench_calibration.py` part 2 (the VSLM stage diverges on D1 with the default damping: compare speed, not RMSE).",
+        "D1",
+        ["robocal-m9", "numpy-m9"],
+        args,
+        "robocal-m9",
+    )
     if "time_s" in m9.get("robocal-m9", {}) and "time_s" in m9.get("numpy-m9", {}):
         ratio = m9["numpy-m9"]["time_s"] / m9["robocal-m9"]["time_s"]
         print(

@@ -99,8 +99,10 @@ def main() -> None:
             t0 = time.perf_counter()
             x, nfev, njev, converged, _ = solve(problem)
             elapsed = time.perf_counter() - t0
-            print(f"| {name} | {solver} | {nfev} | {njev} | {elapsed:.2f} | {'yes' if converged else 'no'} | "
-                  f"{rmse(problem, x):.6f} | {rmse(held_out, x):.6f} |", flush=True)  # fmt: skip
+            print(
+                f"| {name} | {solver} | {nfev} | {njev} | {elapsed:.2f} | {'yes' if converged else 'no'} | {rmse(problem, x):.6f} | {rmse(held_out, x):.6f} |",
+                flush=True,
+            )
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
 
 

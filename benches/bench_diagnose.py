@@ -46,8 +46,10 @@ def row(name: str, data, repeats: int) -> str:
         times.append(time.perf_counter() - t0)
     found = ", ".join(e["label"] for e in report["effects"]) or "nothing"
     screened = next((e["significance"]["candidates"] for e in report["effects"] if "candidates" in e["significance"]), "—")
-    return (f"| {name} | {len(data)} | {screened} | {found} | {report['baseline']['rmse_heldout']:.4f} → {report['final']['rmse_heldout']:.4f} | "
-            f"{statistics.median(times):.2f} | {', '.join(f'{t:.2f}' for t in times)} |")  # fmt: skip
+    return (
+        f"| {name} | {len(data)} | {screened} | {found} | {report['baseline']['rmse_heldout']:.4f} → {report['final']['rmse_heldout']:.4f} | "
+        f"{statistics.median(times):.2f} | {', '.join(f'{t:.2f}' for t in times)} |"
+    )
 
 
 def main() -> None:
@@ -56,8 +58,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-public", action="store_true", help="skip the public files")
     args = parser.parse_args()
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
-          f"load average {os.getloadavg()[0]:.2f} at the start")  # fmt: skip
+    print(
+        f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
+        f"load average {os.getloadavg()[0]:.2f} at the start"
+    )
     print(
         f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n"
     )

@@ -101,8 +101,9 @@ def part_loading(args, canonical: Path) -> None:
         delimiter, decimal = (";", ",") if "UR10" in name else (",", ".")
         data = path.read_bytes()
         fns = {"before": lambda: load(path, False), "after": lambda: load(path, True)}
-        fns["pyarrow"] = lambda: pacsv.read_csv(pa.py_buffer(data), parse_options=pacsv.ParseOptions(delimiter=delimiter),
-                                                convert_options=pacsv.ConvertOptions(decimal_point=decimal))  # fmt: skip
+        fns["pyarrow"] = lambda: pacsv.read_csv(
+            pa.py_buffer(data), parse_options=pacsv.ParseOptions(delimiter=delimiter), convert_options=pacsv.ConvertOptions(decimal_point=decimal)
+        )
         if pd is not None:
             fns["pandas"] = lambda: pd.read_csv(io.BytesIO(data), sep=delimiter, decimal=decimal)
         load(path, True)  # warm: imports, page cache
@@ -110,17 +111,23 @@ def part_loading(args, canonical: Path) -> None:
         ratio = best["before"] / best["after"]
         ok = same(out["before"], out["after"])
         pandas_ms = f"{best['pandas'] * 1e3:.1f} ms" if "pandas" in best else "—"
-        print(f"| {name} | {len(out['after']):,} | {best['before'] * 1e3:.1f} ms | {best['after'] * 1e3:.1f} ms | **{ratio:.1f}×** | "
-              f"{'yes' if ok else 'NO'} | {pandas_ms} | {best['pyarrow'] * 1e3:.1f} ms |")  # fmt: skip
+        print(
+            f"| {name} | {len(out['after']):,} | {best['before'] * 1e3:.1f} ms | {best['after'] * 1e3:.1f} ms | **{ratio:.1f}×** | "
+            f"{'yes' if ok else 'NO'} | {pandas_ms} | {best['pyarrow'] * 1e3:.1f} ms |"
+        )
         if verdict is None:
             verdict = (ratio, ok)
     ratio, ok = verdict
-    print(f"\n**Target: {args.samples:,} rows ≥ {LOAD_TARGET:g}× faster than the per-cell path: "
-          f"{'MET' if ratio >= LOAD_TARGET and ok else 'NOT MET'}** ({ratio:.1f}×; identical: {ok}).")  # fmt: skip
-    print(f"\nOne-off import cost, fresh interpreter with NumPy loaded (best of 3): `import pyarrow.csv, pyarrow.compute` "
-          f"{import_seconds('import pyarrow.csv, pyarrow.compute') * 1e3:.0f} ms"
-          + (f"; `import pandas` {import_seconds('import pandas') * 1e3:.0f} ms" if pd is not None else "")
-          + ". robocal imports pyarrow on the first delimited file it reads, not at `import robocal`.\n")  # fmt: skip
+    print(
+        f"\n**Target: {args.samples:,} rows ≥ {LOAD_TARGET:g}× faster than the per-cell path: "
+        f"{'MET' if ratio >= LOAD_TARGET and ok else 'NOT MET'}** ({ratio:.1f}×; identical: {ok})."
+    )
+    print(
+        f"\nOne-off import cost, fresh interpreter with NumPy loaded (best of 3): `import pyarrow.csv, pyarrow.compute` "
+        f"{import_seconds('import pyarrow.csv, pyarrow.compute') * 1e3:.0f} ms"
+        + (f"; `import pandas` {import_seconds('import pandas') * 1e3:.0f} ms" if pd is not None else "")
+        + ". robocal imports pyarrow on the first delimited file it reads, not at `import robocal`.\n"
+    )
 
 
 def part_end_to_end(args, canonical: Path) -> None:
@@ -161,14 +168,30 @@ def part_end_to_end(args, canonical: Path) -> None:
         _, held_out, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, q[test_idx], y[test_idx])
         return calls[0], rmse(fun(out.x)), rmse(held_out(out.x)), out.message
 
-    rows = [("`robocal.calibrate(csv, robot='hsr-jr680')`", t_robocal, f"{res.nfev} (+{res.njev} J)" if res.njev else res.nfev,
-             rmse(res.problem.data_residuals(res.x)), res.metrics["test"]["rmse"], res.message)]  # fmt: skip
+    rows = [
+        (
+            "`robocal.calibrate(csv, robot='hsr-jr680')`",
+            t_robocal,
+            f"{res.nfev} (+{res.njev} J)" if res.njev else res.nfev,
+            rmse(res.problem.data_residuals(res.x)),
+            res.metrics["test"]["rmse"],
+            res.message,
+        )
+    ]
     if not args.quick:
         for method in ("lm", "trf"):
             t0 = time.perf_counter()
             calls, train_rmse, test_rmse, message = scipy_fit(method)
-            rows.append((f"`pandas.read_csv` + scipy `least_squares(method={method!r}, jac='2-point')`, NumPy model", time.perf_counter() - t0,
-                         calls, train_rmse, test_rmse, message))  # fmt: skip
+            rows.append(
+                (
+                    f"`pandas.read_csv` + scipy `least_squares(method={method!r}, jac='2-point')`, NumPy model",
+                    time.perf_counter() - t0,
+                    calls,
+                    train_rmse,
+                    test_rmse,
+                    message,
+                )
+            )
     print("| pipeline (read the file, 80/20 split, fit) | wall time (s) | residual evaluations | training RMSE (mm) | held-out RMSE (mm) | stop |")
     print("|---|---:|---:|---:|---:|---|")
     for name, t, nfev, train, test, message in rows:
@@ -176,11 +199,13 @@ def part_end_to_end(args, canonical: Path) -> None:
     if len(rows) > 1:
         fastest = min(rows[1:], key=lambda row: row[1])
         ratio = fastest[1] / rows[0][1]
-        print(f"\n**Target: robocal.calibrate(file) ≥ {CALIBRATE_TARGET:g}× scipy with finite differences: "
-              f"{'MET' if ratio >= CALIBRATE_TARGET else 'NOT MET'}** ({ratio:.1f}× the faster scipy run, {fastest[1]:.2f} s vs "
-              f"{rows[0][1]:.3f} s; robocal best of {args.repeats} after a warm-up call — {fastest[1] / t_median:.1f}× against its "
-              f"median {t_median:.3f} s —, each scipy method one run; scipy's residual evaluations counted in the function, "
-              "finite-difference ones included).")  # fmt: skip
+        print(
+            f"\n**Target: robocal.calibrate(file) ≥ {CALIBRATE_TARGET:g}× scipy with finite differences: "
+            f"{'MET' if ratio >= CALIBRATE_TARGET else 'NOT MET'}** ({ratio:.1f}× the faster scipy run, {fastest[1]:.2f} s vs "
+            f"{rows[0][1]:.3f} s; robocal best of {args.repeats} after a warm-up call — {fastest[1] / t_median:.1f}× against its "
+            f"median {t_median:.3f} s —, each scipy method one run; scipy's residual evaluations counted in the function, "
+            "finite-difference ones included)."
+        )
     prof = cProfile.Profile()
     prof.enable()
     robocal.calibrate(canonical, robot="hsr-jr680")
@@ -210,13 +235,17 @@ def main() -> None:
     from robocal.data import write_canonical
 
     print("# Loading benchmark (`python benches/bench_loading.py" + (" --quick" if args.quick else "") + "`)\n")
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, NumPy {np.__version__}, "
-          f"SciPy {scipy.__version__}, pyarrow {pyarrow.__version__}, robocal {robocal.__version__}; load average {load_avg()} at the start\n")  # fmt: skip
+    print(
+        f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, NumPy {np.__version__}, "
+        f"SciPy {scipy.__version__}, pyarrow {pyarrow.__version__}, robocal {robocal.__version__}; load average {load_avg()} at the start\n"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         data, _ = robocal.simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
         canonical = write_canonical(data, Path(tmp) / "sim.csv")
-        print(f"canonical file: `robocal.simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by "
-              f"`robocal.data.write_canonical` ({canonical.stat().st_size / 1e6:.1f} MB, columns q1..q6 (deg), L, t)\n")  # fmt: skip
+        print(
+            f"canonical file: `robocal.simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by "
+            f"`robocal.data.write_canonical` ({canonical.stat().st_size / 1e6:.1f} MB, columns q1..q6 (deg), L, t)\n"
+        )
         part_loading(args, canonical)
         part_end_to_end(args, canonical)
     print(f"\nload average {load_avg()} at the end")

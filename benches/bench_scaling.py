@@ -74,12 +74,14 @@ def part_samples(args) -> None:
         f"Best of {args.repeats} up to M = 10 000, one run above.\n"
     )
     print(
-        "| M | free params | LM time | LM iterations (nfev) | LM time / evaluation | LM RMSE (mm) | UKF stage | µs per sample update | VSLM stage | ms per VSLM iteration | M9 cascade (UKF + VSLM) | M9 RMSE (mm) |"
+        "| M | free params | LM time | LM iterations (nfev) | LM time / evaluation | LM RMSE (mm) | UKF stage | "
+        "µs per sample update | VSLM stage | ms per VSLM iteration | M9 cascade (UKF + VSLM) | M9 RMSE (mm) |"
     )
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for m, n, t_lm, nit, nfev, e_lm, t_ukf, t_vslm, vnit, e_m9 in rows:
         print(
-            f"| {m:,} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {e_lm:.6f} | {t_ukf:.4f} s | {t_ukf / (args.sweeps * m) * 1e6:.2f} | "
+            f"| {m:,} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | "
+            f"{e_lm:.6f} | {t_ukf:.4f} s | {t_ukf / (args.sweeps * m) * 1e6:.2f} | "
             f"{t_vslm:.4f} s | {t_vslm / vnit * 1e3:.3f} | {t_ukf + t_vslm:.4f} s | {e_m9:.6f} |"
         )
     ms = [row[0] for row in rows]
@@ -143,16 +145,19 @@ def part_params(args) -> None:
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, j, n, t_lm, nit, nfev, t_ukf, t_it in rows:
         print(
-            f"| {label} | {j} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | {t_ukf:.4f} s | {t_ukf / m * 1e6:.2f} | {t_it * 1e3:.3f} ms |"
+            f"| {label} | {j} | {n} | {t_lm:.4f} s | {nit} ({nfev}) | {t_lm / nfev * 1e3:.3f} ms | "
+            f"{t_ukf:.4f} s | {t_ukf / m * 1e6:.2f} | {t_it * 1e3:.3f} ms |"
         )
     ns = [row[2] for row in rows]
     print("\n| quantity | exponent in n | expected |")
     print("|---|---:|---|")
     print(
-        f"| LM per evaluation | {slope(ns, [row[3] / row[5] for row in rows]):.2f} | J: M·n, JᵀJ: M·n², solve: n³ — 1 to 2 once those dominate; per-sample kinematics (joints, not n) and call overheads lower it |"
+        f"| LM per evaluation | {slope(ns, [row[3] / row[5] for row in rows]):.2f} | J: M·n, JᵀJ: M·n², "
+        "solve: n³ — 1 to 2 once those dominate; per-sample kinematics (joints, not n) and call overheads lower it |"
     )
     print(
-        f"| UKF per sample update | {slope(ns, [row[6] for row in rows]):.2f} | 2n+1 sigma points × a kinematic chain, plus n×n covariance updates: between 1 and 2 (n³ Cholesky negligible at n ≤ 30) |"
+        f"| UKF per sample update | {slope(ns, [row[6] for row in rows]):.2f} | 2n+1 sigma points × a kinematic chain, "
+        "plus n×n covariance updates: between 1 and 2 (n³ Cholesky negligible at n ≤ 30) |"
     )
     print(f"| VSLM per iteration | {slope(ns, [row[7] for row in rows]):.2f} | as LM per evaluation |")
     print()

@@ -474,29 +474,37 @@ def fraction(a: int, b: int) -> str:
 
 
 def markdown(s: dict) -> str:
-    rows = [f"{s['files']} files ({s['skipped']} skipped), {s['hidden']} hidden effects ({s['hidden_large']} at ≥ {LARGE:g}× the limit), {s['named']} causes named",
-            "",
-            "| | value | target |",
-            "|---|---|---|",
-            f"| precision (named causes that are real) | {fraction(s['true_named'], s['named'])} | ≥ 0.95 |",
-            f"| recall, effects at ≥ {LARGE:g}× the limit | {fraction(round((s['recall_large'] or 0) * s['hidden_large']), s['hidden_large'])} | ≥ 0.90 |",
-            f"| recall, all (1-10× the limit) | {fraction(round((s['recall'] or 0) * s['hidden']), s['hidden'])} | |",
-            f"| clean files with anything named | {fraction(s['clean_with_anything_named'], s['clean_files'])} | ≤ 0.05 |",
-            "",
-            f"| hidden kind | hidden | recall | at ≥ {LARGE:g}× | recall at ≥ {LARGE:g}× |",
-            "|---|---|---|---|---|"]  # fmt: skip
+    rows = [
+        f"{s['files']} files ({s['skipped']} skipped), {s['hidden']} hidden effects ({s['hidden_large']} at ≥ {LARGE:g}× the limit), {s['named']} causes named",
+        "",
+        "| | value | target |",
+        "|---|---|---|",
+        f"| precision (named causes that are real) | {fraction(s['true_named'], s['named'])} | ≥ 0.95 |",
+        f"| recall, effects at ≥ {LARGE:g}× the limit | {fraction(round((s['recall_large'] or 0) * s['hidden_large']), s['hidden_large'])} | ≥ 0.90 |",
+        f"| recall, all (1-10× the limit) | {fraction(round((s['recall'] or 0) * s['hidden']), s['hidden'])} | |",
+        f"| clean files with anything named | {fraction(s['clean_with_anything_named'], s['clean_files'])} | ≤ 0.05 |",
+        "",
+        f"| hidden kind | hidden | recall | at ≥ {LARGE:g}× | recall at ≥ {LARGE:g}× |",
+        "|---|---|---|---|---|",
+    ]
     order = list(SCENARIOS.values())
     for row in sorted(s["recall_by_kind"], key=lambda r: order.index(r) if r in order else len(order)):
         c = s["recall_by_kind"][row]
         rows.append(
-            f"| {row} | {c.get('hidden', 0)} | {fraction(c.get('found', 0), c.get('hidden', 0))} | {c.get('large', 0)} | {fraction(c.get('large_found', 0), c.get('large', 0))} |"
+            f"| {row} | {c.get('hidden', 0)} | {fraction(c.get('found', 0), c.get('hidden', 0))} | "
+            f"{c.get('large', 0)} | {fraction(c.get('large_found', 0), c.get('large', 0))} |"
         )
     rows += ["", "| named kind | named | precision |", "|---|---|---|"]
     for kind, c in sorted(s["precision_by_kind"].items(), key=lambda kv: -kv[1]["named"]):
         rows.append(f"| {kind} | {c['named']} | {fraction(c['true'], c['named'])} |")
     columns = sorted({k for c in s["confusion"].values() for k in c} - {"nothing"}) + ["nothing"]
-    rows += ["", "Confusion (hidden kind → what was named: its match, and every false cause named in the same file; 'nothing': missed and nothing else named)", "",
-             "| hidden \\ named | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]  # fmt: skip
+    rows += [
+        "",
+        "Confusion (hidden kind → what was named: its match, and every false cause named in the same file; 'nothing': missed and nothing else named)",
+        "",
+        "| hidden \\ named | " + " | ".join(columns) + " |",
+        "|---" * (len(columns) + 1) + "|",
+    ]
     for row in sorted(s["confusion"], key=lambda r: order.index(r) if r in order else len(order)):
         c = s["confusion"][row]
         rows.append(f"| {row} | " + " | ".join(str(c.get(k, "")) for k in columns) + " |")

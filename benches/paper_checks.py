@@ -65,8 +65,10 @@ def main() -> None:
         p = Problem.build(abb, d2.subset(tr))
         res = levenberg_marquardt(p)
         h = res.history
-        print(f"D2 paper split {seed}: {res.nit} iterations, {res.nfev} evaluations ({res.message}); cost after 100 iterations "
-              f"{h[min(100, len(h) - 1)]:.4g}, final {res.cost:.4g}; scaled condition {scaled_condition(p.jacobian(res.x)):.2g}")  # fmt: skip
+        print(
+            f"D2 paper split {seed}: {res.nit} iterations, {res.nfev} evaluations ({res.message}); cost after 100 iterations "
+            f"{h[min(100, len(h) - 1)]:.4g}, final {res.cost:.4g}; scaled condition {scaled_condition(p.jacobian(res.x)):.2g}"
+        )
 
     text = (root / "ipa-robot-accuracy-ur10" / "Series_B" / "measurements_joint_configurations.csv").read_text().splitlines()
     header = text[0].split(";")

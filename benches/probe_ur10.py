@@ -31,7 +31,8 @@ import robocal
 from robocal.diagnosis.budget import REVISIT_TOLERANCE
 from robocal.diagnosis.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
 from robocal.diagnosis.model import ExtendedProblem, reported_rmse
-from robocal.diagnosis.select import _fit, _fold_problem, _folds, _held_out_errors, _nonlinear_cv, _std, diagnose
+from robocal.diagnosis.select import diagnose
+from robocal.diagnosis.validation import coefficient_std, fit_problem, fold_problem, fold_schemes, held_out_errors, nonlinear_cv
 from robocal.diagnosis.settling import LONG_MOVE_DEG, preceding_move_deg
 from robocal.physics import gravity_torques
 from robocal.stats import rmse_of_squares
@@ -46,7 +47,7 @@ def _diagnosed(series: str, measurement):
     d = diagnose(ROOT / SERIES[series], measurement=measurement)
     model, keep = d.model, d.model.idx
     order = acquisition_order(model.full_data)
-    schemes = _folds(len(keep), 5, 0, np.searchsorted(keep, order[np.isin(order, keep)]), None)
+    schemes = fold_schemes(model.full_data.q[keep], 5, 0, np.searchsorted(keep, order[np.isin(order, keep)]), None)
     print("causes:", [c.label for c in model.causes])
     return model, d.x, schemes
 
@@ -64,9 +65,9 @@ def coverage(series: str, measurement, joint: int) -> None:
             row = [f"  fold {i}: {np.sum(~covered)} of {len(test)} held out beyond the map"]
             for name, causes in (("without", model.causes), ("with", model.causes + [c])):
                 ext = ExtendedProblem(model.base, causes, data, keep)
-                fold = _fold_problem(ext, train)
-                fit = _fit(fold)
-                e = _held_out_errors(ext, fold, train, test, fit.x)[:, 0]
+                fold = fold_problem(ext, train)
+                fit = fit_problem(fold)
+                e = held_out_errors(ext, fold, train, test, fit.x)[:, 0]
                 parts = [f"{rmse_of_squares(e[m]):.3f}" if m.any() else "-" for m in (covered, ~covered)]
                 links = ", ".join(f"{n} {fit.x[fold.names.index(n)]:.3f}" for n in lengths)
                 row.append(f"{name} map: covered {parts[0]} / beyond {parts[1]} mm, {links}")
@@ -77,16 +78,20 @@ def bending(series: str, measurement) -> None:
     model, x, schemes = _diagnosed(series, measurement)
     data, keep = model.full_data, model.idx
     tau = gravity_torques(model.robot, data.q)
-    base = {n: _nonlinear_cv(model, f) for n, f in schemes.items()}
+    base = {n: nonlinear_cv(model, f) for n, f in schemes.items()}
     print("diagnosis: " + ", ".join(f"{n} {reported_rmse(e):.4f}" for n, (e, _) in base.items()) + " mm")
     for joint, source in ((3, 2), (2, 3), (4, 3), (3, 4)):  # 1-based: joint turned, torque that turns it
         c = Candidate("joint_compliance", joint - 1, "joints", tau[:, source - 1 : source].copy(), detail={"source": source})
         trial = ExtendedProblem(model.base, model.causes + [c], data, keep)
-        fit = _fit(trial, x0=trial.start_from(x, model))
-        std = _std(trial, fit, c)
-        cv = {n: _nonlinear_cv(trial, f, [(s, trial.start_from(xf, model)) for s, xf in base[n][1]])[0] for n, f in schemes.items()}
-        print(f"dq{joint} = c·tau{source}: c {trial.coefficients(fit.x, c)[0]:.3g} ± {np.nan if std is None else std[0]:.2g} rad/(N·m); "
-              + ", ".join(f"{n} {reported_rmse(base[n][0]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes) + " mm", flush=True)  # fmt: skip
+        fit = fit_problem(trial, x0=trial.start_from(x, model))
+        std = coefficient_std(trial, fit, c)
+        cv = {n: nonlinear_cv(trial, f, [(s, trial.start_from(xf, model)) for s, xf in base[n][1]])[0] for n, f in schemes.items()}
+        print(
+            f"dq{joint} = c·tau{source}: c {trial.coefficients(fit.x, c)[0]:.3g} ± {np.nan if std is None else std[0]:.2g} rad/(N·m); "
+            + ", ".join(f"{n} {reported_rmse(base[n][0]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes)
+            + " mm",
+            flush=True,
+        )
 
 
 def outliers(series: str, report: Path) -> None:
@@ -102,8 +107,10 @@ def outliers(series: str, report: Path) -> None:
     print(f"{len(samples)} outliers, {is_revealed.sum()} revealed by the causes")
     for name, group in (("baseline's", samples[~is_revealed]), ("revealed", samples[is_revealed])):
         if len(group):
-            print(f"  {name}: {np.sum(long[group])} of {len(group)} follow a joint move of {LONG_MOVE_DEG:g} deg or more "
-                  f"({np.mean(long[group]):.0%}; of all samples {np.mean(long):.1%}); moves before them (deg): {np.round(move[group], 1).tolist()}")  # fmt: skip
+            print(
+                f"  {name}: {np.sum(long[group])} of {len(group)} follow a joint move of {LONG_MOVE_DEG:g} deg or more "
+                f"({np.mean(long[group]):.0%}; of all samples {np.mean(long):.1%}); moves before them (deg): {np.round(move[group], 1).tolist()}"
+            )
     tree = cKDTree(data.q)
     for s in samples:
         others = [j for j in tree.query_ball_point(data.q[s], REVISIT_TOLERANCE, p=np.inf) if j != s]

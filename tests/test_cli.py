@@ -27,8 +27,25 @@ def ok(done):
 
 def test_every_subcommand_end_to_end(workdir):
     w = workdir
-    ok(robocal("simulate", "--robot", "abb-irb120", "--measurement", "position", "--samples", "300", "--seed", "2",
-               "--effect", "backlash:joint=2,width=0.03", "--out", w / "d.csv", "--truth", w / "truth.json"))  # fmt: skip
+    ok(
+        robocal(
+            "simulate",
+            "--robot",
+            "abb-irb120",
+            "--measurement",
+            "position",
+            "--samples",
+            "300",
+            "--seed",
+            "2",
+            "--effect",
+            "backlash:joint=2,width=0.03",
+            "--out",
+            w / "d.csv",
+            "--truth",
+            w / "truth.json",
+        )
+    )
     assert "300" in ok(robocal("inspect", w / "d.csv", "--robot", "abb-irb120"))  # the row count is reported
     out = ok(robocal("calibrate", w / "d.csv", "--robot", "abb-irb120", "--out", w / "result.json"))
     assert "test:  RMSE" in out and json.loads((w / "result.json").read_text())["schema"] == "robocal.result/1"

@@ -45,8 +45,9 @@ def inputs(tmp_path_factory):
     q = np.radians([[10, -20, 30, 40, 50, 60], [0, 0, 0, 0, 30, 0]])
     xyz = robot.predict("position", q)
     (w / "targets.csv").write_text("x,y,z\n" + "\n".join(",".join(f"{v:.6f}" for v in p) for p in xyz) + "\n")
-    (w / "robot.json").write_text(json.dumps({"name": "two", "joints": [{"alpha": 0, "a": 300, "d": 0, "theta": 0},
-                                                                        {"alpha": 0, "a": 200, "d": 0, "theta": 0}]}))  # fmt: skip
+    (w / "robot.json").write_text(
+        json.dumps({"name": "two", "joints": [{"alpha": 0, "a": 300, "d": 0, "theta": 0}, {"alpha": 0, "a": 200, "d": 0, "theta": 0}]})
+    )
     (w / "diag.json").write_text(json.dumps({"baseline": {"rmse_heldout": 0.1}, "effects": [], "model": {"causes": []}}))
     return w
 
@@ -71,16 +72,19 @@ def refused(argv, capsys, *words) -> str:
 
 
 # -- 1. an output that names an input ------------------------------------------------------------
-@pytest.mark.parametrize("argv", [
-    ["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}/d.csv"],
-    ["inspect", "{w}/d.csv", "--json", "{w}/d.csv"],
-    ["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{w}/targets.csv"],
-    ["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{w}/result.json"],
-    ["export", "{w}/result.json", "--format", "dh", "--out", "{w}/result.json"],
-    ["simulate", "--robot", "{w}/robot.json", "--samples", "20", "--out", "{w}/robot.json"],
-    ["diagnose", "{w}/d.csv", "--robot", ROBOT, "--json", "{w}/d.csv"],
-    ["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}/./sub/../d.csv"],
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}/d.csv"],
+        ["inspect", "{w}/d.csv", "--json", "{w}/d.csv"],
+        ["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{w}/targets.csv"],
+        ["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{w}/result.json"],
+        ["export", "{w}/result.json", "--format", "dh", "--out", "{w}/result.json"],
+        ["simulate", "--robot", "{w}/robot.json", "--samples", "20", "--out", "{w}/robot.json"],
+        ["diagnose", "{w}/d.csv", "--robot", ROBOT, "--json", "{w}/d.csv"],
+        ["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}/./sub/../d.csv"],
+    ],
+)
 def test_an_output_that_is_an_input_is_refused_and_the_input_kept(inputs, capsys, argv):
     (inputs / "sub").mkdir(exist_ok=True)
     before = snapshot(inputs)
@@ -107,21 +111,24 @@ def test_simulate_with_a_bad_truth_path_writes_nothing(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("argv, words", [
-    (["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{t}/nodir/r.json"], ["nodir", "does not exist"]),
-    (["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{t}"], ["is a folder"]),
-    (["export", "{w}/result.json", "--format", "urdf", "--out", "{t}/nodir/r.urdf"], ["does not exist"]),
-    (["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{t}"], ["is a folder"]),
-    (["report", "{w}/result.json", "--out", "{w}/d.csv"], ["exists and is not a folder"]),
-    (["report", "{w}/result.json", "--out", "{w}"], ["not empty", "--force"]),
-    (["report", "{w}/result.json", "--out", "{w}", "--force"], ["holds the input"]),
-    (["compare", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}"], ["not empty", "--force"]),
-    (["diagnose", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}"], ["not empty", "--force"]),
-    (["demo", "--out", "{w}"], ["not empty", "--force"]),
-    (["demo", "--out", "{w}/d.csv"], ["exists and is not a folder"]),
-    (["inspect", "{t}/missing.csv"], ["missing.csv", "cannot read"]),
-    (["export", "{t}/missing.json", "--format", "dh", "--out", "{t}/x.csv"], ["missing.json", "cannot read"]),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{t}/nodir/r.json"], ["nodir", "does not exist"]),
+        (["calibrate", "{w}/d.csv", "--robot", ROBOT, "--out", "{t}"], ["is a folder"]),
+        (["export", "{w}/result.json", "--format", "urdf", "--out", "{t}/nodir/r.urdf"], ["does not exist"]),
+        (["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{t}"], ["is a folder"]),
+        (["report", "{w}/result.json", "--out", "{w}/d.csv"], ["exists and is not a folder"]),
+        (["report", "{w}/result.json", "--out", "{w}"], ["not empty", "--force"]),
+        (["report", "{w}/result.json", "--out", "{w}", "--force"], ["holds the input"]),
+        (["compare", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}"], ["not empty", "--force"]),
+        (["diagnose", "{w}/d.csv", "--robot", ROBOT, "--out", "{w}"], ["not empty", "--force"]),
+        (["demo", "--out", "{w}"], ["not empty", "--force"]),
+        (["demo", "--out", "{w}/d.csv"], ["exists and is not a folder"]),
+        (["inspect", "{t}/missing.csv"], ["missing.csv", "cannot read"]),
+        (["export", "{t}/missing.json", "--format", "dh", "--out", "{t}/x.csv"], ["missing.json", "cannot read"]),
+    ],
+)
 def test_unusable_output_paths_are_one_line_errors(inputs, tmp_path, capsys, argv, words):
     before = snapshot(inputs)
     refused([a.format(w=inputs, t=tmp_path) for a in argv], capsys, *words)
@@ -227,14 +234,17 @@ def test_report_of_a_result_with_a_text_value_is_an_error(inputs, tmp_path, caps
 
 
 # -- 4. robot files ------------------------------------------------------------------------------
-@pytest.mark.parametrize("change, words", [
-    ({"hayatti": True}, ["joint 2, key 'hayatti'", "unknown key"]),
-    ({"limit": [-10, 10]}, ["joint 2, key 'limit'", "unknown key"]),
-    ({"hayati": "no"}, ["joint 2, key 'hayati'", "valid boolean", "'no'"]),
-    ({"a": True}, ["joint 2, key 'a'", "valid number"]),
-    ({"kind": "spherical"}, ["joint 2, key 'kind'", "'revolute' or 'prismatic'"]),
-    ({"limits": [1, 2, 3]}, ["joint 2, key 'limits'", "at most 2"]),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"hayatti": True}, ["joint 2, key 'hayatti'", "unknown key"]),
+        ({"limit": [-10, 10]}, ["joint 2, key 'limit'", "unknown key"]),
+        ({"hayati": "no"}, ["joint 2, key 'hayati'", "valid boolean", "'no'"]),
+        ({"a": True}, ["joint 2, key 'a'", "valid number"]),
+        ({"kind": "spherical"}, ["joint 2, key 'kind'", "'revolute' or 'prismatic'"]),
+        ({"limits": [1, 2, 3]}, ["joint 2, key 'limits'", "at most 2"]),
+    ],
+)
 def test_robot_files_are_read_strictly(tmp_path, change, words):
     spec = {"name": "two", "joints": [{"alpha": 0, "a": 300, "d": 0, "theta": 0}, {"alpha": 0, "a": 200, "d": 0, "theta": 0, **change}]}
     path = tmp_path / "r.json"
@@ -283,12 +293,15 @@ def _canonical(tmp_path, header, rows, name="x.csv") -> Path:
     return path
 
 
-@pytest.mark.parametrize("header, row, words", [
-    ("q1,q2,q3,q4,q5,q6,L,L", "10,20,30,40,50,60,900,901", ["row 1, column 'L'", "more than once"]),
-    ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,1_0", ["row 2, column 'L'", "expected a number; got '1_0'"]),
-    ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,1e300", ["row 2, column 'L'", "beyond"]),
-    ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,０", ["row 2, column 'L'", "expected a number"]),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "header, row, words",
+    [
+        ("q1,q2,q3,q4,q5,q6,L,L", "10,20,30,40,50,60,900,901", ["row 1, column 'L'", "more than once"]),
+        ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,1_0", ["row 2, column 'L'", "expected a number; got '1_0'"]),
+        ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,1e300", ["row 2, column 'L'", "beyond"]),
+        ("q1,q2,q3,q4,q5,q6,L", "10,20,30,40,50,60,０", ["row 2, column 'L'", "expected a number"]),
+    ],
+)
 def test_bad_cells_name_file_row_and_column(tmp_path, capsys, header, row, words):
     path = _canonical(tmp_path, header, [row] * 30)
     refused(["calibrate", path, "--robot", ROBOT], capsys, str(path), *words)
@@ -311,10 +324,13 @@ def test_forty_thousand_columns_are_refused(tmp_path, capsys):
     refused(["calibrate", path, "--robot", ROBOT], capsys, "6 joints", "40000 joint columns")
 
 
-@pytest.mark.parametrize("argv", [
-    ["export", "{w}/result.json", "--format", "dh", "--out", "{t}/x.csv", "--samples", "100000000"],
-    ["simulate", "--samples", "100000000", "--out", "{t}/s.csv"],
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "{w}/result.json", "--format", "dh", "--out", "{t}/x.csv", "--samples", "100000000"],
+        ["simulate", "--samples", "100000000", "--out", "{t}/s.csv"],
+    ],
+)
 def test_sample_counts_are_bounded(inputs, tmp_path, capsys, argv):
     refused([a.format(w=inputs, t=tmp_path) for a in argv], capsys, "at most 1,000,000")
     assert list(tmp_path.iterdir()) == []
@@ -351,14 +367,17 @@ def test_public_functions_take_what_users_pass(inputs):
 
 
 @settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
-@given(fraction=st.one_of(st.floats(allow_nan=True), st.text(max_size=6), st.none(), st.booleans(), st.lists(st.floats(), max_size=2)),
-       targets=st.one_of(st.lists(st.lists(st.floats(-2000, 2000), min_size=0, max_size=8), max_size=3), st.text(max_size=6),
-                         st.integers(), st.none()))  # fmt: skip
+@given(
+    fraction=st.one_of(st.floats(allow_nan=True), st.text(max_size=6), st.none(), st.booleans(), st.lists(st.floats(), max_size=2)),
+    targets=st.one_of(st.lists(st.lists(st.floats(-2000, 2000), min_size=0, max_size=8), max_size=3), st.text(max_size=6), st.integers(), st.none()),
+)
 def test_fuzz_the_public_functions_users_call_first(inputs, fraction, targets):
     """``calibrate(test_fraction=...)`` and ``compensate(result, targets)``: a result or a
     robocal error, never a TypeError from inside."""
-    for call in (lambda: robocal.calibrate(str(inputs / "d.csv"), robot=ROBOT, test_fraction=fraction, max_nfev=5),
-                 lambda: robocal.compensate(str(inputs / "result.json"), targets)):  # fmt: skip
+    for call in (
+        lambda: robocal.calibrate(str(inputs / "d.csv"), robot=ROBOT, test_fraction=fraction, max_nfev=5),
+        lambda: robocal.compensate(str(inputs / "result.json"), targets),
+    ):
         try:
             call()
         except RobocalError:
@@ -473,15 +492,34 @@ SPECS = {
     ),
 }
 #: Values of the options that take a word: the valid ones and some that are not.
-CHOICES = {"--format": ["dh", "mdh", "urdf", "canonical", "sdf"], "--angle-unit": ["deg", "rad", "grad"],
-           "--measurement": ["cable", "position", "pose"], "--method": ["lm", "vslm", "nope"], "--loss": ["huber", "linear", "l1"],
-           "--table-format": ["csv", "json", "xlsx"], "--kinematic-prior": ["10,1", "1", "a,b", "-1,0"],
-           "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"], "--name": ["r", "<b>&"]}  # fmt: skip
+CHOICES = {
+    "--format": ["dh", "mdh", "urdf", "canonical", "sdf"],
+    "--angle-unit": ["deg", "rad", "grad"],
+    "--measurement": ["cable", "position", "pose"],
+    "--method": ["lm", "vslm", "nope"],
+    "--loss": ["huber", "linear", "l1"],
+    "--table-format": ["csv", "json", "xlsx"],
+    "--kinematic-prior": ["10,1", "1", "a,b", "-1,0"],
+    "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"],
+    "--name": ["r", "<b>&"],
+}
 #: Options always drawn (required, or without which the canonical file cannot be calibrated).
-REQUIRED = {"export": ["--format", "--out"], "compensate": ["--out"], "report": ["--out"], "simulate": ["--out"], "compare": ["--out", "--robot"],
-            "calibrate": ["--robot"], "diagnose": ["--robot"], "plan": ["--out", "--poses"]}  # fmt: skip
-PINNED = {"compare": ["--methods", "lm", "--repeats", "1", "--protocol", "80-20"], "diagnose": ["--folds", "2"], "demo": ["--samples", "60"],
-          "plan": ["--candidates", "500"]}  # fmt: skip
+REQUIRED = {
+    "export": ["--format", "--out"],
+    "compensate": ["--out"],
+    "report": ["--out"],
+    "simulate": ["--out"],
+    "compare": ["--out", "--robot"],
+    "calibrate": ["--robot"],
+    "diagnose": ["--robot"],
+    "plan": ["--out", "--poses"],
+}
+PINNED = {
+    "compare": ["--methods", "lm", "--repeats", "1", "--protocol", "80-20"],
+    "diagnose": ["--folds", "2"],
+    "demo": ["--samples", "60"],
+    "plan": ["--candidates", "500"],
+}
 READS = ("data", "result", "targets", "diagnosis", "robot")
 
 

@@ -22,11 +22,66 @@ pytest.importorskip("pyarrow")
 
 #: Cells the per-cell rules refuse or treat specially, each a trap for a lenient columnar parser.
 NASTY = [
-    "1_0", "0x10", "0b1", "1d5", "1f", " 1 ", "\t2\t", "1 2", "1e400", "-1e400", "1e-400", "NaN", "nan", "-nan", "inf", "-inf",
-    "Infinity", "INF", "1,000", "1,5", "1.5.3", "١", "１", "\xa01", "1\u2003", "", " ", "1e", "e1", "+-1", "--1", "1-", ".", "+",
-    "-", "+.5", "1.", ".5", "00012", "1E+5", "1e13", "-1e12", "1e12", "1000000000000.0001", "9" * 30, "0." + "0" * 30 + "1",
-    "N/A", "NULL", "null", "NA", "#N/A", "true", "True", "1e+", "1E5e5", "2,02011E+13", "'1'", "1;2", "x",
-]  # fmt: skip
+    "1_0",
+    "0x10",
+    "0b1",
+    "1d5",
+    "1f",
+    " 1 ",
+    "\t2\t",
+    "1 2",
+    "1e400",
+    "-1e400",
+    "1e-400",
+    "NaN",
+    "nan",
+    "-nan",
+    "inf",
+    "-inf",
+    "Infinity",
+    "INF",
+    "1,000",
+    "1,5",
+    "1.5.3",
+    "١",
+    "１",
+    "\xa01",
+    "1\u2003",
+    "",
+    " ",
+    "1e",
+    "e1",
+    "+-1",
+    "--1",
+    "1-",
+    ".",
+    "+",
+    "-",
+    "+.5",
+    "1.",
+    ".5",
+    "00012",
+    "1E+5",
+    "1e13",
+    "-1e12",
+    "1e12",
+    "1000000000000.0001",
+    "9" * 30,
+    "0." + "0" * 30 + "1",
+    "N/A",
+    "NULL",
+    "null",
+    "NA",
+    "#N/A",
+    "true",
+    "True",
+    "1e+",
+    "1E5e5",
+    "2,02011E+13",
+    "'1'",
+    "1;2",
+    "x",
+]
 QUOTED = ['"1"', '"1,5"', '"a,b"', '"', '""']
 
 
@@ -36,8 +91,9 @@ def _float_text(x: float, style: int) -> str:
 
 finite = st.floats(min_value=-1e12, max_value=1e12, allow_nan=False, allow_infinity=False)
 number_cell = st.builds(_float_text, finite, st.integers(0, 5)) | st.integers(-(10**12), 10**12).map(str)
-cell = st.one_of(number_cell, number_cell, number_cell, st.sampled_from(NASTY), st.sampled_from(QUOTED),
-                 st.text(alphabet=st.characters(codec="utf-8"), max_size=4))  # fmt: skip
+cell = st.one_of(
+    number_cell, number_cell, number_cell, st.sampled_from(NASTY), st.sampled_from(QUOTED), st.text(alphabet=st.characters(codec="utf-8"), max_size=4)
+)
 
 HEADERS = [
     ["q1", "q2", "L"],
@@ -142,8 +198,10 @@ def test_load_agrees(tmp_path_factory, text, angle_unit):
     assert_same(fast, precise)
 
 
-IPA_HEADER = ("Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;"
-              "measurement_temperature;measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz")  # fmt: skip
+IPA_HEADER = (
+    "Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;"
+    "measurement_temperature;measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz"
+)
 decimal_comma_cell = number_cell.map(lambda c: c.replace(".", ",")) | st.sampled_from(NASTY + ["1.5", "1,5,5", "1,e5", ",5", "5,"])
 
 
@@ -273,10 +331,11 @@ def test_reading_a_file_does_not_import_pandas(tmp_path):
     (tmp_path / "a.csv").write_text("q1,q2,L\n10,20,30\n40,50,60\n")
     (tmp_path / "b.csv").write_text("q1,q2,L,operator\n 10 ,20,30,ann\n40,50,60,bob\n")  # text column, padded cells
     (tmp_path / "c.csv").write_text(IPA_HEADER + "\n" + ";".join(["20200714163904"] + ["1,5"] * 13) + "\n")
-    code = ("import sys, robocal.data as d; d.table.COLUMNAR_MIN_BYTES = 0; d.load(sys.argv[1]); d.load(sys.argv[2]); "
-            "d.read_ipa(sys.argv[3], measurement='position'); print('pyarrow' in sys.modules, 'pandas' in sys.modules)")  # fmt: skip
-    out = subprocess.run([sys.executable, "-c", code, *(str(tmp_path / n) for n in ("a.csv", "b.csv", "c.csv"))],
-                         capture_output=True, text=True, check=True)  # fmt: skip
+    code = (
+        "import sys, robocal.data as d; d.table.COLUMNAR_MIN_BYTES = 0; d.load(sys.argv[1]); d.load(sys.argv[2]); "
+        "d.read_ipa(sys.argv[3], measurement='position'); print('pyarrow' in sys.modules, 'pandas' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code, *(str(tmp_path / n) for n in ("a.csv", "b.csv", "c.csv"))], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["True", "False"]
 
 
@@ -291,6 +350,8 @@ def test_small_files_do_not_pay_for_importing_pyarrow(tmp_path):
     write_canonical(Dataset(q=rng.uniform(-3, 3, (12000, 6)), y=rng.normal(900, 9, 12000), measurement="cable"), tmp_path / "big.csv")
     assert (tmp_path / "big.csv").stat().st_size > table.COLUMNAR_MIN_BYTES
     code = "import sys, robocal.data as d; d.load(sys.argv[1]); print('pyarrow' in sys.modules)"
-    seen = [subprocess.run([sys.executable, "-c", code, str(tmp_path / n)], capture_output=True, text=True, check=True).stdout.strip()
-            for n in ("small.csv", "big.csv")]  # fmt: skip
+    seen = [
+        subprocess.run([sys.executable, "-c", code, str(tmp_path / n)], capture_output=True, text=True, check=True).stdout.strip()
+        for n in ("small.csv", "big.csv")
+    ]
     assert seen == ["False", "True"]

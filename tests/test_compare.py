@@ -139,8 +139,26 @@ def test_cli_end_to_end(data, tmp_path, capsys):
     path = tmp_path / "sim.csv"
     write_canonical(data, path)
     out = tmp_path / "out"
-    code = main(["compare", str(path), "--robot", "hsr-jr680", "--protocol", "paper", "--repeats", "2",
-                 "--methods", "lm", "ukf-vslm", "rbf", "--seed", "3", "--out", str(out)])  # fmt: skip
+    code = main(
+        [
+            "compare",
+            str(path),
+            "--robot",
+            "hsr-jr680",
+            "--protocol",
+            "paper",
+            "--repeats",
+            "2",
+            "--methods",
+            "lm",
+            "ukf-vslm",
+            "rbf",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     assert "Table VIII" in capsys.readouterr().out
     for name in FILES:

@@ -36,8 +36,13 @@ def test_compensated_joints_reach_the_targets_on_the_true_robot(calibrated, tmp_
     nominal.params[: 5 * 6] = ur10.params[: 5 * 6]  # nominal kinematics, calibrated set-up
     targets = nominal.predict("position", q_nominal)  # where the nominal model thinks it goes
     csv = tmp_path / "targets.csv"
-    csv.write_text("x,y,z," + ",".join(f"q{j}" for j in range(1, 7)) + "\n" +
-                   "\n".join(",".join(f"{v:.9f}" for v in [*t, *np.degrees(q)]) for t, q in zip(targets, q_nominal)) + "\n")  # fmt: skip
+    csv.write_text(
+        "x,y,z,"
+        + ",".join(f"q{j}" for j in range(1, 7))
+        + "\n"
+        + "\n".join(",".join(f"{v:.9f}" for v in [*t, *np.degrees(q)]) for t, q in zip(targets, q_nominal))
+        + "\n"
+    )
     rows = compensate(path, csv)
     assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows if r["status"] != "ok"]
     q = np.radians([r["q"] for r in rows])

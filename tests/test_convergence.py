@@ -39,10 +39,13 @@ def test_lm_converges_on_the_public_datasets(datasets, name):
     assert rmse(fit.x) <= 1.03 * rmse(full.x)
 
 
-@pytest.mark.parametrize("name, causes", [
-    ("D1", ["drift"]),
-    ("D3 B", ["drift", "joint_periodic joint 2 harmonic=3", "joint_periodic joint 1 harmonic=3", "joint_periodic joint 1 harmonic=2"]),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, causes",
+    [
+        ("D1", ["drift"]),
+        ("D3 B", ["drift", "joint_periodic joint 2 harmonic=3", "joint_periodic joint 1 harmonic=3", "joint_periodic joint 1 harmonic=2"]),
+    ],
+)
 def test_lm_converges_with_the_causes_diagnose_finds(datasets, name, causes):
     """The extended models diagnose reports on these files (docs/findings.md)."""
     path, measurement = FILES[name]

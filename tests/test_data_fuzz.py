@@ -11,9 +11,14 @@ from hypothesis import strategies as st
 from robocal.data import load, read_canonical
 from robocal.exceptions import RobocalError
 
-HEADERS = [b"q1,q2,L\n", b"x,y,z,q1,q2,q3,q4,q5,q6,L\n", b"q1,q2,q3,q4,q5,q6,L\n", b"q1,x,y,z,qw,qx,qy,qz,t,temp\n",
-           b"Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;"
-           b"measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz\n"]  # fmt: skip
+HEADERS = [
+    b"q1,q2,L\n",
+    b"x,y,z,q1,q2,q3,q4,q5,q6,L\n",
+    b"q1,q2,q3,q4,q5,q6,L\n",
+    b"q1,x,y,z,qw,qx,qy,qz,t,temp\n",
+    b"Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;"
+    b"measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz\n",
+]
 CELLS = st.sampled_from([b"1", b"-2.5", b"1,5", b"nan", b"inf", b"", b"x", b"1e400", b"\xff", b"\x00", b'"', b";", b",", b"\n", b"\r", b"2,02011E+13"])
 BODY = st.lists(CELLS, max_size=60).map(b"".join)
 

@@ -89,10 +89,26 @@ def plausible(kind: str, spec: str) -> bool:
     """Whether the magnitude in ``spec`` lies inside diagnose's plausibility limits."""
     key = KEYS[kind][0]
     value = abs(float(spec.rsplit(f"{key}=", 1)[1]))
-    in_si = {"compliance": value * DEG / 1000.0, "amplitude": value * DEG, "width": value * DEG, "beta": value * DEG,
-             "scale": value, "coefficient": value, "rate": value, "alpha": value * 1e-6}[key]  # fmt: skip
-    limit = {"compliance": LIMITS["compliance"], "amplitude": LIMITS["angle"], "width": LIMITS["angle"], "beta": LIMITS["angle"],
-             "scale": LIMITS["ratio"], "coefficient": LIMITS["ratio"], "rate": LIMITS["drift_mm_per_h"], "alpha": LIMITS["alpha"]}[key]  # fmt: skip
+    in_si = {
+        "compliance": value * DEG / 1000.0,
+        "amplitude": value * DEG,
+        "width": value * DEG,
+        "beta": value * DEG,
+        "scale": value,
+        "coefficient": value,
+        "rate": value,
+        "alpha": value * 1e-6,
+    }[key]
+    limit = {
+        "compliance": LIMITS["compliance"],
+        "amplitude": LIMITS["angle"],
+        "width": LIMITS["angle"],
+        "beta": LIMITS["angle"],
+        "scale": LIMITS["ratio"],
+        "coefficient": LIMITS["ratio"],
+        "rate": LIMITS["drift_mm_per_h"],
+        "alpha": LIMITS["alpha"],
+    }[key]
     return in_si < 0.8 * limit
 
 
@@ -394,9 +410,15 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], 1.0, 5))
     assert accepted == [] and effects == [] and rejected
     assert {"kind", "joint", "label", "gain_mm", "gains_mm", "p_value", "p_adjusted", "params", "reason"} <= set(rejected[0])
-    report = {"robot": "abb-irb120", "measurement": "cable", "samples": 100, "effects": [], "rejected": rejected,
-              "baseline": {"n_params": 25, "rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "implausible": []},
-              "final": {"rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "n_params": 25}}  # fmt: skip
+    report = {
+        "robot": "abb-irb120",
+        "measurement": "cable",
+        "samples": 100,
+        "effects": [],
+        "rejected": rejected,
+        "baseline": {"n_params": 25, "rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "implausible": []},
+        "final": {"rmse_heldout": 1.0, "rmse_heldout_blocked": 1.2, "n_params": 25},
+    }
     assert "neither plausible nor 10% better" in summary(report)
 
 

@@ -53,10 +53,14 @@ def test_a_compliance_on_masses_off_the_mass_model_breeds_no_other_causes():
     "robot, measurement, effects, expected",
     [
         ("abb-irb120", "position", ["step:sample=150,size=0.3", "backlash:joint=2,width=-0.02"], [("backlash", 2), ("step", None)]),
-        ("hsr-jr680", "position", ["joint_compliance:joint=2,mass_error=0.3", "joint_periodic:joint=3,amplitude=0.02,harmonic=2"],
-         [("joint_compliance", 2), ("joint_periodic", 3)]),
+        (
+            "hsr-jr680",
+            "position",
+            ["joint_compliance:joint=2,mass_error=0.3", "joint_periodic:joint=3,amplitude=0.02,harmonic=2"],
+            [("joint_compliance", 2), ("joint_periodic", 3)],
+        ),
     ],
-)  # fmt: skip
+)
 def test_pairs_of_effects_are_both_named_and_nothing_else(robot, measurement, effects, expected):
     assert kinds(named(robot, measurement, effects)) == expected
 

@@ -296,8 +296,12 @@ P_CABLE = R.fkine(np.vstack([Q, -Q]), tool=True)[:, :3, 3]
 
 
 @FAST
-@given(args=arguments(valid={"p": layouts(P_CABLE), "L": layouts(np.linalg.norm(P_CABLE - [900.0, 100.0, -50.0], axis=1))},
-                      bad={"p": st.one_of(nearly_valid(P_CABLE), malformed((16, 3))), "L": st.one_of(nearly_valid(np.full(16, 500.0)), malformed((16,)))}))  # fmt: skip
+@given(
+    args=arguments(
+        valid={"p": layouts(P_CABLE), "L": layouts(np.linalg.norm(P_CABLE - [900.0, 100.0, -50.0], axis=1))},
+        bad={"p": st.one_of(nearly_valid(P_CABLE), malformed((16, 3))), "L": st.one_of(nearly_valid(np.full(16, 500.0)), malformed((16,)))},
+    )
+)
 def test_cable_initial_guess(args):
     outcome(kernels.cable_initial_guess, args["p"], args["L"])
 
@@ -368,8 +372,13 @@ def test_simulate(args):
 
 
 def test_simulate_options_name_the_argument():
-    for kwargs, message in [({"dt": "x"}, "`dt`"), ({"seed": -1}, "`seed` must be None or an integer >= 0"), ({"tool": "abc"}, "`tool`"),
-                            ({"effects": 5}, "`effects` must be a list"), ({"noise": {"sigma": "x"}}, "`noise sigma`")]:  # fmt: skip
+    for kwargs, message in [
+        ({"dt": "x"}, "`dt`"),
+        ({"seed": -1}, "`seed` must be None or an integer >= 0"),
+        ({"tool": "abc"}, "`tool`"),
+        ({"effects": 5}, "`effects` must be a list"),
+        ({"noise": {"sigma": "x"}}, "`noise sigma`"),
+    ]:
         with pytest.raises(InvalidParameterError, match=message):
             robocal.simulate("ur10", "position", samples=3, **kwargs)
 
@@ -485,10 +494,17 @@ def test_every_method_on_degenerate_data(method):
 
 
 def test_calibrate_options_name_the_problem():
-    for kwargs, message in [({"method": ["lm"]}, "unknown method"), ({"test_fraction": "x"}, "`test_fraction`"), ({"seed": "x"}, "`seed`"),
-                            ({"mask": []}, "`mask` must select at least one"), ({"prior": [1]}, "`prior` must be a mapping"),
-                            ({"foo": 1}, "does not take these options.*foo"), ({"max_nfev": "x"}, "`max_nfev` must be an integer"),
-                            ({"robot": 5}, "`robot` must be"), ({"causes": 5}, "`causes` must be")]:  # fmt: skip
+    for kwargs, message in [
+        ({"method": ["lm"]}, "unknown method"),
+        ({"test_fraction": "x"}, "`test_fraction`"),
+        ({"seed": "x"}, "`seed`"),
+        ({"mask": []}, "`mask` must select at least one"),
+        ({"prior": [1]}, "`prior` must be a mapping"),
+        ({"foo": 1}, "does not take these options.*foo"),
+        ({"max_nfev": "x"}, "`max_nfev` must be an integer"),
+        ({"robot": 5}, "`robot` must be"),
+        ({"causes": 5}, "`causes` must be"),
+    ]:
         with pytest.raises(InvalidParameterError, match=message):
             robocal.calibrate(DATA, **kwargs)
     with pytest.raises(RobocalError, match="`path` must be a file path"):

@@ -147,7 +147,10 @@ def write(tmp_path, text, name="f.csv"):
     return path
 
 
-IPA_HEADER = "Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;measurement_temperature;measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz"
+IPA_HEADER = (
+    "Timestamp;shoulder_pan_joint;shoulder_lift_joint;elbow_joint;wrist_1_joint;wrist_2_joint;wrist_3_joint;measurement_temperature;"
+    "measurement_x;measurement_y;measurement_z;measurement_rx;measurement_ry;measurement_rz"
+)
 IPA_ROW = "20200714163904;0,1;0,2;0,3;0,4;0,5;0,6;23,5;1000,5;-20,25;300;-90;-59,5;-90,25"
 
 

@@ -17,8 +17,19 @@ def simulate(r: robocal.Robot, measurement: str, m: int, noise: float, seed: int
     rng = np.random.default_rng(seed)
     lo, hi = np.array([j.limits for j in r.joints]).T
     q = rng.uniform(np.maximum(lo, -2.5), np.minimum(hi, 2.5), size=(m, r.n_joints))
-    start = r.with_params(tool_x=30.0, tool_y=-10.0, tool_z=80.0, anchor_x=1800.0, anchor_y=400.0, anchor_z=-300.0, cable_offset=900.0,
-                          base_x=2000.0, base_y=-500.0, base_z=100.0, base_rz=0.4)  # fmt: skip
+    start = r.with_params(
+        tool_x=30.0,
+        tool_y=-10.0,
+        tool_z=80.0,
+        anchor_x=1800.0,
+        anchor_y=400.0,
+        anchor_z=-300.0,
+        cable_offset=900.0,
+        base_x=2000.0,
+        base_y=-500.0,
+        base_z=100.0,
+        base_rz=0.4,
+    )
     cols = np.flatnonzero(r.default_mask(measurement))
     ident = kernels.identifiability(start.jacobian(measurement, q, y=start.predict(measurement, q), cols=cols))
     free = cols[ident["identifiable"]]

@@ -90,16 +90,32 @@ def test_evaluation_reproduces_the_recorded_metrics(calibrated):
 def test_cli_with_a_diagnosis(calibrated, tmp_path, capsys):
     path, doc, _ = calibrated
     diagnosis = {
-        "robot": "abb-irb120", "measurement": "position", "samples": 200, "source": None,
+        "robot": "abb-irb120",
+        "measurement": "position",
+        "samples": 200,
+        "source": None,
         "baseline": {"rmse_heldout": 0.05, "rmse_heldout_blocked": 0.06, "n_params": 27, "folds": 5, "implausible": []},
         "effects": [
-            {"kind": "outliers", "joint": None, "label": "outliers", "params": {"rows": [7, 9], "samples": [5, 7], "threshold_sigma": 5.0},
-             "rmse_heldout_before": 0.09, "rmse_heldout_after": 0.05},
-            {"kind": "joint_periodic", "joint": 2, "label": "joint_periodic joint 2 <harmonic=1>",
-             "params": {"amplitude": {"value": 0.01, "std": 0.001, "unit": "deg"}}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03},
+            {
+                "kind": "outliers",
+                "joint": None,
+                "label": "outliers",
+                "params": {"rows": [7, 9], "samples": [5, 7], "threshold_sigma": 5.0},
+                "rmse_heldout_before": 0.09,
+                "rmse_heldout_after": 0.05,
+            },
+            {
+                "kind": "joint_periodic",
+                "joint": 2,
+                "label": "joint_periodic joint 2 <harmonic=1>",
+                "params": {"amplitude": {"value": 0.01, "std": 0.001, "unit": "deg"}},
+                "rmse_heldout_before": 0.05,
+                "rmse_heldout_after": 0.03,
+            },
         ],
-        "rejected": [], "final": {"rmse_heldout": 0.03, "rmse_heldout_blocked": 0.035, "n_params": 29},
-    }  # fmt: skip
+        "rejected": [],
+        "final": {"rmse_heldout": 0.03, "rmse_heldout_blocked": 0.035, "n_params": 29},
+    }
     diag_path = tmp_path / "diag.json"
     diag_path.write_text(json.dumps(diagnosis))
     parser = argparse.ArgumentParser()
@@ -180,8 +196,10 @@ def test_diagnosis_section_shows_structure_budget_and_sessions(calibrated, tmp_p
     assert "<h3>Error budget</h3>" in text and f"{diagnosis['final']['floor_mm']:.4f}" in text
     # two compliances: how well the data split them, beside their stiffness
     both = {"kind": "joint_compliance", "rmse_heldout_before": 0.5, "rmse_heldout_after": 0.4, "params": {}}
-    diagnosis["effects"] += [{**both, "joint": 2, "label": "joint_compliance joint 2", "correlation": {"joint_compliance joint 3": -0.87}},
-                             {**both, "joint": 3, "label": "joint_compliance joint 3", "correlation": {"joint_compliance joint 2": "<b>"}}]  # fmt: skip
+    diagnosis["effects"] += [
+        {**both, "joint": 2, "label": "joint_compliance joint 2", "correlation": {"joint_compliance joint 3": -0.87}},
+        {**both, "joint": 3, "label": "joint_compliance joint 3", "correlation": {"joint_compliance joint 2": "<b>"}},
+    ]
     text = report(path, tmp_path / "corr", diagnosis=diagnosis).read_text()
     assert "correlation with joint_compliance joint 3 -0.87" in text and "<b>" not in text
     sessions = robocal.diagnose([robocal.simulate("abb-irb120", "position", samples=200, seed=2, session=s)[0] for s in range(2)]).to_dict()
@@ -227,8 +245,15 @@ def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
 
     monkeypatch.setattr(report_figures, "_save", checked)
     long = "joint_map joint 3 spacing=5 roughness=0.01 beside joint_coupling joint 3 source=2"
-    diagnosis = {"robot": "abb-irb120", "measurement": "position", "samples": 200, "source": None,
-                 "baseline": {"rmse_heldout": 0.05, "folds": 5}, "rejected": [], "final": {"rmse_heldout": 0.03},
-                 "effects": [{"kind": "joint_map", "joint": 3, "label": long, "params": {}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03}]}  # fmt: skip
+    diagnosis = {
+        "robot": "abb-irb120",
+        "measurement": "position",
+        "samples": 200,
+        "source": None,
+        "baseline": {"rmse_heldout": 0.05, "folds": 5},
+        "rejected": [],
+        "final": {"rmse_heldout": 0.03},
+        "effects": [{"kind": "joint_map", "joint": 3, "label": long, "params": {}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03}],
+    }
     report(path, tmp_path / "out", diagnosis=diagnosis)
     assert outside == []

@@ -67,9 +67,11 @@ def test_row1_deeply_nested_documents_are_refused_naming_the_file(files, suffix,
     code, err = run(["simulate", "--robot", deep, "--measurement", "position", "--samples", 50, "--out", files / "s.csv"], capsys)
     assert code == 2 and f"{deep}: not a robot file" in err and "nested" in err and "Traceback" not in err
     if suffix == ".json":
-        for argv in (["export", deep, "--format", "dh", "--out", files / "x.csv"],
-                     ["report", files / "res.json", "--diagnosis", deep, "--out", files / "rep_deep"],
-                     ["calibrate", files / "pos.csv", "--robot", ROBOT, "--causes", deep]):  # fmt: skip
+        for argv in (
+            ["export", deep, "--format", "dh", "--out", files / "x.csv"],
+            ["report", files / "res.json", "--diagnosis", deep, "--out", files / "rep_deep"],
+            ["calibrate", files / "pos.csv", "--robot", ROBOT, "--causes", deep],
+        ):
             code, err = run(argv, capsys)
             assert code == 2 and f"{deep}: not a" in err and "nested" in err, err
     # nesting Python parses but no robocal document has: refused too, in the API
@@ -267,9 +269,16 @@ def _corrupt(doc: dict, kind: str, k: int):
     if kind == "nest":
         doc["parameters"][k % len(doc["parameters"])]["value"] = json.loads("[" * (MAX_DEPTH + 1 + k) + "1" + "]" * (MAX_DEPTH + 1 + k))
     elif kind == "drop_required":
-        where, key = [(doc, "parameters"), (doc, "robot_model"), (doc, "measurement"), (model, "joints"),
-                      (model["joints"][k % 6], "alpha"), (model["joints"][k % 6], "a"), (doc["parameters"][k % 40], "value"),
-                      (doc["parameters"][k % 40], "name")][k % 8]  # fmt: skip
+        where, key = [
+            (doc, "parameters"),
+            (doc, "robot_model"),
+            (doc, "measurement"),
+            (model, "joints"),
+            (model["joints"][k % 6], "alpha"),
+            (model["joints"][k % 6], "a"),
+            (doc["parameters"][k % 40], "value"),
+            (doc["parameters"][k % 40], "name"),
+        ][k % 8]
         del where[key]
     elif kind == "extra_strict":
         target = [model, model["joints"][k % 6], model["base"], model["sensor"]][k % 4]
@@ -295,8 +304,19 @@ def _corrupt(doc: dict, kind: str, k: int):
     return text, False
 
 
-KINDS = ["nest", "drop_required", "extra_strict", "extra_open", "cut_joints", "add_joint", "drop_parameter", "rename_parameter", "wrong_type",
-         "nominal_length", "duplicate_key"]  # fmt: skip
+KINDS = [
+    "nest",
+    "drop_required",
+    "extra_strict",
+    "extra_open",
+    "cut_joints",
+    "add_joint",
+    "drop_parameter",
+    "rename_parameter",
+    "wrong_type",
+    "nominal_length",
+    "duplicate_key",
+]
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

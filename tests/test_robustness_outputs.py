@@ -209,11 +209,14 @@ SPECIAL = ["fifo", "link to file", "link to fifo", "link to nothing", "link to f
 
 
 @pytest.mark.parametrize("kind", SPECIAL)
-@pytest.mark.parametrize("argv", [
-    ["export", "{w}/result.json", "--format", "dh", "--out", "{p}"],
-    ["inspect", "{w}/d.csv", "--json", "{p}"],
-    ["simulate", "--samples", "20", "--out", "{p}"],
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "{w}/result.json", "--format", "dh", "--out", "{p}"],
+        ["inspect", "{w}/d.csv", "--json", "{p}"],
+        ["simulate", "--samples", "20", "--out", "{p}"],
+    ],
+)
 def test_a_special_output_is_refused_and_kept(inputs, tmp_path, capsys, kind, argv):  # noqa: F811
     path = tmp_path / "out"
     _make(kind, path, tmp_path)

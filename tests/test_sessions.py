@@ -17,8 +17,10 @@ from robocal.data.canonical import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import simulate
 
-CASES = [("ur10", "position", "joint_periodic:joint=2,amplitude=0.02,harmonic=2", "joint_periodic joint 2 harmonic=2"),
-         ("hsr-jr680", "cable", "joint_scale:joint=3,scale=4e-4", "joint_scale joint 3")]  # fmt: skip
+CASES = [
+    ("ur10", "position", "joint_periodic:joint=2,amplitude=0.02,harmonic=2", "joint_periodic joint 2 harmonic=2"),
+    ("hsr-jr680", "cable", "joint_scale:joint=3,scale=4e-4", "joint_scale joint 3"),
+]
 
 
 def _sessions(robot, measurement, effects, n=3, samples=400, seed=3, first=()):

@@ -223,8 +223,10 @@ def test_cable_scale():
         sim.simulate("ur10", "position", samples=10, effects=["cable_scale"])
 
 
-@pytest.mark.parametrize("measurement, spec, column", [("cable", "drift:rate=0.36", 0), ("position", "drift:rate=0.36,axis=y", 1),
-                                                       ("pose", "drift:rate=0.36,axis=y", 1), ("position", "drift:rate=0.36", 2)])  # fmt: skip
+@pytest.mark.parametrize(
+    "measurement, spec, column",
+    [("cable", "drift:rate=0.36", 0), ("position", "drift:rate=0.36,axis=y", 1), ("pose", "drift:rate=0.36,axis=y", 1), ("position", "drift:rate=0.36", 2)],
+)
 def test_drift_grows_linearly_with_time(measurement, spec, column):
     base = run("abb-irb120", measurement)[0]
     data, _, _ = run("abb-irb120", measurement, effects=[spec])
@@ -297,8 +299,24 @@ def test_bad_arguments():
 def test_write_simulation_and_cli(tmp_path):
     parser = argparse.ArgumentParser()
     simulate_cli.add_arguments(parser)
-    args = parser.parse_args(["--robot", "abb-irb120", "--samples", "30", "--seed", "4", "--effect", "temperature",
-                              "--effect", "backlash:joint=2", "--out", str(tmp_path / "d.csv"), "--truth", str(tmp_path / "t.json")])  # fmt: skip
+    args = parser.parse_args(
+        [
+            "--robot",
+            "abb-irb120",
+            "--samples",
+            "30",
+            "--seed",
+            "4",
+            "--effect",
+            "temperature",
+            "--effect",
+            "backlash:joint=2",
+            "--out",
+            str(tmp_path / "d.csv"),
+            "--truth",
+            str(tmp_path / "t.json"),
+        ]
+    )
     assert simulate_cli.run(args) == 0
     back = read_canonical(tmp_path / "d.csv")
     data, truth = sim.simulate("abb-irb120", "cable", samples=30, seed=4, effects=["temperature", "backlash:joint=2"])

@@ -90,8 +90,14 @@ def _repeatability(labels: np.ndarray, points: np.ndarray, barycentres: np.ndarr
     pooled = l[repeated]
     s_l = float(np.std(pooled, ddof=1)) if pooled.size > 1 else 0.0
     visits = counts[many]
-    summary = {"rp": float(np.mean(pooled) + 3.0 * s_l), "l_mean": float(np.mean(pooled)), "s_l": s_l, "n_targets": int(many.sum()),
-               "n_measurements": int(pooled.size), "visits": [int(visits.min()), int(visits.max())]}  # fmt: skip
+    summary = {
+        "rp": float(np.mean(pooled) + 3.0 * s_l),
+        "l_mean": float(np.mean(pooled)),
+        "s_l": s_l,
+        "n_targets": int(many.sum()),
+        "n_measurements": int(pooled.size),
+        "visits": [int(visits.min()), int(visits.max())],
+    }
     return summary, per_target
 
 
@@ -192,8 +198,12 @@ def summary_rows(figures: dict) -> list[tuple[str, str]]:
 
     absent = figures.get("absent", {})
     rows = []
-    for key, name in (("position_accuracy_mm", "position accuracy AP"), ("orientation_accuracy_deg", "orientation accuracy AP"),
-                      ("distance_accuracy_mm", "distance accuracy AD"), ("repeatability_mm", "repeatability RP")):  # fmt: skip
+    for key, name in (
+        ("position_accuracy_mm", "position accuracy AP"),
+        ("orientation_accuracy_deg", "orientation accuracy AP"),
+        ("distance_accuracy_mm", "distance accuracy AD"),
+        ("repeatability_mm", "repeatability RP"),
+    ):
         s = figures.get(key)
         if s is None:
             rows.append((name, f"absent: {absent.get(key, 'not computed')}"))

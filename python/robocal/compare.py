@@ -213,8 +213,13 @@ def compare(
         try:  # the start point and free set, shared by all methods on this split
             problem = Problem.build(robot_model, train, kinematic_prior=kinematic_prior)
             before = problem.with_data(test).data_residuals(problem.x0)
-            split.update(error=None, free=problem.names, fixed=problem.fixed,
-                         before=metrics(before, test.measurement), before_errors=sample_errors(before, test.measurement).tolist())  # fmt: skip
+            split.update(
+                error=None,
+                free=problem.names,
+                fixed=problem.fixed,
+                before=metrics(before, test.measurement),
+                before_errors=sample_errors(before, test.measurement).tolist(),
+            )
         except Exception as exc:  # recorded for every method of this split
             split.update(error=f"{type(exc).__name__}: {exc}", free=[], fixed={}, before=None, before_errors=[])
         splits.append(split)
@@ -296,8 +301,7 @@ class Table:
         return out.getvalue()
 
     def to_dict(self) -> dict:
-        return {"title": self.title, "columns": [[h, list(k) if isinstance(k, tuple) else k] for h, k in self.columns],
-                "rows": self.rows, "notes": self.notes}  # fmt: skip
+        return {"title": self.title, "columns": [[h, list(k) if isinstance(k, tuple) else k] for h, k in self.columns], "rows": self.rows, "notes": self.notes}
 
 
 def _mean_std(values) -> tuple[Optional[float], Optional[float]]:
@@ -416,14 +420,24 @@ class ComparisonResult:
         rows = []
         for m in self.methods:
             runs = self.runs_of(m, ok=True)
-            row = {"method": method_label(m), "name": m, "runs_ok": f"{len(runs)}/{len(self.runs_of(m))}",
-                   "converged": f"{sum(r['success'] for r in runs)}/{len(runs)}",
-                   "total_time_s": float(sum(r["time_s"] for r in runs)) if runs else None}  # fmt: skip
+            row = {
+                "method": method_label(m),
+                "name": m,
+                "runs_ok": f"{len(runs)}/{len(self.runs_of(m))}",
+                "converged": f"{sum(r['success'] for r in runs)}/{len(runs)}",
+                "total_time_s": float(sum(r["time_s"] for r in runs)) if runs else None,
+            }
             row["nit_mean"], row["nit_std"] = _mean_std([r["nit"] for r in runs])
             row["time_mean_s"], row["time_std_s"] = _mean_std([r["time_s"] for r in runs])
             rows.append(row)
-        columns = [("Method", "method"), ("runs ok", "runs_ok"), ("success", "converged"), ("iterations", ("nit_mean", "nit_std")),
-                   ("time per run (s)", ("time_mean_s", "time_std_s")), ("total time (s)", "total_time_s")]  # fmt: skip
+        columns = [
+            ("Method", "method"),
+            ("runs ok", "runs_ok"),
+            ("success", "converged"),
+            ("iterations", ("nit_mean", "nit_std")),
+            ("time per run (s)", ("time_mean_s", "time_std_s")),
+            ("total time (s)", "total_time_s"),
+        ]
         notes = [
             self._protocol_note(),
             "Iterations are each method's own: sweeps (Kalman filters), generations (metaheuristics), steps (LM variants; "
@@ -445,8 +459,18 @@ class ComparisonResult:
                     row = wilcoxon_row([_quantity(a, key) for a, _ in pairs], [_quantity(b, key) for _, b in pairs])
                     better = {"reference": method_label(REFERENCE), "other": method_label(m), "tie": "tie", None: None}[row["better"]]
                     rows.append({"comparison": f"{method_label(REFERENCE)} vs. {method_label(m)}", "quantity": label, **row, "better": better})
-        columns = [("Comparison", "comparison"), ("quantity", "quantity"), ("pairs", "pairs"), ("n", "n"), ("R+", "r_plus"), ("R−", "r_minus"),
-                   ("statistic", "statistic"), ("p-value", "p_value"), ("better", "better"), ("note", "note")]  # fmt: skip
+        columns = [
+            ("Comparison", "comparison"),
+            ("quantity", "quantity"),
+            ("pairs", "pairs"),
+            ("n", "n"),
+            ("R+", "r_plus"),
+            ("R−", "r_minus"),
+            ("statistic", "statistic"),
+            ("p-value", "p_value"),
+            ("better", "better"),
+            ("note", "note"),
+        ]
         notes = [
             self._protocol_note(),
             f"Two-sided scipy.stats.wilcoxon on the paired per-split values (other − {method_label(REFERENCE)}), splits where both methods ran; "
@@ -509,13 +533,15 @@ class ComparisonResult:
     # Output -------------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """Everything: ``config``, ``methods`` (name, label, description), ``splits``, ``runs`` and ``tables``."""
-        return _jsonable({
-            "config": self.config,
-            "methods": [{"name": m, "label": method_label(m), "description": METHODS[m][1]} for m in self.methods],
-            "splits": self.splits,
-            "runs": self.runs,
-            "tables": {t.name: t.to_dict() for t in self.tables()},
-        })  # fmt: skip
+        return _jsonable(
+            {
+                "config": self.config,
+                "methods": [{"name": m, "label": method_label(m), "description": METHODS[m][1]} for m in self.methods],
+                "splits": self.splits,
+                "runs": self.runs,
+                "tables": {t.name: t.to_dict() for t in self.tables()},
+            }
+        )
 
     def write(self, out: Union[str, Path]) -> list[Path]:
         """Writes ``table_*.md`` / ``table_*.csv``, ``tables.md`` (all tables), the figures

@@ -14,7 +14,8 @@ only when they decrease the error, damping by the gain ratio) — with the joint
 extended model (``calibrate --causes``: compliance, periodic gear errors, scale, coupling)
 applied to the commanded angles; backlash and sensor causes are named in the status as not
 compensated. Where the result found how the controller reads its joints (``structure``), seeds
-and commands are the controller's readings, converted to the model's angles and back. The Jacobian comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
+and commands are the controller's readings, converted to the model's angles and back. The Jacobian
+comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
 Position targets leave three degrees of freedom of a 6-axis arm free: the damped steps take a
 small change from the seed, so the tool keeps the seed's orientation as far as possible. A
 target that the seed does not lead to is tried from the middle of the joint ranges and from
@@ -181,8 +182,9 @@ def bounded_lm(residual, jacobian, q0, lower, upper, done, max_iter: int = 100):
     return q, r
 
 
-def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None,
-                 restarts: Optional[int] = None) -> tuple[np.ndarray, float, str]:  # fmt: skip
+def solve_joints(
+    robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None, restarts: Optional[int] = None
+) -> tuple[np.ndarray, float, str]:
     """Joint commands (rad) within the joint limits with which ``robot`` reaches ``target``
     (xyz, or xyz + quaternion).
 
@@ -229,8 +231,7 @@ def solve_joints(robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float 
             best = (q, error, r @ r)
     if best is None:
         return starts[0], float("nan"), "unreachable: the calibrated model's residual is not finite"
-    return best[0], best[1], (f"unreachable within the joint limits: from {len(starts)} starts the calibrated model gets no closer "
-                              f"than {best[1]:.3g} mm")  # fmt: skip
+    return best[0], best[1], (f"unreachable within the joint limits: from {len(starts)} starts the calibrated model gets no closer than {best[1]:.3g} mm")
 
 
 def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:

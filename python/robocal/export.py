@@ -240,11 +240,12 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
     base, origins, flange, tool = urdf_segments(robot)
     p = robot.params
     root = ET.Element("robot", name=name or robot.name)
-    root.append(ET.Comment(
+    comment = (
         " written by robocal export: calibrated kinematics. Lengths in m, angles in rad. Joint zero offsets are folded "
         "into the joint origins (joint position = robocal joint value). Links carry no inertia or geometry; effort and "
         "velocity limits are not known from a calibration. "
-    ))  # fmt: skip
+    )
+    root.append(ET.Comment(comment))
     base_values = p[frame_slice(robot, "base")]
     links = (["world"] if np.any(base_values != 0.0) else []) + ["base_link"] + [f"link{j}" for j in range(1, robot.n_joints + 1)] + ["flange", "tool0"]
     for link in links:

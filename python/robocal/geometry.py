@@ -215,8 +215,14 @@ def chain_ops(conventions: Sequence[str], kinds: Sequence[str]) -> tuple[list[Op
     n = len(conventions)
 
     def frame_ops(start: int) -> list[Op]:  # Tx Ty Tz Rz Ry Rx from x y z rx ry rz
-        return [Op(False, X, start, None), Op(False, Y, start + 1, None), Op(False, Z, start + 2, None),
-                Op(True, Z, start + 5, None), Op(True, Y, start + 4, None), Op(True, X, start + 3, None)]  # fmt: skip
+        return [
+            Op(False, X, start, None),
+            Op(False, Y, start + 1, None),
+            Op(False, Z, start + 2, None),
+            Op(True, Z, start + 5, None),
+            Op(True, Y, start + 4, None),
+            Op(True, X, start + 3, None),
+        ]
 
     ops = frame_ops(5 * n)  # the base's parameters follow the joints' five each
     for j, (convention, kind) in enumerate(zip(conventions, kinds)):
@@ -225,11 +231,9 @@ def chain_ops(conventions: Sequence[str], kinds: Sequence[str]) -> tuple[list[Op
             raise ValueError(f"`kinds` must hold 'revolute' or 'prismatic'; got {kind!r}")
         q_theta, q_d = (j, None) if kind == "revolute" else (None, j)
         link = {
-            "dh": [Op(True, Z, theta, q_theta), Op(False, Z, d, q_d), Op(False, X, a, None),
-                   Op(True, X, alpha, None), Op(True, Y, beta, None)],
-            "mdh": [Op(True, X, alpha, None), Op(False, X, a, None), Op(True, Y, beta, None),
-                    Op(True, Z, theta, q_theta), Op(False, Z, d, q_d)],
-        }.get(convention)  # fmt: skip
+            "dh": [Op(True, Z, theta, q_theta), Op(False, Z, d, q_d), Op(False, X, a, None), Op(True, X, alpha, None), Op(True, Y, beta, None)],
+            "mdh": [Op(True, X, alpha, None), Op(False, X, a, None), Op(True, Y, beta, None), Op(True, Z, theta, q_theta), Op(False, Z, d, q_d)],
+        }.get(convention)
         if link is None:
             raise ValueError(f"`conventions` must hold 'dh' or 'mdh'; got {convention!r}")
         ops += link

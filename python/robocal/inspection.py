@@ -94,10 +94,13 @@ def inspect(
         "cross_check": cross_check(dataset, model) if model and "controller_xyz" in dataset.extra else None,
     }
     report["problems"] = (
-        len(report["bad_cells"]) + len(report["duplicates"]) + len(report["out_of_limits"]) + (not report["angle_unit"]["plausible"])
+        len(report["bad_cells"])
+        + len(report["duplicates"])
+        + len(report["out_of_limits"])
+        + (not report["angle_unit"]["plausible"])
         + (len(report["fit"].get("outliers", [])) + ("error" in report["fit"]) if report["fit"] else 0)  # a failed fit is a finding
         + (len(report["cross_check"]["inconsistent"]) if report["cross_check"] else 0)
-    )  # fmt: skip
+    )
     return report
 
 
@@ -125,8 +128,14 @@ def out_of_limits(dataset: Dataset, robot) -> list[dict]:
     for j, joint in enumerate(robot.joints):
         lower, upper = joint.limits
         for k in np.flatnonzero((dataset.q[:, j] < lower) | (dataset.q[:, j] > upper)):
-            found.append({"row": int(dataset.rows[k]), "joint": j + 1, "value_deg": float(np.degrees(dataset.q[k, j])),
-                          "limits_deg": [float(np.degrees(lower)), float(np.degrees(upper))]})  # fmt: skip
+            found.append(
+                {
+                    "row": int(dataset.rows[k]),
+                    "joint": j + 1,
+                    "value_deg": float(np.degrees(dataset.q[k, j])),
+                    "limits_deg": [float(np.degrees(lower)), float(np.degrees(upper))],
+                }
+            )
     return sorted(found, key=lambda f: (f["row"], f["joint"]))
 
 
@@ -144,8 +153,9 @@ def _setup_problem(dataset: Dataset, robot) -> Problem:
         params = start_parameters(robot, dataset)
         flange = robot.fkine(dataset.q, params=params)[:, :3, :3]
         measured = matrix_from_quaternion(dataset.y[:, 3:7])
-        params[robot.index("tool_rx") : robot.index("tool_rx") + 3] = frame_params(homogeneous(
-            Rotation.from_matrix(np.swapaxes(flange, 1, 2) @ measured).mean().as_matrix(), np.zeros(3)))[3:]  # fmt: skip
+        tool_rotation = Rotation.from_matrix(np.swapaxes(flange, 1, 2) @ measured).mean().as_matrix()  # flange -> tool, averaged
+        rx = robot.index("tool_rx")
+        params[rx : rx + 3] = frame_params(homogeneous(tool_rotation, np.zeros(3)))[3:]
         names += ["tool_rx", "tool_ry", "tool_rz"]
     return Problem.build(robot, dataset, mask=names, params=params)
 
@@ -234,5 +244,5 @@ def cross_check(dataset: Dataset, robot) -> dict:
                 "ratio": float(ratio[i]),
             }
             for i in bad
-        ],  # fmt: skip
+        ],
     }

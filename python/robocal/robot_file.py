@@ -44,10 +44,19 @@ def robot_document(robot: Robot, degrees: bool = False) -> dict:
     for j, joint in enumerate(robot.joints):
         alpha, a, d, theta, beta = (float(v) for v in p[5 * j : 5 * j + 5])
         limit = angle if joint.kind == "revolute" else float
-        joints.append({
-            "convention": joint.convention, "kind": joint.kind, "alpha": angle(alpha), "a": a, "d": d, "theta": angle(theta),
-            "beta": angle(beta), "hayati": bool(joint.hayati), "limits": [limit(float(v)) for v in joint.limits],
-        })  # fmt: skip
+        joints.append(
+            {
+                "convention": joint.convention,
+                "kind": joint.kind,
+                "alpha": angle(alpha),
+                "a": a,
+                "d": d,
+                "theta": angle(theta),
+                "beta": angle(beta),
+                "hayati": bool(joint.hayati),
+                "limits": [limit(float(v)) for v in joint.limits],
+            }
+        )
 
     def frame(prefix: str) -> dict:
         start = robot.index(f"{prefix}_x")

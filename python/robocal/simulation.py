@@ -145,7 +145,8 @@ def acquisition_path(r: Robot, measurement: str, samples: int, rng: np.random.Ge
                 break
         else:
             raise InvalidParameterError(
-                f"no measurable configuration found near sample {i} of the path of {r.name} ({measurement}); the sensor placement leaves too little of the workspace in range"
+                f"no measurable configuration found near sample {i} of the path of {r.name} ({measurement}); "
+                "the sensor placement leaves too little of the workspace in range"
             )
     return q
 
@@ -344,8 +345,8 @@ def simulate(
                 f"{CABLE_RANGE[0]:g}..{CABLE_RANGE[1]:g} mm (e.g. sample {outside[0]}: {y[outside[0], 0]:.3f} mm)"
             )
 
-    dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp, prismatic=base.prismatic,
-                      notes=[f"simulated by robocal.simulation (seed {seeds.entropy})"])  # fmt: skip
+    note = f"simulated by robocal.simulation (seed {seeds.entropy})"
+    dataset = Dataset(q=q, y=y, measurement=measurement, robot=base.name, t=t, temp=acq.temp, prismatic=base.prismatic, notes=[note])
     records = [effect.record(magnitude) for effect, magnitude in zip(chosen, magnitudes)]
     outlier_samples = sorted({i for rec in records for i in rec.get("samples", [])})
     truth = {

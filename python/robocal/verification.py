@@ -59,8 +59,10 @@ def _seen_by_fit(doc: dict, dataset: Dataset) -> list[str]:
     for fitted in [doc.get("dataset") or {}] + list(doc.get("sessions") or []):
         if fitted.get("sha256") and fitted["sha256"] == digest:
             used = len(fitted.get("rows_used") or [])
-            return [f"these are not new samples: {dataset.source} is a file the result was calibrated on (same SHA-256); "
-                    f"{used} of its rows trained the fit, so these figures are no held-out error"]  # fmt: skip
+            return [
+                f"these are not new samples: {dataset.source} is a file the result was calibrated on (same SHA-256); "
+                f"{used} of its rows trained the fit, so these figures are no held-out error"
+            ]
     return []
 
 

@@ -19,8 +19,12 @@ def _mm_deg(text: str) -> tuple[float, float]:
 
 
 def add_kinematic_prior_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--kinematic-prior", type=_mm_deg, metavar="MM,DEG",
-                        help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles")  # fmt: skip
+    parser.add_argument(
+        "--kinematic-prior",
+        type=_mm_deg,
+        metavar="MM,DEG",
+        help="Gaussian prior at nominal on every kinematic parameter, sigma MM for lengths and DEG for angles",
+    )
 
 
 def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) -> None:
@@ -36,5 +40,4 @@ def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) 
 
 
 def add_angle_unit_argument(parser: argparse.ArgumentParser, what: str = "q columns of a canonical file") -> None:
-    parser.add_argument("--angle-unit", choices=("deg", "rad"),
-                        help=f"unit of the {what} (default deg; values implausible for the default are refused)")  # fmt: skip
+    parser.add_argument("--angle-unit", choices=("deg", "rad"), help=f"unit of the {what} (default deg; values implausible for the default are refused)")

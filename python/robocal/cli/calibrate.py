@@ -20,10 +20,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, default=0)
     add_kinematic_prior_argument(parser)
-    parser.add_argument("--loss", choices=["linear", "huber", "cauchy"], default="linear",
-                        help="robust loss of method lm; outlying rows are reported (default linear)")  # fmt: skip
-    parser.add_argument("--causes", nargs="+", metavar="CAUSE",
-                        help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them")  # fmt: skip
+    parser.add_argument(
+        "--loss", choices=["linear", "huber", "cauchy"], default="linear", help="robust loss of method lm; outlying rows are reported (default linear)"
+    )
+    parser.add_argument(
+        "--causes", nargs="+", metavar="CAUSE", help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them"
+    )
     parser.add_argument("--out", help="write the result JSON here")
     parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
 
@@ -33,10 +35,18 @@ def run(args: argparse.Namespace) -> int:
     if report is not None:
         read_document(report, "diagnose report")  # a corrupt report (too deep, a key twice) is refused naming the file
     data = args.data[0] if len(args.data) == 1 else args.data
-    result = calibrate(data, robot=args.robot, measurement=args.measurement, method=args.method,
-                       test_fraction=args.test_fraction, seed=args.seed, kinematic_prior=args.kinematic_prior, angle_unit=args.angle_unit,
-                       causes=report or args.causes or None,
-                       **({"loss": args.loss} if args.loss != "linear" else {}))  # fmt: skip
+    result = calibrate(
+        data,
+        robot=args.robot,
+        measurement=args.measurement,
+        method=args.method,
+        test_fraction=args.test_fraction,
+        seed=args.seed,
+        kinematic_prior=args.kinematic_prior,
+        angle_unit=args.angle_unit,
+        causes=report or args.causes or None,
+        **({"loss": args.loss} if args.loss != "linear" else {}),
+    )
     doc = result.to_dict()
     if args.out:
         save_result(doc, args.out)
@@ -44,20 +54,27 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2))
         return 0
     train, test = doc["metrics"]["train"], doc["metrics"]["test"]
-    print(f"{doc['method']} on {printable(doc['robot'], one_line=True)} ({doc['measurement']}, {train['n']} training samples): "
-          f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms")  # fmt: skip
+    print(
+        f"{doc['method']} on {printable(doc['robot'], one_line=True)} ({doc['measurement']}, {train['n']} training samples): "
+        f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms"
+    )
     print(f"  train: RMSE {train['rmse']:.4f}  MAE {train['mae']:.4f}  MAX {train['max']:.4f} mm")
     if test:
         print(f"  test:  RMSE {test['rmse']:.4f}  MAE {test['mae']:.4f}  MAX {test['max']:.4f} mm ({test['n']} samples)")
     for s, session in enumerate(doc.get("sessions", []), start=1):
         held = session["metrics"]["test"]
-        print(f"  session {s} ({printable(session['source'] or 'data', one_line=True)}): train RMSE {session['metrics']['train']['rmse']:.4f} mm"
-              + (f", test RMSE {held['rmse']:.4f} mm ({held['n']} samples)" if held else "")
-              + (f"; own terms: {', '.join(session['terms'])}" if session["terms"] else ""))  # fmt: skip
+        print(
+            f"  session {s} ({printable(session['source'] or 'data', one_line=True)}): train RMSE {session['metrics']['train']['rmse']:.4f} mm"
+            + (f", test RMSE {held['rmse']:.4f} mm ({held['n']} samples)" if held else "")
+            + (f"; own terms: {', '.join(session['terms'])}" if session["terms"] else "")
+        )
     print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
     for cause in doc.get("causes", []):
-        shown = ", ".join(f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"
-                          for k, v in cause["params"].items() if v["value"] == v["value"])  # fmt: skip
+        shown = ", ".join(
+            f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"
+            for k, v in cause["params"].items()
+            if v["value"] == v["value"]
+        )
         print(f"  cause {cause['label']}: {shown}")
     if "robust" in doc:
         rows = doc["robust"]["outlying_rows"]
@@ -72,8 +89,10 @@ def run(args: argparse.Namespace) -> int:
     if doc["undetermined"]:
         widest = max(doc["undetermined"], key=lambda u: u["std"])
         combination = " ".join(f"{w:+.2f}·{n}" for n, w in widest["combination"].items())
-        print(f"  {len(doc['undetermined'])} parameter combinations are undetermined (standard deviation beyond 10 mm / 2 deg); "
-              f"the widest, {widest['std']:.3g} limits: {combination}")  # fmt: skip
+        print(
+            f"  {len(doc['undetermined'])} parameter combinations are undetermined (standard deviation beyond 10 mm / 2 deg); "
+            f"the widest, {widest['std']:.3g} limits: {combination}"
+        )
     if args.out:
         print(f"  result written to {args.out}")
     return 0

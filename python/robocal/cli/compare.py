@@ -12,9 +12,13 @@ from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_data_arguments(parser)
-    parser.add_argument("--protocol", choices=PROTOCOLS, default="paper",
-                        help="paper: 120 random samples -> 100 train / 20 test per repeat; kfold: REPEATS folds; "
-                             "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)")  # fmt: skip
+    parser.add_argument(
+        "--protocol",
+        choices=PROTOCOLS,
+        default="paper",
+        help="paper: 120 random samples -> 100 train / 20 test per repeat; kfold: REPEATS folds; "
+        "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)",
+    )
     parser.add_argument("--repeats", type=int, default=5, help="splits (paper, 80-20) or folds (kfold) (default 5)")
     parser.add_argument("--methods", nargs="+", metavar="METHOD", help=f"default: M1..M9 and lm; any of {sorted(METHODS)}")
     parser.add_argument("--subset", type=int, help="first draw this many samples at random (e.g. 200 of UR10 Series A)")
@@ -28,9 +32,18 @@ def run(args: argparse.Namespace) -> int:
     if args.repeats < least:
         what = "the number of folds of --protocol kfold" if args.protocol == "kfold" else f"the number of splits of --protocol {args.protocol}"
         raise InvalidParameterError(f"--repeats is {what}: it must be at least {least}; got {args.repeats}")
-    result = compare(args.data, robot=args.robot, measurement=args.measurement, methods=args.methods, protocol=args.protocol,
-                     repeats=args.repeats, seed=args.seed, subset=args.subset, kinematic_prior=args.kinematic_prior,
-                     angle_unit=args.angle_unit)  # fmt: skip
+    result = compare(
+        args.data,
+        robot=args.robot,
+        measurement=args.measurement,
+        methods=args.methods,
+        protocol=args.protocol,
+        repeats=args.repeats,
+        seed=args.seed,
+        subset=args.subset,
+        kinematic_prior=args.kinematic_prior,
+        angle_unit=args.angle_unit,
+    )
     paths = result.write(args.out)
     print(result.table_viii().markdown())
     failed = [r for r in result.runs if r["status"] == "failed"]

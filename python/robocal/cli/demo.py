@@ -41,8 +41,7 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
         raise InvalidParameterError(f"--samples {samples} is too few for the demo: {exc}") from None
     folder = make_folder(out)
     csv, _ = write_simulation(data, truth, folder / "data.csv", folder / "truth.json")
-    print(f"robocal {__version__} demo: a simulated HSR JR680 with a cable sensor, {samples} samples (seed {seed}), "
-          f"hidden effect {EFFECT}")  # fmt: skip
+    print(f"robocal {__version__} demo: a simulated HSR JR680 with a cable sensor, {samples} samples (seed {seed}), hidden effect {EFFECT}")
 
     result = calibrate(str(csv), robot="hsr-jr680", method="ukf-vslm", seed=seed)
     doc = result.to_dict()
@@ -50,8 +49,10 @@ def demo(seed: int = 0, samples: int = 600, out: str = "robocal-demo") -> int:
     start = result.problem.with_data(result.held_out).data_residuals(result.problem.x0)
     before = float(np.sqrt(np.mean(start**2)))
     after = doc["metrics"]["test"]["rmse"]
-    print(f"\ncalibration (UKF-VSLM, {len(doc['free'])} parameters, {doc['convergence']['time_s'] * 1e3:.0f} ms): "
-          f"held-out cable RMSE {before:.3f} mm (nominal) -> {after:.4f} mm (calibrated)")  # fmt: skip
+    print(
+        f"\ncalibration (UKF-VSLM, {len(doc['free'])} parameters, {doc['convergence']['time_s'] * 1e3:.0f} ms): "
+        f"held-out cable RMSE {before:.3f} mm (nominal) -> {after:.4f} mm (calibrated)"
+    )
     rows = [p for p in doc["parameters"] if p["std"] is not None and is_kinematic(p["name"])]
     rows.sort(key=lambda p: -abs(p["deviation"]) / (1.0 if p["unit"] == "mm" else math.radians(0.1)))
     # Deviations are determined up to the redundancies listed in result.json (e.g. theta6 trades

@@ -31,8 +31,10 @@ def _quantities(params: dict) -> str:
 def summary(report: dict) -> str:
     """A few lines for the terminal."""
     b, f = report["baseline"], report["final"]
-    lines = [f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
-             f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"]  # fmt: skip
+    lines = [
+        f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
+        f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"
+    ]
     if b["implausible"]:
         lines.append("  warning: geometric baseline: " + describe_implausible(b["implausible"]))
     if not report["effects"]:
@@ -40,17 +42,21 @@ def summary(report: dict) -> str:
     for e in report["effects"]:
         where = f" joint {e['joint']}" if e["joint"] is not None else ""
         lines.append(
-            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}{settling_words(e)}; held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
+            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}{settling_words(e)}; "
+            f"held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
             + (f" ({share:.0%} of what the causes explain)" if isinstance(share := e.get("share_of_explained"), float) else "")
         )
     lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
     if "rotation_rmse_heldout_deg" in f:
-        lines.append(f"  held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg "
-                     f"(blocked {b['rotation_rmse_heldout_blocked_deg']:.4f} -> {f['rotation_rmse_heldout_blocked_deg']:.4f} deg)")  # fmt: skip
+        lines.append(
+            f"  held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg "
+            f"(blocked {b['rotation_rmse_heldout_blocked_deg']:.4f} -> {f['rotation_rmse_heldout_blocked_deg']:.4f} deg)"
+        )
     lines += _physical_lines(f, "rmse_heldout")
     if "floor_mm" in f:
         lines.append(
-            f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm (joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
+            f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm "
+            f"(joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
             f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it"
         )
     if "floor_mm" in f and (revisits := f["floor"].get("revisits")):
@@ -66,7 +72,8 @@ def summary(report: dict) -> str:
         lines.append(f"  what is left: {words}")
     for u in f.get("unexplained") or []:
         lines.append(
-            f"  unexplained finding: {u['label']} would explain {u['share']:.0%} of the held-out mean square error left ({_quantities(u['params'] or {})}); refused: {u['reason']}"
+            f"  unexplained finding: {u['label']} would explain {u['share']:.0%} of the held-out mean square error left "
+            f"({_quantities(u['params'] or {})}); refused: {u['reason']}"
         )
     for r in report["rejected"][:3]:
         lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
@@ -77,8 +84,10 @@ def _physical_lines(final: dict, key: str) -> list[str]:
     """The final model's tolerance prior (kept or why not) and its implausible parameters."""
     lines, prior = [], final.get("tolerance_prior")
     if prior and prior["accepted"]:
-        lines.append(f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
-                     f"where the data leave it undetermined; unconstrained held-out RMSE {final[key + '_unconstrained']:.4f} mm")  # fmt: skip
+        lines.append(
+            f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
+            f"where the data leave it undetermined; unconstrained held-out RMSE {final[key + '_unconstrained']:.4f} mm"
+        )
     elif prior:
         lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
     if final.get("implausible"):
@@ -106,8 +115,10 @@ def sessions_summary(report: dict) -> str:
     if b["implausible"]:
         lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))
     for e in report["effects"]:
-        lines.append(f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}{correlation_words(e)}; held-out "
-                     f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})")  # fmt: skip
+        lines.append(
+            f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}{correlation_words(e)}; held-out "
+            f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})"
+        )
     for r in report["rejected"]:
         lines.append(f"  not carried: {r['label']} ({_origin(r)}): {r['reason']}")
     for i, s in enumerate(report["model"]["sessions"], start=1):
@@ -115,8 +126,10 @@ def sessions_summary(report: dict) -> str:
             lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
     lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
     if "rotation_rmse_loso_deg" in f:
-        lines.append(f"  held-out orientation RMS {b['rotation_rmse_loso_deg']:.4f} -> {f['rotation_rmse_loso_deg']:.4f} deg "
-                     f"(per session {' / '.join(f'{v:.4f}' for v in f['rotation_per_session_deg'])})")  # fmt: skip
+        lines.append(
+            f"  held-out orientation RMS {b['rotation_rmse_loso_deg']:.4f} -> {f['rotation_rmse_loso_deg']:.4f} deg "
+            f"(per session {' / '.join(f'{v:.4f}' for v in f['rotation_per_session_deg'])})"
+        )
     covered = f.get("per_session_covered", [])
     if covered and any(c.startswith("joint_map") for c in report["model"]["causes"]):
         parts = [f"{c['rmse']:.4f} mm on {c['samples']}" if c["rmse"] is not None else "none covered" for c in covered]
@@ -180,8 +193,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    d = diagnose(args.data[0] if len(args.data) == 1 else args.data, robot=args.robot, measurement=args.measurement, folds=args.folds, alpha=args.alpha,
-                 hayati=not args.plain_dh, seed=args.seed, angle_unit=args.angle_unit, maps=not args.no_maps)  # fmt: skip
+    d = diagnose(
+        args.data[0] if len(args.data) == 1 else args.data,
+        robot=args.robot,
+        measurement=args.measurement,
+        folds=args.folds,
+        alpha=args.alpha,
+        hayati=not args.plain_dh,
+        seed=args.seed,
+        angle_unit=args.angle_unit,
+        maps=not args.no_maps,
+    )
     report = d.to_dict()
     text = json.dumps(report, indent=2)
     if args.json == "-":

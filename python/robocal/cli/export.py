@@ -14,8 +14,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``robocal export``."""
     parser.add_argument("result", help="calibration result JSON (robocal calibrate --out)")
     parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, or urdf")
-    parser.add_argument("--table-format", choices=TABLE_FORMATS, default=None,
-                        help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)")  # fmt: skip
+    parser.add_argument(
+        "--table-format", choices=TABLE_FORMATS, default=None, help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)"
+    )
     parser.add_argument("--out", required=True, help="file to write")
     parser.add_argument("--name", default=None, help="robot name in the export (default: the result's robot)")
     parser.add_argument("--samples", type=int, default=200, help="joint vectors of the round-trip check (default 200)")
@@ -27,8 +28,10 @@ def run(args: argparse.Namespace) -> int:
     robot, _ = load_result(args.result)
     kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
     check, failed = export_checked(robot, args.format, args.out, table_format=args.table_format, name=args.name, samples=args.samples, seed=args.seed)
-    print(f"round trip over {check['samples']} joint vectors within limits: max tool position error "
-          f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad")  # fmt: skip
+    print(
+        f"round trip over {check['samples']} joint vectors within limits: max tool position error "
+        f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad"
+    )
     if failed:
         print(f"robocal export: the {kind} does not reproduce the calibrated kinematics, {args.out} not written: " + "; ".join(failed))
         return 1

@@ -16,8 +16,11 @@ def _first(items: list, limit: int) -> list:
 
 def format_report(report: dict, limit: int = 20) -> str:
     """The report as text for humans, at most ``limit`` entries per list (0: all)."""
-    lines = [f"{report['source'] or 'dataset'}: {report['rows']} {report['measurement']} samples"
-             + (f" ({report['format']} format)" if report["format"] else "") + f", robot {printable(report['robot'] or 'not given', one_line=True)}"]  # fmt: skip
+    lines = [
+        f"{report['source'] or 'dataset'}: {report['rows']} {report['measurement']} samples"
+        + (f" ({report['format']} format)" if report["format"] else "")
+        + f", robot {printable(report['robot'] or 'not given', one_line=True)}"
+    ]
     lines += [f"  note: {n}" for n in report["notes"]]
     lines.append(f"  bad cells: {len(report['bad_cells'])}")
     lines += [f"    row {e['row']}, column {e['column']!r}: {e['reason']}" for e in _first(report["bad_cells"], limit)]
@@ -25,8 +28,10 @@ def format_report(report: dict, limit: int = 20) -> str:
     lines += [f"    rows {g}" for g in _first(report["duplicates"], limit)]
     lines.append(f"  angle unit: {report['angle_unit']['message']}")
     lines.append(f"  outside joint limits: {len(report['out_of_limits'])}")
-    lines += [f"    row {e['row']}, q{e['joint']} = {e['value_deg']:.3f} deg (limits {e['limits_deg'][0]:g}..{e['limits_deg'][1]:g})"
-              for e in _first(report["out_of_limits"], limit)]  # fmt: skip
+    lines += [
+        f"    row {e['row']}, q{e['joint']} = {e['value_deg']:.3f} deg (limits {e['limits_deg'][0]:g}..{e['limits_deg'][1]:g})"
+        for e in _first(report["out_of_limits"], limit)
+    ]
     fit = report["fit"]
     if fit and "error" in fit:
         lines.append(f"  robust nominal-model fit not possible: {fit['error']}")
@@ -37,14 +42,21 @@ def format_report(report: dict, limit: int = 20) -> str:
         if fit["not_identifiable"]:
             lines.append(f"    not identifiable from these data, held at nominal: {fit['not_identifiable']}")
         lines.append(f"  outliers beyond {fit['threshold']:g} sigma: {len(fit['outliers'])}")
-        lines += [f"    row {e['row']}: residual {e['residual_mm']:.3f} mm" + (f", {e['rotation_deg']:.4f} deg" if "rotation_deg" in e else "")
-                  + f" ({e['sigmas']:.1f} sigma)" for e in _first(fit["outliers"], limit)]  # fmt: skip
+        lines += [
+            f"    row {e['row']}: residual {e['residual_mm']:.3f} mm"
+            + (f", {e['rotation_deg']:.4f} deg" if "rotation_deg" in e else "")
+            + f" ({e['sigmas']:.1f} sigma)"
+            for e in _first(fit["outliers"], limit)
+        ]
     check = report["cross_check"]
     if check:
-        lines.append(f"  controller x,y,z vs FK(q): median {check['median_mm']:.3f} mm; {len(check['inconsistent'])} of "
-                     f"{check['rows_checked']} rows beyond rounding")  # fmt: skip
-        lines += [f"    row {e['row']}: FK - controller = {e['difference_mm']} mm (|.| {e['norm_mm']:.2f}; bound {e['bound_mm']}, {e['ratio']:.1f}x)"
-                  for e in _first(check["inconsistent"], limit)]  # fmt: skip
+        lines.append(
+            f"  controller x,y,z vs FK(q): median {check['median_mm']:.3f} mm; {len(check['inconsistent'])} of {check['rows_checked']} rows beyond rounding"
+        )
+        lines += [
+            f"    row {e['row']}: FK - controller = {e['difference_mm']} mm (|.| {e['norm_mm']:.2f}; bound {e['bound_mm']}, {e['ratio']:.1f}x)"
+            for e in _first(check["inconsistent"], limit)
+        ]
     lists = [report["bad_cells"], report["duplicates"], report["out_of_limits"], fit["outliers"] if fit else [], check["inconsistent"] if check else []]
     if limit and any(len(items) > limit for items in lists):
         lines.append(f"  (lists show their first {limit} entries; the JSON report has all)")

@@ -17,8 +17,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
     parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     parser.add_argument("--session", type=int, default=0, help="another session of the same robot: new path, noise and set-up (default 0)")
-    parser.add_argument("--effect", action="append", default=[], metavar="KIND[:key=value,...]",
-                        help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}")  # fmt: skip
+    parser.add_argument(
+        "--effect", action="append", default=[], metavar="KIND[:key=value,...]", help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}"
+    )
     parser.add_argument("--noise", type=float, default=None, metavar="MM", help="sensor noise sigma in mm (0: noiseless; default: the sensor's)")
     parser.add_argument("--outliers", type=float, default=0.0, metavar="FRACTION", help="fraction of gross outliers (default 0)")
     parser.add_argument("--no-geometric-error", dest="geometric_error", action="store_false", help="true geometry = nominal")

@@ -16,7 +16,8 @@ def summary(report: dict) -> str:
     m, n = report["metrics"], report["nominal"]["metrics"]
     applied = report["applied"]["structure"] + report["applied"]["causes"]
     lines = [
-        f"{printable(report['robot'], one_line=True)} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples ({report['data'] or 'data'}), "
+        f"{printable(report['robot'], one_line=True)} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples "
+        f"({report['data'] or 'data'}), "
         f"session set-up re-fitted ({', '.join(report['refit'])}):",
         f"  calibrated: RMSE {m['rmse']:.4f}  MAE {m['mae']:.4f}  MAX {m['max']:.4f} mm",
         f"  nominal:    RMSE {n['rmse']:.4f}  MAE {n['mae']:.4f}  MAX {n['max']:.4f} mm",
@@ -28,12 +29,16 @@ def summary(report: dict) -> str:
         lines.append(f"  not applied: {item['label']} ({item['reason']})")
     covered = report.get("metrics_covered")
     if covered is not None and covered["n"] < m["n"]:
-        lines.append(f"  within the maps' ranges ({covered['n']} of {m['n']} samples): calibrated RMSE {covered['rmse']:.4f}, "
-                     f"nominal {report['nominal']['metrics_covered']['rmse']:.4f} mm")  # fmt: skip
+        lines.append(
+            f"  within the maps' ranges ({covered['n']} of {m['n']} samples): calibrated RMSE {covered['rmse']:.4f}, "
+            f"nominal {report['nominal']['metrics_covered']['rmse']:.4f} mm"
+        )
     for c in report.get("coverage", []):
         if c["outside"]:
-            lines.append(f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
-                         f"(its fit had no data there; first rows {c['rows'][:5]})")  # fmt: skip
+            lines.append(
+                f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
+                f"(its fit had no data there; first rows {c['rows'][:5]})"
+            )
     iso = report.get("iso9283")
     if iso is not None:
         lines.append(f"  ISO 9283 ({iso['n_targets']} targets, {iso['n_measurements']} measurements; command = the calibrated model's prediction):")

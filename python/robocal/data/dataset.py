@@ -66,16 +66,20 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     small = (row_max <= 2 * math.pi) & (row_max > 0.5)  # within ±2π but not a pose at the zeros
     wide = row_max > PARTIAL_RADIANS_CONTRAST_DEG
     if small.sum() >= 2 and wide.sum() >= 2:
-        return (f"rows {_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
-                f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "
-                "convert them to degrees")  # fmt: skip
+        return (
+            f"rows {_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
+            f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "
+            "convert them to degrees"
+        )
     column_max = values.max(axis=0)
     spread = np.ptp(values, axis=0)
     narrow = (column_max <= 2 * math.pi) & (spread > 0.5)
     if narrow.any() and (column_max > PARTIAL_RADIANS_CONTRAST_DEG).sum() >= 2:
         columns = ", ".join(f"q{j + 1}" for j in np.flatnonzero(narrow))
-        return (f"column(s) {columns} stay within ±2 pi (at most {column_max[narrow].max():.4g}) while the other joints reach "
-                f"{column_max.max():.4g} deg: they look like radians in a degree table; convert them to degrees")  # fmt: skip
+        return (
+            f"column(s) {columns} stay within ±2 pi (at most {column_max[narrow].max():.4g}) while the other joints reach "
+            f"{column_max.max():.4g} deg: they look like radians in a degree table; convert them to degrees"
+        )
     return None
 
 
@@ -93,13 +97,11 @@ def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
         columns = [f"q{j + 1}" for j in np.flatnonzero(q.max(axis=0) > MAX_PLAUSIBLE_RAD)]
         bad = (q > MAX_PLAUSIBLE_RAD).any(axis=1)
         first = f", first row {rows[bad][0]}" if rows is not None else ""
-        return {"unit": unit, "plausible": False, "likely": "deg",
-                "message": f"columns {', '.join(columns)} hold |q| up to {q.max():.4g}, beyond 4 pi: the angles look like degrees "
-                           f"({int(bad.sum())} rows{first})"}  # fmt: skip
+        message = f"columns {', '.join(columns)} hold |q| up to {q.max():.4g}, beyond 4 pi: the angles look like degrees ({int(bad.sum())} rows{first})"
+        return {"unit": unit, "plausible": False, "likely": "deg", "message": message}
     if unit == "deg" and np.degrees(q.max()) <= 2 * math.pi and len(q) > 1:
-        return {"unit": unit, "plausible": False, "likely": "rad",
-                "message": f"every joint value (columns q1..q{q.shape[1]}) is at most {np.degrees(q.max()):.4g} in size (within 2 pi): "
-                           "the angles look like radians"}  # fmt: skip
+        message = f"every joint value (columns q1..q{q.shape[1]}) is at most {np.degrees(q.max()):.4g} in size (within 2 pi): the angles look like radians"
+        return {"unit": unit, "plausible": False, "likely": "rad", "message": message}
     if unit == "deg" and (partial := _radians_in_part(np.degrees(q), rows)):
         return {"unit": unit, "plausible": False, "likely": unit, "partial": True, "message": partial}
     return {"unit": unit, "plausible": True, "likely": unit, "message": f"joint values plausible in {unit} (max |q| = {np.degrees(q.max()):.4g} deg)"}
@@ -192,9 +194,9 @@ class Dataset:
         if idx.dtype == bool:
             idx = np.flatnonzero(idx)
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
-        return replace(self, q=self.q[idx], y=self.y[idx], t=pick(self.t), temp=pick(self.temp), rows=self.rows[idx],
-                       excluded=list(self.excluded), notes=list(self.notes),
-                       extra={k: v[idx] for k, v in self.extra.items()})  # fmt: skip
+        extra = {k: v[idx] for k, v in self.extra.items()}
+        lists = dict(excluded=list(self.excluded), notes=list(self.notes))
+        return replace(self, q=self.q[idx], y=self.y[idx], t=pick(self.t), temp=pick(self.temp), rows=self.rows[idx], extra=extra, **lists)
 
     def canonical_columns(self, angle_unit: str = "deg") -> tuple[list[str], np.ndarray]:
         """Column names and values (m, k) of the canonical table: ``q1..qN`` in ``angle_unit``

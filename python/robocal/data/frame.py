@@ -40,8 +40,8 @@ class FrameBody(ColumnarBody):
         bool), their values within ``MAX_ABS`` and finite where ``finite`` says."""
         pd = require_pandas("reading a DataFrame")
         columns = [self.frame.iloc[:, k] for k in positions]
-        if not len(self.frame) or any(pd.api.types.is_bool_dtype(c) or not pd.api.types.is_numeric_dtype(c) or
-                                      pd.api.types.is_complex_dtype(c) for c in columns):  # fmt: skip
+        types = pd.api.types
+        if not len(self.frame) or any(types.is_bool_dtype(c) or not types.is_numeric_dtype(c) or types.is_complex_dtype(c) for c in columns):
             return None
         try:
             values = np.column_stack([c.to_numpy(dtype=np.float64, na_value=np.nan) for c in columns])

@@ -210,9 +210,15 @@ def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
     require_columns(header, HSR_COLUMNS, path, "an HSR-RobotCali (D1) file")
     values, rows, excluded = numeric_columns(header, body, HSR_COLUMNS, path, exclude_bad_rows=exclude_bad_rows)
     return Dataset(
-        q=np.radians(values[:, :6]), y=values[:, 6], measurement="cable", robot="hsr-jr680", rows=rows, source=str(path),
-        excluded=excluded, notes=notes + _ignored_note(header, HSR_COLUMNS) + _excluded_note(excluded),
-    )  # fmt: skip
+        q=np.radians(values[:, :6]),
+        y=values[:, 6],
+        measurement="cable",
+        robot="hsr-jr680",
+        rows=rows,
+        source=str(path),
+        excluded=excluded,
+        notes=notes + _ignored_note(header, HSR_COLUMNS) + _excluded_note(excluded),
+    )
 
 
 def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
@@ -242,10 +248,16 @@ def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = F
     require_columns(header, ROBOTCALI_COLUMNS, path, "a RobotCali (D2) file")
     values, rows, excluded = numeric_columns(header, body, ROBOTCALI_COLUMNS, path, exclude_bad_rows=exclude_bad_rows)
     return Dataset(
-        q=np.radians(values[:, 3:9]), y=values[:, 9], measurement="cable", robot="abb-irb120", rows=rows, source=str(path),
-        excluded=excluded, notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + _excluded_note(excluded),
+        q=np.radians(values[:, 3:9]),
+        y=values[:, 9],
+        measurement="cable",
+        robot="abb-irb120",
+        rows=rows,
+        source=str(path),
+        excluded=excluded,
+        notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + _excluded_note(excluded),
         extra={"controller_xyz": values[:, :3]},
-    )  # fmt: skip
+    )
 
 
 # -- D3: laser tracker ----------------------------------------------------------------------------
@@ -363,10 +375,18 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         extra["measurement_std"] = np.column_stack([column[c] for c in IPA_STD])
     used = IPA_JOINTS + obs + optional + ["Timestamp"]
     return Dataset(
-        q=values[:, :6], y=y, measurement=measurement, robot="ur10", t=t, temp=column.get("measurement_temperature"),
-        rows=rows, source=str(path), excluded=excluded, notes=notes + _ignored_note(header, used) + _excluded_note(excluded),
+        q=values[:, :6],
+        y=y,
+        measurement=measurement,
+        robot="ur10",
+        t=t,
+        temp=column.get("measurement_temperature"),
+        rows=rows,
+        source=str(path),
+        excluded=excluded,
+        notes=notes + _ignored_note(header, used) + _excluded_note(excluded),
         extra=extra,
-    )  # fmt: skip
+    )
 
 
 # -- detection and load ---------------------------------------------------------------------------
@@ -411,8 +431,9 @@ def detect_format(path) -> str:
         return "robotcali"
     if any(re.fullmatch(r"q\d+", c) for c in fields[","]):
         return "canonical"
-    expected = ("expected a canonical header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, "
-                "or an .xlsx workbook of D1/D2")  # fmt: skip
+    expected = (
+        "expected a canonical header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, or an .xlsx workbook of D1/D2"
+    )
     if first.lstrip().startswith("#"):
         seen = f"the first line is a comment ({shown(first.strip())}): the header must be the first line; remove the comment lines"
     elif len(tabbed := fields["\t"]) > max(len(fields[","]), len(fields[";"])):

@@ -261,9 +261,10 @@ class DelimitedBody(ColumnarBody):
                 pa.py_buffer(self.data),
                 read_options=pacsv.ReadOptions(column_names=names, skip_rows=1),
                 parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False, escape_char=False, ignore_empty_lines=True),
-                convert_options=pacsv.ConvertOptions(column_types=column_types, null_values=[], strings_can_be_null=False,
-                                                     include_columns=list(column_types), check_utf8=False, **convert),
-            )  # fmt: skip
+                convert_options=pacsv.ConvertOptions(
+                    column_types=column_types, null_values=[], strings_can_be_null=False, include_columns=list(column_types), check_utf8=False, **convert
+                ),
+            )
         except (pa.ArrowException, ValueError):
             return None
         return table if table.num_rows == len(self.rows) and table.num_rows > 0 else None
@@ -383,8 +384,8 @@ def parse_number(cell, path, row: int, column: str, decimal_comma: bool = False,
         Reject NaN and infinity.
     """
     if isinstance(cell, UncachedFormula):
-        raise DataError(f"the cell holds the formula {shown(str(cell))} without a cached value: open and save the workbook in a spreadsheet "
-                        "program to compute it", path, row, column)  # fmt: skip
+        message = f"the cell holds the formula {shown(str(cell))} without a cached value: open and save the workbook in a spreadsheet program to compute it"
+        raise DataError(message, path, row, column)
     if isinstance(cell, bool) or not isinstance(cell, (str, int, float, type(None))):
         raise DataError(f"expected a number; got {cell!r} ({type(cell).__name__})", path, row, column)
     if cell is None or (isinstance(cell, str) and not cell.strip()):
@@ -495,5 +496,7 @@ def check_unit_quaternions(quaternions: np.ndarray, rows: np.ndarray, path) -> N
     bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_NORM_TOL)
     if bad.size:
         k = bad[0]
-        raise DataError(f"the quaternion (qw,qx,qy,qz) = {tuple(float(v) for v in quaternions[k])} must have unit norm (within {QUATERNION_NORM_TOL:g}); "
-                        f"got norm {norms[k]:.6g}" + (f" ({bad.size} rows like it)" if bad.size > 1 else ""), path, int(rows[k]))  # fmt: skip
+        quaternion = tuple(float(v) for v in quaternions[k])
+        more = f" ({bad.size} rows like it)" if bad.size > 1 else ""
+        message = f"the quaternion (qw,qx,qy,qz) = {quaternion} must have unit norm (within {QUATERNION_NORM_TOL:g}); got norm {norms[k]:.6g}{more}"
+        raise DataError(message, path, int(rows[k]))

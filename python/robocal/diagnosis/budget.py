@@ -117,5 +117,5 @@ def repeatability(q: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
     a, b = pairs[:, 0], pairs[:, 1]
     noise = float(np.sqrt(np.mean(np.sum((residuals[a] - residuals[b]) ** 2, axis=1)) / 2.0))
     shared = float(np.mean(np.sum(((residuals[a] + residuals[b]) / 2.0) ** 2, axis=1)))
-    return {"pairs": int(len(pairs)), "samples": int(np.unique(pairs).size), "repeatability_mm": noise,
-            "systematic_mm": float(np.sqrt(max(shared - noise**2 / 2.0, 0.0)))}  # fmt: skip
+    systematic = float(np.sqrt(max(shared - noise**2 / 2.0, 0.0)))
+    return {"pairs": int(len(pairs)), "samples": int(np.unique(pairs).size), "repeatability_mm": noise, "systematic_mm": systematic}

@@ -140,8 +140,10 @@ class ExtendedProblem:
         out = []
         for c in self.causes:
             physical, why = c.physical(self.coefficients(x, c), None if std is None else self.coefficients(std, c), self.robot, self.robot.params)
-            out.append({"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "detail": _plain(c.detail),
-                        "coefficients": [float(v) for v in self.coefficients(x, c)], "params": physical, "implausible": why})  # fmt: skip
+            joint = None if c.joint is None else c.joint + 1
+            coefficients = [float(v) for v in self.coefficients(x, c)]
+            entry = {"kind": c.kind, "joint": joint, "label": c.label, "detail": _plain(c.detail), "coefficients": coefficients}
+            out.append({**entry, "params": physical, "implausible": why})
         return out
 
     def clip(self, x: np.ndarray) -> np.ndarray:
@@ -172,8 +174,9 @@ class ExtendedProblem:
         cols = list(self.free) + self._theta + self._lengths + list(extra)
         J = self.robot.jacobian(self.data.measurement, q, y=self.data.y, params=p, cols=cols)
         at = len(self.free)
-        parts = {"theta": J[:, at : at + len(self._theta)], "lengths": J[:, at + len(self._theta) : at + len(self._theta) + len(self._lengths)],
-                 "extra": J[:, at + len(self._theta) + len(self._lengths) :]}  # fmt: skip
+        lengths_at = at + len(self._theta)
+        extra_at = lengths_at + len(self._lengths)
+        parts = {"theta": J[:, at:lengths_at], "lengths": J[:, lengths_at:extra_at], "extra": J[:, extra_at:]}
         return J[:, :at], p, parts
 
     def columns(self, x: np.ndarray, cause: Candidate, parts: dict = None, p: np.ndarray = None) -> np.ndarray:

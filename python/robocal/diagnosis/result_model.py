@@ -88,9 +88,13 @@ def result_model(robot: Robot, doc: dict, data: Dataset) -> ResultModel:
     read = structure.apply_all(data, conventions)
     causes = doc.get("causes", [])
     carried = [c for c in causes if c.get("kind") in JOINT_KINDS]
-    not_applied = [{"label": c.get("label", c.get("kind")),
-                    "reason": "a term of the calibration's own session (its sensor), not of the robot" if c.get("kind") in SESSION_KINDS
-                    else "a parameter of the robot: in the calibrated parameters"} for c in causes if c not in carried]  # fmt: skip
+    session_term = "a term of the calibration's own session (its sensor), not of the robot"
+    robot_parameter = "a parameter of the robot: in the calibrated parameters"
+    not_applied = [
+        {"label": c.get("label", c.get("kind")), "reason": session_term if c.get("kind") in SESSION_KINDS else robot_parameter}
+        for c in causes
+        if c not in carried
+    ]
     nominal = Robot(robot.name, robot.joints, doc["robot_model"]["nominal"], mass_model=robot.mass_model)  # checked by load_result
     # The causes' bases as the fit built them, on the nominal robot: a compliance's coefficient
     # was fitted against the gravity torques of the nominal geometry (the calibrated one moves

@@ -220,8 +220,10 @@ class _Evaluator:
         if self.measurement != "pose":
             return {}
         rad2 = [rotation_squared_rad(e, base.data) for e, (base, _, _) in zip(errors, self.bases(model))]  # each session weighed by its own noise
-        return {"rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(rad2))))),
-                "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a)))) for a in rad2]}  # fmt: skip
+        return {
+            "rotation_rmse_loso_deg": float(np.degrees(np.sqrt(np.mean(np.concatenate(rad2))))),
+            "rotation_per_session_deg": [float(np.degrees(np.sqrt(np.mean(a)))) for a in rad2],
+        }
 
     def _held_start(self, held: ExtendedProblem, trained: dict) -> np.ndarray:
         """The left-out session's start: the trained robot, and the set-up that places it best
@@ -232,8 +234,13 @@ class _Evaluator:
         shared = {n: v for n, v in trained.items() if n in robot.param_names and not is_private(n, self.measurement)}
         p[[robot.index(n) for n in shared]] = list(shared.values())
         placed = start_parameters(robot, held.data, params=p)
-        return np.array([(placed[robot.index(n)] if n in robot.param_names else v) if is_private(n, self.measurement) else trained.get(n, v)
-                         for n, v in zip(names, held.x0)])  # fmt: skip
+
+        def start(n: str, v: float) -> float:  # the session's own set-up placed anew, the rest as trained
+            if is_private(n, self.measurement):
+                return placed[robot.index(n)] if n in robot.param_names else v
+            return trained.get(n, v)
+
+        return np.array([start(n, v) for n, v in zip(names, held.x0)])
 
     def _warm(self, key, names: list[str], x0: np.ndarray) -> np.ndarray:
         """``x0`` with the entries a previous fit of the same fold found (a smaller model's)."""
@@ -362,8 +369,13 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     model = _Model()
     current = evaluator.held_out(model)
     geometric, geometric_fit = evaluator.fit(model)
-    baseline = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current, reported_rmse), **evaluator.rotation_entries(model, current), "rmse_train": geometric_fit.metrics["train"]["rmse"],
-                "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x)))}  # fmt: skip
+    baseline = {
+        "rmse_loso": _rmse(current, reported_rmse),
+        "per_session": _per_session(current, reported_rmse),
+        **evaluator.rotation_entries(model, current),
+        "rmse_train": geometric_fit.metrics["train"]["rmse"],
+        "implausible": implausible_parameters(rob, dict(zip(geometric.names, geometric_fit.x))),
+    }
     effects, rejected = [], []
     # Every map variant the sessions found is judged (the smoothness that carries across
     # sessions need not be the one a session chose alone); one map per joint is accepted.
@@ -395,8 +407,12 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
             ):
                 # A convention is no small correction: as within one session, it must make the
                 # geometry plausible or gain REAL_GAIN.
-                reasons[label] = (f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
-                                  f"it gains {1.0 - rmse / _rmse(current, judged_rmse):.1%} and leaves {len(evaluator.implausible(model.plus(candidate)))} parameters implausible")  # fmt: skip
+                gain = 1.0 - rmse / _rmse(current, judged_rmse)
+                left = len(evaluator.implausible(model.plus(candidate)))
+                reasons[label] = (
+                    f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
+                    f"it gains {gain:.1%} and leaves {left} parameters implausible"
+                )
             else:
                 break
         else:
@@ -428,18 +444,35 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     for e in effects:
         e.update(described.get(e["label"], {}))
     covered = evaluator.coverage[model]
-    final = {"rmse_loso": _rmse(current, reported_rmse), "per_session": _per_session(current, reported_rmse), **evaluator.rotation_entries(model, current), "implausible": implausible_parameters(rob, parameters), "tolerance_prior": physical,
-             # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
-             "per_session_covered": [{"samples": int(m.sum()), "rmse": reported_rmse(e[m]) if m.any() else None} for e, m in zip(current, covered)],
-             "rmse_loso_unconstrained": unconstrained,
-             "rmse_train": fit.metrics["train"]["rmse"], "n_params": len(joint.names)}  # fmt: skip
+    final = {
+        "rmse_loso": _rmse(current, reported_rmse),
+        "per_session": _per_session(current, reported_rmse),
+        **evaluator.rotation_entries(model, current),
+        "implausible": implausible_parameters(rob, parameters),
+        "tolerance_prior": physical,
+        # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
+        "per_session_covered": [{"samples": int(m.sum()), "rmse": reported_rmse(e[m]) if m.any() else None} for e, m in zip(current, covered)],
+        "rmse_loso_unconstrained": unconstrained,
+        "rmse_train": fit.metrics["train"]["rmse"],
+        "n_params": len(joint.names),
+    }
     return SessionsDiagnosis(
-        robot=rob, measurement=kind, sessions=sessions, baseline=baseline, effects=effects, rejected=rejected, final=final,
-        model={"structure": [s.label for s in model.structures], "causes": list(model.causes), "parameters": parameters,
-               "kinematic_prior": [physical["sigma_mm"], physical["sigma_deg"]] if physical and physical["accepted"] else None,
-               "sessions": [{"source": s.data.source, "causes": [c.label for c in s.terms]} for s in sessions]},
+        robot=rob,
+        measurement=kind,
+        sessions=sessions,
+        baseline=baseline,
+        effects=effects,
+        rejected=rejected,
+        final=final,
+        model={
+            "structure": [s.label for s in model.structures],
+            "causes": list(model.causes),
+            "parameters": parameters,
+            "kinematic_prior": [physical["sigma_mm"], physical["sigma_deg"]] if physical and physical["accepted"] else None,
+            "sessions": [{"source": s.data.source, "causes": [c.label for c in s.terms]} for s in sessions],
+        },
         time_s=time.perf_counter() - t0,
-    )  # fmt: skip
+    )
 
 
 def _physical(evaluator: _Evaluator, model: _Model, current: list):
@@ -467,9 +500,17 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
 
 def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
     joint = None if candidate.joint is None else candidate.joint + 1
-    entry = {"kind": candidate.kind, "joint": joint, "label": label, "params": candidate.params if isinstance(candidate, structure.Structure) else {},
-             "found_in_sessions": where, "rmse_loso_before": _rmse(before, reported_rmse), "rmse_loso_after": _rmse(after, reported_rmse),
-             "per_session_before": _per_session(before, reported_rmse), "per_session_after": _per_session(after, reported_rmse)}  # fmt: skip
+    entry = {
+        "kind": candidate.kind,
+        "joint": joint,
+        "label": label,
+        "params": candidate.params if isinstance(candidate, structure.Structure) else {},
+        "found_in_sessions": where,
+        "rmse_loso_before": _rmse(before, reported_rmse),
+        "rmse_loso_after": _rmse(after, reported_rmse),
+        "per_session_before": _per_session(before, reported_rmse),
+        "per_session_after": _per_session(after, reported_rmse),
+    }
     if reason is not None:
         entry["reason"] = reason
     return entry

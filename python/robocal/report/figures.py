@@ -145,8 +145,10 @@ def parameter_figure(doc: dict, out: Path) -> Optional[Path]:
         for yi, d, e in zip(y, dev, err):
             if d - e < lo or d + e > hi:
                 right = d < 0  # on the side the bar leaves free
-                ax.text(0.99 if right else 0.01, yi, f"±{e:.3g} {unit}, off scale", transform=ax.get_yaxis_transform(), ha="right" if right else "left",
-                        va="center", fontsize=7, color="0.25", bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.85})  # fmt: skip
+                x, align = (0.99, "right") if right else (0.01, "left")
+                box = {"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.85}
+                label = f"±{e:.3g} {unit}, off scale"
+                ax.text(x, yi, label, transform=ax.get_yaxis_transform(), ha=align, va="center", fontsize=7, color="0.25", bbox=box)
         ax.grid(axis="x", alpha=0.3)
         ax.set_xlabel(f"calibrated − nominal ({unit}{scale})", fontsize=9)
         ax.set_title(f"{title} ({len(names)} estimated): deviation ± 2 std (red: beyond 2 std)", fontsize=10)
@@ -171,8 +173,8 @@ def convergence_figure(doc: dict, out: Path) -> Optional[Path]:
     if history.size < 15:
         ax.set_xticks(np.arange(history.size))
     status = "converged" if conv.get("success") else "did not converge"
-    ax.set(xlabel="iteration (0: start)", ylabel="cost ½‖r‖² (mm², log scale)",
-           title=f"{doc.get('method', '')}: {status} after {conv.get('nit', history.size - 1)} iterations, final cost {history[-1]:.4g}")  # fmt: skip
+    title = f"{doc.get('method', '')}: {status} after {conv.get('nit', history.size - 1)} iterations, final cost {history[-1]:.4g}"
+    ax.set(xlabel="iteration (0: start)", ylabel="cost ½‖r‖² (mm², log scale)", title=title)
     fig.tight_layout()
     return _save(fig, out / "convergence.png")
 
@@ -192,8 +194,8 @@ def identifiability_figure(s: Optional[np.ndarray], n_cols: int, out: Path) -> O
     ax.set_xticks(k if s.size <= 40 else k[::5])
     ax.tick_params(axis="x", labelsize=8)
     ax.legend(loc="lower left", fontsize=8)
-    ax.set(xlabel="singular value index", ylabel="singular value (log scale)",
-           title=f"Column-scaled identification Jacobian ({n_cols} parameters): condition number {condition_number(s):.4g}")  # fmt: skip
+    title = f"Column-scaled identification Jacobian ({n_cols} parameters): condition number {condition_number(s):.4g}"
+    ax.set(xlabel="singular value index", ylabel="singular value (log scale)", title=title)
     ax.title.set_fontsize(10)
     fig.tight_layout()
     return _save(fig, out / "identifiability.png")

@@ -121,8 +121,13 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     # A result file may come from someone else and name any local file: it is read only when it
     # is, byte for byte, the file the result was calibrated on, and its content is never shown.
     if not _same_file(doc, recorded):
-        return _Data(path=recorded, notes=[f"the file {recorded} named by the result is not read: its sha256 does not match the one recorded "
-                                           "in the result; the figures that need the data are left out (pass --data FILE)"])  # fmt: skip
+        return _Data(
+            path=recorded,
+            notes=[
+                f"the file {recorded} named by the result is not read: its sha256 does not match the one recorded "
+                "in the result; the figures that need the data are left out (pass --data FILE)"
+            ],
+        )
     try:
         dataset = load(recorded, measurement=doc["measurement"])
     except RobocalError:
@@ -152,8 +157,10 @@ def _load_diagnosis(diagnosis) -> Optional[dict]:
     if report is not None:
         ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
         if not ok or held_key(report) not in report["baseline"]:
-            raise InvalidParameterError(f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report "
-                                        "(needs baseline.rmse_heldout, or baseline.rmse_loso for several sessions, and effects)")  # fmt: skip
+            raise InvalidParameterError(
+                f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report "
+                "(needs baseline.rmse_heldout, or baseline.rmse_loso for several sessions, and effects)"
+            )
     return report
 
 
@@ -206,8 +213,12 @@ def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     mask = ev.held_out if held else np.ones(len(ev.after), dtype=bool)
     read = ev.model.read
     figures = iso9283(ev.residuals[mask], read.y[mask], read.q[mask], read.measurement, covered=ev.model.covered[mask], rows=read.rows[mask])
-    which = (f"the {int(mask.sum())} held-out samples (the fit saw none of their joint configurations)" if held
-             else f"all {len(mask)} samples at the calibrated set-up (the held-out samples are unknown; on new measurements `robocal verify` re-fits the set-up first)")  # fmt: skip
+    which = (
+        f"the {int(mask.sum())} held-out samples (the fit saw none of their joint configurations)"
+        if held
+        else f"all {len(mask)} samples at the calibrated set-up (the held-out samples are unknown; "
+        "on new measurements `robocal verify` re-fits the set-up first)"
+    )
     return figures, which
 
 
@@ -215,16 +226,21 @@ def _acceptance_section(ev: _Evaluation, out: Path) -> str:
     figures, which = _acceptance(ev)
     rows = [[_esc(name), _esc(value)] for name, value in summary_rows(figures)]
     maps = any(c.get("kind") == "joint_map" for c in ev.model.carried)
-    caption = ("Accuracy of each target: the distance from the barycentre of its measurements to the calibrated model's prediction"
-               + (", red where a joint map of the model does not reach." if maps else "."))  # fmt: skip
-    return (f"<p>ISO 9283:1998 figures on {_esc(which)}: {figures['n_targets']} targets (joint configurations), the command being the calibrated "
-            "model's prediction at the target's joints and the attained pose the measurement. Distance accuracy compares measured and predicted "
-            "distances between targets: it does not depend on how the instrument was registered to the robot.</p>"
-            + _table(["figure", "value"], rows) + _figure(acceptance_figure(figures, maps, out), caption))  # fmt: skip
+    caption = "Accuracy of each target: the distance from the barycentre of its measurements to the calibrated model's prediction" + (
+        ", red where a joint map of the model does not reach." if maps else "."
+    )
+    return (
+        f"<p>ISO 9283:1998 figures on {_esc(which)}: {figures['n_targets']} targets (joint configurations), the command being the calibrated "
+        "model's prediction at the target's joints and the attained pose the measurement. Distance accuracy compares measured and predicted "
+        "distances between targets: it does not depend on how the instrument was registered to the robot.</p>"
+        + _table(["figure", "value"], rows)
+        + _figure(acceptance_figure(figures, maps, out), caption)
+    )
 
 
 _CSS = """
-body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; max-width: 980px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.45; }
+body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; max-width: 980px; margin: 2em auto; padding: 0 1em;
+       color: #222; line-height: 1.45; }
 h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.8em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
 table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
 th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
@@ -266,7 +282,8 @@ def _header(doc: dict, data: _Data) -> str:
         ("figures computed on", _data_row(data)),
         (
             "solver",
-            f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} ({conv.get('nit', '?')} iterations, {conv.get('nfev', '?')} evaluations, {_num(conv.get('time_s'), 3)} s)",
+            f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} "
+            f"({conv.get('nit', '?')} iterations, {conv.get('nfev', '?')} evaluations, {_num(conv.get('time_s'), 3)} s)",
         ),
     ]
     body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
@@ -307,8 +324,11 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
             )
         out[key] = {**m[key], **mine}
     if differ:
-        return out, ("recomputed from the parameter values on the data: the result file's metrics do not match its values (" + "; ".join(differ)
-                     + "): the file was edited or is corrupt")  # fmt: skip
+        return out, (
+            "recomputed from the parameter values on the data: the result file's metrics do not match its values ("
+            + "; ".join(differ)
+            + "): the file was edited or is corrupt"
+        )
     return out, "recomputed from the parameter values on the data: they match the result file"
 
 
@@ -322,9 +342,11 @@ def _metrics(doc: dict, m: dict, note: str) -> str:
             rows.append([_esc(label), _fixed(v.get("rmse"), 4), _fixed(v.get("mae"), 4), _fixed(v.get("max"), 4), _esc(v.get("n", "–"))])
     per = "|cable residual|" if doc.get("measurement") == "cable" else "Euclidean position error"
     warn = "warn" if "do not match" in note else "small"
-    return (_table(["samples", "RMSE (mm)", "MAE (mm)", "max (mm)", "n"], rows, numeric={1, 2, 3, 4})
-            + f'<p class="{warn}">Metrics {_esc(note)}.</p>'
-            + f'<p class="small">Per-sample error: {_esc(per)}; eq. (28) of the paper (its "STD" is the MAE).</p>')  # fmt: skip
+    return (
+        _table(["samples", "RMSE (mm)", "MAE (mm)", "max (mm)", "n"], rows, numeric={1, 2, 3, 4})
+        + f'<p class="{warn}">Metrics {_esc(note)}.</p>'
+        + f'<p class="small">Per-sample error: {_esc(per)}; eq. (28) of the paper (its "STD" is the MAE).</p>'
+    )
 
 
 def checked_implausible(robot: Robot, doc: dict) -> tuple[list[dict], str]:
@@ -335,8 +357,10 @@ def checked_implausible(robot: Robot, doc: dict) -> tuple[list[dict], str]:
     listed, found = sorted(f["name"] for f in doc.get("implausible") or []), sorted(f["name"] for f in flags)
     if listed == found:
         return flags, ""
-    return flags, (f"the result file lists {listed or 'none'} as implausible, but its parameter values put {found or 'none'} beyond the limits: "
-                   "the file was edited or is corrupt; the list is recomputed from the values")  # fmt: skip
+    return flags, (
+        f"the result file lists {listed or 'none'} as implausible, but its parameter values put {found or 'none'} beyond the limits: "
+        "the file was edited or is corrupt; the list is recomputed from the values"
+    )
 
 
 def _implausible(flags: list[dict], note: str) -> str:
@@ -347,9 +371,11 @@ def _implausible(flags: list[dict], note: str) -> str:
     for f in sorted(flags, key=lambda f: -abs(f["deviation"]) / f["limit"]):
         unit, factor = SHOWN.get(f["unit"], (f["unit"], 1.0))
         items.append(f"<li><code>{_esc(f['name'])}</code>: {f['deviation'] * factor:+.4g} {_esc(unit)} (limit ±{f['limit'] * factor:.3g} {_esc(unit)})</li>")
-    return note + (f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
-            "the data do not determine them (the fit bends weakly determined directions to absorb other errors); "
-            f"a kinematic prior (<code>--kinematic-prior</code>) or more varied poses are needed.<ul>{''.join(items)}</ul></div>")  # fmt: skip
+    return note + (
+        f'<div class="warn"><strong>{len(flags)} kinematic parameter{"s" if len(flags) != 1 else ""} moved beyond 10 mm / 2 deg from nominal</strong>: '
+        "the data do not determine them (the fit bends weakly determined directions to absorb other errors); "
+        f"a kinematic prior (<code>--kinematic-prior</code>) or more varied poses are needed.<ul>{''.join(items)}</ul></div>"
+    )
 
 
 def _fixed_params(doc: dict) -> str:
@@ -371,13 +397,16 @@ def _parameters(doc: dict, flags: list[dict]) -> str:
         dev = (p["value"] - p["nominal"]) * factor
         std = None if p.get("std") is None else p["std"] * factor
         status = "estimated" if std is not None else ("fixed" if p["name"] in fixed else "not considered")
-        rows.append([f"<code>{_esc(p['name'])}</code>", _esc(value_unit), _fixed(p["nominal"] * value_factor, decimals), _fixed(p["value"] * value_factor, decimals),
-                     "–" if std is None and dev == 0 else f"{dev:+.4g} {_esc(unit) if unit != value_unit else ''}".strip(),
-                     "–" if std is None else f"{std:.2g}", _esc(status)])  # fmt: skip
+        nominal, value = _fixed(p["nominal"] * value_factor, decimals), _fixed(p["value"] * value_factor, decimals)
+        deviation = "–" if std is None and dev == 0 else f"{dev:+.4g} {_esc(unit) if unit != value_unit else ''}".strip()
+        spread = "–" if std is None else f"{std:.2g}"
+        rows.append([f"<code>{_esc(p['name'])}</code>", _esc(value_unit), nominal, value, deviation, spread, _esc(status)])
         classes.append("flag" if p["name"] in flagged else ("" if std is not None else "off"))
-    return (_table(["parameter", "unit", "nominal", "calibrated", "deviation", "std", "status"], rows, numeric={2, 3, 4, 5}, row_classes=classes)
-            + '<p class="small">Angles in degrees (stored in radians); a dimensionless scale\'s deviation in ppm. '
-            "Highlighted: implausible deviations; grey: not estimated (kept at their start value).</p>")  # fmt: skip
+    return (
+        _table(["parameter", "unit", "nominal", "calibrated", "deviation", "std", "status"], rows, numeric={2, 3, 4, 5}, row_classes=classes)
+        + '<p class="small">Angles in degrees (stored in radians); a dimensionless scale\'s deviation in ppm. '
+        "Highlighted: implausible deviations; grey: not estimated (kept at their start value).</p>"
+    )
 
 
 def _quantities(params) -> str:
@@ -400,25 +429,28 @@ def _causes(doc: dict) -> str:
     if not causes:
         return ""
     rows = [[_esc(c.get("label") or c.get("kind")), _quantities(c.get("params")), _esc(c.get("implausible") or "")] for c in causes]
-    return ("<h2>Causes in the model</h2><p>The calibration fitted an extended model: the geometric parameters and these causes.</p>"
-            + _table(["cause", "parameters", "implausible"], rows))  # fmt: skip
+    intro = "<h2>Causes in the model</h2><p>The calibration fitted an extended model: the geometric parameters and these causes.</p>"
+    return intro + _table(["cause", "parameters", "implausible"], rows)
 
 
 def _diagnosis_table(report: dict) -> str:
     key, rows = held_key(report), []
     for e in report["effects"]:
-        rows.append([_esc(e.get("label") or e.get("kind")), _quantities(e.get("params")) + _esc(correlation_words(e) + settling_words(e)),
-                     _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])  # fmt: skip
+        quantities = _quantities(e.get("params")) + _esc(correlation_words(e) + settling_words(e))
+        rows.append([_esc(e.get("label") or e.get("kind")), quantities, _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])
     b, f = report["baseline"], report.get("final") or {}
-    intro = (f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
-             f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b[key], 4)} mm"
-             f"{', final ' + _fixed(f[key], 4) + ' mm' if f.get(key) is not None else ''}.</p>")  # fmt: skip
+    intro = (
+        f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
+        f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b[key], 4)} mm"
+        f"{', final ' + _fixed(f[key], 4) + ' mm' if f.get(key) is not None else ''}.</p>"
+    )
     words = leftover_words(f)
     left = f"<p>What is left: {_esc(words)}.</p>" if words else ""
     found = [u for u in f.get("unexplained") or [] if isinstance(u, dict)]
     if found:
-        left += _table(["unexplained finding", "share of the error left", "refused because"],
-                       [[_esc(u.get("label")), _esc(f"{u['share']:.0%}" if isinstance(u.get("share"), (int, float)) else "?"), _esc(u.get("reason", ""))] for u in found])  # fmt: skip
+        share = [f"{u['share']:.0%}" if isinstance(u.get("share"), (int, float)) else "?" for u in found]
+        unexplained = [[_esc(u.get("label")), _esc(s), _esc(u.get("reason", ""))] for u, s in zip(found, share)]
+        left += _table(["unexplained finding", "share of the error left", "refused because"], unexplained)
     if not rows:
         return intro + "<p>No cause beyond the geometric model is significant.</p>" + left
     return intro + _table(["effect", "parameters", "held-out RMSE before (mm)", "after (mm)"], rows, numeric={2, 3}) + left
@@ -439,9 +471,11 @@ def _structure_section(report: dict) -> str:
         [_esc(e["label"]), _quantities(e.get("params")), _esc(", ".join((e.get("significance") or {}).get("undetermined_between") or []) or "none")]
         for e in found
     ]
-    part = ("<h3>Structure</h3><p>How the controller reports its joints (a zero 90° away or re-mastered, a reversed sign, a joint read "
-            "relative to another) and steps of the sensor's zero or the tracker's position: not small corrections but a different reading "
-            "of the data, each judged by full re-fits.</p>")  # fmt: skip
+    part = (
+        "<h3>Structure</h3><p>How the controller reports its joints (a zero 90° away or re-mastered, a reversed sign, a joint read "
+        "relative to another) and steps of the sensor's zero or the tracker's position: not small corrections but a different reading "
+        "of the data, each judged by full re-fits.</p>"
+    )
     if rows:
         part += _table(["found", "parameters", "alternatives the data cannot tell apart"], rows)
     if tried:
@@ -458,23 +492,33 @@ def _budget_section(report: dict) -> str:
         rows = [["final held-out RMSE", _fixed(f["rmse_heldout"], 4)]]
         if f.get("rotation_rmse_heldout_deg") is not None:
             rows.append(["final held-out orientation RMS (deg)", _fixed(f["rotation_rmse_heldout_deg"], 4)])
-        rows += [["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
-                ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)], ["floor (both)", _fixed(f["floor_mm"], 4)],
-                ["unexplained above the floor", _fixed(max(f["rmse_heldout"] - f["floor_mm"], 0.0), 4)]]  # fmt: skip
+        above = max(f["rmse_heldout"] - f["floor_mm"], 0.0)
+        rows += [
+            ["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
+            ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)],
+            ["floor (both)", _fixed(f["floor_mm"], 4)],
+            ["unexplained above the floor", _fixed(above, 4)],
+        ]
         if revisits := floor.get("revisits"):
-            rows += [[f"repeatability of one reading, measured at {revisits['pairs']} revisited joint configurations", _fixed(revisits["repeatability_mm"], 4)],
-                     ["final model's error shared by the revisits, beyond their noise (at least)", _fixed(revisits["systematic_mm"], 4)]]  # fmt: skip
+            rows += [
+                [f"repeatability of one reading, measured at {revisits['pairs']} revisited joint configurations", _fixed(revisits["repeatability_mm"], 4)],
+                ["final model's error shared by the revisits, beyond their noise (at least)", _fixed(revisits["systematic_mm"], 4)],
+            ]
         if f.get("explained") is not None:
             rows.append(["share of the baseline's held-out mean square error above the floor explained", f"{f['explained']:.0%}"])
-        part += ("<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains "
-                 f"({_esc(floor.get('note', ''))}).</p>" + _table(["", "mm"], rows, numeric={1}))  # fmt: skip
+        intro = f"<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains ({_esc(floor.get('note', ''))}).</p>"
+        part += intro + _table(["", "mm"], rows, numeric={1})
     prior = f.get("tolerance_prior")
     if prior:
         if prior.get("accepted"):
-            part += (f'<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
-                     f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {_fixed(f.get(held_key(report) + '_unconstrained'), 4)} mm.</p>")  # fmt: skip
+            unconstrained = _fixed(f.get(held_key(report) + "_unconstrained"), 4)
+            part += (
+                '<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
+                f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {unconstrained} mm.</p>"
+            )
         else:
-            part += f'<p class="warn">No physical model: a tolerance prior (±{_esc(prior["sigma_mm"])} mm, ±{_esc(prior["sigma_deg"])}°) was tried; {_esc(prior.get("reason", ""))}.</p>'
+            tried = f"a tolerance prior (±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°) was tried"
+            part += f'<p class="warn">No physical model: {tried}; {_esc(prior.get("reason", ""))}.</p>'
     if f.get("implausible"):
         part += '<p class="warn">Final model: ' + _esc(describe_implausible(f["implausible"], meaning=implausible_meaning(prior))) + ".</p>"
     return part
@@ -489,19 +533,22 @@ def _sessions_section(report: dict) -> str:
     for i, s in enumerate(report["sessions"]):
         d = s.get("diagnosis") or {}
         kept = own[i]["causes"] if i < len(own) else []
-        rows.append([str(i + 1), _esc(s.get("source") or ""), str(s.get("samples", "")), _esc("; ".join(e.get("label", "") for e in d.get("effects", [])) or "none"),
-                     _esc("; ".join(kept) or "none"), _fixed(report["final"]["per_session"][i], 4) if i < len(report["final"].get("per_session", [])) else ""])  # fmt: skip
-    return ("<h3>Sessions</h3><p>Each session diagnosed on its own; a cause of the robot is kept only if it lowers the error of sessions it was not "
-            "fitted on. Session terms (steps, drift, outliers, set-up) stay with their session.</p>"
-            + _table(["session", "file", "samples", "found on its own", "keeps", "held-out RMSE (mm), left out"], rows, numeric={2, 5}))  # fmt: skip
+        alone = "; ".join(e.get("label", "") for e in d.get("effects", [])) or "none"
+        per_session = report["final"].get("per_session", [])
+        left_out = _fixed(per_session[i], 4) if i < len(per_session) else ""
+        rows.append([str(i + 1), _esc(s.get("source") or ""), str(s.get("samples", "")), _esc(alone), _esc("; ".join(kept) or "none"), left_out])
+    return (
+        "<h3>Sessions</h3><p>Each session diagnosed on its own; a cause of the robot is kept only if it lowers the error of sessions it was not "
+        "fitted on. Session terms (steps, drift, outliers, set-up) stay with their session.</p>"
+        + _table(["session", "file", "samples", "found on its own", "keeps", "held-out RMSE (mm), left out"], rows, numeric={2, 5})
+    )
 
 
 def _figure(path: Path, caption: str) -> str:
     return f'<figure><img src="{_esc(path.name)}" alt="{_esc(caption)}"><figcaption>{_esc(caption)}</figcaption></figure>'
 
 
-def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None,
-           angle_unit: Optional[str] = None) -> Path:  # fmt: skip
+def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis: Union[str, Path, dict, None] = None, angle_unit: Optional[str] = None) -> Path:
     """Writes the HTML report of a calibration result and its figures; returns the page's path.
 
     Parameters
@@ -543,11 +590,16 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         ev = _evaluate(robot, doc, d.dataset, d.same_file)
         recorded = _fitted(doc).get("sha256")
         if d.path is not None and not d.same_file:
-            notes.append("the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
-                         if recorded else "the result records no sha256 of its data: held-out samples are not marked")  # fmt: skip
+            notes.append(
+                "the measurement file is not the one calibrated on (its sha256 differs from the recorded one): held-out samples are not marked"
+                if recorded
+                else "the result records no sha256 of its data: held-out samples are not marked"
+            )
         if ev.model.session_terms:
-            notes.append(f"the figures show the robot's model as verify applies it: the terms of the calibration's own session ({'; '.join(ev.model.session_terms)}) "
-                         "are not applied, so the errors may exceed the metrics above")  # fmt: skip
+            notes.append(
+                f"the figures show the robot's model as verify applies it: the terms of the calibration's own session ({'; '.join(ev.model.session_terms)}) "
+                "are not applied, so the errors may exceed the metrics above"
+            )
         if doc.get("method") == "rbf":
             notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
     paths_residuals = residual_figures(ev.before, ev.after, ev.held_out, len(ev.model.carried), meas, out) if ev is not None else []
@@ -556,7 +608,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         figures.append(
             _figure(
                 paths_residuals[0],
-                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics (measurement set-up refitted) and {after_rms:.4g} mm calibrated"
+                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics "
+                f"(measurement set-up refitted) and {after_rms:.4g} mm calibrated"
                 + (" (geometry and joint causes, the model robocal verify applies)." if ev.model.carried else "."),
             )
         )
@@ -569,8 +622,13 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         )
     p = parameter_figure(doc, out)
     if p is not None:
-        figures.append(_figure(p, f"Deviation from nominal of the {len(estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
-                                  "base, tool and sensor parameters, fitted from scratch, are in the table below."))  # fmt: skip
+        figures.append(
+            _figure(
+                p,
+                f"Deviation from nominal of the {len(estimated(doc))} estimated joint parameters with ±2 std error bars (red: beyond 2 std); "
+                "base, tool and sensor parameters, fitted from scratch, are in the table below.",
+            )
+        )
     else:
         figures.append(
             '<p class="note">No joint parameter has a standard deviation in the result file, so there is no figure of the deviations (see the table below).</p>'
@@ -584,17 +642,22 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         figures.append(
             _figure(
                 p,
-                f"Singular values of the identification Jacobian at the calibrated parameters, columns scaled to unit norm: condition number {kappa:.4g} (large values mean weakly determined parameter combinations).",
+                f"Singular values of the identification Jacobian at the calibrated parameters, columns scaled to unit norm: condition number {kappa:.4g} "
+                "(large values mean weakly determined parameter combinations).",
             )
         )
     diag_html = ""
     if diag is not None:
         p = diagnosis_figure(diag, out / "diagnosis.png")
-        maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), f"Joint map of joint {e['joint']}: the correction of its angle against its reading "
-                        "(no correction beyond the range it was fitted on), with ±2 standard deviations.")
-                for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]  # fmt: skip
-        diag_html = ("<h2>Diagnosis</h2>" + _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
-                     + _diagnosis_table(diag) + "".join(maps) + _structure_section(diag) + _budget_section(diag) + _sessions_section(diag))  # fmt: skip
+        joint_maps = [e for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]
+        caption = (
+            "Joint map of joint {}: the correction of its angle against its reading (no correction beyond the range it was fitted on), "
+            "with ±2 standard deviations."
+        )
+        maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), caption.format(e["joint"])) for e in joint_maps]
+        chart = _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
+        sections = [_diagnosis_table(diag), "".join(maps), _structure_section(diag), _budget_section(diag), _sessions_section(diag)]
+        diag_html = "<h2>Diagnosis</h2>" + chart + "".join(sections)
 
     for n in notes:
         logger.info("report: %s", n)

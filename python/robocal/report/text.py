@@ -34,8 +34,10 @@ def settling_words(effect: dict) -> str:
     if not isinstance(moves, dict) or not moves.get("settling"):
         return ""
     try:
-        return (f"; {int(moves['outliers'])} of {int(moves['of'])} follow a joint move of {float(moves['threshold_deg']):g} deg or more "
-                f"({float(moves['share_of_samples']):.1%} of all samples do; p = {float(moves['p_value']):.1g}): readings taken before the arm settled")  # fmt: skip
+        return (
+            f"; {int(moves['outliers'])} of {int(moves['of'])} follow a joint move of {float(moves['threshold_deg']):g} deg or more "
+            f"({float(moves['share_of_samples']):.1%} of all samples do; p = {float(moves['p_value']):.1g}): readings taken before the arm settled"
+        )
     except (KeyError, TypeError, ValueError):
         return ""
 
