@@ -2,6 +2,11 @@
 
 Everything runs in this one process, on the same inputs, from the same start:
 
+0. End to end: ``robocal.calibrate(csv, robot="hsr-jr680")`` on a 20 000-row canonical CSV of
+   simulated cable samples (read, 80/20 split, ``Problem.build``, LM, result with covariance and
+   held-out metrics) against ``pandas.read_csv``, the same split, start and free parameters and
+   ``scipy.optimize.least_squares(jac="2-point")`` (default tolerances, ``lm`` and ``trf``) on the
+   NumPy model; the runs interleaved, medians, ratio of medians.
 1. robocal's production Levenberg–Marquardt (``robocal.calibration.lm``, Rust core) on simulated
    cable data (HSR JR680, 20 000 samples, seed 1) against ``scipy.optimize.least_squares``
    (method ``"lm"`` = MINPACK and ``"trf"``) with the pure-NumPy model
@@ -20,6 +25,7 @@ final RMSE.
     python benches/bench_calibration.py
     python benches/bench_calibration.py --threads 1          # single rayon thread (NumPy's BLAS: --blas-threads, default 1)
     python benches/bench_calibration.py --skip-lm            # only part 2 (and vice versa)
+    python benches/bench_calibration.py --only-end-to-end    # only part 0
 """
 
 from __future__ import annotations
@@ -62,6 +68,125 @@ def rmse(r) -> float:
     import numpy as np
 
     return float(np.sqrt(np.mean(np.square(r))))
+
+
+# ---------------------------------------------------------------------------------------------
+# Part 0: robocal.calibrate(file) end to end vs pandas + scipy with finite differences
+# ---------------------------------------------------------------------------------------------
+#: robocal.calibrate(file) against the faster scipy finite-difference pipeline (issue 30).
+END_TO_END_TARGET = 30.0
+
+
+def part_end_to_end(args) -> None:
+    import tempfile
+
+    import numpy as np
+    import scipy.optimize
+
+    import robocal
+    from robocal.calibration.problem import Problem
+    from robocal.data import Dataset, write_canonical
+    from robocal.data.splits import configuration_groups, random_split
+
+    r = robocal.robot("hsr-jr680")
+    conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
+    with tempfile.TemporaryDirectory() as tmp:
+        data, _ = robocal.simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
+        csv = write_canonical(data, Path(tmp) / "sim.csv")
+
+        def ours():
+            return robocal.calibrate(csv, robot="hsr-jr680")
+
+        def scipy_fit(method):
+            import pandas as pd
+
+            frame = pd.read_csv(csv)
+            q = np.radians(frame[[f"q{i}" for i in range(1, 7)]].to_numpy())
+            y = frame[["L"]].to_numpy()
+            train_idx, test_idx = random_split(len(q), test_fraction=0.2, seed=0, groups=configuration_groups(q))
+            train = Dataset(q=q[train_idx], y=y[train_idx], measurement="cable")
+            problem = Problem.build(r, train)  # the same start and free parameters as robocal's
+            _, fun, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, train.q, train.y)
+            calls = [0]
+
+            def counted(x):
+                calls[0] += 1
+                return fun(x)
+
+            out = scipy.optimize.least_squares(counted, problem.x0, jac="2-point", method=method)
+            _, held_out, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, q[test_idx], y[test_idx])
+            return calls[0], rmse(fun(out.x)), rmse(held_out(out.x)), out.message
+
+        res = ours()  # warm: imports, the reader, the thread pool
+        times = {"robocal": [], "lm": [], "trf": []}
+        outs = {}
+        loads = [load_avg()]
+        for _ in range(args.scipy_repeats):
+            for _ in range(args.e2e_repeats):
+                t = time.perf_counter()
+                res = ours()
+                times["robocal"].append(time.perf_counter() - t)
+            for method in ("lm", "trf") if not args.quick else ():
+                t = time.perf_counter()
+                outs[method] = scipy_fit(method)
+                times[method].append(time.perf_counter() - t)
+        loads.append(load_avg())
+        prof = cProfile.Profile()
+        prof.enable()
+        ours()
+        prof.disable()
+
+    med = {k: float(np.median(v)) for k, v in times.items() if v}
+    ours_rmse = (res.metrics["train"]["rmse"], res.metrics["test"]["rmse"])
+    print(f"## 0. End to end: `robocal.calibrate(csv)` vs pandas + scipy with finite differences — {args.samples:,} simulated cable samples\n")
+    print(
+        f"`simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by `write_canonical`; robocal: "
+        f"`robocal.calibrate(csv, robot='hsr-jr680')` (read, 80/20 split, `Problem.build`, LM, result with covariance and held-out "
+        f"metrics), {len(times['robocal'])} runs after a warm-up; scipy: `pandas.read_csv`, the same split, `Problem.build`'s start and "
+        f"free parameters, `least_squares(jac='2-point')` with default tolerances on the NumPy model, {len(times['lm'])} runs per method; "
+        f"the runs interleaved in one process. Load average {loads[0]} at the start, {loads[1]} at the end.\n"
+    )
+    print("| pipeline | median wall time (s) | min (s) | × robocal (medians) | residual evaluations | training RMSE (mm) | held-out RMSE (mm) | stop |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    evals = f"{res.nfev} (+{res.njev} J)" if res.njev else f"{res.nfev}"
+    print(
+        f"| `robocal.calibrate(csv)` | {med['robocal']:.4f} | {min(times['robocal']):.4f} | 1.0× | {evals} | {ours_rmse[0]:.6f} | "
+        f"{ours_rmse[1]:.6f} | {res.message[:80]} |"
+    )
+    for method, (calls, train_rmse, test_rmse, message) in outs.items():
+        print(
+            f"| pandas + scipy `least_squares(method={method!r}, jac='2-point')` | {med[method]:.3f} | {min(times[method]):.3f} | "
+            f"{med[method] / med['robocal']:.1f}× | {calls} | {train_rmse:.6f} | {test_rmse:.6f} | {message[:80]} |"
+        )
+    if outs:
+        fastest = min(outs, key=lambda m: med[m])
+        ratio = med[fastest] / med["robocal"]
+        same = all(abs(o[1] - ours_rmse[0]) <= 1e-6 * ours_rmse[0] for o in outs.values())
+        met = ratio >= END_TO_END_TARGET and same
+        print(
+            f"\n**Target (issue 30): robocal.calibrate(file) ≥ {END_TO_END_TARGET:g}× scipy with finite differences at the same RMSE: "
+            f"{'MET' if met else 'NOT MET'}** ({ratio:.1f}× the faster scipy method, `{fastest}`, ratio of medians"
+            f"{'' if same else '; NOT the same training RMSE to 1e-6 relative'}).\n"
+        )
+    st = pstats.Stats(prof)
+    total = st.total_tt
+    print(f"Where one `robocal.calibrate(csv)` spends its time (cProfile; {total * 1e3:.1f} ms under the profiler), by cumulative time:\n")
+    print("| function | calls | cumulative | own |")
+    print("|---|---:|---:|---:|")
+    entries = sorted(st.stats.items(), key=lambda kv: -kv[1][3])
+    root = str(Path(robocal.__file__).parent) + "/"
+    shown = 0
+    for (fname, line, func), (cc, nc, tt, ct, _) in entries:
+        if shown >= args.profile_rows * 2:
+            break
+        if fname == "~" and "robocal" not in func:
+            continue
+        name = func.strip("<>") if fname == "~" else f"{fname.replace(root, '')}:{line}({func})"
+        if fname != "~" and "robocal" not in fname:
+            continue
+        shown += 1
+        print(f"| `{name}` | {nc} | {ct * 1e3:.1f} ms | {tt * 1e3:.1f} ms |")
+    print()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -407,6 +532,11 @@ def main() -> None:
     parser.add_argument("--profile-rows", type=int, default=12)
     parser.add_argument("--skip-lm", action="store_true")
     parser.add_argument("--skip-m9", action="store_true")
+    parser.add_argument("--skip-end-to-end", action="store_true")
+    parser.add_argument("--only-end-to-end", action="store_true", help="part 0 alone")
+    parser.add_argument("--e2e-repeats", type=int, default=5, help="robocal.calibrate runs per round of part 0")
+    parser.add_argument("--scipy-repeats", type=int, default=3, help="rounds of part 0 (one scipy run per method each)")
+    parser.add_argument("--quick", action="store_true", help="part 0 without scipy")
     args = parser.parse_args()
     if args.threads:
         os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
@@ -426,6 +556,10 @@ def main() -> None:
     print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
     print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
     start = time.perf_counter()
+    if args.only_end_to_end:
+        args.skip_lm = args.skip_m9 = True
+    if not args.skip_end_to_end:
+        part_end_to_end(args)
     if not args.skip_lm:
         part_lm(args)
     if not args.skip_m9:

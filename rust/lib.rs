@@ -10,8 +10,10 @@
 //!   Jacobians, sigma-point propagation, the closed-form cable start.
 //! - [`sigma`]: Merwe scaled sigma points and the unscented transform.
 //! - [`solve`]: the damped normal-equation step of LM / VSLM.
+//! - [`configurations`]: which samples revisit one joint configuration (held-out splits).
 //! - [`identify`]: identifiability (rank, subset, redundancy) and parameter covariance.
 
+pub mod configurations;
 pub mod error;
 #[doc(hidden)]
 pub mod fixtures;

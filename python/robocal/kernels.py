@@ -115,6 +115,13 @@ def factor_damped(J):
     return _robocal.DampedQr(as_float_array(J, "J"))
 
 
+def normal_equations(J, r) -> tuple[np.ndarray, np.ndarray]:
+    """``(JᵀJ (n, n), Jᵀr (n,))`` of a dense ``J`` (m, n) and ``r`` (m,), in Rust: fixed row blocks
+    on the core's threads, summed in order (the same result on any number of threads, and no
+    BLAS threads that a loaded machine leaves spinning)."""
+    return _robocal.normal_equations(as_float_array(J, "J"), as_float_array(r, "r"))
+
+
 def is_sparse(J) -> bool:
     """True for a scipy.sparse matrix (tested without importing scipy)."""
     return type(J).__module__.startswith("scipy.sparse")
@@ -182,6 +189,14 @@ def covariance(J, r, tol: float = 1e-9):
         cov = (V[:, keep] / s2[keep]) @ V[:, keep].T * sigma2
         return cov, sigma2, dof, rank
     return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), as_float(tol, "tol"))
+
+
+def configuration_groups(q, tol: float) -> np.ndarray:
+    """One label per sample of ``q`` (m, N): samples whose joint values agree within ``tol`` on
+    every joint (chained) share one, numbered ``0..g-1`` in order of first appearance — the
+    labels of :func:`robocal.data.splits.configuration_groups` (a k-d tree's pairs and connected
+    components), from a sort-and-sweep in Rust (20 000 samples: 2 ms instead of 60 ms)."""
+    return _robocal.configuration_groups(as_float_array(q, "q"), as_float(tol, "tol"))
 
 
 def cable_initial_guess(p, L):

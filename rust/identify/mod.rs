@@ -34,9 +34,7 @@ pub struct Identifiability {
 }
 
 fn singular_values(a: faer::MatRef<'_, f64>) -> CoreResult<Vec<f64>> {
-    let mut s = a
-        .singular_values()
-        .map_err(|e| CoreError::NoConvergence(format!("SVD of the scaled Jacobian: {e:?}")))?;
+    let mut s = a.singular_values().map_err(|e| CoreError::NoConvergence(format!("SVD of the scaled Jacobian: {e:?}")))?;
     s.sort_by(|x, y| y.total_cmp(x));
     Ok(s)
 }
@@ -50,58 +48,81 @@ fn check_tol(tol: f64) -> CoreResult<()> {
     if tol > 0.0 && tol < 1.0 {
         Ok(())
     } else {
-        Err(CoreError::InvalidParameter {
-            arg: "tol",
-            reason: format!("must lie in (0, 1); got {tol}"),
-        })
+        Err(CoreError::InvalidParameter { arg: "tol", reason: format!("must lie in (0, 1); got {tol}") })
     }
 }
 
+/// The triangular factor `R` (n, n) of `a` (m, n) with `m ≥ n` (`a = Q·R`, `Q` not formed): the
+/// singular values, right singular vectors and least-squares solutions of `a` are those of `R`,
+/// so what follows works on an n × n matrix. Tall matrices are split in two halves factored on
+/// two threads, their `R`s stacked and factored again (a tall-skinny QR).
+fn triangular_factor(a: faer::MatRef<'_, f64>) -> Mat<f64> {
+    let (m, n) = (a.nrows(), a.ncols());
+    let r_of = |block: faer::MatRef<'_, f64>| {
+        let r = block.qr().thin_R().to_owned();
+        // (thin_R has min(rows, n) rows: a short block pads with zero rows.)
+        Mat::from_fn(n, n, |i, j| if i < r.nrows() && j >= i { r[(i, j)] } else { 0.0 })
+    };
+    if m < 8 * n.max(16) {
+        return if m >= n { r_of(a) } else { Mat::from_fn(n, n, |i, j| if i < m { a[(i, j)] } else { 0.0 }) };
+    }
+    let half = m / 2;
+    let (top, bottom) = rayon::join(|| r_of(a.subrows(0, half)), || r_of(a.subrows(half, m - half)));
+    let stacked = Mat::from_fn(2 * n, n, |i, j| if i < n { top[(i, j)] } else { bottom[(i - n, j)] });
+    r_of(stacked.as_ref())
+}
+
 /// Identifiability analysis of `J` (m, n) row-major.
+///
+/// One column-pivoted QR of the scaled `J` (m, n) picks the identifiable subset; the singular
+/// values and the redundancy coefficients come from its triangular factor (n, n).
 ///
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (tol outside (0, 1)).
 pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Identifiability> {
     check_tol(tol)?;
     let jm = row_major("J", j, m, n)?;
     let (column_norms, effective, scaled) = scale_columns(jm);
-    let singular_values = singular_values(scaled.as_ref())?;
-    let rank = rank_of(&singular_values, tol);
-    let condition_number = if rank == 0 { f64::INFINITY } else { singular_values[0] / singular_values[rank - 1] };
-
     let eff_idx: Vec<usize> = (0..n).filter(|&c| effective[c]).collect();
     let no_effect: Vec<usize> = (0..n).filter(|&c| !effective[c]).collect();
-    let sub = Mat::from_fn(m, eff_idx.len(), |r, c| scaled[(r, eff_idx[c])]);
-    let identifiable: Vec<usize> = if eff_idx.is_empty() {
-        Vec::new()
+    let k = eff_idx.len();
+    // Columns without effect are zero: they add zero singular values and nothing else.
+    let mut values = vec![0.0; m.min(n)];
+    let mut identifiable = Vec::new();
+    let mut redundant = Vec::new();
+    let rank;
+    if k == 0 {
+        rank = 0;
     } else {
+        let sub = Mat::from_fn(m, k, |r, c| scaled[(r, eff_idx[c])]);
         let qr = sub.col_piv_qr();
         let (fwd, _) = qr.P().arrays();
-        fwd.iter().take(rank).map(|&k| eff_idx[k]).collect()
-    };
-
-    let mut redundant = Vec::new();
-    let others: Vec<usize> = eff_idx.iter().copied().filter(|c| !identifiable.contains(c)).collect();
-    if !identifiable.is_empty() && !others.is_empty() {
-        let basis = Mat::from_fn(m, identifiable.len(), |r, c| scaled[(r, identifiable[c])]);
-        let rhs = Mat::from_fn(m, others.len(), |r, c| scaled[(r, others[c])]);
-        let coefs = basis.qr().solve_lstsq(&rhs);
-        for (c, &col) in others.iter().enumerate() {
-            let partners = identifiable
-                .iter()
-                .enumerate()
-                .map(|(k, &id)| (id, coefs[(k, c)]))
-                .filter(|(_, v)| v.abs() > REDUNDANCY_COEF_MIN)
-                .collect();
-            redundant.push((col, partners));
+        let r = qr.thin_R(); // (min(m, k), k), columns in pivot order
+        let s = singular_values(r)?;
+        values[..s.len()].copy_from_slice(&s);
+        rank = rank_of(&values, tol);
+        identifiable = fwd.iter().take(rank).map(|&c| eff_idx[c]).collect();
+        // Each other column (pivot position p ≥ rank) in the basis of the first `rank` pivoted
+        // columns: the least squares R₁₁·c = R₁ₚ (rows below `rank` are what the basis cannot explain).
+        if rank > 0 && rank < k {
+            let r11 = r.get(..rank, ..rank);
+            let rhs = r.get(..rank, rank..k).to_owned();
+            let coefs = r11.qr().solve_lstsq(&rhs);
+            for (c, &p) in fwd.iter().enumerate().skip(rank) {
+                let partners = (0..rank).map(|b| (eff_idx[fwd[b]], coefs[(b, c - rank)])).filter(|(_, v)| v.abs() > REDUNDANCY_COEF_MIN).collect();
+                redundant.push((eff_idx[p], partners));
+            }
+            redundant.sort_by_key(|(col, _)| *col);
         }
     }
-    Ok(Identifiability { singular_values, rank, condition_number, column_norms, identifiable, no_effect, redundant })
+    let condition_number = if rank == 0 { f64::INFINITY } else { values[0] / values[rank - 1] };
+    Ok(Identifiability { singular_values: values, rank, condition_number, column_norms, identifiable, no_effect, redundant })
 }
 
 /// Parameter covariance `σ̂² (JᵀJ)⁺` of a least-squares fit with Jacobian `J` (m, n) and final
 /// residuals `r` (m). The pseudo-inverse is taken on the column-scaled Jacobian (rank by
-/// `tol`); columns with no effect get zero rows and columns. Returns `(cov (n·n row-major),
-/// σ̂², dof, rank)`.
+/// `tol`), through the SVD of its triangular factor (the same singular values and vectors);
+/// columns with no effect get zero rows and columns. Returns `(cov (n·n row-major), σ̂², dof,
+/// rank)`.
 ///
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (no degrees of freedom left).
 pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<(Vec<f64>, f64, usize, usize)> {
@@ -109,19 +130,15 @@ pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreRes
     let jm = row_major("J", j, m, n)?;
     let rv = row_major("r", r, m, 1)?;
     let (norms, effective, scaled) = scale_columns(jm);
-    let svd = scaled
-        .thin_svd()
-        .map_err(|e| CoreError::NoConvergence(format!("SVD of the scaled Jacobian: {e:?}")))?;
+    let factor = triangular_factor(scaled.as_ref());
+    let svd = factor.thin_svd().map_err(|e| CoreError::NoConvergence(format!("SVD of the scaled Jacobian: {e:?}")))?;
     let s = svd.S().column_vector();
-    let k = s.nrows();
+    let k = s.nrows().min(m);
     let s1 = (0..k).map(|i| s[i]).fold(0.0, f64::max);
     let keep: Vec<usize> = (0..k).filter(|&i| s[i] > tol * s1 && s[i] > 0.0).collect();
     let rank = keep.len();
     if m <= rank {
-        return Err(CoreError::InvalidParameter {
-            arg: "J",
-            reason: format!("{m} residuals leave no degrees of freedom for {rank} identifiable parameters"),
-        });
+        return Err(CoreError::InvalidParameter { arg: "J", reason: format!("{m} residuals leave no degrees of freedom for {rank} identifiable parameters") });
     }
     let dof = m - rank;
     let sigma2 = rv.col(0).squared_norm_l2() / dof as f64;

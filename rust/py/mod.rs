@@ -306,6 +306,17 @@ fn sparse_gram<'py>(py: Python<'py>, indptr: &Bound<'py, PyAny>, indices: &Bound
     matrix(py, gram, ncols, ncols)
 }
 
+/// The normal equations `(JᵀJ (n, n), Jᵀr (n,))` of a dense `J` (m, n) and `r` (m,).
+#[pyfunction]
+#[pyo3(signature = (J, r))]
+#[allow(non_snake_case)]
+fn normal_equations<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>) -> PyResult<(Arr2<'py>, Arr1<'py>)> {
+    let (j, m, n) = array2(J, "J", None)?;
+    let r = array1(r, "r", Some(m))?;
+    let (gram, g) = py.detach(|| solve::normal_equations(&j, &r, m, n)).map_err(core_err)?;
+    Ok((matrix(py, gram, n, n)?, PyArray1::from_vec(py, g)))
+}
+
 /// Identifiability of `J` (m, n): rank, singular values, identifiable subset, redundancy.
 #[pyfunction]
 #[pyo3(signature = (J, tol = 1e-9))]
@@ -335,6 +346,16 @@ fn covariance<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>
     Ok((matrix(py, cov, n, n)?, s2, dof, rank))
 }
 
+/// One label per sample of `q` (m, n): samples within `tol` of each other on every joint
+/// (chained) share one, numbered in order of first appearance.
+#[pyfunction]
+#[pyo3(signature = (q, tol))]
+fn configuration_groups<'py>(py: Python<'py>, q: &Bound<'py, PyAny>, tol: f64) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let (q, m, n) = array2(q, "q", None)?;
+    let labels = py.detach(|| crate::configurations::configuration_groups(&q, m, n, tol)).map_err(core_err)?;
+    Ok(PyArray1::from_vec(py, labels.into_iter().map(|v| v as i64).collect()))
+}
+
 /// Closed-form cable anchor and sensor zero from tool points `p` (m, 3) and lengths `L` (m):
 /// returns `(anchor (3,), cable_offset)`.
 #[pyfunction]
@@ -355,6 +376,8 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_damped, m)?)?;
     m.add_class::<PyDampedQr>()?;
     m.add_function(wrap_pyfunction!(sparse_gram, m)?)?;
+    m.add_function(wrap_pyfunction!(configuration_groups, m)?)?;
+    m.add_function(wrap_pyfunction!(normal_equations, m)?)?;
     // The core parallelises over samples (rayon); faer's own threads only add hand-over cost to
     // its small dense factorisations (a pivoted QR of 1600×24: 0.41 → 0.33 ms).
     faer::set_global_parallelism(faer::Par::Seq);

@@ -50,6 +50,7 @@ import time
 import numpy as np
 
 from ..core import as_count, as_positive, as_tolerance, factor_damped, is_sparse
+from ..kernels import normal_equations
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
@@ -165,20 +166,21 @@ def _minimise(
     history, nfev, njev, nit, lam, nu = [cost], 1, 1, 0, lam0, 2.0
     best_x, best_cost, previous, gains = x, cost, None, []
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
-    J = problem.jacobian(x)
-    scale, fresh = _column_squares(J), True
+    J, J_at = problem.jacobian(x), x  # J_at: where J was evaluated
+    scale, fresh = None, True
     weighted = objective.loss != "linear"  # least squares: the weights are all 1
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
             Jw, rw = (_scaled(J, rows=w), r * w) if weighted else (J, r)
-            g = Jw.T @ rw
+            gram, g = (None, Jw.T @ rw) if is_sparse(Jw) else normal_equations(Jw, rw)  # JᵀJ (n, n) and Jᵀr in one pass
             if np.max(np.abs(g)) < gtol:
                 success, message = True, "`gtol` termination condition is satisfied"
                 break
-            scale = np.maximum(scale, _column_squares(Jw))
+            squares = _column_squares(Jw) if gram is None else np.diag(gram).copy()
+            scale = squares if scale is None else np.maximum(scale, squares)
             d = np.sqrt(np.where(scale > 0, scale, 1.0))
-            factored = factor_damped(_scaled(Jw, columns=1.0 / d))
+            factored = _factor(Jw, d, gram)
             c = factored.project(rw)
             if statistical_stop:
                 noise = np.sqrt(2.0 * cost / dof)
@@ -233,7 +235,7 @@ def _minimise(
                 success = True
                 message = "`ftol` termination condition is satisfied" if small_change else "`xtol` termination condition is satisfied"
                 break
-            J, fresh = problem.jacobian(x), True
+            J, J_at, fresh = problem.jacobian(x), x, True
             njev += 1
         elif small_step:
             # Even tiny steps no longer lower the cost: a minimum to within rounding.
@@ -241,9 +243,52 @@ def _minimise(
             break
         else:
             lam, nu = lam * nu, 2.0 * nu
-    result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start)
+    # The residuals and the Jacobian at the point returned, when the iteration has them (saves an evaluation of each).
+    evaluated = (r, J) if best_x is x and J_at is x else None
+    result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start, evaluated=evaluated)
     result.njev = njev
     return result
+
+
+#: Largest condition number of the scaled normal matrix ``D^-½·JᵀJ·D^-½`` whose Cholesky factor
+#: gives the steps (``J``'s condition up to 10⁵: steps accurate to ~10⁻⁶, and every step's gain
+#: is checked on the residuals); beyond it (D1: 10⁷) ``J·D^-½`` is factored by QR.
+NORMAL_CONDITION = 1e10
+
+
+def _factor(Jw, d: np.ndarray, gram):
+    """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``): from the normal equations ``gram``
+    (``JwᵀJw``, dense ``Jw``) when they are well conditioned (:data:`NORMAL_CONDITION`), else
+    from a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.core.factor_damped`)."""
+    if gram is not None:
+        normal = gram / np.outer(d, d)
+        eigenvalues = np.linalg.eigvalsh(normal)
+        if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:
+            return _DampedGram(normal, lambda b: (Jw.T @ b) / d)
+    return factor_damped(_scaled(Jw, columns=1.0 / d))
+
+
+class _DampedGram:
+    """``factor_damped``'s ``project``/``solve`` from a well-conditioned normal matrix
+    ``N = AᵀA = L·Lᵀ`` (n, n) of the scaled Jacobian ``A``, in the basis ``Q = A·L⁻ᵀ``
+    (orthonormal columns): ``c = L⁻¹·Aᵀb`` (``‖c‖`` = the norm of ``b``'s part that ``A``
+    explains) and the step ``(N + λI)⁻¹·L·c`` — O(n³) per step instead of a QR of ``A``."""
+
+    def __init__(self, normal: np.ndarray, transpose_times):
+        from scipy.linalg import cholesky
+
+        self.normal, self.transpose_times = normal, transpose_times
+        self.L = cholesky(normal, lower=True)
+
+    def project(self, b: np.ndarray) -> np.ndarray:
+        from scipy.linalg import solve_triangular
+
+        return solve_triangular(self.L, self.transpose_times(b), lower=True)
+
+    def solve(self, c: np.ndarray, lam: float) -> np.ndarray:
+        from scipy.linalg import cho_factor, cho_solve
+
+        return cho_solve(cho_factor(self.normal + lam * np.eye(len(self.normal)), lower=True), self.L @ c)
 
 
 def _column_squares(J) -> np.ndarray:

@@ -15,8 +15,9 @@ from typing import Mapping, Optional
 import numpy as np
 
 from ..core import as_float_array, cable_initial_guess, identifiability, solve_damped
+from ..kernels import configuration_groups
 from ..data.dataset import Dataset
-from ..data.splits import configuration_groups
+from ..data.splits import CONFIGURATION_TOLERANCE
 from ..exceptions import DataError, InvalidParameterError, NonFiniteError
 from ..geometry import frame_params, kabsch
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -51,6 +52,11 @@ SCALE_RATIO = {"cable": (0.02, 20.0), "position": (0.1, 10.0), "pose": (0.1, 10.
 IMPOSSIBLE_SPREAD = 10.0
 #: Unit factors (measured / mm) that name a likely unit in the messages.
 LIKELY_UNITS = {"metres": 1e-3, "centimetres": 1e-1, "inches": 1 / 25.4, "micrometres": 1e3}
+
+
+def configuration_labels(q) -> np.ndarray:
+    """:func:`robocal.data.splits.configuration_groups` of ``q`` (the same labels), computed in Rust."""
+    return configuration_groups(q, CONFIGURATION_TOLERANCE)
 
 
 def is_kinematic(name: str) -> bool:
@@ -93,6 +99,12 @@ def implausible_parameters(robot: Robot, values: dict) -> list[dict]:
     return flagged
 
 
+#: :func:`start_parameters` takes its first Gauss-Newton steps on every k-th sample, about this
+#: many of them, until a step moves no parameter by more than :data:`START_SWITCH` (mm, rad).
+START_SAMPLES = 2000
+START_SWITCH = 1e-2
+
+
 def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
     """Nominal kinematics plus a fitted measurement set-up.
 
@@ -116,12 +128,19 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
         p[base] = frame_params(kabsch(local, data.y[:, :3]))
         setup = base
     cols = setup + [robot.index(n) for n in ("tool_x", "tool_y", "tool_z")]
+    # The first steps (tens of mm) on a subsample of START_SAMPLES, the last ones on every sample:
+    # the same fixed point as all steps on every sample, in half the evaluations of all of them.
+    every = max(len(data) // START_SAMPLES, 1)
+    q, y = (data.q[::every], data.y[::every]) if every > 1 else (data.q, data.y)
     for _ in range(20):
-        r = robot.residuals(data.measurement, data.q, data.y, params=p).ravel()
-        step, _ = solve_damped(robot.jacobian(data.measurement, data.q, y=data.y, params=p, cols=cols), r, 1e-9)
+        r = robot.residuals(data.measurement, q, y, params=p).ravel()
+        step, _ = solve_damped(robot.jacobian(data.measurement, q, y=y, params=p, cols=cols), r, 1e-9)
         p[cols] += step
-        if np.max(np.abs(step)) < 1e-9:
-            break
+        size = np.max(np.abs(step))
+        if size < 1e-9 or every > 1 and size < START_SWITCH:
+            if every == 1:
+                break
+            every, q, y = 1, data.q, data.y
     return p
 
 
@@ -144,7 +163,7 @@ def check_observations(robot: Robot, data: Dataset) -> None:
             i = bad[0][0]
             raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
     kind, where = data.measurement, data.source
-    distinct = int(configuration_groups(data.q).max(initial=-1)) + 1
+    distinct = int(configuration_labels(data.q).max(initial=-1)) + 1
     if distinct < MIN_CONFIGURATIONS[kind]:
         repeated = f" ({distinct} distinct joint configurations)" if distinct < len(data) else ""
         sensor = "the cable sensor's anchor and zero" if kind == "cable" else "the tracker's frame"
@@ -325,6 +344,8 @@ class Problem:
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
+        if not problem.bounds:  # the start is where J was evaluated: the fit's first Jacobian is its free columns (if nothing changes)
+            problem._start_jacobian = (data, free.copy(), start.copy(), np.ascontiguousarray(J[:, np.searchsorted(cols, free)]))
         return problem
 
     def require_dof(self, purpose: str = "a calibration", remedy: str = "more samples, or a kinematic prior") -> None:
@@ -333,7 +354,7 @@ class Problem:
         learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)
         ``purpose`` and ``remedy`` word the message (``verify`` re-fits a set-up, not a robot)."""
         # A repeated configuration averages the noise but adds no geometry: it counts once.
-        distinct = int(configuration_groups(self.data.q).max(initial=-1)) + 1
+        distinct = int(configuration_labels(self.data.q).max(initial=-1)) + 1
         residuals = distinct * RESIDUAL_WIDTH[self.data.measurement]
         if residuals <= len(self.free) and not self.prior:
             repeated = f" ({distinct} distinct joint configurations)" if distinct < len(self.data) else ""
@@ -406,6 +427,22 @@ class Problem:
         return self.robot.residuals(self.data.measurement, self.data.q, self.data.y, params=self.full(x)).ravel()
 
     @cached_property
+    def _unit_weights(self) -> bool:
+        """True when every row weight is 1 (all but pose data): no product needed."""
+        return bool(np.all(self.row_weights == 1.0))
+
+    def _data_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """The weighted data rows of :meth:`jacobian`; at the start point, the columns of the
+        Jacobian :meth:`build` evaluated there for the identifiability analysis, once."""
+        cached, self._start_jacobian = getattr(self, "_start_jacobian", None), None
+        params = self.full(x)
+        if cached is not None and cached[0] is self.data and np.array_equal(cached[1], self.free) and np.array_equal(cached[2], params):
+            J = cached[3]
+        else:
+            J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=params, cols=self.free)
+        return J if self._unit_weights else J * self.row_weights[:, None]
+
+    @cached_property
     def row_weights(self) -> np.ndarray:
         """Weights of the data rows in :meth:`residuals` (:func:`fit_row_weights`)."""
         return fit_row_weights(self.data)
@@ -413,7 +450,8 @@ class Problem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """What the calibrators minimise: :meth:`data_residuals` (weighted: :attr:`row_weights`)
         followed by the prior rows."""
-        r = self.data_residuals(x) * self.row_weights
+        r = self.data_residuals(x)
+        r = r if self._unit_weights else r * self.row_weights
         if not self.prior:
             return r
         idx, mean, sigma = self._prior_rows()
@@ -431,7 +469,7 @@ class Problem:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """``∂h/∂x`` of :meth:`residuals` (data rows, then prior rows), (rows, n_free)."""
-        J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=self.full(x), cols=self.free) * self.row_weights[:, None]
+        J = self._data_jacobian(x)
         if not self.prior:
             return J
         idx, _, sigma = self._prior_rows()

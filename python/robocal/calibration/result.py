@@ -266,8 +266,11 @@ class CalibrationResult:
         return doc
 
     @classmethod
-    def from_fit(cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float) -> "CalibrationResult":
-        """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics."""
+    def from_fit(
+        cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float, *, evaluated=None
+    ) -> "CalibrationResult":
+        """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics.
+        ``evaluated``: ``(problem.residuals(x), problem.jacobian(x))`` when the caller has them."""
         x = np.asarray(x, dtype=np.float64)
         held = bounds_against_nominal(problem, x)
         if held and success:  # the optimum lies beyond the bounds: no convergence to the data
@@ -275,9 +278,10 @@ class CalibrationResult:
                 False,
                 f"stopped at bounds that exclude the nominal value ({'; '.join(held)}): the data pull beyond them (the solver's stop: {message})",
             )
-        r = problem.residuals(x)
-        J = problem.jacobian(x)
-        data_r = problem.data_residuals(x)
+        r, J = evaluated if evaluated is not None else (problem.residuals(x), problem.jacobian(x))
+        # A plain problem without priors and with unit row weights minimises its data residuals themselves.
+        plain = type(problem) is Problem and not problem.prior and problem.data.measurement != "pose"
+        data_r = r if plain else problem.data_residuals(x)
         std = None
         if J.shape[0] > J.shape[1]:
             cov, _, _, rank = covariance(J, r)
