@@ -26,7 +26,8 @@ import robocal
 from robocal.calibration.problem import Problem
 from robocal.diagnosis.candidates import map_candidate, map_noise
 from robocal.diagnosis.model import ExtendedProblem
-from robocal.diagnosis.select import _fit, baseline_mask
+from robocal.diagnosis.select import baseline_mask
+from robocal.diagnosis.validation import fit_problem
 
 DATASETS = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets"))
 SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv", "C": "Series_C/measurements_random_poses.csv"}
@@ -51,7 +52,7 @@ def main() -> None:
     base = Problem.build(robot, data, mask=baseline_mask(robot, "position", True))
     idx = np.arange(len(data))
     plain = ExtendedProblem(base, [], data, idx)
-    geometric = _fit(plain)
+    geometric = fit_problem(plain)
     noise = map_noise(plain.data_residuals(geometric.x).reshape(len(data), 3))
     maps = [map_candidate(data, j, args.spacing, 0.03, noise, data.q[:, j]) for j in range(6)]
     rows = []
@@ -61,7 +62,7 @@ def main() -> None:
         times, fit = [], None
         for _ in range(args.repeats):
             t = time.perf_counter()
-            fit = _fit(model, x0=x0)
+            fit = fit_problem(model, x0=x0)
             times.append(time.perf_counter() - t)
         rows.append((name, statistics.median(times), fit.cost, fit.nfev, model.n))
     J = ExtendedProblem(base, maps, data, idx).jacobian(x0)

@@ -16,7 +16,7 @@ import robocal.exceptions
 from robocal import _robocal
 from robocal.kernels import DampedNormal, factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
-from robocal.diagnosis.select import _fold_maps
+from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
 from robocal.report.figures import map_figure
 from robocal.simulation import simulate
@@ -164,7 +164,7 @@ def test_a_folds_map_corrects_only_the_angles_it_was_fitted_on(geared):
     model = diagnosis.model
     q2 = data.q[model.idx, 1]
     train = np.flatnonzero(q2 < np.median(q2))
-    (fold_map,) = [c for c in _fold_maps(model, train) if c.kind == "joint_map"]
+    (fold_map,) = [c for c in fold_causes(model, train) if c.kind == "joint_map"]
     (full_map,) = [c for c in model.causes if c.kind == "joint_map"]
     beyond = model.idx[q2 > q2[train].max()]
     assert beyond.size and np.all(fold_map.basis.toarray()[beyond] == 0.0)

@@ -126,8 +126,13 @@ class Candidate:
         if kind == "joint_map":
             curve = map_curve(self.detail, c)
             peak = float(np.max(np.abs(curve["value_deg"])))
-            out = {"peak": q(peak, np.nan, "deg"), "rms": q(float(np.sqrt(np.mean(np.square(curve["value_deg"])))), np.nan, "deg"),
-                   "spacing": q(self.detail["spacing"], np.nan, "deg"), "coefficients": q(len(c), np.nan, "")}  # fmt: skip
+            rms = float(np.sqrt(np.mean(np.square(curve["value_deg"]))))
+            out = {
+                "peak": q(peak, np.nan, "deg"),
+                "rms": q(rms, np.nan, "deg"),
+                "spacing": q(self.detail["spacing"], np.nan, "deg"),
+                "coefficients": q(len(c), np.nan, ""),
+            }
             return out, (f"peak {peak:.3g} deg exceeds {LIMITS['angle'] / DEG:g} deg" if peak > LIMITS["angle"] / DEG else None)
         if kind in ("joint_scale", "joint_coupling"):
             name = "scale" if kind == "joint_scale" else "coefficient"
@@ -323,8 +328,8 @@ def map_support(angles: np.ndarray, spacing: float) -> dict:
     inwards) between consecutive angles more than :data:`MAP_GAP_SPACINGS` spacings apart."""
     a = np.sort(np.asarray(angles, dtype=np.float64)) / DEG
     wide = np.flatnonzero(np.diff(a) > MAP_GAP_SPACINGS * float(spacing))
-    return {"lo": math.floor(a[0] * 1e6) / 1e6, "hi": math.ceil(a[-1] * 1e6) / 1e6,
-            "gaps": [[math.ceil(a[i] * 1e6) / 1e6, math.floor(a[i + 1] * 1e6) / 1e6] for i in wide]}  # fmt: skip
+    down, up = (lambda v: math.floor(v * 1e6) / 1e6), (lambda v: math.ceil(v * 1e6) / 1e6)  # to a micro-degree, outwards
+    return {"lo": down(a[0]), "hi": up(a[-1]), "gaps": [[up(a[i]), down(a[i + 1])] for i in wide]}
 
 
 def covered_when_fitted_on(detail: dict, fitted: np.ndarray, qj: np.ndarray) -> np.ndarray:
@@ -369,8 +374,8 @@ def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.nda
         j, detail = cause["joint"] - 1, cause["detail"]
         outside = np.flatnonzero(~map_coverage(q[:, j], detail))
         where = outside if rows is None else np.asarray(rows)[outside]
-        out.append({"label": cause.get("label", cause["kind"]), "joint": j + 1, "range_deg": [detail["lo"], detail["hi"]],
-                    "gaps_deg": detail.get("gaps", []), "outside": int(len(outside)), "rows": [int(v) for v in where[:20]]})  # fmt: skip
+        span = {"range_deg": [detail["lo"], detail["hi"]], "gaps_deg": detail.get("gaps", [])}
+        out.append({"label": cause.get("label", cause["kind"]), "joint": j + 1, **span, "outside": int(len(outside)), "rows": [int(v) for v in where[:20]]})
     return out
 
 
@@ -458,8 +463,8 @@ def map_candidates(robot: Robot, data: Dataset, joints: list[int], noise: float,
     for j in joints:
         if robot.joints[j].kind != "revolute":
             continue
-        out += [map_candidate(data, j, spacing, roughness, noise, q[:, j]) for spacing in MAP_SPACINGS_DEG if np.ptp(q[:, j]) / DEG >= 2.0 * spacing
-                for roughness in MAP_ROUGHNESS_DEG]  # fmt: skip
+        spacings = [spacing for spacing in MAP_SPACINGS_DEG if np.ptp(q[:, j]) / DEG >= 2.0 * spacing]  # two spacings at least across its range
+        out += [map_candidate(data, j, spacing, roughness, noise, q[:, j]) for spacing in spacings for roughness in MAP_ROUGHNESS_DEG]
     return out
 
 
@@ -472,7 +477,7 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     baseline did not consider at all (``considered``: estimated or fixed by the identifiability
     analysis).
     """
-    n, m = robot.n_joints, len(data)
+    n = robot.n_joints
     q = data.q
     k = RESIDUAL_WIDTH[data.measurement]
     moving = [j for j in range(n) if np.ptp(q[:, j]) > 1e-6]
@@ -502,9 +507,12 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
         for j, joint in enumerate(robot.joints):
             if joint.hayati and f"beta{j + 1}" not in free:
                 out.append(Candidate("axis_misalignment", j, "parameters", params=[f"beta{j + 1}"]))
-    frame = {"cable": ["anchor_x", "anchor_y", "anchor_z", "tool_x", "tool_y", "tool_z"],
-             "position": [f"base_{c}" for c in ("x", "y", "z", "rx", "ry", "rz")] + ["tool_x", "tool_y", "tool_z"],
-             "pose": [f"{f}_{c}" for f in ("base", "tool") for c in ("x", "y", "z", "rx", "ry", "rz")]}[data.measurement]  # fmt: skip
+    axes = ("x", "y", "z", "rx", "ry", "rz")
+    frame = {
+        "cable": ["anchor_x", "anchor_y", "anchor_z", "tool_x", "tool_y", "tool_z"],
+        "position": [f"base_{c}" for c in axes] + ["tool_x", "tool_y", "tool_z"],
+        "pose": [f"{f}_{c}" for f in ("base", "tool") for c in axes],
+    }[data.measurement]
     missing = [p for p in frame if p not in free]
     if missing:
         out.append(Candidate("frame", None, "parameters", params=missing))

@@ -23,10 +23,12 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from ..kernels import is_sparse
+from ..progress import progress
 from ..stats import rmse_of_squares
 from .candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from .model import ExtendedProblem, judged_rmse, reported_rmse
 from .structure import EQUAL
+from .validation import fit_problem, nonlinear_cv
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -132,17 +134,13 @@ def map_stage(
     schemes: dict,
     current_cv: dict,
     fold_x: dict,
-    fit,
-    nonlinear_cv,
     *,
     alpha: float,
     min_gain: float,
-    progress,
 ):
     """Joint maps added to ``model`` (see the module notes).
 
-    ``fit(problem, x0)`` and ``nonlinear_cv(problem, folds, starts)`` are the diagnosis' own;
-    ``fold_x`` its per-scheme fold fits of ``model`` (warm starts). Returns the new model, its
+    ``fold_x`` is the diagnosis' per-scheme fold fits of ``model`` (warm starts). Returns the new model, its
     ``x``, held-out errors and fold fits, the report entries of the maps accepted and of those
     rejected (each with a ``candidate`` key: the :class:`Candidate`; an accepted map's
     ``replaces``: the harmonics it took the place of).
@@ -177,7 +175,7 @@ def map_stage(
                 continue
             for causes in _variants(model.causes, c):
                 trial = ExtendedProblem(model.base, causes, data, model.idx)
-                trial_fit = fit(trial, trial.start_from(x, model))
+                trial_fit = fit_problem(trial, x0=trial.start_from(x, model))
                 coefficients = trial.coefficients(trial_fit.x, c)
                 std = None if trial_fit.std is None else trial.coefficients(trial_fit.std, c)
                 physical, why = c.physical(coefficients, std, robot, robot.params)
@@ -201,8 +199,8 @@ def map_stage(
         if chosen is None:
             break
         c, model, trial_fit, new_cv, fold_x, entry, physical = chosen
-        accepted.append({**entry, "params": physical, "rmse_heldout_before": {n: reported_rmse(current_cv[n]) for n in schemes},
-                         "rmse_heldout_after": {n: reported_rmse(new_cv[n]) for n in schemes}})  # fmt: skip
+        before, after = ({n: reported_rmse(cv[n]) for n in schemes} for cv in (current_cv, new_cv))
+        accepted.append({**entry, "params": physical, "rmse_heldout_before": before, "rmse_heldout_after": after})
         x, current_cv = trial_fit.x, new_cv
         pool = [o for o in pool if o.joint != c.joint]
     return model, x, current_cv, fold_x, accepted, rejected
@@ -218,7 +216,7 @@ def _variants(causes: list, joint_map) -> list[list]:
     return [[o for o in causes if o not in subsumed] + [joint_map], plain] if subsumed else [plain]
 
 
-def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, fit, nonlinear_cv, progress):
+def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
     """One periodic error in the place of two or more harmonics of one joint.
 
     Harmonics 1-3 are the library's; a joint whose error holds a higher harmonic (a reducer's
@@ -237,7 +235,7 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
         if len(harmonics) < 2 or any(c.kind == "joint_map" and c.joint == j for c in model.causes):
             continue
         rest = ExtendedProblem(model.base, [c for c in model.causes if c not in harmonics], data, model.idx)
-        x_rest = fit(rest, rest.start_from(x, model)).x
+        x_rest = fit_problem(rest, x0=rest.start_from(x, model)).x
         J, r = rest.jacobian(x_rest), rest.residuals(x_rest)
         screen = _NormalScreen(J, r, schemes, rest.k, len(rest.idx) * rest.k, data.q[rest.idx])
         present = {c.detail["harmonic"] for c in harmonics}  # one of them alone was not enough (the backward check)
@@ -252,7 +250,7 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
                 continue
             best = pool[min(scored)[1]]
             trial = ExtendedProblem(model.base, rest.causes + [best], data, model.idx)
-            trial_fit = fit(trial, trial.start_from(x, model))
+            trial_fit = fit_problem(trial, x0=trial.start_from(x, model))
             if best.physical(trial.coefficients(trial_fit.x, best), None, robot, robot.params)[1] is not None:
                 continue
             refits = {name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
@@ -261,7 +259,7 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
                 before = {name: reported_rmse(current_cv[name]) for name in schemes}
                 model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
                 physical = best.physical(trial.coefficients(x, best), None, robot, robot.params)[0]
-                merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before,
-                               "rmse_heldout_after": {name: reported_rmse(current_cv[name]) for name in schemes}})  # fmt: skip
+                after = {name: reported_rmse(current_cv[name]) for name in schemes}
+                merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before, "rmse_heldout_after": after})
                 break
     return model, x, current_cv, fold_x, merged

@@ -35,7 +35,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs, start_parameters
+from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
 from ..calibration.result import GROSS_FACTOR
 from ..core import as_count, as_float, as_tolerance, is_sparse
 from ..data.dataset import Dataset
@@ -47,13 +47,14 @@ from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor
 from .budget import repeatability
-from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, Candidate, acquisition_order, drift_candidate, library, map_within, step_candidates
+from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, Candidate, acquisition_order, drift_candidate, library, step_candidates
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
-from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, wander_within, within_session
+from .validation import coefficient_std, fit_problem, fold_schemes, nonlinear_cv
+from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, within_session
 
 
 @dataclass
@@ -92,22 +93,6 @@ class Diagnosis:
             },
             "time_s": self.time_s,
         }
-
-
-def _folds(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) -> dict:
-    """Fold schemes over the samples of joint readings ``q`` (m, N): random (a configuration
-    measured more than once stays on one side: a repeated row is no held-out sample), blocks in
-    acquisition ``order``, groups."""
-    m = len(q)
-    schemes = {"random": kfold(m, k, seed, groups=configuration_groups(q))}
-    blocks = np.array_split(order, k)
-    schemes["blocked"] = [(np.sort(np.concatenate([b for j, b in enumerate(blocks) if j != i])), np.sort(blocks[i])) for i in range(k)]
-    if groups is not None:
-        g = np.asarray(groups)
-        labels = np.unique(g)
-        if len(labels) > 1:
-            schemes["group"] = [(np.flatnonzero(g != v), np.flatnonzero(g == v)) for v in labels]
-    return schemes
 
 
 #: Singular values below this fraction of the largest count as zero in the linear screening.
@@ -186,54 +171,6 @@ class _Screen:
         if extra < 1 or dof < 1 or rss1 <= 0:
             return 1.0
         return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0)))
-
-
-def _fit(problem: ExtendedProblem, x0=None):
-    return levenberg_marquardt(problem, x0=x0, method="diagnose")
-
-
-def _fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.ndarray] = None) -> ExtendedProblem:
-    """``ext`` on the training samples ``train`` (positions in ``ext.idx``), its set-up started
-    from those samples alone (:func:`start_parameters`; ``setup``, if given, is that start,
-    computed before for the same samples): nothing of a held-out fold reaches the fit on the
-    others, not even through the start point."""
-    idx = ext.idx[train]
-    if setup is None:
-        setup = start_parameters(ext.robot, ext.full_data.subset(idx))
-    return ExtendedProblem(replace(ext.base, start=setup), ext.causes, ext.full_data, idx)
-
-
-def _nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
-    """Held-out :func:`~.model.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
-    each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
-    for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
-    and the fit is the start. Without it each fold starts from its own training samples'
-    set-up: never from a fit that saw its held-out samples."""
-    err, fits = np.zeros((len(ext.idx), 2)), []
-    for i, (train, test) in enumerate(folds):
-        setup, x0 = (None, None) if starts is None else starts[i]
-        fold = _fold_problem(ext, train, setup)
-        fit = _fit(fold, x0=x0)
-        err[test] = _held_out_errors(ext, fold, train, test, fit.x)
-        fits.append((fold.base.start, fit.x))
-    return err, fits
-
-
-def _held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """:func:`~.model.squared_errors` of ``ext``'s samples ``test`` (positions in ``ext.idx``)
-    under the fit ``x`` of ``fold``, the problem of the training samples ``train``."""
-    return ExtendedProblem(fold.base, _fold_maps(ext, train), ext.full_data, ext.idx[test]).squared_errors(x)
-
-
-def _fold_maps(ext: ExtendedProblem, train: np.ndarray) -> list:
-    """``ext``'s causes with each joint map covering only the angles of the training samples
-    ``train`` (positions in ``ext.idx``): a fold's map is fitted on them alone, and beyond them
-    it corrects nothing — as on a new session, rather than where the roughness penalty alone
-    extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
-    likewise a wandering sensor's term covers only the stretches of the session it was fitted on."""
-    angles = ext.full_data.q[ext.idx[train]]
-    fitted = {"joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]), "wander": lambda c: wander_within(c, ext.full_data, ext.idx[train])}
-    return [fitted[c.kind](c) if c.kind in fitted else c for c in ext.causes]
 
 
 #: Kinds that belong to the session and change smoothly in time (a wandering sensor): fitted
@@ -324,7 +261,7 @@ def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.
     flagged, x = always.copy(), None
     for _ in range(5):
         ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
-        fit = _fit(ext, x0=x)
+        fit = fit_problem(ext, x0=x)
         x = fit.x
         r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
         sigma = robust_sigma(r[~flagged])
@@ -493,13 +430,13 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
-    schemes = _folds(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
+    schemes = fold_schemes(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
 
     causes: list[Candidate] = []
     ext = ExtendedProblem(base, causes, dataset, keep)
-    base_fit = _fit(ext, x0=x_outliers)
+    base_fit = fit_problem(ext, x0=x_outliers)
     x = base_fit.x
-    baseline = {name: _nonlinear_cv(ext, f) for name, f in schemes.items()}
+    baseline = {name: nonlinear_cv(ext, f) for name, f in schemes.items()}
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
@@ -586,14 +523,14 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                     continue
                 joint_trials += 1
             trial = ExtendedProblem(base, causes + [c], dataset, keep)
-            fit = _fit(trial, x0=trial.start_from(x, ext))
-            physical, why = c.physical(trial.coefficients(fit.x, c), _std(trial, fit, c), rob, rob.params)
-            why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), _std(trial, fit, c))
+            fit = fit_problem(trial, x0=trial.start_from(x, ext))
+            physical, why = c.physical(trial.coefficients(fit.x, c), coefficient_std(trial, fit, c), rob, rob.params)
+            why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), coefficient_std(trial, fit, c))
             if why is not None:
                 rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, why))
                 continue
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
-            refits = {name: _nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
             lost = [name for name in schemes if not improves(c, name, judged_rmse(current_cv[name]), judged_rmse(new_cv[name]))]
             if lost:
@@ -639,19 +576,15 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         rejected.append(_retract(c, effects, plots, None, why))
     model = ExtendedProblem(base, causes, dataset, keep)
     if unexplained_structure:  # the causes found may have been what bent the geometry
-        unexplained_structure = grossly_implausible(_fit(model, x0=x).implausible())
+        unexplained_structure = grossly_implausible(fit_problem(model, x0=x).implausible())
     if maps and not unexplained_structure:
-        model, x, current_cv, fold_x, merged = merge_harmonics(
-            model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, progress
-        )
+        model, x, current_cv, fold_x, merged = merge_harmonics(model, x, schemes, current_cv, fold_x)
         for m in merged:
             _take_map(m, effects, rejected, plots, "merged with the joint's other harmonics into {label} (the same held-out error within "
                       f"{structure.EQUAL:.0%}: one periodic error of the joint, not several gear harmonics)",
                       {"test": f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs "
                                "on every fold scheme", "p_value": None, "p_adjusted": None, "screening_gain_mm": None})  # fmt: skip
-        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
-            model, x, schemes, current_cv, fold_x, lambda problem, x0: _fit(problem, x0=x0), _nonlinear_cv, alpha=alpha, min_gain=min_gain, progress=progress
-        )
+        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(model, x, schemes, current_cv, fold_x, alpha=alpha, min_gain=min_gain)
         for m in accepted_maps:
             _take_map(m, effects, rejected, plots, "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)",
                       {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
@@ -692,7 +625,7 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         outliers = outliers[beyond[outliers]]
     if len(outliers):
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
-        before, _ = _nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
+        before, _ = nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
         effects.insert(0, {
             "kind": "outliers", "joint": None, "label": "outliers",
             "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound,
@@ -801,7 +734,7 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     Returns the model, its fit, its held-out errors and fold fits (``fold_x``: those of
     ``model``) and the report entry of the prior (``None`` if the fit was physical already).
     """
-    fit = _fit(model, x0=x)
+    fit = fit_problem(model, x0=x)
     if not fit.implausible() and not fit.undetermined():
         return model, fit, current_cv, fold_x, None
     robot = model.robot
@@ -811,13 +744,13 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     entry = {**TOLERANCE_SIGMAS, "accepted": False}
     cv, fits = {}, {}
     for name, folds in schemes.items():  # random, blocked, then groups
-        cv[name], fits[name] = _nonlinear_cv(physical, folds)
+        cv[name], fits[name] = nonlinear_cv(physical, folds)
         entry[f"rmse_heldout_{name}"] = reported_rmse(cv[name])
         if judged_rmse(cv[name]) > (1.0 + PRIOR_COST) * judged_rmse(current_cv[name]):
             entry["reason"] = prior_rejected(f"{name}-fold held-out", judged_rmse(current_cv[name]), judged_rmse(cv[name]), model.data.measurement)
             return model, fit, current_cv, fold_x, entry
     entry["accepted"] = True
-    return physical, _fit(physical, x0=x0), cv, fits, entry
+    return physical, fit_problem(physical, x0=x0), cv, fits, entry
 
 
 def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
@@ -833,11 +766,11 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
         return result.metrics["train"]["rmse"], len(result.implausible())
 
     order = acquisition_order(data)
-    schemes = _folds(data.q, folds, seed, order, groups)
+    schemes = fold_schemes(data.q, folds, seed, order, groups)
 
     def cross_validate(d: Dataset) -> dict:
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
-        return {name: reported_rmse(_nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
+        return {name: reported_rmse(nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
 
     as_read = geometric(data)
     bad = as_read.implausible()
@@ -911,11 +844,11 @@ def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_
         return list(model.causes), x, current_cv, fold_x, None
     curved = drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)
     trial = ExtendedProblem(model.base, [curved if c is linear[0] else c for c in model.causes], model.full_data, model.idx)
-    fit = _fit(trial, x0=trial.start_from(x, model))
-    refits = {name: _nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+    fit = fit_problem(trial, x0=trial.start_from(x, model))
+    refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
     cv = {name: err for name, (err, _) in refits.items()}
     before, after = judged_rmse(current_cv["random"]), judged_rmse(cv["random"])
-    physical, why = curved.physical(trial.coefficients(fit.x, curved), _std(trial, fit, curved), model.robot, model.robot.params)
+    physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
     if (
         why is not None
         or before - after < min_gain * before
@@ -951,7 +884,7 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
             if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
                 continue
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
-            refits = {name: _nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+            refits = {name: nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             cv = {name: err for name, (err, _) in refits.items()}
             without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
             earns = all(improves(c, name, judged_rmse(cv[name]), judged_rmse(current_cv[name])) for name in schemes) and without - with_it >= min_gain * without
@@ -961,7 +894,7 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
             break
         c, without, rest, refits, with_it = weakest
         dropped.append((c, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without"))
-        x = _fit(rest, x0=rest.start_from(x, full)).x
+        x = fit_problem(rest, x0=rest.start_from(x, full)).x
         current_cv, fold_x = {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
         causes = list(rest.causes)
     return causes, x, current_cv, fold_x, dropped
@@ -1009,10 +942,10 @@ def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, cu
     compliances = [c for c in model.causes if c.kind in PHYSICAL_KINDS]
     if not compliances:
         return model, x, current_cv, fold_x, []
-    fit = _fit(model, x0=x)
+    fit = fit_problem(model, x0=x)
     dropped = []
     for c in compliances:
-        values, std = model.coefficients(fit.x, c), _std(model, fit, c)
+        values, std = model.coefficients(fit.x, c), coefficient_std(model, fit, c)
         physical, why = c.physical(values, std, model.robot, model.robot.params)
         why = f"implausible: {why}" if why else undetermined(values - coefficient_reference(c, model.robot), std)
         if why is not None:
@@ -1020,8 +953,8 @@ def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, cu
     if not dropped:
         return model, x, current_cv, fold_x, []
     kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
-    x = _fit(kept, x0=kept.start_from(fit.x, model)).x
-    refits = {name: _nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
+    x = fit_problem(kept, x0=kept.start_from(fit.x, model)).x
+    refits = {name: nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
     return kept, x, {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}, dropped
 
 
@@ -1040,13 +973,6 @@ def undetermined(values: np.ndarray, std: Optional[np.ndarray]) -> Optional[str]
     if np.all(np.abs(values) < 2.0 * std):
         return f"undetermined: {values[0]:.3g} ± {std[0]:.2g} (less than 2 standard deviations)"
     return None
-
-
-def _std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional[np.ndarray]:
-    """Standard deviations of ``cause``'s coefficients from the fit's covariance."""
-    if fit.std is None:
-        return None
-    return problem.coefficients(fit.std, cause)
 
 
 def _retract(c: Candidate, effects: list, plots: dict, physical, reason: str) -> dict:

@@ -1,0 +1,93 @@
+"""Cross-validation of a diagnosis' models: the fold schemes, the fit, and the held-out error
+of a model re-fitted on each fold.
+
+Every held-out figure of a diagnosis comes from here. A fold's fit never sees its held-out
+samples, not even through its start point (the set-up is started from the training samples
+alone), and a term that describes only what it was fitted on — a joint map's angles, a wandering
+sensor's stretch of the session — corrects nothing beyond them in the held-out samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Optional
+
+import numpy as np
+
+from ..calibration.lm import levenberg_marquardt
+from ..calibration.problem import start_parameters
+from ..data.splits import configuration_groups, kfold
+from .candidates import Candidate, map_within
+from .model import ExtendedProblem
+from .wander import wander_within
+
+
+def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) -> dict:
+    """Fold schemes over the samples of joint readings ``q`` (m, N): random (a configuration
+    measured more than once stays on one side: a repeated row is no held-out sample), blocks in
+    acquisition ``order``, groups."""
+    m = len(q)
+    schemes = {"random": kfold(m, k, seed, groups=configuration_groups(q))}
+    blocks = np.array_split(order, k)
+    schemes["blocked"] = [(np.sort(np.concatenate([b for j, b in enumerate(blocks) if j != i])), np.sort(blocks[i])) for i in range(k)]
+    if groups is not None:
+        g = np.asarray(groups)
+        labels = np.unique(g)
+        if len(labels) > 1:
+            schemes["group"] = [(np.flatnonzero(g != v), np.flatnonzero(g == v)) for v in labels]
+    return schemes
+
+
+def fit_problem(problem: ExtendedProblem, x0=None):
+    return levenberg_marquardt(problem, x0=x0, method="diagnose")
+
+
+def fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.ndarray] = None) -> ExtendedProblem:
+    """``ext`` on the training samples ``train`` (positions in ``ext.idx``), its set-up started
+    from those samples alone (:func:`start_parameters`; ``setup``, if given, is that start,
+    computed before for the same samples): nothing of a held-out fold reaches the fit on the
+    others, not even through the start point."""
+    idx = ext.idx[train]
+    if setup is None:
+        setup = start_parameters(ext.robot, ext.full_data.subset(idx))
+    return ExtendedProblem(replace(ext.base, start=setup), ext.causes, ext.full_data, idx)
+
+
+def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
+    """Held-out :func:`~.model.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
+    each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
+    for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
+    and the fit is the start. Without it each fold starts from its own training samples'
+    set-up: never from a fit that saw its held-out samples."""
+    err, fits = np.zeros((len(ext.idx), 2)), []
+    for i, (train, test) in enumerate(folds):
+        setup, x0 = (None, None) if starts is None else starts[i]
+        fold = fold_problem(ext, train, setup)
+        fit = fit_problem(fold, x0=x0)
+        err[test] = held_out_errors(ext, fold, train, test, fit.x)
+        fits.append((fold.base.start, fit.x))
+    return err, fits
+
+
+def held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """:func:`~.model.squared_errors` of ``ext``'s samples ``test`` (positions in ``ext.idx``)
+    under the fit ``x`` of ``fold``, the problem of the training samples ``train``."""
+    return ExtendedProblem(fold.base, fold_causes(ext, train), ext.full_data, ext.idx[test]).squared_errors(x)
+
+
+def fold_causes(ext: ExtendedProblem, train: np.ndarray) -> list:
+    """``ext``'s causes with each joint map covering only the angles of the training samples
+    ``train`` (positions in ``ext.idx``): a fold's map is fitted on them alone, and beyond them
+    it corrects nothing — as on a new session, rather than where the roughness penalty alone
+    extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
+    likewise a wandering sensor's term covers only the stretches of the session it was fitted on."""
+    angles = ext.full_data.q[ext.idx[train]]
+    fitted = {"joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]), "wander": lambda c: wander_within(c, ext.full_data, ext.idx[train])}
+    return [fitted[c.kind](c) if c.kind in fitted else c for c in ext.causes]
+
+
+def coefficient_std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional[np.ndarray]:
+    """Standard deviations of ``cause``'s coefficients from the fit's covariance."""
+    if fit.std is None:
+        return None
+    return problem.coefficients(fit.std, cause)
