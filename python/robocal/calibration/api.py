@@ -145,10 +145,11 @@ def held_out_problem(robot: Robot, dataset: Dataset, test_fraction: float, seed:
 
     The split keeps every joint configuration whole (:func:`~robocal.data.splits.configuration_groups`):
     a repeated row on both sides would make the held-out error a training error."""
-    train_idx, test_idx = np.arange(len(dataset)), None
+    train_idx, test_idx, labels = np.arange(len(dataset)), None, None
     if test_fraction > 0:
-        train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=configuration_labels(dataset.q))
-    check_observations(robot, dataset)  # held-out samples too: a wrong reading there would only inflate the test error
+        labels = configuration_labels(dataset.q)
+        train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=labels)
+    check_observations(robot, dataset, labels)  # held-out samples too: a wrong reading there would only inflate the test error
     try:
         problem = Problem.build(robot, dataset.subset(train_idx) if test_idx is not None else dataset, **build)
         problem.require_dof()

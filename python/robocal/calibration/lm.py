@@ -166,13 +166,14 @@ def _minimise(
     history, nfev, njev, nit, lam, nu = [cost], 1, 1, 0, lam0, 2.0
     best_x, best_cost, previous, gains = x, cost, None, []
     success, message = False, f"the maximum number of function evaluations ({max_nfev}) is exceeded"
-    J, J_at = problem.jacobian(x), x  # J_at: where J was evaluated
+    J, J_at, gram_at = problem.jacobian(x), x, None  # where J and its normal matrix were evaluated
     scale, fresh = None, True
     weighted = objective.loss != "linear"  # least squares: the weights are all 1
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
             Jw, rw = (_scaled(J, rows=w), r * w) if weighted else (J, r)
+            gram_at = J_at
             gram, g = (None, Jw.T @ rw) if is_sparse(Jw) else normal_equations(Jw, rw)  # JᵀJ (n, n) and Jᵀr in one pass
             if np.max(np.abs(g)) < gtol:
                 success, message = True, "`gtol` termination condition is satisfied"
@@ -244,7 +245,9 @@ def _minimise(
         else:
             lam, nu = lam * nu, 2.0 * nu
     # The residuals and the Jacobian at the point returned, when the iteration has them (saves an evaluation of each).
-    evaluated = (r, J) if best_x is x and J_at is x else None
+    evaluated = None
+    if best_x is x and J_at is x:
+        evaluated = (r, J, gram if gram_at is x and not weighted else None)
     result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start, evaluated=evaluated)
     result.njev = njev
     return result

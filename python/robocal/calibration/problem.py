@@ -149,12 +149,13 @@ def _spread(points: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - np.median(points, axis=0), axis=1)
 
 
-def check_observations(robot: Robot, data: Dataset) -> None:
+def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray] = None) -> None:
     """An error naming the likely cause when ``data``'s observations cannot be readings of
     ``robot`` at its joint values: another joint count, values that are not finite, too few distinct configurations to place the sensor
     (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
     the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
-    than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row."""
+    than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row.
+    ``labels``: :func:`configuration_labels` of ``data.q`` if the caller has them."""
     if data.n_joints != robot.n_joints:
         raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
     for name, values in (("q", data.q), ("y", data.y)):
@@ -163,7 +164,7 @@ def check_observations(robot: Robot, data: Dataset) -> None:
             i = bad[0][0]
             raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
     kind, where = data.measurement, data.source
-    distinct = int(configuration_labels(data.q).max(initial=-1)) + 1
+    distinct = int((configuration_labels(data.q) if labels is None else labels).max(initial=-1)) + 1
     if distinct < MIN_CONFIGURATIONS[kind]:
         repeated = f" ({distinct} distinct joint configurations)" if distinct < len(data) else ""
         sensor = "the cable sensor's anchor and zero" if kind == "cable" else "the tracker's frame"
@@ -322,7 +323,8 @@ class Problem:
             weakly determined directions of a narrow workspace near nominal instead of letting
             them absorb what the geometry cannot explain.
         """
-        check_observations(robot, data)
+        labels = configuration_labels(data.q)
+        check_observations(robot, data, labels)
         cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
@@ -337,6 +339,7 @@ class Problem:
             fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
         free = cols[np.sort(ident["identifiable"])]
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
+        problem._distinct = (data, int(labels.max(initial=-1)) + 1)  # for require_dof, while the data are these
         prior = dict(_pairs(prior, "prior"))
         if kinematic_prior is not None:
             start_of = dict(zip(robot.param_names, start))
@@ -354,7 +357,8 @@ class Problem:
         learnt. (A Kalman filter's own prior covariance makes such problems well posed for it.)
         ``purpose`` and ``remedy`` word the message (``verify`` re-fits a set-up, not a robot)."""
         # A repeated configuration averages the noise but adds no geometry: it counts once.
-        distinct = int(configuration_labels(self.data.q).max(initial=-1)) + 1
+        known = getattr(self, "_distinct", None)
+        distinct = known[1] if known is not None and known[0] is self.data else int(configuration_labels(self.data.q).max(initial=-1)) + 1
         residuals = distinct * RESIDUAL_WIDTH[self.data.measurement]
         if residuals <= len(self.free) and not self.prior:
             repeated = f" ({distinct} distinct joint configurations)" if distinct < len(self.data) else ""

@@ -66,6 +66,27 @@ def bounds_against_nominal(problem, x: np.ndarray) -> list[str]:
     return held
 
 
+#: Largest condition number of the column-scaled ``JᵀJ`` inverted as it is for the covariance
+#: (``J``'s up to 10⁵, far inside the full rank that :func:`robocal.core.covariance`'s SVD
+#: tolerance of 10⁻⁹ decides); beyond it the SVD of ``J``'s triangular factor decides the rank.
+NORMAL_CONDITION = 1e10
+
+
+def normal_covariance(gram: np.ndarray, r: np.ndarray) -> Optional[np.ndarray]:
+    """``σ̂²(JᵀJ)⁻¹`` with ``σ̂² = ‖r‖²/(rows − n)`` from the normal matrix ``gram = JᵀJ`` (n, n)
+    when its column-scaled form is well conditioned (:data:`NORMAL_CONDITION`), else None: the
+    covariance :func:`robocal.core.covariance` gives a full-rank ``J``, without a pass over ``J``."""
+    n = len(gram)
+    d = np.sqrt(np.diag(gram))
+    if n == 0 or len(r) <= n or not np.all(d > 0):
+        return None
+    w, V = np.linalg.eigh(gram / np.outer(d, d))
+    if not w[0] > w[-1] / NORMAL_CONDITION:
+        return None
+    sigma2 = float(r @ r) / (len(r) - n)
+    return sigma2 * ((V / w) @ V.T) / np.outer(d, d)
+
+
 @dataclass
 class CalibrationResult:
     """What a calibration found.
@@ -270,7 +291,7 @@ class CalibrationResult:
         cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float, *, evaluated=None
     ) -> "CalibrationResult":
         """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics.
-        ``evaluated``: ``(problem.residuals(x), problem.jacobian(x))`` when the caller has them."""
+        ``evaluated``: ``(problem.residuals(x), problem.jacobian(x), JᵀJ or None)`` when the caller has them."""
         x = np.asarray(x, dtype=np.float64)
         held = bounds_against_nominal(problem, x)
         if held and success:  # the optimum lies beyond the bounds: no convergence to the data
@@ -278,15 +299,17 @@ class CalibrationResult:
                 False,
                 f"stopped at bounds that exclude the nominal value ({'; '.join(held)}): the data pull beyond them (the solver's stop: {message})",
             )
-        r, J = evaluated if evaluated is not None else (problem.residuals(x), problem.jacobian(x))
+        r, J, gram = evaluated if evaluated is not None else (problem.residuals(x), problem.jacobian(x), None)
         # A plain problem without priors and with unit row weights minimises its data residuals themselves.
         plain = type(problem) is Problem and not problem.prior and problem.data.measurement != "pose"
         data_r = r if plain else problem.data_residuals(x)
         std = None
         if J.shape[0] > J.shape[1]:
-            cov, _, _, rank = covariance(J, r)
-            if rank == J.shape[1]:
-                std = np.sqrt(np.diag(cov))
+            cov = None if gram is None else normal_covariance(gram, r)
+            if cov is None:
+                cov, _, _, rank = covariance(J, r)
+                cov = cov if rank == J.shape[1] else None
+            std = None if cov is None else np.sqrt(np.diag(cov))
         return cls(
             method=method, problem=problem, x=x, std=std, cost=0.5 * float(r @ r), history=list(history), nit=nit, nfev=nfev,
             success=success, message=message, time_s=time_s, metrics={"train": metrics(data_r, problem.data.measurement), "test": None},
