@@ -61,8 +61,15 @@ def residual_verdict(data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse
             f"samples in similar configurations far apart in time are alike (correlation {joints['correlation']:.2f}, z {joints['z']:.1f}): "
             "systematic in joint space, a cause of the robot"
         )
-    return {"noise": not findings, "findings": findings, "correlation": correlation,
-            "noise_reference_mm": reference, "noise_reference": what, "noise_multiple": None if reference is None else float(rmse / reference)}  # fmt: skip
+    multiple = None if reference is None else float(rmse / reference)
+    return {
+        "noise": not findings,
+        "findings": findings,
+        "correlation": correlation,
+        "noise_reference_mm": reference,
+        "noise_reference": what,
+        "noise_multiple": multiple,
+    }
 
 
 def unexplained(rejected: list, rmse: Optional[float]) -> list[dict]:
