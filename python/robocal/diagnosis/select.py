@@ -37,7 +37,7 @@ from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
 from ..calibration.result import GROSS_FACTOR
-from ..core import as_count, as_float, as_tolerance, is_sparse
+from ..kernels import as_count, as_float, as_tolerance, is_sparse
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
@@ -111,6 +111,11 @@ def _unit_columns(A: np.ndarray) -> np.ndarray:
     return A / np.where(scale > 0, scale, 1.0)
 
 
+#: Residual components whose robust noise differs by more than this factor are scaled apart in
+#: the screening's F test.
+WHITEN_RATIO = 1.2
+
+
 class _Screen:
     """Linear screening of candidates against the current model ``r ≈ J·δ``.
 
@@ -123,15 +128,22 @@ class _Screen:
 
     def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
         self.J, self.r, self.k = _unit_columns(J), r, k
-        self.folds = {name: [self._fold(train, test) for train, test in folds] for name, folds in schemes.items()}
-        self.all = self._fold(np.arange(len(r) // k), np.array([], dtype=int))
         self.m = len(r) // k
+        self.folds = {name: [self._fold(train, test, self.J, r) for train, test in folds] for name, folds in schemes.items()}
+        # The F test assumes one noise level for every row: a pose's position and rotation rows
+        # (weighted as the fit weighs them) need not share one, and a test pooled over both
+        # over-rates a candidate that touches the noisier rows (a step of the position reading
+        # on clean pose data: p = 1e-6). Its rows are scaled by each component's robust noise.
+        sigma = robust_sigma(r.reshape(self.m, k))
+        self.whiten = np.tile(1.0 / sigma, self.m) if k > 1 and np.max(sigma) > WHITEN_RATIO * np.min(sigma) else None
+        w = np.ones(len(r)) if self.whiten is None else self.whiten
+        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), _unit_columns(J * w[:, None]), r * w)
 
-    def _fold(self, train: np.ndarray, test: np.ndarray) -> tuple:
+    def _fold(self, train: np.ndarray, test: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
         rows_tr, rows_te = (train[:, None] * self.k + np.arange(self.k)).ravel(), (test[:, None] * self.k + np.arange(self.k)).ravel()
-        U, sv, Vt = _basis(self.J[rows_tr])
-        coef = U.T @ self.r[rows_tr]
-        return rows_tr, rows_te, test, U, sv, Vt, coef, self.r[rows_tr] - U @ coef
+        U, sv, Vt = _basis(J[rows_tr])
+        coef = U.T @ r[rows_tr]
+        return rows_tr, rows_te, test, U, sv, Vt, coef, r[rows_tr] - U @ coef
 
     def _solve(self, fold: tuple, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """Coefficients ``(δ_J, c)`` of ``r ≈ J·δ_J + C·c`` on the fold's training rows, and the
@@ -162,7 +174,7 @@ class _Screen:
         """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for independent
         Gaussian noise in the linearised model; for residuals correlated in time, the statistic
         and the residual degrees of freedom divided by their variance ``inflation``)."""
-        C = _unit_columns(C)
+        C = _unit_columns(C if self.whiten is None else C * self.whiten[:, None])
         _, _, _, U, sv, _, coef, r_perp = self.all
         _, c, extra = self._solve(self.all, C)
         rss0 = float(r_perp @ r_perp)

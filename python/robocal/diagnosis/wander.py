@@ -41,10 +41,12 @@ from .candidates import Candidate, acquisition_order
 
 #: Kinds that are smooth functions of time within one session (this module's term).
 TIME_TERMS = ("wander",)
-#: Terms of acquisition time within one session (a wander, a step): a block of the session the
-#: fit never saw cannot tell where or how far they go, so the blocked folds judge only that they
-#: do no harm (a step in the first block is not even estimable without it).
-SESSION_EVENTS = TIME_TERMS + ("step",)
+#: Terms of acquisition time within one session that a block of the session the fit never saw
+#: cannot judge (it cannot tell where or how far they go): the blocked folds judge only that they
+#: do no harm. (A step is not among them: judged on every scheme, it is not named at the bends of
+#: a wandering reading; the cost is a step in the first or last block, which that block's fold
+#: cannot estimate.)
+SESSION_EVENTS = TIME_TERMS
 
 
 def within_session(c: Candidate) -> bool:
