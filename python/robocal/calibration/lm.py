@@ -55,7 +55,7 @@ from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
 from .problem import Problem, initial_x
-from .result import CalibrationResult
+from .result import CalibrationResult, sum_of_squares
 
 #: ``loss -> (ρ(z), ρ′(z))`` for ``z = (error / f_scale)²``.
 LOSSES = {
@@ -78,7 +78,7 @@ class _Cost:
 
     def __call__(self, r: np.ndarray) -> tuple[float, np.ndarray]:
         if self.loss == "linear":
-            return 0.5 * float(r @ r), np.ones_like(r)
+            return 0.5 * sum_of_squares(r), np.ones_like(r)
         rho, drho = LOSSES[self.loss]
         data, prior = r[: self.n_data], r[self.n_data :]
         z = (data.reshape(-1, self.k) ** 2).sum(axis=1) / self.s**2
@@ -204,7 +204,7 @@ def _minimise(
         r_probe = problem.residuals(x + GEODESIC_H * v)
         r_probe = r_probe * w if weighted else r_probe
         nfev += 1
-        Jv = Jw @ v
+        Jv = Jw @ v if is_sparse(Jw) else _product(Jw, v)
         second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jv)
         a = factored.solve(factored.project(-second), lam) / d
         if 2.0 * np.linalg.norm(d * a) > GEODESIC_ALPHA * np.linalg.norm(d * v):
@@ -229,7 +229,7 @@ def _minimise(
             if cost < best_cost:
                 best_x, best_cost = x, cost
             # Nielsen's update from the gain ratio of the velocity's linear model.
-            predicted = float(v @ g) - 0.5 * float(Jv @ Jv)
+            predicted = float(v @ g) - 0.5 * sum_of_squares(Jv)
             rho = (history[-2] - cost) / predicted if downhill and predicted > 0 else 0.0
             lam, nu = lam * max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3), 2.0
             if small_change or small_step:
@@ -267,7 +267,7 @@ def _factor(Jw, d: np.ndarray, gram):
         normal = gram / np.outer(d, d)
         eigenvalues = np.linalg.eigvalsh(normal)
         if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:
-            return _DampedGram(normal, lambda b: (Jw.T @ b) / d)
+            return _DampedGram(normal, lambda b: _product(b, Jw) / d)
     return factor_damped(_scaled(Jw, columns=1.0 / d))
 
 
@@ -292,6 +292,11 @@ class _DampedGram:
         from scipy.linalg import cho_factor, cho_solve
 
         return cho_solve(cho_factor(self.normal + lam * np.eye(len(self.normal)), lower=True), self.L @ c)
+
+
+def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` of a matrix and a vector without the BLAS (see :func:`~robocal.calibration.result.sum_of_squares`)."""
+    return np.einsum("ij,j->i", a, b) if a.ndim == 2 else np.einsum("i,ij->j", a, b)
 
 
 def _column_squares(J) -> np.ndarray:
