@@ -538,3 +538,39 @@ def test_exception_hierarchy():
     for cls in (SingularError, NotPositiveDefiniteError):
         assert issubclass(cls, RobocalError) and issubclass(cls, np.linalg.LinAlgError)
     assert issubclass(NoConvergenceError, RobocalError) and issubclass(NoConvergenceError, RuntimeError)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_configuration_groups_equal_the_kd_tree_labels(seed):
+    """The core's sort-and-sweep labels are those of ``data.splits.configuration_groups`` (a
+    k-d tree's pairs within ``tol`` on every joint, connected components, first-appearance order)."""
+    from robocal.data.splits import configuration_groups
+
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        m, n = int(rng.integers(1, 300)), int(rng.integers(1, 7))
+        q = rng.integers(0, 25, size=(m, n)) * 1e-3 + rng.normal(0.0, 3e-4, size=(m, n)) * rng.integers(0, 2)
+        revisits = rng.integers(0, m, size=m // 3)
+        q[revisits] = q[rng.integers(0, m, size=revisits.size)]
+        tol = float(rng.choice([0.0, 5e-4, 1e-3, 2e-3]))
+        np.testing.assert_array_equal(core.configuration_groups(np.ascontiguousarray(q), tol), configuration_groups(q, tol))
+
+
+def test_normal_equations_and_the_damped_steps_from_them():
+    """``normal_equations`` is ``(JᵀJ, Jᵀr)``; the LM's steps from it equal the pivoted QR's on a
+    well-conditioned Jacobian."""
+    from robocal.calibration.lm import _factor
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(5000, 12)) * np.logspace(0, 3, 12)
+    r = rng.normal(size=5000)
+    gram, g = core.normal_equations(J, r)
+    assert_close(gram, J.T @ J, rtol=1e-12)
+    assert_close(g, J.T @ r, rtol=1e-12)
+    d = np.sqrt(np.diag(gram))
+    fast, qr = _factor(J, d, gram), core.DampedQr(J / d)
+    assert type(fast).__name__ == "_DampedGram"
+    # Other orthonormal bases of J's columns (Cholesky's, the pivoted QR's): the same norm of r's part in them.
+    assert_close(np.linalg.norm(fast.project(r)), np.linalg.norm(qr.project(r)), rtol=1e-9)
+    for lam in (0.0, 1e-3, 10.0):
+        assert_close(fast.solve(fast.project(r), lam), qr.solve(qr.project(r), lam), rtol=1e-9)

@@ -263,7 +263,7 @@ def _factor(Jw, d: np.ndarray, gram):
     """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``): from the normal equations ``gram``
     (``JwᵀJw``, dense ``Jw``) when they are well conditioned (:data:`NORMAL_CONDITION`), else
     from a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.core.factor_damped`)."""
-    if gram is not None:
+    if gram is not None and gram.size:
         normal = gram / np.outer(d, d)
         eigenvalues = np.linalg.eigvalsh(normal)
         if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:
