@@ -8,8 +8,13 @@ identification Jacobian of the model a calibration will fit — the identifiable
 the causes acting on the joints (:class:`~robocal.diagnosis.model.ExtendedProblem`) — so the
 plan is judged on the same Jacobian the fit uses, evaluated by the Rust core.
 
-Criterion: D-optimality, ``max log det(M_0 + Σ J_iᵀJ_i)`` over the chosen poses (``M_0``: what
-the data already measured say, the joint maps' roughness prior, a vanishing ridge). It minimises
+Criterion (``criterion="I"``, the default): I-optimality, ``min tr(W M⁻¹)``, the mean variance of
+a new session's readings over the workspace (``W``: the candidates' mean ``JᵀJ`` with the
+set-up's columns eliminated, :func:`workspace_weights`) — what a held-out check measures —, by
+Fedorov exchange from the D-optimal design (:func:`i_optimal`); :func:`i_bound` says the least any
+``N`` poses could reach. ``criterion="D"``: D-optimality, ``max log det(M_0 + Σ J_iᵀJ_i)`` over
+the chosen poses (``M_0``: what the data already measured say, the joint maps' roughness prior,
+a vanishing ridge). It minimises
 the volume of the parameters' confidence ellipsoid, does not depend on the parameters' units
 (any column scaling multiplies the determinant by a constant) and, unlike a sum of variances,
 cannot be bought by one well-determined parameter — the reason Borm & Menq's observability
