@@ -53,7 +53,7 @@ from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
-from .validation import coefficient_std, fit_problem, fold_schemes, nonlinear_cv
+from .validation import coefficient_std, fit_problem, fold_schemes, judgeable, nonlinear_cv
 from .wander import TIME_TERMS, residual_correlation, time_inflation, wander_candidate, within_session
 
 
@@ -145,44 +145,62 @@ class _Screen:
         coef = U.T @ r[rows_tr]
         return rows_tr, rows_te, test, U, sv, Vt, coef, r[rows_tr] - U @ coef
 
-    def _solve(self, fold: tuple, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """Coefficients ``(δ_J, c)`` of ``r ≈ J·δ_J + C·c`` on the fold's training rows, and the
-        rank ``C`` adds."""
+    def _solve(self, fold: tuple, C: np.ndarray, P: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray, float]:
+        """Coefficients ``(δ_J, c)`` of ``r ≈ J·δ_J + C·c`` on the fold's training rows (``c``
+        penalised by ``‖P·c‖²`` if ``P`` is given: a wander's roughness), and the degrees of
+        freedom ``C`` adds (its rank, or the trace of its share of the hat matrix)."""
         rows_tr, _, _, U, sv, Vt, coef, r_perp = fold
         if C.shape[1] == 0:
             return Vt.T @ (coef / sv), np.zeros(0), 0
         Ct = C[rows_tr]
         UC = U.T @ Ct
-        c, _, rank, _ = np.linalg.lstsq(Ct - U @ UC, r_perp, rcond=RCOND * (sv[0] if sv.size else 1.0) / max(np.linalg.norm(Ct - U @ UC, 2), 1e-300))
-        return Vt.T @ ((coef - UC @ c) / sv), c, int(rank)
+        C_perp = Ct - U @ UC
+        if P is None:
+            c, _, rank, _ = np.linalg.lstsq(C_perp, r_perp, rcond=RCOND * (sv[0] if sv.size else 1.0) / max(np.linalg.norm(C_perp, 2), 1e-300))
+            return Vt.T @ ((coef - UC @ c) / sv), c, float(rank)
+        G = C_perp.T @ C_perp
+        inverse = np.linalg.pinv(G + P.T @ P, rcond=RCOND)
+        c = inverse @ (C_perp.T @ r_perp)
+        return Vt.T @ ((coef - UC @ c) / sv), c, float(np.trace(inverse @ G))
 
-    def errors(self, C: np.ndarray) -> dict:
-        """Held-out squared error per sample of ``r ≈ [J, C]·δ`` fitted per fold, per scheme."""
-        C = _unit_columns(C)
+    def errors(self, C: np.ndarray, P: Optional[np.ndarray] = None) -> dict:
+        """Held-out squared error per sample of ``r ≈ [J, C]·δ`` (``C`` penalised by ``P``)
+        fitted per fold, per scheme."""
+        C, P = _unit_penalised(C, P)
         out = {}
         for name, folds in self.folds.items():
             err = np.zeros(self.m)
             for fold in folds:
                 _, rows_te, test, *_ = fold
-                dJ, c = self._solve(fold, C)[:2]
+                dJ, c = self._solve(fold, C, P)[:2]
                 e = self.r[rows_te] - self.J[rows_te] @ dJ - C[rows_te] @ c
                 err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
             out[name] = err
         return out
 
-    def f_test(self, C: np.ndarray, inflation: float = 1.0) -> float:
+    def f_test(self, C: np.ndarray, inflation: float = 1.0, P: Optional[np.ndarray] = None) -> float:
         """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for independent
         Gaussian noise in the linearised model; for residuals correlated in time, the statistic
-        and the residual degrees of freedom divided by their variance ``inflation``)."""
-        C = _unit_columns(C if self.whiten is None else C * self.whiten[:, None])
+        and the residual degrees of freedom divided by their variance ``inflation``; a penalised
+        ``C`` counts its effective degrees of freedom)."""
+        if self.whiten is not None:  # the penalty is in the residual's units: scaled as its rows are
+            C, P = C * self.whiten[:, None], None if P is None else P * float(np.median(self.whiten))
+        C, P = _unit_penalised(C, P)
         _, _, _, U, sv, _, coef, r_perp = self.all
-        _, c, extra = self._solve(self.all, C)
+        _, c, extra = self._solve(self.all, C, P)
         rss0 = float(r_perp @ r_perp)
         e = r_perp - (C - U @ (U.T @ C)) @ c
         rss1, dof = float(e @ e), len(self.r) - len(sv) - extra
-        if extra < 1 or dof < 1 or rss1 <= 0:
+        if extra < 0.5 or dof < 1 or rss1 <= 0:
             return 1.0
         return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0)))
+
+
+def _unit_penalised(C: np.ndarray, P: Optional[np.ndarray]) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """``C`` with unit columns, and its penalty ``P`` for the coefficients so scaled."""
+    scale = np.linalg.norm(C, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    return C / scale, None if P is None else P / scale
 
 
 #: Kinds that belong to the session and change smoothly in time (a wandering sensor): fitted
@@ -487,9 +505,10 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
                 C = parts["extra"][:, [params.index(n) for n in c.params]] * ext.row_weights[:, None]
             else:
                 C = ext.weighted_columns(x, c, parts, p)
-            errs = screen.errors(C)
-            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation)
-            gains = {name: rmse_of_squares(model_err[name]) - rmse_of_squares(errs[name]) for name in schemes}
+            errs = screen.errors(C, c.penalty)
+            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation, c.penalty)
+            on = judgeable(c, keep, schemes)
+            gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
         n_tests = len(scored)
@@ -507,6 +526,16 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
 
         scored = simplest_first(scored)
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
+            print(
+                "ROUND",
+                len(causes),
+                inflation,
+                [
+                    (round(g, 5), c.label, is_significant(g, c, pv, gs), {n: round(v, 5) for n, v in gs.items()})
+                    for g, c, pv, gs in scored
+                    if c.kind in ("step", "wander", "drift")
+                ][:6],
+            )
         if inflation > 1.0:  # the residuals wander in time: a wander is judged before the steps and trends that would chop it up
             scored = sorted(scored, key=lambda s: not (s[1].kind in TIME_TERMS and is_significant(*s)))
         accepted = None
@@ -544,7 +573,9 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
             refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
-            lost = [name for name in schemes if not improves(c, name, judged_rmse(current_cv[name]), judged_rmse(new_cv[name]))]
+            on = judgeable(c, keep, schemes)
+            lost = [name for name in schemes if not improves(c, name, judged_rmse(current_cv[name][on[name]]), judged_rmse(new_cv[name][on[name]]))]
+                print("NONLIN", c.label, {n: (judged_rmse(current_cv[n][on[n]]), judged_rmse(new_cv[n][on[n]])) for n in schemes})
             if lost:
                 rejected.append(
                     _record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)")
@@ -899,7 +930,9 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
             refits = {name: nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             cv = {name: err for name, (err, _) in refits.items()}
             without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
-            earns = all(improves(c, name, judged_rmse(cv[name]), judged_rmse(current_cv[name])) for name in schemes) and without - with_it >= min_gain * without
+            on = judgeable(c, model.idx, schemes)
+            earns = all(improves(c, name, judged_rmse(cv[name][on[name]]), judged_rmse(current_cv[name][on[name]])) for name in schemes)
+            earns = earns and without - with_it >= min_gain * without
             if not earns and (weakest is None or without < weakest[1]):
                 weakest = (c, without, rest, refits, with_it)
         if weakest is None:
@@ -939,8 +972,9 @@ def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candi
     C = J[:, at]
     rest = np.delete(J, np.arange(at.start, at.stop), axis=1)
     screen = _Screen(rest, r + C @ np.asarray(x)[at], schemes, full.k)  # the residual with the cause taken out
-    base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C)
-    gains = {name: rmse_of_squares(base[name]) - rmse_of_squares(errs[name]) for name in schemes}
+    base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C, c.penalty)
+    on = judgeable(c, full.idx, schemes)
+    gains = {name: rmse_of_squares(base[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
     return gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
 
 

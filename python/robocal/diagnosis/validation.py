@@ -19,7 +19,7 @@ from ..calibration.problem import start_parameters
 from ..data.splits import configuration_groups, kfold
 from .candidates import Candidate, map_within
 from .model import ExtendedProblem
-from .wander import wander_within
+from .wander import wander_centred, wander_within
 
 
 def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) -> dict:
@@ -50,7 +50,8 @@ def fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.nda
     idx = ext.idx[train]
     if setup is None:
         setup = start_parameters(ext.robot, ext.full_data.subset(idx))
-    return ExtendedProblem(replace(ext.base, start=setup), ext.causes, ext.full_data, idx)
+    causes = [wander_centred(c, ext.full_data, idx) if c.kind == "wander" else c for c in ext.causes]
+    return ExtendedProblem(replace(ext.base, start=setup), causes, ext.full_data, idx)
 
 
 def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
@@ -82,7 +83,10 @@ def fold_causes(ext: ExtendedProblem, train: np.ndarray) -> list:
     extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
     likewise a wandering sensor's term covers only the stretches of the session it was fitted on."""
     angles = ext.full_data.q[ext.idx[train]]
-    fitted = {"joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]), "wander": lambda c: wander_within(c, ext.full_data, ext.idx[train])}
+    fitted = {
+        "joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]),
+        "wander": lambda c: wander_within(wander_centred(c, ext.full_data, ext.idx[train]), ext.full_data, ext.idx[train]),
+    }
     return [fitted[c.kind](c) if c.kind in fitted else c for c in ext.causes]
 
 
@@ -91,3 +95,21 @@ def coefficient_std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional
     if fit.std is None:
         return None
     return problem.coefficients(fit.std, cause)
+
+
+def judgeable(c: Candidate, idx: np.ndarray, schemes: dict) -> dict:
+    """Per fold scheme, the held-out samples (a mask over the positions in ``idx``) that can
+    judge ``c``: all of them, but for a step the samples of a fold whose training samples all
+    lie on one side of it (a step in the first or last block of the blocked folds) — there it is
+    a constant the set-up takes, and it predicts nothing in the block held out."""
+    if c.kind != "step":
+        return {name: slice(None) for name in schemes}
+    after = c.basis[idx, 0, 0] > 0
+    out = {}
+    for name, folds in schemes.items():
+        mask = np.ones(len(idx), dtype=bool)
+        for train, test in folds:
+            if after[train].all() or not after[train].any():
+                mask[test] = False
+        out[name] = mask
+    return out

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.linalg import null_space
 from scipy.spatial import cKDTree
+from scipy.stats import norm
 
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
@@ -93,21 +94,24 @@ def correlation_length(e: np.ndarray) -> Optional[float]:
     """Lag (samples) at which the autocorrelation of the residuals ``e`` (m, k, in acquisition
     order) falls below 1/e of its value at lag 1 (white noise on top of a wander lowers every lag
     alike); None if neighbours in time are not significantly alike (lag-1 correlation below
-    :data:`Z_LAG1` standard errors)."""
+    :data:`Z_LAG1` standard errors, Bonferroni over the axes). Each axis is tested on its own: a
+    tracker's frame may wander along one axis, and pooled with two quiet ones its correlation
+    falls to a third."""
     e = e - e.mean(axis=0)
-    var = float(np.mean(np.sum(e * e, axis=1)))
     m = len(e)
-    if var <= 0 or m < 8:
+    var = np.mean(e * e, axis=0)
+    if m < 8 or not np.any(var > 0):
         return None
 
-    def rho(lag: int) -> float:
-        return float(np.mean(np.sum(e[lag:] * e[:-lag], axis=1))) / var
+    def rho(lag: int) -> np.ndarray:
+        return np.mean(e[lag:] * e[:-lag], axis=0) / np.where(var > 0, var, np.inf)
 
     first = rho(1)
-    if first * np.sqrt(m) < Z_LAG1:
+    axis = int(np.argmax(first))
+    if first[axis] * np.sqrt(m) < float(norm.isf(norm.sf(Z_LAG1) / e.shape[1])):
         return None
     longest = min(m // 4, 10 * MAX_LAG)
-    return float(next((lag for lag in range(2, longest) if rho(lag) < first / np.e), longest))
+    return float(next((lag for lag in range(2, longest) if rho(lag)[axis] < first[axis] / np.e), longest))
 
 
 def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
@@ -197,17 +201,35 @@ def wander_candidate(data: Dataset, spacing: float) -> Candidate:
     return Candidate("wander", None, "observations", basis, detail={"spacing": round(spacing, 3), "axes": axes}, penalty=penalty)
 
 
+def wander_centred(c: Candidate, data: Dataset, fitted: np.ndarray) -> Candidate:
+    """``c`` without its mean and trend over the samples ``fitted`` (the wander term is centred
+    and detrended over the whole session; fitted on part of it, it would otherwise take a share
+    of the set-up's constant and of a drift, which it then does not carry into the samples it
+    never saw)."""
+    rank = np.empty(len(data))
+    rank[acquisition_order(data)] = np.arange(len(data))
+    X = np.column_stack([np.ones(len(data)), rank / max(len(data), 1)])
+    basis = c.basis.copy()
+    for a in range(basis.shape[1]):
+        coef, *_ = np.linalg.lstsq(X[fitted], basis[fitted, a, :], rcond=None)
+        basis[:, a, :] -= X @ coef
+    return replace(c, basis=basis)
+
+
 def wander_within(c: Candidate, data: Dataset, fitted: np.ndarray) -> Candidate:
-    """``c`` correcting only samples within one knot spacing (in acquisition order) of the
-    samples ``fitted``: a session term fitted on some samples says nothing about a stretch of
-    the session it never saw (a blocked fold's test block), as a joint map says nothing beyond
-    its angles."""
+    """``c`` correcting only samples with fitted samples within one knot spacing (in
+    acquisition order) on both sides: a session term fitted on some samples interpolates between
+    them, but says nothing about a stretch of the session it never saw (a blocked fold's test
+    block), where its roughness penalty would only continue its last slope — as a joint map says
+    nothing beyond its angles."""
     rank = np.empty(len(data))
     rank[acquisition_order(data)] = np.arange(len(data))
     seen = np.sort(rank[fitted])
-    at = np.clip(np.searchsorted(seen, rank), 1, len(seen) - 1)
-    gap = np.minimum(np.abs(rank - seen[at - 1]), np.abs(seen[at] - rank))
-    return replace(c, basis=np.where((gap <= c.detail["spacing"])[:, None, None], c.basis, 0.0))
+    after = np.searchsorted(seen, rank)  # first fitted sample at or after each sample
+    before_gap = np.where(after > 0, rank - seen[np.maximum(after - 1, 0)], np.inf)
+    after_gap = np.where(after < len(seen), seen[np.minimum(after, len(seen) - 1)] - rank, np.inf)
+    inside = (after_gap == 0) | ((before_gap <= c.detail["spacing"]) & (after_gap <= c.detail["spacing"]))
+    return replace(c, basis=np.where(inside[:, None, None], c.basis, 0.0))
 
 
 #: The largest lag-1 correlation :func:`time_inflation` takes (beyond it the residuals are one
