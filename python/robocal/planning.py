@@ -73,8 +73,8 @@ MAX_DRAW_FACTOR = 200
 RIDGE = 1e-6
 #: The design criteria :func:`plan` offers, as its report names them.
 CRITERIA = {
-    "I": "I-optimal: the least mean variance of a new session's readings over the workspace, its set-up re-fitted (Fedorov exchange from the D-optimal design)",
-    "D": "D-optimal: log det of the parameters' information (greedy selection, Fedorov exchange)",
+    "I": "I-optimal: the least mean variance of a new session's readings over the workspace, its set-up re-fitted; Fedorov exchange from the D-optimal design",
+    "D": "D-optimal: log det of the parameters' information; greedy selection, Fedorov exchange",
 }
 #: Fedorov exchange passes over the chosen poses (each stops early once no swap helps).
 EXCHANGE_PASSES = 3

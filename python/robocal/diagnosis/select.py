@@ -526,16 +526,6 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
 
         scored = simplest_first(scored)
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
-            print(
-                "ROUND",
-                len(causes),
-                inflation,
-                [
-                    (round(g, 5), c.label, is_significant(g, c, pv, gs), {n: round(v, 5) for n, v in gs.items()})
-                    for g, c, pv, gs in scored
-                    if c.kind in ("step", "wander", "drift")
-                ][:6],
-            )
         if inflation > 1.0:  # the residuals wander in time: a wander is judged before the steps and trends that would chop it up
             scored = sorted(scored, key=lambda s: not (s[1].kind in TIME_TERMS and is_significant(*s)))
         accepted = None
@@ -575,7 +565,6 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
             new_cv = {name: err for name, (err, _) in refits.items()}
             on = judgeable(c, keep, schemes)
             lost = [name for name in schemes if not improves(c, name, judged_rmse(current_cv[name][on[name]]), judged_rmse(new_cv[name][on[name]]))]
-                print("NONLIN", c.label, {n: (judged_rmse(current_cv[n][on[n]]), judged_rmse(new_cv[n][on[n]])) for n in schemes})
             if lost:
                 rejected.append(
                     _record(c, gain, gains, p_value, tests_of(c), physical, f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)")
