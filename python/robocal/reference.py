@@ -838,3 +838,25 @@ def ukf_sweep(conventions, kinds, measurement: str, params, cols, q, y, x, P, Q,
         P = P + Q - K @ S @ K.T
         P = 0.5 * (P + P.T)
     return x, P
+
+
+def configuration_groups(q: np.ndarray, tol: float) -> np.ndarray:
+    """Oracle for the core's configuration labels: samples of ``q`` (m, N) within ``tol`` of each
+    other on every joint (chained) share a label, ``0..g-1`` in order of first appearance — a k-d
+    tree's pairs (Chebyshev distance) and their connected components."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    m = len(q)
+    if m == 0:
+        return np.zeros(0, dtype=np.int64)
+    pairs = cKDTree(q).query_pairs(tol, p=np.inf, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(m)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    _, component = connected_components(graph, directed=False)
+    _, first, inverse = np.unique(component, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inverse.ravel()]

@@ -10,7 +10,7 @@ from typing import Callable, Optional, Union
 import numpy as np
 
 from ..catalog import BUILTIN
-from ..core import as_float
+from ..kernels import as_float
 from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import random_split

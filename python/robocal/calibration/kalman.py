@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..core import as_count, as_float, as_float_array
+from ..kernels import as_count, as_float, as_float_array
 from ..exceptions import InvalidParameterError
 from ..sensors import DEFAULT_NOISE
 from .problem import Problem, initial_x

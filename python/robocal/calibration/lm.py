@@ -10,7 +10,7 @@ in thousands of tiny steps (2000 evaluations on D1 without converging). Three ch
   ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the running maximum of ``diag(JᵀJ)`` (MINPACK's scaling)
   as the least squares of ``[J·D^-½; √λ·I] z ≈ [r; 0]`` (the normal equations would square the
   condition number): ``J·D^-½`` is factored once by column-pivoted QR in the Rust core
-  (:func:`robocal.core.factor_damped`), and every λ tried and the acceleration below reuse it.
+  (:func:`robocal.kernels.factor_damped`), and every λ tried and the acceleration below reuse it.
 - **Geodesic acceleration.** A second-order correction ``a`` from the residuals' directional
   second derivative along ``v`` (one extra residual evaluation at ``x + h·v``) bends the step
   along the valley: the step is ``v + a/2``, taken only while ``2‖a‖/‖v‖ ≤ α``.
@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from ..core import as_count, as_positive, as_tolerance, factor_damped, is_sparse
+from ..kernels import as_count, as_positive, as_tolerance, factor_damped, is_sparse
 from ..kernels import normal_equations
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
@@ -262,7 +262,7 @@ NORMAL_CONDITION = 1e10
 def _factor(Jw, d: np.ndarray, gram):
     """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``): from the normal equations ``gram``
     (``JwᵀJw``, dense ``Jw``) when they are well conditioned (:data:`NORMAL_CONDITION`), else
-    from a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.core.factor_damped`)."""
+    from a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`)."""
     if gram is not None and gram.size:
         normal = gram / np.outer(d, d)
         eigenvalues = np.linalg.eigvalsh(normal)

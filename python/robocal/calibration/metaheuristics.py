@@ -21,7 +21,7 @@ from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 
-from ..core import as_count, as_float_array, as_positive, as_tolerance, seeded_rng
+from ..kernels import as_count, as_float_array, as_positive, as_tolerance, seeded_rng
 from ..exceptions import InvalidParameterError
 from .problem import Problem
 from .result import CalibrationResult

@@ -14,7 +14,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from ..core import as_float_array, cable_initial_guess, identifiability, solve_damped
+from ..kernels import as_float_array, cable_initial_guess, identifiability, solve_damped
 from ..kernels import configuration_groups
 from ..data.dataset import Dataset
 from ..data.splits import CONFIGURATION_TOLERANCE

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.spatial.distance import cdist, pdist
 
-from ..core import as_count, as_tolerance, seeded_rng
+from ..kernels import as_count, as_tolerance, seeded_rng
 from ..data.dataset import Dataset
 from .metrics import metrics
 from .problem import Problem

@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core import covariance, is_sparse, sparse_gram
+from ..kernels import covariance, is_sparse, sparse_gram
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
@@ -74,7 +74,7 @@ def sum_of_squares(r: np.ndarray) -> float:
 
 
 #: Largest condition number of the column-scaled ``JᵀJ`` inverted as it is for the covariance
-#: (``J``'s up to 10⁵, far inside the full rank that :func:`robocal.core.covariance`'s SVD
+#: (``J``'s up to 10⁵, far inside the full rank that :func:`robocal.kernels.covariance`'s SVD
 #: tolerance of 10⁻⁹ decides); beyond it the SVD of ``J``'s triangular factor decides the rank.
 NORMAL_CONDITION = 1e10
 
@@ -82,7 +82,7 @@ NORMAL_CONDITION = 1e10
 def normal_covariance(gram: np.ndarray, r: np.ndarray) -> Optional[np.ndarray]:
     """``σ̂²(JᵀJ)⁻¹`` with ``σ̂² = ‖r‖²/(rows − n)`` from the normal matrix ``gram = JᵀJ`` (n, n)
     when its column-scaled form is well conditioned (:data:`NORMAL_CONDITION`), else None: the
-    covariance :func:`robocal.core.covariance` gives a full-rank ``J``, without a pass over ``J``."""
+    covariance :func:`robocal.kernels.covariance` gives a full-rank ``J``, without a pass over ``J``."""
     n = len(gram)
     d = np.sqrt(np.diag(gram))
     if n == 0 or len(r) <= n or not np.all(d > 0):

@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core import is_sparse
+from ..kernels import is_sparse
 from ..data.dataset import Dataset
 from ..data.splits import require_distinct_sessions
 from ..exceptions import InvalidParameterError

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from ..core import as_count, as_float, as_tolerance, solve_damped
+from ..kernels import as_count, as_float, as_tolerance, solve_damped
 from ..exceptions import InvalidParameterError
 from .problem import Problem, initial_x
 from .result import CalibrationResult

@@ -16,11 +16,9 @@ import os
 from typing import Optional
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from ..kernels import as_count, seeded_rng
+from ..kernels import configuration_groups as configuration_labels
 from ..exceptions import InvalidParameterError
 
 #: Joint readings within this of each other on every joint (rad, 0.06°; mm for a prismatic
@@ -51,18 +49,7 @@ def configuration_groups(q, tol: float = CONFIGURATION_TOLERANCE) -> np.ndarray:
         raise InvalidParameterError(f"`q` must be finite joint values of shape (m, N); got shape {q.shape}")
     if not (np.isfinite(tol) and tol >= 0):
         raise InvalidParameterError(f"`tol` must be finite and >= 0; got {tol!r}")
-    m = len(q)
-    if m == 0:
-        return np.zeros(0, dtype=np.int64)
-    pairs = cKDTree(q).query_pairs(tol, p=np.inf, output_type="ndarray")
-    if len(pairs) == 0:
-        return np.arange(m)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    _, component = connected_components(graph, directed=False)
-    _, first, inverse = np.unique(component, return_index=True, return_inverse=True)
-    rank = np.empty(len(first), dtype=np.int64)
-    rank[np.argsort(first)] = np.arange(len(first))
-    return rank[inverse.ravel()]
+    return configuration_labels(np.ascontiguousarray(q), float(tol))  # a sort-and-sweep in the core
 
 
 def _labels(m: int, groups) -> tuple[np.ndarray, int]:
