@@ -49,6 +49,33 @@ def test_a_compliance_on_masses_off_the_mass_model_breeds_no_other_causes():
     assert kinds(report) == [("joint_compliance", 2)]
 
 
+@pytest.mark.parametrize("seed", [3, 7])
+@pytest.mark.parametrize(
+    "robot, measurement, spec, sample",
+    [("hsr-jr680", "position", "step:sample=30,axis=z,size=0.3", 30), ("abb-irb120", "cable", "step:sample=275,size=0.3", 275)],
+)
+def test_a_step_in_the_first_or_last_stretch_is_named_where_it_is_and_nothing_else(robot, measurement, spec, sample, seed):
+    """A step in the first or last block of the blocked folds: that block's fold cannot estimate
+    it (its training samples all lie on one side), so only the other folds judge it — and the
+    samples right after it are no gross outliers."""
+    report = named(robot, measurement, [spec], seed=seed)
+    assert kinds(report) == [("step", None)]
+    assert abs(report["effects"][0]["params"]["sample"]["value"] - sample) <= 5
+
+
+@pytest.mark.parametrize("seed", [3, 7])
+@pytest.mark.parametrize("robot, measurement, joint, harmonic", [("ur10", "position", 3, 5), ("hsr-jr680", "cable", 2, 6)])
+def test_a_harmonic_beyond_the_library_is_one_cause_of_its_joint(robot, measurement, joint, harmonic, seed):
+    """Harmonics 1-3 are the library's; a higher one is approximated by two or three of them,
+    which are then replaced by one periodic error of the joint: the single harmonic, or the joint's map."""
+    report = named(robot, measurement, [f"joint_periodic:joint={joint},harmonic={harmonic},amplitude=0.03"], seed=seed)
+    assert len(report["effects"]) == 1
+    (effect,) = report["effects"]
+    assert effect["joint"] == joint and effect["kind"] in ("joint_periodic", "joint_map")
+    if effect["kind"] == "joint_periodic":
+        assert effect["params"]["harmonic"]["value"] == harmonic
+
+
 @pytest.mark.parametrize(
     "robot, measurement, effects, expected",
     [
