@@ -49,7 +49,7 @@ from threadpoolctl import threadpool_limits
 from .calibration.api import load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
 from .calibration.sessions import SESSION_KINDS, concatenate
-from .core import as_count, as_float_array, as_positive, is_sparse, seeded_rng
+from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
 from .diagnosis import structure
