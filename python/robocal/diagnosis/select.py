@@ -496,10 +496,16 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         model_err = screen.errors(np.zeros((len(r), 0)))
         # What is left alike in time (a wandering reading, a drift that is not linear) is no
         # independent evidence for the candidates that do not model it.
-        inflation = time_inflation(residual_correlation(dataset, keep, r.reshape(len(keep), k)))
+        round_test = residual_correlation(dataset, keep, r.reshape(len(keep), k))
+        inflation = time_inflation(round_test)
+        # Residuals alike in joint space and not beyond it in time are evidence for the robot's
+        # causes: a wander would take them along the path (UR10 series B: 0.105 -> 0.137 mm).
+        in_joints = bool(round_test) and round_test.get("verdict") == "joints"
         last_round = (last_round[0], rmse_of_squares(model_err["random"]))
         scored = []
         for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
+            if in_joints and c.kind in TIME_TERMS:
+                continue
             # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
             if c.stage == "parameters":
                 C = parts["extra"][:, [params.index(n) for n in c.params]] * ext.row_weights[:, None]
