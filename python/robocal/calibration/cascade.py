@@ -58,7 +58,7 @@ def ukf_vslm(
     message = f"UKF: {first.message}; VSLM: {second.nit} iterations, {second.message}"
     return CalibrationResult.from_fit(
         "ukf-vslm", problem, second.x, history, first.nit + second.nit, first.nfev + second.nfev, second.success, message, time.perf_counter() - start
-    )  # fmt: skip
+    )
 
 
 #: Entries for ``robocal.calibration.api.METHODS``.

@@ -224,10 +224,8 @@ def ukf(
         ``method="ukf"``, the cost history per sweep, ``nit = sweeps``.
     """
     n_sigma = 2 * len(problem.free) + 1
-    return kalman_filter(
-        problem, ukf_sweep, "ukf", n_sigma, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset,
-        alpha=as_float(alpha, "alpha"), beta=as_float(beta, "beta"), kappa=as_float(kappa, "kappa"),
-    )  # fmt: skip
+    sigma_points = {"alpha": as_float(alpha, "alpha"), "beta": as_float(beta, "beta"), "kappa": as_float(kappa, "kappa")}
+    return kalman_filter(problem, ukf_sweep, "ukf", n_sigma, x0=x0, sweeps=sweeps, P0=P0, Q=Q, R=R, reset=reset, **sigma_points)
 
 
 #: Entries for ``robocal.calibration.api.METHODS``.

@@ -195,8 +195,9 @@ def _minimise(
                     break
                 if len(gains) >= STALL_STEPS and sum(gains[-STALL_STEPS:]) < STALL_CHI2:
                     success = True
-                    message = (f"converged to within the noise: the last {STALL_STEPS} steps lowered chi-square by {sum(gains[-STALL_STEPS:]):.2g} "
-                               f"in all (a Gauss-Newton step would still move the fit by {distance:.2g} standard deviations along directions the data barely determine)")  # fmt: skip
+                    stalled = f"the last {STALL_STEPS} steps lowered chi-square by {sum(gains[-STALL_STEPS:]):.2g} in all"
+                    remaining = f"a Gauss-Newton step would still move the fit by {distance:.2g} standard deviations along directions the data barely determine"
+                    message = f"converged to within the noise: {stalled} ({remaining})"
                     break
         v = factored.solve(c, lam) / d
         # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional

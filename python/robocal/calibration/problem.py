@@ -168,8 +168,8 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
     if distinct < MIN_CONFIGURATIONS[kind]:
         repeated = f" ({distinct} distinct joint configurations)" if distinct < len(data) else ""
         sensor = "the cable sensor's anchor and zero" if kind == "cable" else "the tracker's frame"
-        raise DataError(f"{len(data)} {kind} samples{repeated} are too few: placing {sensor} needs at least "
-                        f"{MIN_CONFIGURATIONS[kind]} distinct joint configurations", where)  # fmt: skip
+        needed = f"placing {sensor} needs at least {MIN_CONFIGURATIONS[kind]} distinct joint configurations"
+        raise DataError(f"{len(data)} {kind} samples{repeated} are too few: {needed}", where)
     points = robot.fkine(data.q, tool=True)[:, :3, 3]
     robot_spread = _spread(points)
     observed = data.y[:, :1] if kind == "cable" else data.y[:, :3]
@@ -180,8 +180,8 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
     ratio = float(np.median(observed_spread)) / typical
     low, high = SCALE_RATIO[kind]
     if ratio == 0.0:
-        raise DataError(f"most readings are equal while the tool points of {robot.name} at these joint values move by {typical:.4g} mm: "
-                        "the observations do not follow the joints", where)  # fmt: skip
+        moving = f"the tool points of {robot.name} at these joint values move by {typical:.4g} mm"
+        raise DataError(f"most readings are equal while {moving}: the observations do not follow the joints", where)
     if not low <= ratio <= high:
         unit = min(LIKELY_UNITS, key=lambda u: abs(np.log(ratio / LIKELY_UNITS[u])))
         guess = f"{unit}?" if abs(np.log(ratio / LIKELY_UNITS[unit])) < np.log(3) else "another unit or another robot?"

@@ -129,11 +129,23 @@ def rbf(problem: Problem, n_centers: Optional[int] = None, ridge: float = 1e-6, 
     cost0, cost = 0.5 * float(np.sum(r0 * r0)), 0.5 * float(r @ r)
     message = f"RBF corrector on the nominal model ({k} Gaussian centres, closed-form ridge fit); kinematic parameters not identified"
     return RBFResult(
-        method=method, problem=problem, x=problem.x0, std=None, cost=cost, history=[cost0, cost], nit=1, nfev=1,
-        success=True, message=message, time_s=time.perf_counter() - t0,
+        method=method,
+        problem=problem,
+        x=problem.x0,
+        std=None,
+        cost=cost,
+        history=[cost0, cost],
+        nit=1,
+        nfev=1,
+        success=True,
+        message=message,
+        time_s=time.perf_counter() - t0,
         metrics={"train": metrics(r, data.measurement), "test": None},
-        centers=centers, width=width, weights=weights, ridge=ridge,
-    )  # fmt: skip
+        centers=centers,
+        width=width,
+        weights=weights,
+        ridge=ridge,
+    )
 
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)

@@ -32,8 +32,10 @@ def implausible_meaning(tolerance_prior) -> str:
 #: manufacture or an undetermined direction alone: the geometry is another robot's.
 GROSS_FACTOR = 10.0
 #: ... what they most likely mean.
-GROSS = ("far beyond any manufacturing error: the data are probably of another robot than the one given (check `--robot`), "
-         "or their joint or length unit is not the one read (deg, mm)")  # fmt: skip
+GROSS = (
+    "far beyond any manufacturing error: the data are probably of another robot than the one given (check `--robot`), "
+    "or their joint or length unit is not the one read (deg, mm)"
+)
 
 
 def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDETERMINED) -> str:
@@ -197,15 +199,17 @@ class CalibrationResult:
         rows = self.parameters()
         estimated = np.zeros(len(rows), dtype=bool)
         estimated[self.problem.free] = True
-        return pd.DataFrame({
-            "name": [p["name"] for p in rows],
-            "value": np.array([p["value"] for p in rows], dtype=np.float64),
-            "nominal": np.array([p["nominal"] for p in rows], dtype=np.float64),
-            "deviation": np.array([p["value"] - p["nominal"] for p in rows], dtype=np.float64),
-            "std": np.array([np.nan if p["std"] is None else p["std"] for p in rows], dtype=np.float64),
-            "unit": [p["unit"] for p in rows],
-            "estimated": estimated,
-        })  # fmt: skip
+        return pd.DataFrame(
+            {
+                "name": [p["name"] for p in rows],
+                "value": np.array([p["value"] for p in rows], dtype=np.float64),
+                "nominal": np.array([p["nominal"] for p in rows], dtype=np.float64),
+                "deviation": np.array([p["value"] - p["nominal"] for p in rows], dtype=np.float64),
+                "std": np.array([np.nan if p["std"] is None else p["std"] for p in rows], dtype=np.float64),
+                "unit": [p["unit"] for p in rows],
+                "estimated": estimated,
+            }
+        )
 
     def implausible(self) -> list[dict]:
         """Kinematic parameters that moved further from nominal than :data:`PLAUSIBLE`: the data
@@ -318,6 +322,16 @@ class CalibrationResult:
                 cov = cov if rank == J.shape[1] else None
             std = None if cov is None else np.sqrt(np.diag(cov))
         return cls(
-            method=method, problem=problem, x=x, std=std, cost=0.5 * sum_of_squares(r), history=list(history), nit=nit, nfev=nfev,
-            success=success, message=message, time_s=time_s, metrics={"train": metrics(data_r, problem.data.measurement), "test": None},
-        )  # fmt: skip
+            method=method,
+            problem=problem,
+            x=x,
+            std=std,
+            cost=0.5 * sum_of_squares(r),
+            history=list(history),
+            nit=nit,
+            nfev=nfev,
+            success=success,
+            message=message,
+            time_s=time_s,
+            metrics={"train": metrics(data_r, problem.data.measurement), "test": None},
+        )

@@ -62,8 +62,18 @@ def concatenate(datasets: list[Dataset]) -> Dataset:
         values = [getattr(d, name) for d in datasets]
         return None if any(v is None for v in values) else np.concatenate(values)
 
-    return replace(first, q=np.vstack([d.q for d in datasets]), y=np.vstack([d.y for d in datasets]), t=joined("t"), temp=joined("temp"),
-                   rows=np.concatenate([d.rows for d in datasets]), source=None, excluded=[], notes=[], extra={})  # fmt: skip
+    return replace(
+        first,
+        q=np.vstack([d.q for d in datasets]),
+        y=np.vstack([d.y for d in datasets]),
+        t=joined("t"),
+        temp=joined("temp"),
+        rows=np.concatenate([d.rows for d in datasets]),
+        source=None,
+        excluded=[],
+        notes=[],
+        extra={},
+    )
 
 
 #: A column whose part not explained by the columns kept before it is below this fraction of its
@@ -212,8 +222,10 @@ class Sessions:
         if any(is_sparse(J) for J, _ in blocks):  # joint maps: stacked sparse, data rows first
             from scipy import sparse
 
-            placed = [sparse.csr_array(J) @ sparse.csr_array((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), len(self.names)))
-                      for (J, _), cols in zip(blocks, self.maps)]  # fmt: skip
+            def placement(cols):  # the 0/1 matrix that moves a session's columns to their places among all names
+                return sparse.csr_array((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), len(self.names)))
+
+            placed = [sparse.csr_array(J) @ placement(cols) for (J, _), cols in zip(blocks, self.maps)]
             return sparse.vstack([J[:n] for J, (_, n) in zip(placed, blocks)] + [J[n:] for J, (_, n) in zip(placed, blocks)], format="csr")
         n_data, n_prior = sum(n for _, n in blocks), sum(J.shape[0] - n for J, n in blocks)
         J = np.zeros((n_data + n_prior, len(self.names)))
