@@ -231,8 +231,8 @@ def simplest_first(ranked: list) -> list:
         gain, c = out[i][0], out[i][1]
         if c.stage != "joints" or gain <= 0:
             continue
-        simpler = [j for j in range(i + 1, len(out)) if out[j][1].joint == c.joint and out[j][1].stage == "joints"
-                   and out[j][1].size < c.size and out[j][0] >= (1.0 - SAME_GAIN) * gain]  # fmt: skip
+        same_joint = [j for j in range(i + 1, len(out)) if out[j][1].joint == c.joint and out[j][1].stage == "joints"]
+        simpler = [j for j in same_joint if out[j][1].size < c.size and out[j][0] >= (1.0 - SAME_GAIN) * gain]
         if simpler:
             out.insert(i, out.pop(min(simpler, key=lambda j: (out[j][1].size, -out[j][0]))))
     return out
@@ -448,8 +448,24 @@ def diagnose(
     return diagnosis
 
 
-def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected: list, known: np.ndarray, *, folds: int, seed: int, groups,
-            alpha: float, max_effects: int, min_gain: float, hayati: bool, maps: bool, revealed: Optional[np.ndarray] = None) -> tuple[Diagnosis, np.ndarray]:  # fmt: skip
+def _select(
+    rob: Robot,
+    dataset: Dataset,
+    base: Problem,
+    effects: list,
+    rejected: list,
+    known: np.ndarray,
+    *,
+    folds: int,
+    seed: int,
+    groups,
+    alpha: float,
+    max_effects: int,
+    min_gain: float,
+    hayati: bool,
+    maps: bool,
+    revealed: Optional[np.ndarray] = None,
+) -> tuple[Diagnosis, np.ndarray]:
     """One pass of :func:`diagnose` after the structural stage, with the ``known`` outliers
     (``revealed``: those an earlier pass's final model named); and the kept samples its final
     model puts beyond the outlier bound."""
@@ -581,8 +597,12 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         if accepted is None:
             for gain, c, p_value, gains in scored[:5]:
                 if not any(r["label"] == c.label for r in rejected):
-                    why = ("not significant" if p_value * tests_of(c) >= alpha else
-                           f"held-out gain below {min_gain:.1%} of the RMSE" if gain < min_gain * rmse_of_squares(model_err["random"]) else "no gain on every fold scheme")  # fmt: skip
+                    if p_value * tests_of(c) >= alpha:
+                        why = "not significant"
+                    elif gain < min_gain * rmse_of_squares(model_err["random"]):
+                        why = f"held-out gain below {min_gain:.1%} of the RMSE"
+                    else:
+                        why = "no gain on every fold scheme"
                     rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, why))
             break
         c, fit, p_value, gains, physical, trial, new_cv, fold_x = accepted
@@ -592,14 +612,25 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         causes.append(c)
         pool = [o for o in pool if o is not c]
         x = fit.x
-        effects.append({
-            "kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "params": physical,
-            "rmse_heldout_before": reported_rmse(current_cv["random"]), "rmse_heldout_after": reported_rmse(new_cv["random"]),
-            "significance": {"test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
-                             "p_value": p_value, "p_adjusted": min(1.0, p_value * tests_of(c)), "candidates": n_tests,
-                             "screening_gain_mm": gains,
-                             "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"])},
-        })  # fmt: skip
+        effects.append(
+            {
+                "kind": c.kind,
+                "joint": None if c.joint is None else c.joint + 1,
+                "label": c.label,
+                "params": physical,
+                "rmse_heldout_before": reported_rmse(current_cv["random"]),
+                "rmse_heldout_after": reported_rmse(new_cv["random"]),
+                "significance": {
+                    "test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
+                    "p_value": p_value,
+                    "p_adjusted": min(1.0, p_value * tests_of(c)),
+                    "candidates": n_tests,
+                    "screening_gain_mm": gains,
+                    "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]),
+                    "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"]),
+                },
+            }
+        )
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
@@ -617,17 +648,22 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
         unexplained_structure = grossly_implausible(fit_problem(model, x0=x).implausible())
     if maps and not unexplained_structure:
         model, x, current_cv, fold_x, merged = merge_harmonics(model, x, schemes, current_cv, fold_x)
+        # ``{label}`` is filled in by _take_map with the merged map's label.
+        within = f"the same held-out error within {structure.EQUAL:.0%}"
+        merged_why = f"merged with the joint's other harmonics into {{label}} ({within}: one periodic error of the joint, not several gear harmonics)"
         for m in merged:
-            _take_map(m, effects, rejected, plots, "merged with the joint's other harmonics into {label} (the same held-out error within "
-                      f"{structure.EQUAL:.0%}: one periodic error of the joint, not several gear harmonics)",
-                      {"test": f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs "
-                               "on every fold scheme", "p_value": None, "p_adjusted": None, "screening_gain_mm": None})  # fmt: skip
+            test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme"
+            significance = {"test": test, "p_value": None, "p_adjusted": None, "screening_gain_mm": None}
+            _take_map(m, effects, rejected, plots, merged_why, significance)
         model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(model, x, schemes, current_cv, fold_x, alpha=alpha, min_gain=min_gain)
+        replaced_why = "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)"
+        map_test = (
+            "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
+            "held-out gain of the penalised map required on every fold scheme"
+        )
         for m in accepted_maps:
-            _take_map(m, effects, rejected, plots, "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)",
-                      {"test": "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
-                               "held-out gain of the penalised map required on every fold scheme",
-                       "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"]})  # fmt: skip
+            significance = {"test": map_test, "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"]}
+            _take_map(m, effects, rejected, plots, replaced_why, significance)
         for m in rejected_maps:
             c = m["candidate"]
             rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
@@ -664,43 +700,71 @@ def _select(rob: Robot, dataset: Dataset, base: Problem, effects: list, rejected
     if len(outliers):
         everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
         before, _ = nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
-        effects.insert(0, {
-            "kind": "outliers", "joint": None, "label": "outliers",
-            "params": {"rows": [int(v) for v in dataset.rows[outliers]], "samples": [int(v) for v in outliers], "threshold_sigma": z_bound,
-                       # rows beyond the bound only under the final model (hidden by the baseline's residuals)
-                       "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]]},
-            "rmse_heldout_before": reported_rmse(before), "rmse_heldout_after": reported_rmse(baseline_cv["random"]),
+        outliers_entry = {
+            "kind": "outliers",
+            "joint": None,
+            "label": "outliers",
+            "params": {
+                "rows": [int(v) for v in dataset.rows[outliers]],
+                "samples": [int(v) for v in outliers],
+                "threshold_sigma": z_bound,
+                # rows beyond the bound only under the final model (hidden by the baseline's residuals)
+                "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]],
+            },
+            "rmse_heldout_before": reported_rmse(before),
+            "rmse_heldout_after": reported_rmse(baseline_cv["random"]),
             "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
             "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
-        })  # fmt: skip
+        }
+        effects.insert(0, outliers_entry)
+    structure_unexplained = None
+    if unexplained_structure:
+        far = f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits)"
+        untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
+        structure_unexplained = {"implausible": unexplained_structure, "note": f"{far} and no reading convention makes it plausible: {untried}"}
     return Diagnosis(
-        robot=rob, data=dataset,
-        baseline={"rmse_heldout": reported_rmse(baseline_cv["random"]), "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
-                  "rmse_train": base_fit.metrics["train"]["rmse"],
-                  **_rotation_entries(dataset, baseline_cv),
-                  "n_params": int(len(base.free)), "hayati": hayati, "folds": folds,
-                  # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
-                  "residual_correlation": wander_test,
-                  # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
-                  # geometry fits the data only with parameters no robot has.
-                  "implausible": base_fit.implausible()},
-        effects=effects, rejected=rejected,
-        final={"rmse_heldout": reported_rmse(current_cv["random"]), "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]), "n_params": int(model.n),
-               **_rotation_entries(dataset, current_cv),
-               "floor_mm": budget["floor_mm"], "floor": budget,
-               # Share of the baseline's held-out mean square error above the floor that the causes explain.
-               "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
-               # The physical model: a tolerance prior where the geometry is undetermined
-               # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
-               "tolerance_prior": prior, "rmse_heldout_unconstrained": unconstrained, "implausible": final_fit.implausible(),
-               # Noise or not (tested), and what the selection refused although it would have explained much.
-               "structure_unexplained": None if not unexplained_structure else {
-                   "implausible": unexplained_structure,
-                   "note": f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits) and no reading convention makes it plausible: joint maps and harmonics above "
-                           f"order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"},
-               "residuals": leftover, "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1])},
-        model=model, x=x, outliers=[int(v) for v in outliers], plots=plots,
-    ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)  # fmt: skip
+        robot=rob,
+        data=dataset,
+        baseline={
+            "rmse_heldout": reported_rmse(baseline_cv["random"]),
+            "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
+            "rmse_train": base_fit.metrics["train"]["rmse"],
+            **_rotation_entries(dataset, baseline_cv),
+            "n_params": int(len(base.free)),
+            "hayati": hayati,
+            "folds": folds,
+            # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
+            "residual_correlation": wander_test,
+            # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
+            # geometry fits the data only with parameters no robot has.
+            "implausible": base_fit.implausible(),
+        },
+        effects=effects,
+        rejected=rejected,
+        final={
+            "rmse_heldout": reported_rmse(current_cv["random"]),
+            "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]),
+            "n_params": int(model.n),
+            **_rotation_entries(dataset, current_cv),
+            "floor_mm": budget["floor_mm"],
+            "floor": budget,
+            # Share of the baseline's held-out mean square error above the floor that the causes explain.
+            "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
+            # The physical model: a tolerance prior where the geometry is undetermined
+            # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
+            "tolerance_prior": prior,
+            "rmse_heldout_unconstrained": unconstrained,
+            "implausible": final_fit.implausible(),
+            # Noise or not (tested), and what the selection refused although it would have explained much.
+            "structure_unexplained": structure_unexplained,
+            "residuals": leftover,
+            "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1]),
+        },
+        model=model,
+        x=x,
+        outliers=[int(v) for v in outliers],
+        plots=plots,
+    ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
 
 
 def explained_shares(effects: list, baseline: float, final: float) -> None:
@@ -722,9 +786,17 @@ def _take_map(m: dict, effects: list, rejected: list, plots: dict, why_replaced:
     for o in m["replaces"]:
         rejected.append({**_retract(o, effects, plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
     before, after = m["rmse_heldout_before"], m["rmse_heldout_after"]
-    effects.append({"kind": c.kind, "joint": c.joint + 1, "label": c.label, "params": m["params"],
-                    "rmse_heldout_before": before["random"], "rmse_heldout_after": after["random"],
-                    "significance": {**significance, "rmse_heldout_blocked_before": before["blocked"], "rmse_heldout_blocked_after": after["blocked"]}})  # fmt: skip
+    effects.append(
+        {
+            "kind": c.kind,
+            "joint": c.joint + 1,
+            "label": c.label,
+            "params": m["params"],
+            "rmse_heldout_before": before["random"],
+            "rmse_heldout_after": after["random"],
+            "significance": {**significance, "rmse_heldout_blocked_before": before["blocked"], "rmse_heldout_blocked_after": after["blocked"]},
+        }
+    )
 
 
 def _rotation_entries(data: Dataset, cv: dict) -> dict:
@@ -754,7 +826,8 @@ TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(T
 def prior_rejected(what: str, before: float, after: float, measurement: str) -> str:
     """Why a tolerance prior that raised ``what`` RMSE (:func:`~.model.judged_rmse`) of
     ``measurement`` data from ``before`` to ``after`` is not kept."""
-    return f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+    raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
+    return f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
 
 
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
@@ -893,12 +966,23 @@ def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_
         or not all(improves(curved, name, judged_rmse(current_cv[name]), judged_rmse(cv[name])) for name in schemes)
     ):
         return list(model.causes), x, current_cv, fold_x, None
-    entry = {"kind": "drift", "joint": None, "label": curved.label, "params": physical,
-             "rmse_heldout_before": reported_rmse(current_cv["random"]), "rmse_heldout_after": reported_rmse(cv["random"]),
-             "significance": {"test": f"a polynomial of time of degree {CURVED_DRIFT_DEGREE} in the place of the linear drift: held-out gain of at least "
-                                      f"{min_gain:.1%} on the random folds, no harm on the others",
-                              "p_value": None, "p_adjusted": None, "screening_gain_mm": None,
-                              "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]), "rmse_heldout_blocked_after": reported_rmse(cv["blocked"])}}  # fmt: skip
+    polynomial = f"a polynomial of time of degree {CURVED_DRIFT_DEGREE} in the place of the linear drift"
+    entry = {
+        "kind": "drift",
+        "joint": None,
+        "label": curved.label,
+        "params": physical,
+        "rmse_heldout_before": reported_rmse(current_cv["random"]),
+        "rmse_heldout_after": reported_rmse(cv["random"]),
+        "significance": {
+            "test": f"{polynomial}: held-out gain of at least {min_gain:.1%} on the random folds, no harm on the others",
+            "p_value": None,
+            "p_adjusted": None,
+            "screening_gain_mm": None,
+            "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]),
+            "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
+        },
+    }
     return list(trial.causes), fit.x, cv, {name: xs for name, (_, xs) in refits.items()}, entry
 
 
@@ -1024,10 +1108,20 @@ def _retract(c: Candidate, effects: list, plots: dict, physical, reason: str) ->
     effects.remove(found)
     plots.pop(c.label, None)
     sig = found["significance"]
-    return _record(c, sig["screening_gain_mm"]["random"], sig["screening_gain_mm"], sig["p_value"], sig["candidates"],
-                   found["params"] if physical is None else physical, reason)  # fmt: skip
+    screening = sig["screening_gain_mm"]
+    params = found["params"] if physical is None else physical
+    return _record(c, screening["random"], screening, sig["p_value"], sig["candidates"], params, reason)
 
 
 def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int, physical, reason: str) -> dict:
-    return {"kind": c.kind, "joint": None if c.joint is None else c.joint + 1, "label": c.label, "gain_mm": gain, "gains_mm": gains,
-            "p_value": p_value, "p_adjusted": min(1.0, p_value * n_tests), "params": physical, "reason": reason}  # fmt: skip
+    return {
+        "kind": c.kind,
+        "joint": None if c.joint is None else c.joint + 1,
+        "label": c.label,
+        "gain_mm": gain,
+        "gains_mm": gains,
+        "p_value": p_value,
+        "p_adjusted": min(1.0, p_value * n_tests),
+        "params": physical,
+        "reason": reason,
+    }

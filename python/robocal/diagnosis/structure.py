@@ -198,8 +198,8 @@ def zero_errors(implausible: list[dict]) -> list[Structure]:
     ``joint_zero`` per ``theta`` offset a geometric fit moved beyond the plausibility limits
     (``implausible`` as :meth:`CalibrationResult.implausible` lists them), at the offset it
     found (rounded to 0.001°)."""
-    return [Structure("joint_zero", int(f["name"][len("theta"):]) - 1, round(f["deviation"] / DEG, 3) * DEG)
-            for f in implausible if f["name"].startswith("theta")]  # fmt: skip
+    zeros = [f for f in implausible if f["name"].startswith("theta")]
+    return [Structure("joint_zero", int(f["name"][len("theta") :]) - 1, round(f["deviation"] / DEG, 3) * DEG) for f in zeros]
 
 
 def combinations(data: Dataset) -> list[tuple]:
@@ -252,8 +252,9 @@ def _labels(parts) -> str:
     return " + ".join(s.label for s in parts)
 
 
-def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0,
-           extra: tuple = ()) -> tuple[list[Structure], list[dict], list[dict]]:  # fmt: skip
+def search(
+    data: Dataset, fit: Callable, cross_validate: Callable, baseline: Trial, seed: int = 0, extra: tuple = ()
+) -> tuple[list[Structure], list[dict], list[dict]]:
     """Greedy search for the reading conventions that make the geometry plausible.
 
     ``fit(dataset, max_nfev) -> (rmse, n_implausible)`` fits the geometric model;
@@ -294,13 +295,23 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
             or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
         ]
         if not good:
-            rejected += [{"kind": t.structures[len(accepted)].kind, "joint": t.structures[len(accepted)].joint + 1, "label": _labels(t.structures[len(accepted):]),
-                          "gain_mm": current.heldout["random"] - t.heldout["random"],
-                          "gains_mm": {k: current.heldout[k] - t.heldout[k] for k in current.heldout},
-                          "p_value": None, "p_adjusted": None, "params": t.structures[len(accepted)].params,
-                          "reason": f"{t.implausible} implausible parameters instead of {current.implausible} at held-out RMSE "
-                                    f"{t.heldout['random']:.4g} mm instead of {current.heldout['random']:.4g} mm: neither plausible nor "
-                                    f"{REAL_GAIN:.0%} better"} for t in trials]  # fmt: skip
+            for t in trials:
+                first = t.structures[len(accepted)]
+                implausible = f"{t.implausible} implausible parameters instead of {current.implausible}"
+                heldout = f"held-out RMSE {t.heldout['random']:.4g} mm instead of {current.heldout['random']:.4g} mm"
+                rejected.append(
+                    {
+                        "kind": first.kind,
+                        "joint": first.joint + 1,
+                        "label": _labels(t.structures[len(accepted) :]),
+                        "gain_mm": current.heldout["random"] - t.heldout["random"],
+                        "gains_mm": {k: current.heldout[k] - t.heldout[k] for k in current.heldout},
+                        "p_value": None,
+                        "p_adjusted": None,
+                        "params": first.params,
+                        "reason": f"{implausible} at {heldout}: neither plausible nor {REAL_GAIN:.0%} better",
+                    }
+                )
             break
         good.sort(key=lambda t: (t.implausible, t.heldout["random"], sum(p.size() for p in t.structures[len(accepted) :])))
         # Among hypotheses the data cannot tell apart, the fewest conventions: a zero offset of a
@@ -317,17 +328,27 @@ def search(data: Dataset, fit: Callable, cross_validate: Callable, baseline: Tri
         )
         good = [best] + [t for t in good if t is not best]
         alike = [t for t in good[1:] if t.implausible == best.implausible and t.heldout["random"] <= (1.0 + EQUAL) * best.heldout["random"]]
+        plausible_or_better = "a plausible geometry at an equal or better held-out error"
         for s in best.structures[len(accepted) :]:
-            effects.append({
-            "kind": s.kind, "joint": s.joint + 1, "label": s.label, "params": s.params,
-            "rmse_heldout_before": current.heldout["random"], "rmse_heldout_after": best.heldout["random"],
-            "significance": {"test": "nonlinear re-fits: a plausible geometry at an equal or better held-out error, or a held-out gain of "
-                                     f"{REAL_GAIN:.0%} (random and blocked folds)",
-                             "implausible_before": current.implausible, "implausible_after": best.implausible,
-                             "rmse_heldout_blocked_before": current.heldout["blocked"], "rmse_heldout_blocked_after": best.heldout["blocked"],
-                             "undetermined_between": [_labels(t.structures[len(accepted):]) for t in alike],
-                             "together_with": [o.label for o in best.structures[len(accepted):] if o is not s]},
-          })  # fmt: skip
+            effects.append(
+                {
+                    "kind": s.kind,
+                    "joint": s.joint + 1,
+                    "label": s.label,
+                    "params": s.params,
+                    "rmse_heldout_before": current.heldout["random"],
+                    "rmse_heldout_after": best.heldout["random"],
+                    "significance": {
+                        "test": f"nonlinear re-fits: {plausible_or_better}, or a held-out gain of {REAL_GAIN:.0%} (random and blocked folds)",
+                        "implausible_before": current.implausible,
+                        "implausible_after": best.implausible,
+                        "rmse_heldout_blocked_before": current.heldout["blocked"],
+                        "rmse_heldout_blocked_after": best.heldout["blocked"],
+                        "undetermined_between": [_labels(t.structures[len(accepted) :]) for t in alike],
+                        "together_with": [o.label for o in best.structures[len(accepted) :] if o is not s],
+                    },
+                }
+            )
         accepted = list(best.structures)
         current = best
     return accepted, effects, rejected
