@@ -264,8 +264,8 @@ def test_simulate_measures_given_poses_on_the_seeds_robot():
 
 def test_the_cli_writes_a_canonical_plan_the_loader_reads_back(tmp_path, capsys):
     out = tmp_path / "plan.csv"
-    code = main(["plan", "--robot", "abb-irb120", "--measurement", "cable", "--poses", "40", "--candidates", "800", "--joint-range", "1=-30,30",
-                 "--out", str(out), "--json", str(tmp_path / "plan.json")])  # fmt: skip
+    set_up = ["--robot", "abb-irb120", "--measurement", "cable", "--poses", "40", "--candidates", "800", "--joint-range", "1=-30,30"]
+    code = main(["plan", *set_up, "--out", str(out), "--json", str(tmp_path / "plan.json")])
     printed = capsys.readouterr().out
     assert code == 0 and "40 poses" in printed and "not checked" in printed and "I-optimal" in printed
     data = robocal.load(out)
@@ -292,11 +292,12 @@ def test_the_cli_takes_the_criterion_and_the_bound(tmp_path, capsys):
 
 
 ODD = [None, 0, -1, 2.5, "x", float("nan"), np.inf, [], [1.0, 2.0], (np.nan, 1.0), {"a": 1}, True]
+#: The arguments of robocal.plan the fuzz test gives odd values.
+PLAN_ARGUMENTS = ["poses", "candidates", "seed", "joint_ranges", "cable_range", "anchor", "tool", "box", "noise", "passes", "causes", "measurement", "robot"]
 
 
 @settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
-@given(key=st.sampled_from(["poses", "candidates", "seed", "joint_ranges", "cable_range", "anchor", "tool", "box", "noise", "passes", "causes", "measurement", "robot"]),
-       value=st.sampled_from(ODD) | st.integers(-3, 3) | st.lists(st.floats(allow_nan=True), max_size=7))  # fmt: skip
+@given(key=st.sampled_from(PLAN_ARGUMENTS), value=st.sampled_from(ODD) | st.integers(-3, 3) | st.lists(st.floats(allow_nan=True), max_size=7))
 def test_fuzz_the_arguments(key, value):
     """Any odd argument: a plan, or a robocal error naming the problem — never another exception."""
     args = {"robot": "abb-irb120", "measurement": "cable", "poses": 30, "candidates": 300, key: value}
@@ -315,8 +316,9 @@ def test_the_cli_plans_from_a_result_or_a_diagnosis_and_data(tmp_path, capsys):
     (tmp_path / "diag.json").write_text('{"model": {"structure": [], "causes": ["joint_scale joint 3", "drift"]}}')
     for source in ("result.json", "diag.json"):
         out = tmp_path / f"plan-{source}.csv"
-        code = main(["plan", "--from", str(tmp_path / source), "--data", str(tmp_path / "d.csv"), "--robot", "abb-irb120", "--poses", "15",
-                     "--candidates", "600", "--out", str(out), "--json", str(tmp_path / f"{source}.plan.json")])  # fmt: skip
+        inputs = ["--from", str(tmp_path / source), "--data", str(tmp_path / "d.csv"), "--robot", "abb-irb120"]
+        written = ["--out", str(out), "--json", str(tmp_path / f"{source}.plan.json")]
+        code = main(["plan", *inputs, "--poses", "15", "--candidates", "600", *written])
         printed = capsys.readouterr().out
         assert code == 0, printed
         assert robocal.load(out).q.shape == (15, 6)

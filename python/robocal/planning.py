@@ -187,8 +187,9 @@ class Constraints:
         return ["joint ranges " + ", ".join(parts) + read, *self.masks(robot, measurement, params, self.lower[None, :])]  # the names alone
 
 
-def candidate_poses(robot: Robot, measurement: str, params: np.ndarray, constraints: Constraints, structures: list, count: int,
-                    rng: np.random.Generator, least: int = 1) -> tuple[np.ndarray, list[str]]:  # fmt: skip
+def candidate_poses(
+    robot: Robot, measurement: str, params: np.ndarray, constraints: Constraints, structures: list, count: int, rng: np.random.Generator, least: int = 1
+) -> tuple[np.ndarray, list[str]]:
     """Up to ``count`` joint configurations (readings, rad) drawn uniformly within the joint
     ranges that every constraint allows, and notes; an error naming the constraint that leaves
     fewer than ``least``."""
@@ -417,8 +418,9 @@ def i_criterion(A: np.ndarray, M0: np.ndarray, W: np.ndarray, chosen) -> float:
 
 
 @threadpool_limits.wrap(limits=1, user_api="blas")
-def i_optimal(A: np.ndarray, M0: np.ndarray, W: np.ndarray, size: int, required: Sequence[int] = (), passes: int = EXCHANGE_PASSES,
-              start: Optional[Sequence[int]] = None) -> np.ndarray:  # fmt: skip
+def i_optimal(
+    A: np.ndarray, M0: np.ndarray, W: np.ndarray, size: int, required: Sequence[int] = (), passes: int = EXCHANGE_PASSES, start: Optional[Sequence[int]] = None
+) -> np.ndarray:
     """Indices of ``size`` distinct candidates that (nearly) minimise ``tr(W M⁻¹)``,
     ``M = M0 + Σ A_iᵀA_i``: the I-optimal (V-optimal) design, the average variance of what is
     predicted with weights ``W`` (the mean of the test poses' ``JᵀJ``). Fedorov exchange passes
@@ -614,8 +616,9 @@ class _Design:
     fixed: dict
 
 
-def _design(robot: Robot, measurement: str, params: np.ndarray, data: Optional[Dataset], pool: np.ndarray, labels: list, sigma: float,
-            rng: np.random.Generator) -> _Design:  # fmt: skip
+def _design(
+    robot: Robot, measurement: str, params: np.ndarray, data: Optional[Dataset], pool: np.ndarray, labels: list, sigma: float, rng: np.random.Generator
+) -> _Design:
     """The model over the measured samples and the candidates (model angles, (n, N)), linearised at ``params``."""
     k = RESIDUAL_WIDTH[measurement]
     expected = Dataset(q=pool, y=robot.predict(measurement, pool, params), measurement=measurement, robot=robot.name)
@@ -647,9 +650,19 @@ def _design(robot: Robot, measurement: str, params: np.ndarray, data: Optional[D
             B = B.toarray() if is_sparse(B) else np.asarray(B)
             position[:, s] = Jp[:, len(own) + c.joint][:, None] * np.repeat(B, 3, axis=0)
     units = dict(zip(robot.param_names, robot.param_units))
-    return _Design(names=names, units=[units.get(n) for n in names], scale=scale, A=(pool_rows / scale).reshape(len(pool), k, -1),
-                   M_data=(data_rows / scale).T @ (data_rows / scale), M_prior=(prior_rows / scale).T @ (prior_rows / scale),
-                   position=(position / scale).reshape(len(w), 3, -1), causes=causes, slices=slices, fixed=dict(problem.fixed))  # fmt: skip
+    data_scaled, prior_scaled = data_rows / scale, prior_rows / scale  # every column in units of its scale
+    return _Design(
+        names=names,
+        units=[units.get(n) for n in names],
+        scale=scale,
+        A=(pool_rows / scale).reshape(len(pool), k, -1),
+        M_data=data_scaled.T @ data_scaled,
+        M_prior=prior_scaled.T @ prior_scaled,
+        position=(position / scale).reshape(len(w), 3, -1),
+        causes=causes,
+        slices=slices,
+        fixed=dict(problem.fixed),
+    )
 
 
 @dataclass
@@ -673,8 +686,9 @@ class _Uncertainty:
         spread = np.sqrt(np.maximum(np.einsum("wap,pq,waq->w", P, cov, P), 0.0)) * sigma
         loose = np.linalg.norm(null, axis=1) > 1e-6
         unsure = np.linalg.norm(np.einsum("wap,pr->war", P, null), axis=(1, 2)) > 1e-6 * np.linalg.norm(P, axis=(1, 2))
-        return cls(cov=sigma**2 * cov / np.outer(design.scale, design.scale), loose=loose, position=np.where(unsure, np.nan, spread),
-                   undetermined=int(null.shape[1]), logdet=float(np.linalg.slogdet(M + RIDGE * np.eye(len(M)))[1]))  # fmt: skip
+        covariance = sigma**2 * cov / np.outer(design.scale, design.scale)  # back in the parameters' own units
+        logdet = float(np.linalg.slogdet(M + RIDGE * np.eye(len(M)))[1])
+        return cls(cov=covariance, loose=loose, position=np.where(unsure, np.nan, spread), undetermined=int(null.shape[1]), logdet=logdet)
 
     def std(self, i) -> Optional[np.ndarray]:
         """Standard deviations of the entries ``i`` (mm, rad, ...), None if any is undetermined."""
@@ -684,8 +698,11 @@ class _Uncertainty:
         """RMS and largest standard deviation of the tool point over the workspace (mm, over the
         poses where it is determined: None if nowhere) and the share where it is not."""
         known = self.position[np.isfinite(self.position)]
-        return {"rms_mm": float(np.sqrt(np.mean(known**2))) if known.size else None, "max_mm": float(known.max()) if known.size else None,
-                "undetermined_share": float(np.mean(~np.isfinite(self.position)))}  # fmt: skip
+        return {
+            "rms_mm": float(np.sqrt(np.mean(known**2))) if known.size else None,
+            "max_mm": float(known.max()) if known.size else None,
+            "undetermined_share": float(np.mean(~np.isfinite(self.position))),
+        }
 
 
 def _shown(std: Optional[np.ndarray], unit: str) -> Optional[float]:
@@ -970,8 +987,8 @@ def plan(
             covered.append(np.unique([] if measured is None else map_bins(measured.q[:, c.joint], *span)))
     required = _coverage(design.A, start, bins, covered) if bins else []
     if len(required) > poses:
-        notes.append(f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned: "
-                     "a map corrects nothing where its joint's range is left without poses")  # fmt: skip
+        needed = f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned"
+        notes.append(f"{needed}: a map corrects nothing where its joint's range is left without poses")
     readings_per_pose = RESIDUAL_WIDTH[measurement]
     if measured is None and poses * readings_per_pose <= len(design.names):
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
@@ -995,8 +1012,9 @@ def plan(
             within = None if std["after"] is None or unit not in TOLERANCE else bool(states["after"].std([i])[0] <= TOLERANCE[unit])
             entries.append({"name": name, "unit": "deg" if unit == "rad" else unit, **std, "within_tolerance": within})
     cause_std = {key: _cause_std(design, u, robot) for key, u in states.items()}
-    prediction = {key: _prediction_rms(before_info + (0.0 if idx is None else _information(design.A[idx])), weights, sigma)
-                  for key, idx in (("before", None), ("after", chosen), ("random", random_pick))}  # fmt: skip
+    picks = (("before", None), ("after", chosen), ("random", random_pick))
+    information = {key: before_info + (0.0 if idx is None else _information(design.A[idx])) for key, idx in picks}
+    prediction = {key: _prediction_rms(M, weights, sigma) for key, M in information.items()}
     if bound:
         prediction["least_possible"] = float(sigma * math.sqrt(max(i_bound(design.A, start, weights, poses), 0.0)))
     shown_causes = [c for c in design.causes if c.stage != "parameters"]
@@ -1031,8 +1049,9 @@ def plan(
         "data": {"samples": 0 if measured is None else len(measured), "files": [d.source for d in datasets]},
         "notes": notes,
     }
-    expected = Dataset(q=planned, y=robot.predict(measurement, pool[chosen], params), measurement=measurement, robot=robot.name,
-                       prismatic=robot.prismatic, notes=["a measurement plan: the observation columns hold the readings the model expects"])  # fmt: skip
+    expected_readings = robot.predict(measurement, pool[chosen], params)
+    note = "a measurement plan: the observation columns hold the readings the model expects"
+    expected = Dataset(q=planned, y=expected_readings, measurement=measurement, robot=robot.name, prismatic=robot.prismatic, notes=[note])
     return Plan(q=planned, expected=expected, report=report)
 
 

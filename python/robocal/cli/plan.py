@@ -46,29 +46,45 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", help="robot name, or a robot / result .json/.yaml, exported table or .urdf file (default: the result's or the data's)")
     parser.add_argument("--measurement", choices=MEASUREMENTS, help="what will be measured (default: the result's or the data's)")
     parser.add_argument("--poses", type=int, required=True, metavar="N", help="how many poses to plan")
-    parser.add_argument("--from", dest="source", metavar="FILE",
-                        help="a calibration result (its robot, set-up and causes) or a diagnose report (its causes) to plan for")  # fmt: skip
+    parser.add_argument(
+        "--from", dest="source", metavar="FILE", help="a calibration result (its robot, set-up and causes) or a diagnose report (its causes) to plan for"
+    )
     parser.add_argument("--data", nargs="+", metavar="MEASURED", help="what is already measured, sensor still in place: plan the next poses")
     parser.add_argument("--out", required=True, help="the plan: a canonical CSV (joints in deg, in measuring order; expected readings)")
     parser.add_argument("--json", metavar="FILE", help="write the JSON report here ('-' for standard output)")
     parser.add_argument("--candidates", type=int, default=CANDIDATES, help=f"candidate poses drawn within the constraints (default {CANDIDATES})")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--joint-range", action="append", type=_joint_range, default=[], metavar="J=LO,HI",
-                        help="keep joint J within LO..HI (deg, mm for a prismatic joint; the controller's readings); repeatable")  # fmt: skip
-    parser.add_argument("--cable-range", type=_numbers(2, "MIN,MAX"), default=(0.0, 2000.0), metavar="MIN,MAX",
-                        help="the cable sensor's reading range, mm (default 0,2000)")  # fmt: skip
+    parser.add_argument(
+        "--joint-range",
+        action="append",
+        type=_joint_range,
+        default=[],
+        metavar="J=LO,HI",
+        help="keep joint J within LO..HI (deg, mm for a prismatic joint; the controller's readings); repeatable",
+    )
+    parser.add_argument(
+        "--cable-range", type=_numbers(2, "MIN,MAX"), default=(0.0, 2000.0), metavar="MIN,MAX", help="the cable sensor's reading range, mm (default 0,2000)"
+    )
     parser.add_argument("--anchor", type=_numbers(3, "X,Y,Z"), metavar="X,Y,Z", help="the cable's anchor in the robot base frame, mm")
     parser.add_argument("--tool", type=_numbers(3, "X,Y,Z"), metavar="X,Y,Z", help="the measured point on the flange, mm")
     parser.add_argument("--tracker", type=_numbers(3, "X,Y,Z"), metavar="X,Y,Z", help="the laser tracker's position in the robot base frame, mm")
-    parser.add_argument("--tracker-range", type=_numbers(2, "NEAR,FAR"), metavar="NEAR,FAR",
-                        help=f"distances the tracker measures at, mm (default {TRACKER_RANGE[0]:g},{TRACKER_RANGE[1]:g})")  # fmt: skip
-    parser.add_argument("--box", type=_numbers(6, "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"), metavar="XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX",
-                        help="a box in the robot base frame the tool point must stay in, mm (default: above the mounting plane, z > 0)")  # fmt: skip
+    parser.add_argument(
+        "--tracker-range",
+        type=_numbers(2, "NEAR,FAR"),
+        metavar="NEAR,FAR",
+        help=f"distances the tracker measures at, mm (default {TRACKER_RANGE[0]:g},{TRACKER_RANGE[1]:g})",
+    )
+    parser.add_argument(
+        "--box",
+        type=_numbers(6, "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"),
+        metavar="XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX",
+        help="a box in the robot base frame the tool point must stay in, mm (default: above the mounting plane, z > 0)",
+    )
     parser.add_argument("--noise", type=float, metavar="MM", help="the reading's standard deviation, mm (default: the sensor's)")
     parser.add_argument("--passes", type=int, help="interleaved passes over the workspace (default about sqrt(N)/2)")
-    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="I",
-                        help="I: the least mean error predicted over the workspace on a new session (default); D: the least volume of the parameters' "
-                        "confidence ellipsoid (log det)")  # fmt: skip
+    i_help = "I: the least mean error predicted over the workspace on a new session (default)"
+    d_help = "D: the least volume of the parameters' confidence ellipsoid (log det)"
+    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="I", help=f"{i_help}; {d_help}")
     parser.add_argument("--bound", action="store_true", help="also state the least predicted error any N poses among the candidates could reach (seconds more)")
     add_angle_unit_argument(parser, "q columns of canonical --data files")
 
@@ -116,6 +132,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
     beyond = report["tolerance"]["beyond"]
     undetermined = [p["name"] for p in params if p["after"] is None]
     order = report["order"]
+    travel_compared = f"one tour {order['travel_single_tour_deg']:,.0f}, a random order {order['travel_random_order_deg']:,.0f}"
     lines = [
         f"plan: {report['poses']} poses of {printable(report['robot'], one_line=True)} for {report['measurement']} measurements, "
         f"chosen among {report['candidates']:,} candidates ({report['criterion']}), {seconds:.1f} s",
@@ -129,8 +146,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
         f"  every parameter within {report['tolerance']['mm']:g} mm / {report['tolerance']['deg']:g} deg: "
         + ("yes" if not beyond and not undetermined else f"no — {len(beyond)} beyond, {len(undetermined)} undetermined")
         + (f" (the largest against it: {worst['name']} ± {worst['after']:.3g} {worst['unit']})" if worst else ""),
-        f"  order: {order['passes']} interleaved passes, travel {order['travel_deg']:,.0f} deg of joint moves (one tour {order['travel_single_tour_deg']:,.0f}, "
-        f"a random order {order['travel_random_order_deg']:,.0f}); correlation with the order: "
+        f"  order: {order['passes']} interleaved passes, travel {order['travel_deg']:,.0f} deg of joint moves ({travel_compared}); correlation with the order: "
         + ", ".join(f"q{j + 1} {c:+.2f}" for j, c in enumerate(order["correlation"])),
         "  checked: " + "; ".join(report["constraints"]),
         "  not checked: " + "; ".join(report["not_checked"]),
@@ -138,8 +154,8 @@ def summary(report: dict, out: str, seconds: float) -> str:
     lines += [f"  {c['label']}: {c['reason']}" for c in report["causes_not_by_poses"]]
     lines += [f"  note: {n}" for n in report["notes"]]
     columns = OBSERVATION_COLUMNS[report["measurement"]]
-    lines.append(f"wrote the {report['poses']} poses to {out} (its {', '.join(columns)} column{'s' * (len(columns) > 1)}: the readings the model expects — "
-                 "overwrite them with what you measure)")  # fmt: skip
+    named = f"its {', '.join(columns)} column{'s' * (len(columns) > 1)}"
+    lines.append(f"wrote the {report['poses']} poses to {out} ({named}: the readings the model expects — overwrite them with what you measure)")
     return "\n".join(lines)
 
 
@@ -150,10 +166,12 @@ def run(args: argparse.Namespace) -> int:
     result, causes = _source(args.source)
     prismatic = _prismatic(args) if args.joint_range else ()
     ranges = {j: tuple(v if j - 1 in prismatic else math.radians(v) for v in bounds) for j, bounds in args.joint_range}
-    planned = plan(args.robot, args.measurement, args.poses, result=result, causes=causes, data=args.data, candidates=args.candidates, seed=args.seed,
-                   joint_ranges=ranges or None, cable_range=args.cable_range, anchor=args.anchor, tool=args.tool, tracker=args.tracker,
-                   tracker_range=args.tracker_range, box=args.box, noise=args.noise, passes=args.passes, angle_unit=args.angle_unit,
-                   criterion=args.criterion, bound=args.bound)  # fmt: skip
+    limits = {"joint_ranges": ranges or None, "cable_range": args.cable_range, "box": args.box}
+    set_up = {"anchor": args.anchor, "tool": args.tool, "tracker": args.tracker, "tracker_range": args.tracker_range, "noise": args.noise}
+    search = {"candidates": args.candidates, "seed": args.seed, "passes": args.passes, "criterion": args.criterion, "bound": args.bound}
+    planned = plan(
+        args.robot, args.measurement, args.poses, result=result, causes=causes, data=args.data, angle_unit=args.angle_unit, **limits, **set_up, **search
+    )
     planned.write(args.out)
     report = planned.to_dict()
     text = json.dumps(report, indent=2)
