@@ -270,17 +270,18 @@ def part_lm(args) -> None:
             )
 
     print(f"## 1. Production LM vs scipy.optimize.least_squares — simulated cable, {len(data):,} samples\n")
+    fd_cap = "" if not args.fd_max_nfev else f"; finite-difference runs capped at max_nfev={args.fd_max_nfev}"
     print(
         f"HSR JR680, `simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)`, `Problem.build` → {len(free)} free parameters; "
         f"all start at `problem.x0` (RMSE {rmse(problem.residuals(x0)):.4f} mm); "
-        f"ftol = xtol = gtol = {args.tol:g} for every solver{'' if not args.fd_max_nfev else f'; finite-difference runs capped at max_nfev={args.fd_max_nfev}'}. "
+        f"ftol = xtol = gtol = {args.tol:g} for every solver{fd_cap}. "
         f"robocal: best of {args.lm_repeats} runs, wall time of the whole `levenberg_marquardt()` call (incl. the result's "
         f"covariance/metrics); scipy: one run each, wall time of `least_squares()`. Objective / Jacobian calls are counted in the "
         f"functions themselves (robocal's include the one extra r and J of the result; scipy 'trf' leaves finite-difference calls out of its own nfev).\n"
     )
-    print(
-        "| solver | Jacobian | wall time | × robocal | objective calls | Jacobian calls | solver's own counts | final RMSE (mm) | max abs(x − x_robocal) | status |"
-    )
+    columns = ["solver", "Jacobian", "wall time", "× robocal", "objective calls", "Jacobian calls", "solver's own counts"]
+    columns += ["final RMSE (mm)", "max abs(x − x_robocal)", "status"]
+    print("| " + " | ".join(columns) + " |")
     print("|---|---|---:|---:|---:|---:|---|---:|---:|---|")
     for label, jl, t, nr, nj, own, msg, e, dx in rows:
         print(f"| {label} | {jl} | {t:.3f} s | {t / t_lm:.1f}× | {nr} | {nj} | {own} | {e:.6f} | {dx:.2e} | {msg} |")
@@ -396,10 +397,9 @@ def m9_setup(d1_path, sweeps: int):
     data = d1.subset(train)
     problem = Problem.build(r, data)
     P0 = prior_covariance(problem)
-    opts = dict(
-        sweeps=sweeps, P0=P0, Q=Q_FRACTION * P0, R=sensor_covariance("cable"), alpha=0.1, beta=2.0, kappa=0.0,
-        delta0=0.8, mu=0.95, lam=LAMBDA, max_iter=200, ftol=1e-10, xtol=1e-10,
-    )  # fmt: skip
+    ukf_part = {"sweeps": sweeps, "P0": P0, "Q": Q_FRACTION * P0, "R": sensor_covariance("cable"), "alpha": 0.1, "beta": 2.0, "kappa": 0.0}
+    vslm_part = {"delta0": 0.8, "mu": 0.95, "lam": LAMBDA, "max_iter": 200, "ftol": 1e-10, "xtol": 1e-10}
+    opts = {**ukf_part, **vslm_part}  # UKF_OPTIONS then VSLM_OPTIONS
     return r, d1, data, problem, opts
 
 
@@ -446,10 +446,10 @@ def part_m9(args) -> None:
     )
     print("| implementation | wall time | × robocal | UKF updates | VSLM iterations | RMSE after UKF (mm) | final RMSE (mm) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
-    print(
-        f"| robocal `ukf_vslm` (UKF sweeps in Rust, VSLM over Rust kernels) | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |"
-    )
-    print(f"| NumPy/scipy twin (`robocal.reference`), this file | {t_np:.3f} s | {t_np / t_rc:.1f}× | {updates:,} | {nit_np} | {rm_ukf_np:.6f} | {rm_np:.6f} |")
+    robocal_label = "robocal `ukf_vslm` (UKF sweeps in Rust, VSLM over Rust kernels)"
+    twin_label = "NumPy/scipy twin (`robocal.reference`), this file"
+    print(f"| {robocal_label} | {t_rc:.3f} s | 1.0× | {updates:,} | {vslm_nit_rc} | {rm_ukf_rc:.6f} | {rm_rc:.6f} |")
+    print(f"| {twin_label} | {t_np:.3f} s | {t_np / t_rc:.1f}× | {updates:,} | {nit_np} | {rm_ukf_np:.6f} | {rm_np:.6f} |")
     print(f"| paper, Table IX, M9 on D1 (their machine and protocol) | {PAPER_M9_D1_S:.0f} s | {PAPER_M9_D1_S / t_rc:,.0f}× | | | | |")
     print()
     hn = np.asarray(hist_np)
@@ -550,9 +550,8 @@ def main() -> None:
 
     threads = args.threads or os.cpu_count()
     print("# robocal calibration benchmark\n")
-    print(
-        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
-    )
+    machine = f"{cpu_model()}, {os.cpu_count()} cores"
+    print(f"* machine: {machine}; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
     print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
     print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
     start = time.perf_counter()

@@ -25,7 +25,8 @@ and the 120-pose plans). A second table repeats this in a narrow cell
 Speed: ``robocal.plan`` of 100 poses from 10 000 candidates, wall time, one run each (the
 machine's other work shows in it).
 
-HSR (criterion D: each parameter's standard deviation is asked for, not a prediction): the public HSR-RobotCali file (D1) read with its reading conventions (``joint_zero`` of
+HSR (criterion D: each parameter's standard deviation is asked for, not a prediction): the
+public HSR-RobotCali file (D1) read with its reading conventions (``joint_zero`` of
 joints 2 and 3, +90 and +180 deg: docs/findings.md), the cable's anchor and the tool fitted on
 it with the nominal geometry; joints 1-3 and 4-6 each within the file's ranges or the robot's
 limits; the noise the file's revisits measure (0.051 mm). For each set-up the smallest number
@@ -69,8 +70,8 @@ def ranges_around(robot: str, measurement: str, half_deg: float) -> dict:
     of a seeded draw within the constraints), within the joint limits."""
     r = robocal.robot(robot)
     centre = random_poses(robot, measurement, 1, 0)[0]
-    return {j: (max(joint.limits[0], c - np.radians(half_deg)), min(joint.limits[1], c + np.radians(half_deg)))
-            for j, (c, joint) in enumerate(zip(centre, r.joints), start=1)}  # fmt: skip
+    half = np.radians(half_deg)
+    return {j: (max(joint.limits[0], c - half), min(joint.limits[1], c + half)) for j, (c, joint) in enumerate(zip(centre, r.joints), start=1)}
 
 
 def random_poses(robot: str, measurement: str, n: int, seed: int, joint_ranges=None) -> np.ndarray:
@@ -137,10 +138,12 @@ def heldout_table(seeds: int, joint_ranges_of=None) -> list[str]:
             RAW.append({"robot": robot, "measurement": measurement, "narrow": joint_ranges_of is not None, **{str(k): v for k, v in errors.items()}})
             e = {k: rms(v) for k, v in errors.items()}
             random = {n: e[n] for n in RANDOM_SIZES}
-            rows.append(f"| {robot} | {measurement} | {e['I']:.4f} | {e['D']:.4f} | {e[40]:.4f} | {e[80]:.4f} | {e[120]:.4f} | "
-                        f"{worth(e['I'], random):.0f}, {worth(e['D'], random):.0f} | "
-                        f"{e['predicted']:.4f}, {e['least']:.4f}, {e['predicted_random_120']:.4f} | {worth(e['least'], {40: e['predicted_random_40'], 120: e['predicted_random_120']}):.0f} | "
-                        f"{'yes' if e['I'] <= e[120] else 'no'} |")  # fmt: skip
+            measured = f"{e['I']:.4f} | {e['D']:.4f} | {e[40]:.4f} | {e[80]:.4f} | {e[120]:.4f}"
+            worth_measured = f"{worth(e['I'], random):.0f}, {worth(e['D'], random):.0f}"
+            predicted_random = {40: e["predicted_random_40"], 120: e["predicted_random_120"]}
+            predicted = f"{e['predicted']:.4f}, {e['least']:.4f}, {e['predicted_random_120']:.4f} | {worth(e['least'], predicted_random):.0f}"
+            beats_random = "yes" if e["I"] <= e[120] else "no"
+            rows.append(f"| {robot} | {measurement} | {measured} | {worth_measured} | {predicted} | {beats_random} |")
             print(rows[-1], flush=True)
     return rows
 
@@ -169,17 +172,19 @@ def hsr_table(quick: bool) -> list[str]:
     anchor, tool = (fitted[[r.index(f"{what}_{c}") for c in "xyz"]] for what in ("anchor", "tool"))
     file_ranges = {j + 1: (data.q[:, j].min(), data.q[:, j].max()) for j in range(r.n_joints)}
     print(f"HSR: anchor {np.round(anchor, 1).tolist()} mm, tool {np.round(tool, 1).tolist()} mm (fitted on D1, nominal geometry)\n", flush=True)
-    rows = ["| joints 1-3 | joints 4-6 | poses: kinematic parameters within 1 mm / 0.1 deg | poses: every parameter | beyond at 40 poses (kinematic) | "
-            "beyond at the largest tried (kinematic) | worst kinematic there | poses its 1/N fall would need |",
-            "|---|---|---|---|---:|---:|---|---:|"]  # fmt: skip
+    header = (
+        "| joints 1-3 | joints 4-6 | poses: kinematic parameters within 1 mm / 0.1 deg | poses: every parameter | beyond at 40 poses (kinematic) | "
+        "beyond at the largest tried (kinematic) | worst kinematic there | poses its 1/N fall would need |"
+    )
+    rows = [header, "|---|---|---|---|---:|---:|---|---:|"]
+    set_up = {"causes": HSR_CONVENTIONS, "anchor": anchor, "tool": tool, "noise": HSR_NOISE_MM}
     print("\n".join(rows), flush=True)
     for first in ("file", "limits"):
         for last in ("file", "limits"):
             ranges = {j: file_ranges[j] for j in (1, 2, 3) if first == "file"} | {j: file_ranges[j] for j in (4, 5, 6) if last == "file"}
             found, at40 = {True: None, False: None}, ""
             for n in HSR_POSES[:6] if quick else HSR_POSES:
-                report = robocal.plan("hsr-jr680", "cable", n, causes=HSR_CONVENTIONS, anchor=anchor, tool=tool, joint_ranges=ranges or None,
-                                      noise=HSR_NOISE_MM, criterion="D").report  # fmt: skip
+                report = robocal.plan("hsr-jr680", "cable", n, joint_ranges=ranges or None, criterion="D", **set_up).report
                 if n == 40:
                     at40 = f"{len(_beyond(report, False))} ({len(_beyond(report, True))})"
                 for kinematic in found:
@@ -191,9 +196,9 @@ def hsr_table(quick: bool) -> list[str]:
             worst = max(ratio, key=ratio.get)
             entry = next(p for p in report["parameters"] if p["name"] == worst)
             need = "" if found[True] else f"{n * ratio[worst] ** 2:.2g}"
-            rows.append(f"| {first} | {last} | {found[True] or f'none up to {n}'} | {found[False] or f'none up to {n}'} | {at40 or '-'} | "
-                        f"{len(_beyond(report, False))} ({len(_beyond(report, True))}) of {len(report['parameters'])} | "
-                        f"{worst} ± {entry['after']:.3g} {entry['unit']} | {need} |")  # fmt: skip
+            smallest = f"{found[True] or f'none up to {n}'} | {found[False] or f'none up to {n}'}"
+            beyond_last = f"{len(_beyond(report, False))} ({len(_beyond(report, True))}) of {len(report['parameters'])}"
+            rows.append(f"| {first} | {last} | {smallest} | {at40 or '-'} | {beyond_last} | {worst} ± {entry['after']:.3g} {entry['unit']} | {need} |")
             print(rows[-1], flush=True)
     return rows
 
