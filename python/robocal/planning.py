@@ -280,6 +280,18 @@ def _greedy(A: np.ndarray, Minv: np.ndarray, chosen: list, size: int) -> list:
     return chosen
 
 
+def _shortlist(A: np.ndarray, gain: np.ndarray, chosen: list) -> tuple:
+    """The exchange's candidates: the chosen poses and those of largest ``gain`` (at least
+    :data:`SHORTLIST`, 11 per chosen pose); their indices, rows of ``A``, each chosen pose's
+    place among them, and which are free to enter."""
+    size = min(len(A), max(SHORTLIST, 11 * len(chosen)))
+    short = np.argpartition(-gain, size - 1)[:size]
+    at = {int(c): int(np.flatnonzero(short == c)[0]) for c in chosen}
+    free = np.ones(len(short), dtype=bool)
+    free[list(at.values())] = False
+    return short, A[short], at, free
+
+
 def _exchange(A: np.ndarray, M0: np.ndarray, chosen: list, fixed: int) -> int:
     """One Fedorov exchange pass over the slots after ``fixed``: each chosen pose is swapped for
     the candidate of :data:`SHORTLIST` that raises the determinant most, if any does; returns
@@ -287,13 +299,8 @@ def _exchange(A: np.ndarray, M0: np.ndarray, chosen: list, fixed: int) -> int:
     Minv = np.linalg.inv(M0 + sum(A[i].T @ A[i] for i in chosen))  # afresh: no drift from the updates
     gain = _gains(_blocks(A, Minv))
     gain[chosen] = np.inf
-    size = min(len(A), max(SHORTLIST, 11 * len(chosen)))
-    short = np.argpartition(-gain, size - 1)[:size]
-    At = A[short]
-    at = {int(c): int(np.flatnonzero(short == c)[0]) for c in chosen}
+    short, At, at, free = _shortlist(A, gain, chosen)
     S = _blocks(At, Minv)
-    free = np.ones(len(short), dtype=bool)
-    free[list(at.values())] = False
     swaps = 0
     for slot in range(fixed, len(chosen)):
         i = at[chosen[slot]]
@@ -385,13 +392,8 @@ def _i_exchange(A: np.ndarray, W: np.ndarray, chosen: list, fixed: int) -> int:
     S, T = _i_blocks(A, Minv, W)
     gain = _i_gains(S, T)
     gain[chosen] = np.inf
-    size = min(len(A), max(SHORTLIST, 11 * len(chosen)))
-    short = np.argpartition(-gain, size - 1)[:size]
-    At = A[short]
-    at = {int(c): int(np.flatnonzero(short == c)[0]) for c in chosen}
+    short, At, at, free = _shortlist(A, gain, chosen)
     S, T = S[short], T[short]
-    free = np.ones(len(short), dtype=bool)
-    free[list(at.values())] = False
     swaps = 0
     for slot in range(fixed, len(chosen)):
         i = at[chosen[slot]]
