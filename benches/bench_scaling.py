@@ -98,9 +98,8 @@ def part_samples(args) -> None:
     for name, t in series.items():
         a = slope(ms, t)
         b = slope([ms[i] for i in big], [t[i] for i in big]) if len(big) >= 2 else float("nan")
-        print(
-            f"| {name} | {a:.2f} | {b:.2f} | {'≈ linear, Θ(M)' if 0.85 <= b <= 1.15 else 'sub-linear (fixed costs dominate)' if b < 0.85 else 'super-linear'} |"
-        )
+        complexity = "≈ linear, Θ(M)" if 0.85 <= b <= 1.15 else "sub-linear (fixed costs dominate)" if b < 0.85 else "super-linear"
+        print(f"| {name} | {a:.2f} | {b:.2f} | {complexity} |")
     m9 = slope([ms[i] for i in big], [series["M9 cascade (fixed T3 + T9)"][i] for i in big]) if len(big) >= 2 else float("nan")
     ok = 0.85 <= m9 <= 1.15
     print(
@@ -139,9 +138,8 @@ def part_params(args) -> None:
 
     m = args.param_samples
     print(f"## 2. Time against parameter count n (simulated cable, M = {m:,})\n")
-    print(
-        "| robot / mask | joints | free params n | LM time | LM iterations (nfev) | LM per evaluation | UKF sweep | µs per sample update | VSLM per iteration |"
-    )
+    lm_columns = "LM time | LM iterations (nfev) | LM per evaluation"
+    print(f"| robot / mask | joints | free params n | {lm_columns} | UKF sweep | µs per sample update | VSLM per iteration |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, j, n, t_lm, nit, nfev, t_ukf, t_it in rows:
         print(
