@@ -474,8 +474,9 @@ def fraction(a: int, b: int) -> str:
 
 
 def markdown(s: dict) -> str:
+    hidden = f"{s['hidden']} hidden effects ({s['hidden_large']} at ≥ {LARGE:g}× the limit)"
     rows = [
-        f"{s['files']} files ({s['skipped']} skipped), {s['hidden']} hidden effects ({s['hidden_large']} at ≥ {LARGE:g}× the limit), {s['named']} causes named",
+        f"{s['files']} files ({s['skipped']} skipped), {hidden}, {s['named']} causes named",
         "",
         "| | value | target |",
         "|---|---|---|",
