@@ -76,7 +76,8 @@ def summary(report: dict) -> str:
             f"({_quantities(u['params'] or {})}); refused: {u['reason']}"
         )
     for r in report["rejected"][:3]:
-        lines.append(f"  rejected {r['label']}: gain {r['gain_mm']:.2g} mm, {r['reason']}")
+        gain = "" if r.get("gain_mm") is None else f"gain {r['gain_mm']:.2g} mm, "  # none for a cause put in another's place
+        lines.append(f"  rejected {r['label']}: {gain}{r['reason']}")
     return "\n".join(lines)
 
 

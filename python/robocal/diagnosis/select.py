@@ -548,8 +548,16 @@ def _select(
 
         scored = simplest_first(scored)
         scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
-        if inflation > 1.0:  # the residuals wander in time: a wander is judged before the steps and trends that would chop it up
-            scored = sorted(scored, key=lambda s: not (s[1].kind in TIME_TERMS and is_significant(*s)))
+        if inflation > 1.0:
+            # The residuals wander in time: a wander is judged before the steps and trends that
+            # would chop it up — after a significant temperature, the measured signal a wander
+            # would otherwise imitate (a warm-up is smooth in time).
+            def time_rank(s) -> int:
+                if not is_significant(*s):
+                    return 2
+                return 0 if s[1].kind == "temperature" else 1 if s[1].kind in TIME_TERMS else 2
+
+            scored = sorted(scored, key=time_rank)
         accepted = None
         joint_trials = 0
         for gain, c, p_value, gains in scored:
@@ -1108,9 +1116,9 @@ def _retract(c: Candidate, effects: list, plots: dict, physical, reason: str) ->
     effects.remove(found)
     plots.pop(c.label, None)
     sig = found["significance"]
-    screening = sig["screening_gain_mm"]
+    screening = sig.get("screening_gain_mm") or {}  # none for a cause merged in or put in another's place
     params = found["params"] if physical is None else physical
-    return _record(c, screening["random"], screening, sig["p_value"], sig["candidates"], params, reason)
+    return _record(c, screening.get("random"), screening or None, sig.get("p_value"), sig.get("candidates") or 1, params, reason)
 
 
 def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int, physical, reason: str) -> dict:
@@ -1121,7 +1129,7 @@ def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int
         "gain_mm": gain,
         "gains_mm": gains,
         "p_value": p_value,
-        "p_adjusted": min(1.0, p_value * n_tests),
+        "p_adjusted": None if p_value is None else min(1.0, p_value * n_tests),
         "params": physical,
         "reason": reason,
     }
