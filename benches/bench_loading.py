@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_calibration import load_avg, numpy_twin, rmse
+from bench_calibration import load_avg, rmse, scipy_csv_fit
 from machine import cpu_model
 
 DATASETS = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets"))
@@ -131,11 +131,8 @@ def part_loading(args, canonical: Path) -> None:
 
 
 def part_end_to_end(args, canonical: Path) -> None:
-    import scipy.optimize
 
     import robocal
-    from robocal.calibration.problem import Problem
-    from robocal.data.splits import random_split
 
     print(f"## 2. End to end: a calibration from a {args.samples:,}-row CSV file\n")
     r = robocal.robot("hsr-jr680")
@@ -146,27 +143,6 @@ def part_end_to_end(args, canonical: Path) -> None:
         res = robocal.calibrate(canonical, robot="hsr-jr680")
         times.append(time.perf_counter() - t0)
     t_robocal, t_median = min(times), float(np.median(times))
-
-    def scipy_fit(method):
-        import pandas as pd
-
-        frame = pd.read_csv(canonical)
-        q = np.radians(frame[[f"q{i}" for i in range(1, 7)]].to_numpy())
-        y = frame[["L"]].to_numpy()
-        train_idx, test_idx = random_split(len(q), test_fraction=0.2, seed=0)
-        data = robocal.data.Dataset(q=q[train_idx], y=y[train_idx], measurement="cable")
-        problem = Problem.build(r, data)  # the same start and free parameters as robocal's
-        conv, kinds = [j.convention for j in r.joints], [j.kind for j in r.joints]
-        _, fun, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, data.q, data.y)
-        calls = [0]
-
-        def counted(x):
-            calls[0] += 1
-            return fun(x)
-
-        out = scipy.optimize.least_squares(counted, problem.x0, jac="2-point", method=method)
-        _, held_out, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, q[test_idx], y[test_idx])
-        return calls[0], rmse(fun(out.x)), rmse(held_out(out.x)), out.message
 
     rows = [
         (
@@ -181,7 +157,7 @@ def part_end_to_end(args, canonical: Path) -> None:
     if not args.quick:
         for method in ("lm", "trf"):
             t0 = time.perf_counter()
-            calls, train_rmse, test_rmse, message = scipy_fit(method)
+            calls, train_rmse, test_rmse, message = scipy_csv_fit(canonical, r, method)
             rows.append(
                 (
                     f"`pandas.read_csv` + scipy `least_squares(method={method!r}, jac='2-point')`, NumPy model",
