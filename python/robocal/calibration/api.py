@@ -13,13 +13,13 @@ from ..catalog import BUILTIN
 from ..kernels import as_float
 from ..data.dataset import Dataset
 from ..data.public import load
-from ..data.splits import random_split
+from ..data.splits import configuration_groups, random_split
 from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
 from .metrics import metrics
-from .problem import Problem, check_observations, configuration_labels
+from .problem import Problem, check_observations
 from .result import CalibrationResult
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
@@ -147,7 +147,7 @@ def held_out_problem(robot: Robot, dataset: Dataset, test_fraction: float, seed:
     a repeated row on both sides would make the held-out error a training error."""
     train_idx, test_idx, labels = np.arange(len(dataset)), None, None
     if test_fraction > 0:
-        labels = configuration_labels(dataset.q)
+        labels = configuration_groups(dataset.q)
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=labels)
     check_observations(robot, dataset, labels)  # held-out samples too: a wrong reading there would only inflate the test error
     try:

@@ -15,9 +15,8 @@ from typing import Mapping, Optional
 import numpy as np
 
 from ..kernels import as_float_array, cable_initial_guess, identifiability, solve_damped
-from ..kernels import configuration_groups
 from ..data.dataset import Dataset
-from ..data.splits import CONFIGURATION_TOLERANCE
+from ..data.splits import configuration_groups
 from ..exceptions import DataError, InvalidParameterError, NonFiniteError
 from ..geometry import frame_params, kabsch
 from ..robot import RESIDUAL_WIDTH, Robot
@@ -52,11 +51,6 @@ SCALE_RATIO = {"cable": (0.02, 20.0), "position": (0.1, 10.0), "pose": (0.1, 10.
 IMPOSSIBLE_SPREAD = 10.0
 #: Unit factors (measured / mm) that name a likely unit in the messages.
 LIKELY_UNITS = {"metres": 1e-3, "centimetres": 1e-1, "inches": 1 / 25.4, "micrometres": 1e3}
-
-
-def configuration_labels(q) -> np.ndarray:
-    """:func:`robocal.data.splits.configuration_groups` of ``q`` (the same labels), computed in Rust."""
-    return configuration_groups(q, CONFIGURATION_TOLERANCE)
 
 
 def is_kinematic(name: str) -> bool:
@@ -155,7 +149,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
     (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
     the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
     than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row.
-    ``labels``: :func:`configuration_labels` of ``data.q`` if the caller has them."""
+    ``labels``: :func:`~robocal.data.splits.configuration_groups` of ``data.q`` if the caller has them."""
     if data.n_joints != robot.n_joints:
         raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
     for name, values in (("q", data.q), ("y", data.y)):
@@ -164,7 +158,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
             i = bad[0][0]
             raise NonFiniteError(f"the data's `{name}` must be finite; got {values[tuple(bad[0])]} in sample {i} (row {data.rows[i]})")
     kind, where = data.measurement, data.source
-    distinct = int((configuration_labels(data.q) if labels is None else labels).max(initial=-1)) + 1
+    distinct = int((configuration_groups(data.q) if labels is None else labels).max(initial=-1)) + 1
     if distinct < MIN_CONFIGURATIONS[kind]:
         repeated = f" ({distinct} distinct joint configurations)" if distinct < len(data) else ""
         sensor = "the cable sensor's anchor and zero" if kind == "cable" else "the tracker's frame"
@@ -323,7 +317,7 @@ class Problem:
             weakly determined directions of a narrow workspace near nominal instead of letting
             them absorb what the geometry cannot explain.
         """
-        labels = configuration_labels(data.q)
+        labels = configuration_groups(data.q)
         check_observations(robot, data, labels)
         cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
         if cols.size == 0:
@@ -358,7 +352,7 @@ class Problem:
         ``purpose`` and ``remedy`` word the message (``verify`` re-fits a set-up, not a robot)."""
         # A repeated configuration averages the noise but adds no geometry: it counts once.
         known = getattr(self, "_distinct", None)
-        distinct = known[1] if known is not None and known[0] is self.data else int(configuration_labels(self.data.q).max(initial=-1)) + 1
+        distinct = known[1] if known is not None and known[0] is self.data else int(configuration_groups(self.data.q).max(initial=-1)) + 1
         residuals = distinct * RESIDUAL_WIDTH[self.data.measurement]
         if residuals <= len(self.free) and not self.prior:
             repeated = f" ({distinct} distinct joint configurations)" if distinct < len(self.data) else ""

@@ -479,7 +479,6 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     """
     n = robot.n_joints
     q = data.q
-    k = RESIDUAL_WIDTH[data.measurement]
     moving = [j for j in range(n) if np.ptp(q[:, j]) > 1e-6]
     out: list[Candidate] = []
     tau = gravity_torques(robot, q) if has_mass_model(robot) else None
@@ -490,7 +489,7 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     for j in moving:
         if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
             out.append(joint_candidate("joint_compliance", j))
-        out += [joint_candidate("joint_periodic", j, harmonic=h) for h in LIBRARY_HARMONICS]
+        out += [periodic_candidate(robot, data, j, h) for h in LIBRARY_HARMONICS]
         out.append(joint_candidate("joint_scale", j))
         out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j]
         out.append(joint_candidate("backlash", j))

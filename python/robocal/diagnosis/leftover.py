@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from .wander import SESSION_EVENTS, Z_BOUND, residual_correlation
+from .wander import TIME_TERMS, Z_BOUND, residual_correlation
 
 #: A final RMSE beyond this multiple of the floor is more than the data's resolution.
 FLOOR_MULTIPLE = 3.0
@@ -83,7 +83,7 @@ def unexplained(rejected: list, rmse: Optional[float]) -> list[dict]:
     for r in rejected:
         # what it explains on every fold scheme (a time term: within the session's stretches)
         gains = r.get("gains_mm") or {}
-        gain = gains.get("random") if r.get("kind") in SESSION_EVENTS else min(gains.values(), default=None)
+        gain = gains.get("random") if r.get("kind") in TIME_TERMS else min(gains.values(), default=None)
         if gain is None or not np.isfinite(gain) or baseline_rmse <= 0 or gain <= 0:
             continue
         share = 1.0 - max(baseline_rmse - gain, 0.0) ** 2 / baseline_rmse**2

@@ -50,7 +50,7 @@ def fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.nda
     idx = ext.idx[train]
     if setup is None:
         setup = start_parameters(ext.robot, ext.full_data.subset(idx))
-    causes = [wander_centred(c, ext.full_data, idx) if c.kind == "wander" else c for c in ext.causes]
+    causes = [wander_centred(c, idx) if c.kind == "wander" else c for c in ext.causes]
     return ExtendedProblem(replace(ext.base, start=setup), causes, ext.full_data, idx)
 
 
@@ -85,7 +85,7 @@ def fold_causes(ext: ExtendedProblem, train: np.ndarray) -> list:
     angles = ext.full_data.q[ext.idx[train]]
     fitted = {
         "joint_map": lambda c: map_within(c, ext.full_data, angles[:, c.joint]),
-        "wander": lambda c: wander_within(wander_centred(c, ext.full_data, ext.idx[train]), ext.full_data, ext.idx[train]),
+        "wander": lambda c: wander_within(wander_centred(c, ext.idx[train]), ext.full_data, ext.idx[train]),
     }
     return [fitted[c.kind](c) if c.kind in fitted else c for c in ext.causes]
 

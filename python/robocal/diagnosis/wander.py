@@ -42,18 +42,15 @@ from .candidates import Candidate, acquisition_order
 
 #: Kinds that are smooth functions of time within one session (this module's term).
 TIME_TERMS = ("wander",)
-#: Terms of acquisition time within one session that a block of the session the fit never saw
-#: cannot judge (it cannot tell where or how far they go): the blocked folds judge only that they
-#: do no harm. (A step is not among them: judged on every scheme, it is not named at the bends of
-#: a wandering reading; the cost is a step in the first or last block, which that block's fold
-#: cannot estimate.)
-SESSION_EVENTS = TIME_TERMS
 
 
 def within_session(c: Candidate) -> bool:
-    """Whether ``c`` is judged within its session only (:data:`SESSION_EVENTS`, and a curved
-    drift, whose powers of time a held-out end block would extrapolate)."""
-    return c.kind in SESSION_EVENTS or (c.kind == "drift" and c.detail.get("degree", 1) > 1)
+    """Whether ``c`` is judged within its session only: a block of the session the fit never saw
+    cannot tell where or how far it goes, so the blocked folds judge only that it does no harm
+    (:data:`TIME_TERMS`, and a curved drift, whose spline a held-out end block would extrapolate).
+    A step is not among them: judged on every scheme (on the folds that can estimate it), it is
+    not named at the bends of a wandering reading."""
+    return c.kind in TIME_TERMS or (c.kind == "drift" and c.detail.get("degree", 1) > 1)
 
 
 #: Pairs up to this many samples apart in acquisition order are "near in time".
@@ -201,12 +198,11 @@ def wander_candidate(data: Dataset, spacing: float) -> Candidate:
     return Candidate("wander", None, "observations", basis, detail={"spacing": round(spacing, 3), "axes": axes}, penalty=penalty)
 
 
-def wander_centred(c: Candidate, data: Dataset, fitted: np.ndarray) -> Candidate:
+def wander_centred(c: Candidate, fitted: np.ndarray) -> Candidate:
     """``c`` without its mean over the samples ``fitted``: the wander term is centred over the
     whole session, and fitted on part of it, it would otherwise take a share of the set-up's
     constant, which it does not carry into the samples it never saw (the blocked folds lost 8 %).
     (Its trend is left: taken out too, a pose wander lost to two steps and a map.)"""
-    del data  # the basis rows are the samples
     return replace(c, basis=c.basis - c.basis[fitted].mean(axis=0, keepdims=True))
 
 
