@@ -85,7 +85,8 @@ from pathlib import Path
 
 import numpy as np
 import robocal
-from robocal.diagnosis.structure import Structure
+from robocal.diagnosis.structure import KINDS as CONVENTION_KINDS, Structure, parse_all, to_model
+from robocal.serial_robot import setup_names
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, setup, simulate
 from scipy.stats import norm
@@ -372,6 +373,49 @@ def score(named: list[dict], hidden: list[dict]) -> None:
                 break
 
 
+#: Conventions are equivalent when the nominal geometry with only the set-up fitted explains the
+#: readings taken through the named ones within this fraction of the true angles' RMSE.
+EQUIVALENT = 0.02
+
+
+def setup_rmse(data, q: np.ndarray) -> float:
+    """RMSE of the nominal geometry with only the set-up fitted (a free base and tool, or anchor
+    and tool point) to ``data`` with the angles ``q``."""
+    robot = robocal.robot(data.robot)
+    mask = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
+    return robocal.calibrate(dataclasses.replace(data, q=q), robot=robot, mask=mask).metrics["train"]["rmse"]
+
+
+def alike(a: float, b: float) -> bool:
+    return a <= (1.0 + EQUIVALENT) * b
+
+
+def equivalent_conventions(data, q_true: np.ndarray, named: list[dict]) -> bool:
+    """Whether the conventions ``named`` turn the readings ``data.q`` into angles the data
+    cannot tell from the true ones ``q_true`` — with only the set-up fitted, the nominal geometry
+    explains both alike — and the readings as read worse. A wrist flip (joint 4 +180°, joint 5
+    reversed, joint 6 +180°) or a mirror of the arm (joints 1, 4 and 6 reversed) changes no
+    measurement, so a diagnosis can only name one of the equivalent sets."""
+    labels = [n["label"] for n in named if n["kind"] in CONVENTION_KINDS]
+    through_named = setup_rmse(data, to_model(data.q, parse_all(labels, data.n_joints)))
+    return alike(through_named, setup_rmse(data, q_true)) and not alike(setup_rmse(data, data.q), through_named)
+
+
+def score_equivalent(data, q_true: np.ndarray, named: list[dict], hidden: list[dict]) -> None:
+    """After :func:`score`: when the named conventions are not the hidden ones but an
+    equivalent set (:func:`equivalent_conventions`), each is marked true (``equivalent``) and
+    each hidden convention found — the claim "the readings follow these conventions, or an
+    equivalent set" is true."""
+    missed = [h for h in hidden if h["kind"] in CONVENTION_KINDS and h["found_by"] is None]
+    claimed = [i for i, n in enumerate(named) if n["kind"] in CONVENTION_KINDS]
+    if not missed or not claimed or not equivalent_conventions(data, q_true, named):
+        return
+    for i in claimed:
+        named[i]["true"], named[i]["equivalent"] = True, True
+    for h in missed:
+        h["found_by"] = claimed[0]
+
+
 def run_file(f: dict) -> dict:
     """Simulates, diagnoses and scores one planned file; a record (``skipped`` with the reason
     when the combination does not apply)."""
@@ -384,11 +428,14 @@ def run_file(f: dict) -> dict:
     except InvalidParameterError as exc:
         record["skipped"] = str(exc)
         return record
-    q = data.q
+    q = q_true = data.q
     for h in hidden:
         if "spec" not in h:
             q = structure_of(h).invert(q)
     data = dataclasses.replace(data, q=q)
+    if any("spec" not in h for h in hidden) and alike(setup_rmse(data, q), setup_rmse(data, q_true)):
+        record["skipped"] = "the set-up absorbs the hidden conventions: no data can see them"
+        return record
     for h, rec in zip((h for h in hidden if "spec" in h), truth["effects"]):
         if h["kind"] == "outliers":
             h["samples"] = rec.get("samples")
@@ -397,6 +444,7 @@ def run_file(f: dict) -> dict:
     elapsed = time.perf_counter() - t0
     named = [{k: e.get(k) for k in ("kind", "joint", "label", "params")} for e in report["effects"]]
     score(named, hidden)
+    score_equivalent(data, q_true, named, hidden)
     record.update(
         hidden=hidden,
         named=named,

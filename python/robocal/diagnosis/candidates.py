@@ -553,7 +553,9 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
     import ruptures  # imported on use: only a diagnosis needs it
 
     order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
-    signal = residuals[order]
+    # Only the components a step moves: a pose's rotation rows would add their noise to the
+    # change-point cost and misplace the step (7-14 samples on simulated pose files).
+    signal = residuals[order][:, :3]
     scale = np.std(signal, axis=0)
     signal = signal / np.where(scale > 0, scale, 1.0)
     m = len(signal)

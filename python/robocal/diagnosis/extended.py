@@ -292,9 +292,9 @@ def extended_problem(
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
         if step:
             pool[label] = step_candidate(dataset, int(step.group(1)))
-        wander = re.fullmatch(r"wander spacing=([0-9.]+)", label)
+        wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
-            pool[label] = wander_candidate(dataset, float(wander.group(1)))
+            pool[label] = wander_candidate(dataset, float(wander.group(1)), *([float(wander.group(2))] if wander.group(2) else []))
         curved = re.fullmatch(r"drift degree=(\d+)", label)
         if curved:  # the session's own drift, refitted on these data
             pool[label] = drift_candidate(dataset, int(curved.group(1)))

@@ -71,7 +71,7 @@ ROUGHNESS = 0.3
 MAX_KNOTS = 80
 
 
-def _positions(data: Dataset, idx: np.ndarray) -> np.ndarray:
+def acquisition_rank(data: Dataset, idx: np.ndarray) -> np.ndarray:
     """Rank of each of the samples ``idx`` in acquisition order (0 .. len(idx)-1)."""
     rank = np.empty(len(data), dtype=int)
     rank[acquisition_order(data)] = np.arange(len(data))
@@ -122,7 +122,7 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     m = len(idx)
     if m < 4 * MAX_LAG:
         return None
-    pos = _positions(data, idx)
+    pos = acquisition_rank(data, idx)
     order = np.argsort(pos)
     e = _sensor_part(data, residuals)[order]
     q = data.q[idx][order]
@@ -172,10 +172,10 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     return entry
 
 
-def wander_candidate(data: Dataset, spacing: float) -> Candidate:
+def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS) -> Candidate:
     """The session term of a wandering sensor: a cubic B-spline of the acquisition order with
     knots ``spacing`` samples apart (at least so many that there are at most
-    :data:`MAX_KNOTS` per axis), one per sensor axis, and its roughness penalty."""
+    :data:`MAX_KNOTS` per axis), one per sensor axis, and its ``roughness`` penalty."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     spacing = max(float(spacing), (m - 1) / (MAX_KNOTS - 3), 2.0)
     rank = np.empty(m)
@@ -194,8 +194,9 @@ def wander_candidate(data: Dataset, spacing: float) -> Candidate:
     for a in range(len(axes)):
         basis[:, a, a * n : (a + 1) * n] = B
     second = np.diff(np.eye(len(centred)), 2, axis=0) @ centred
-    penalty = ROUGHNESS * np.kron(np.eye(len(axes)), second)  # per axis, no coupling between axes
-    return Candidate("wander", None, "observations", basis, detail={"spacing": round(spacing, 3), "axes": axes}, penalty=penalty)
+    penalty = roughness * np.kron(np.eye(len(axes)), second)  # per axis, no coupling between axes
+    detail = {"spacing": round(spacing, 3), "axes": axes} | ({} if roughness == ROUGHNESS else {"roughness": roughness})
+    return Candidate("wander", None, "observations", basis, detail=detail, penalty=penalty)
 
 
 def wander_centred(c: Candidate, fitted: np.ndarray) -> Candidate:
