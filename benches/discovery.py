@@ -471,8 +471,12 @@ def summarise(records: list[dict]) -> dict:
     precision = defaultdict(lambda: Counter())
     confusion = defaultdict(Counter)
     clean_hit = 0
+    strong = Counter()  # precision on files whose hidden effects are all at ≥ LARGE× the limit
     for r in done:
         false_kinds = [named_kind(n) for n in r["named"] if not n["true"]]
+        if all(large(h) for h in r["hidden"]):
+            strong["named"] += len(r["named"])
+            strong["true"] += sum(n["true"] for n in r["named"])
         for n in r["named"]:
             precision[named_kind(n)]["named"] += 1
             precision[named_kind(n)]["true"] += n["true"]
@@ -506,6 +510,9 @@ def summarise(records: list[dict]) -> dict:
         "precision": true_all / named_all if named_all else None,
         "named": named_all,
         "true_named": true_all,
+        "precision_large": strong["true"] / strong["named"] if strong["named"] else None,
+        "named_large": strong["named"],
+        "true_named_large": strong["true"],
         "recall": total["found"] / total["hidden"] if total["hidden"] else None,
         "recall_large": total["large_found"] / total["large"] if total["large"] else None,
         "hidden": total["hidden"],
@@ -529,6 +536,7 @@ def markdown(s: dict) -> str:
         "| | value | target |",
         "|---|---|---|",
         f"| precision (named causes that are real) | {fraction(s['true_named'], s['named'])} | ≥ 0.95 |",
+        f"| precision on files whose effects are all at ≥ {LARGE:g}× the limit (or none) | {fraction(s['true_named_large'], s['named_large'])} | |",
         f"| recall, effects at ≥ {LARGE:g}× the limit | {fraction(round((s['recall_large'] or 0) * s['hidden_large']), s['hidden_large'])} | ≥ 0.90 |",
         f"| recall, all (1-10× the limit) | {fraction(round((s['recall'] or 0) * s['hidden']), s['hidden'])} | |",
         f"| clean files with anything named | {fraction(s['clean_with_anything_named'], s['clean_files'])} | ≤ 0.05 |",

@@ -174,3 +174,23 @@ def test_a_step_of_a_tracker_is_placed_by_its_position_rows(seed):
     report = named("abb-irb120", "pose", ["step:sample=117,axis=z,size=0.037267"], seed=seed)
     assert kinds(report) == [("step", None)]
     assert abs(report["effects"][0]["params"]["sample"]["value"] - 117) <= 5
+
+
+@pytest.mark.parametrize(
+    "robot, measurement, spec, seed",
+    [("abb-irb120", "cable", "drift:exponent=1,rate=4.12105", 25146), ("hsr-jr680", "pose", "drift:exponent=2.097,axis=y,rate=1.68502", 25105)],
+)
+def test_a_drift_is_named_as_drift_not_as_a_wander(robot, measurement, spec, seed):
+    """A wander fine enough follows a drift as well; one coefficient per axis is judged before
+    dozens when it gains at least half as much."""
+    report = named(robot, measurement, [spec], seed=seed)
+    assert kinds(report) == [("drift", None)]
+
+
+def test_a_drift_fast_at_first_is_one_curved_drift_and_no_step_at_its_start():
+    """A warm-up ∝ t^0.57 left a step in its first dozen samples beside the linear drift; an
+    exponential settling takes its place, and the step it makes unnecessary is dropped."""
+    report = named("abb-irb120", "cable", ["drift:exponent=0.567,rate=3.79239", "outliers:fraction=0.0219,size=1.554"], seed=25169)
+    assert kinds(report) == [("drift", None), ("outliers", None)]
+    (drift,) = [e for e in report["effects"] if e["kind"] == "drift"]
+    assert drift["label"] != "drift"  # a curved one

@@ -41,7 +41,7 @@ LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h
 
 #: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
 #: only describe it).
-LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness", "degree")
+LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness", "degree", "settling")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -151,7 +151,7 @@ class Candidate:
             }
             bad = not abs(width) < LIMITS["angle"]
             return out, (f"width {width / DEG:.3g} deg is not within ±{LIMITS['angle'] / DEG:g} deg" if bad else None)
-        if kind == "drift" and self.detail.get("degree", 1) > 1:  # curved: the change over the session and its mean rate
+        if curved_drift(self):  # the change over the session and its mean rate
             offsets = self.basis @ c  # (m, k): the sensor's offset at every sample
             first, last = self.detail["first"], self.detail["last"]
             change = [float(offsets[last, a] - offsets[first, a]) for a in range(len(self.detail["axes"]))]
@@ -413,6 +413,8 @@ MAX_HARMONIC = 8
 
 #: A curved drift: powers of acquisition time up to this degree (a warm-up, a settling stand).
 CURVED_DRIFT_DEGREE = 3
+#: ... or a line and an exponential settling of these time constants (fractions of the session).
+SETTLING_TIMES = (0.02, 0.05, 0.15)
 
 
 def natural_spline(t: np.ndarray, knots: int) -> np.ndarray:
@@ -432,19 +434,33 @@ def natural_spline(t: np.ndarray, knots: int) -> np.ndarray:
     return np.column_stack([c - (c.mean() if i else 0.0) for i, c in enumerate(columns)])
 
 
-def drift_candidate(data: Dataset, degree: int = 1) -> Candidate:
+def curved_drift(c: Candidate) -> bool:
+    """Whether ``c`` is a drift that is not linear (:func:`drift_candidate`)."""
+    return c.kind == "drift" and (c.detail.get("degree", 1) > 1 or "settling" in c.detail)
+
+
+def drift_candidate(data: Dataset, degree: int = 1, settling: Optional[float] = None) -> Candidate:
     """The sensor's offset drifting with acquisition time, per axis: linear (``degree`` 1, its
     coefficient the rate), or a natural cubic spline of time with ``degree`` coefficients (its
-    constant is the set-up's) whose coefficients :meth:`Candidate.physical` turns into the change
-    over the session."""
+    constant is the set-up's), or — with ``settling`` — a line plus an exponential settling
+    ``exp(−(t − t₀)/τ)`` of time constant ``τ = settling`` × the session's span (a warm-up that
+    is fast at first). :meth:`Candidate.physical` turns a curved one's coefficients into the
+    change over the session."""
     order, unit = _order(data)
     axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
-    powers = order[:, None] if degree == 1 else natural_spline(order, degree + 1)
-    drift = np.zeros((len(data), RESIDUAL_WIDTH[data.measurement], len(axes) * degree))
+    span = float(np.ptp(order))
+    if settling is not None:
+        fall = np.exp(-(order - order.min()) / max(settling * span, 1e-12))
+        powers = np.column_stack([order, fall - fall.mean()])
+    else:
+        powers = order[:, None] if degree == 1 else natural_spline(order, degree + 1)
+    n = powers.shape[1]
+    drift = np.zeros((len(data), RESIDUAL_WIDTH[data.measurement], len(axes) * n))
     for a in range(len(axes)):
-        drift[:, a, a * degree : (a + 1) * degree] = powers
-    ends = {"span": float(np.ptp(order)), "first": int(np.argmin(order)), "last": int(np.argmax(order))}
-    detail = {"unit": unit, "axes": axes, **({"degree": degree, **ends} if degree > 1 else {})}
+        drift[:, a, a * n : (a + 1) * n] = powers
+    ends = {"span": span, "first": int(np.argmin(order)), "last": int(np.argmax(order))}
+    shape = {"settling": settling} if settling is not None else {"degree": degree} if degree > 1 else None
+    detail = {"unit": unit, "axes": axes, **({**shape, **ends} if shape else {})}
     return Candidate("drift", None, "observations", drift, detail=detail)
 
 

@@ -298,6 +298,9 @@ def extended_problem(
         curved = re.fullmatch(r"drift degree=(\d+)", label)
         if curved:  # the session's own drift, refitted on these data
             pool[label] = drift_candidate(dataset, int(curved.group(1)))
+        settling = re.fullmatch(r"drift settling=([0-9.]+)", label)
+        if settling:
+            pool[label] = drift_candidate(dataset, settling=float(settling.group(1)))
         periodic = re.fullmatch(r"joint_periodic joint (\d+) harmonic=(\d+)", label)
         if periodic and 1 <= int(periodic.group(1)) <= problem.robot.n_joints and label not in pool:  # a harmonic found in the place of several
             pool[label] = periodic_candidate(problem.robot, dataset, int(periodic.group(1)) - 1, int(periodic.group(2)))

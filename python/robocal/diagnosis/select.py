@@ -47,7 +47,7 @@ from ..stats import rmse_of_squares, robust_sigma
 from . import structure
 from .budget import floor as error_floor
 from .budget import repeatability
-from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, Candidate, acquisition_order, drift_candidate, library, step_candidates
+from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library, step_candidates
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
@@ -241,10 +241,17 @@ def simplest_first(ranked: list) -> list:
     """``ranked`` ((gain, candidate, ...) best first) with a joint's candidate of fewer
     coefficients moved before a richer one of the same joint that gains no more than
     :data:`SAME_GAIN` above it: over a joint's range a scale error and a first harmonic (or a
-    harmonic and its neighbour) fit alike, and the data then speak for the simpler one."""
+    harmonic and its neighbour) fit alike, and the data then speak for the simpler one. Likewise
+    a drift before a step of no more gain (a linear drift and a step placed half-way along it
+    gain alike)."""
     out = list(ranked)
     for i in range(len(out)):
         gain, c = out[i][0], out[i][1]
+        if c.kind == "step" and gain > 0:  # a drift's shape is not chosen among every sample, as a step's place is
+            simpler = [j for j in range(i + 1, len(out)) if out[j][1].kind == "drift" and out[j][0] >= (1.0 - SAME_GAIN) * gain]
+            if simpler:
+                out.insert(i, out.pop(simpler[0]))
+            continue
         if c.stage != "joints" or gain <= 0:
             continue
         same_joint = [j for j in range(i + 1, len(out)) if out[j][1].joint == c.joint and out[j][1].stage == "joints"]
@@ -274,6 +281,11 @@ def gains_everywhere(c: Candidate, gains: dict) -> bool:
     if within_session(c):
         return gains["random"] > 0
     return all(g > 0 for g in gains.values())
+
+
+#: A linear drift is judged before a wander when it gains at least this share of the wander's
+#: screening gain.
+DRIFT_SHARE = 0.5
 
 
 #: Knot spacings of the wander candidates, in correlation lengths of the residuals.
@@ -589,10 +601,7 @@ def _select(
             else:
                 C = ext.weighted_columns(x, c, parts, p)
             errs = screen.errors(C, c.penalty)
-            # A step or a drift is tested against what is left alike in time once it is in: a
-            # true one leaves white noise, a bend of a wander too small to name does not (simulated
-            # wanders at 1.7-2.5 times the detection limit were named as steps).
-            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else None if c.kind in ("step", "drift") else inflation, c.penalty)
+            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation, c.penalty)
             on = judgeable(c, keep, schemes)
             gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
@@ -615,11 +624,20 @@ def _select(
         if inflation > 1.0:
             # The residuals wander in time: a wander is judged before the steps and trends that
             # would chop it up — after a significant temperature, the measured signal a wander
-            # would otherwise imitate (a warm-up is smooth in time).
+            # would otherwise imitate (a warm-up is smooth in time), and after a drift that gains
+            # at least DRIFT_SHARE of what the wander gains: one coefficient per axis against
+            # dozens, and a wander fine enough follows a drift as well (a simulated drift at 9×
+            # its detection limit was named a wander).
+            wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and is_significant(*s)), default=np.inf)
+
             def time_rank(s) -> int:
                 if not is_significant(*s):
-                    return 2
-                return 0 if s[1].kind == "temperature" else 1 if s[1].kind in TIME_TERMS else 2
+                    return 3
+                if s[1].kind == "temperature":
+                    return 0
+                if s[1].kind == "drift" and s[0] >= DRIFT_SHARE * wander_gain:
+                    return 1
+                return 2 if s[1].kind in TIME_TERMS else 3
 
             scored = sorted(scored, key=time_rank)
         accepted = None
@@ -630,8 +648,8 @@ def _select(
                 if not any(x["label"] == c.label for x in rejected):
                     rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, "not significant over every possible step position"))
                 continue
-            if not significant:
-                break
+            if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
+                continue
             if c.stage == "joints":
                 if joint_trials >= MAX_TRIALS:
                     rejected.append(
@@ -717,7 +735,9 @@ def _select(
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
-    causes, x, current_cv, fold_x, curved = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
+    causes, x, current_cv, fold_x, curved, left_out = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
+    for c in left_out:
+        rejected.append(_retract(c, effects, plots, None, f"a curve of the drift ({curved['label']}) explains it as well"))
     if curved is not None:  # in the linear drift's place, in the report too
         linear = next(e for e in effects if e["kind"] == "drift")
         effects[effects.index(linear)] = curved
@@ -1030,28 +1050,50 @@ def not_physical(c: Candidate) -> bool:
 
 def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float):
     """A drift that is not linear (a warm-up, a stand settling): the model's linear drift, if it
-    has one, replaced by a polynomial of time (:data:`~.candidates.CURVED_DRIFT_DEGREE`) when that
-    lowers the random folds' held-out RMSE by ``min_gain`` of it and does no harm on the others.
-    Its leftovers would otherwise be taken by steps, harmonics and couplings that the backward
-    check then no longer needs. Returns the causes, fit, held-out errors, fold fits and the
-    report entry of the curved drift (None if it was not taken)."""
+    has one, replaced by the best of a natural spline of time
+    (:data:`~.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
+    (:data:`~.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
+    ``min_gain`` of it and does no harm on the others. Its leftovers would otherwise be taken by
+    steps, harmonics and couplings that the backward check then no longer needs (a drift fast
+    at first left a step in its first dozen samples). Returns the causes, fit, held-out errors,
+    fold fits, the report entry of the curved drift (None if it was not taken) and the steps it
+    made unnecessary."""
     linear = [c for c in model.causes if c.kind == "drift"]
     if not linear:
-        return list(model.causes), x, current_cv, fold_x, None
-    curved = drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)
-    trial = ExtendedProblem(model.base, [curved if c is linear[0] else c for c in model.causes], model.full_data, model.idx)
-    fit = fit_problem(trial, x0=trial.start_from(x, model))
-    refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-    cv = {name: err for name, (err, _) in refits.items()}
-    before, after = judged_rmse(current_cv["random"]), judged_rmse(cv["random"])
-    physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
-    if (
-        why is not None
-        or before - after < min_gain * before
-        or not all(improves(curved, name, current_cv[name], cv[name], acquisition_rank(model.full_data, model.idx)) for name in schemes)
-    ):
-        return list(model.causes), x, current_cv, fold_x, None
-    polynomial = f"a polynomial of time of degree {CURVED_DRIFT_DEGREE} in the place of the linear drift"
+        return list(model.causes), x, current_cv, fold_x, None, []
+    before = judged_rmse(current_cv["random"])
+    rank = acquisition_rank(model.full_data, model.idx)
+    best = None
+    shapes = [drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)] + [drift_candidate(model.full_data, settling=tau) for tau in SETTLING_TIMES]
+    steps = [c for c in model.causes if c.kind == "step"]
+    for curved in shapes:
+        # with the steps, and without them: a drift fast at first has bred a step in its first
+        # samples before the curved shape was tried; the model without them is simpler, and
+        # taken when it is as good
+        for leave_out in [[], steps] if steps else [[]]:
+            trial = ExtendedProblem(
+                model.base, [curved if c is linear[0] else c for c in model.causes if not any(c is o for o in leave_out)], model.full_data, model.idx
+            )
+            fit = fit_problem(trial, x0=trial.start_from(x, model))
+            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+            cv = {name: err for name, (err, _) in refits.items()}
+            after = judged_rmse(cv["random"])
+            physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
+            gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
+            on = judgeable(curved, model.idx, schemes)
+            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]], rank[on[name]]) for name in schemes):
+                key = (len(trial.causes), after)
+                if best is None or key < best[0]:
+                    best = (key, curved, trial, fit, refits, cv, physical, leave_out)
+    if best is None:
+        return list(model.causes), x, current_cv, fold_x, None, []
+    _, curved, trial, fit, refits, cv, physical, left_out = best
+    shape = (
+        f"a line and an exponential settling of time constant {curved.detail['settling']:g} of the session"
+        if "settling" in curved.detail
+        else f"a natural spline of time of {CURVED_DRIFT_DEGREE} coefficients"
+    )
+    polynomial = f"{shape} in the place of the linear drift (the best held-out of {len(shapes)} shapes)"
     entry = {
         "kind": "drift",
         "joint": None,
@@ -1068,7 +1110,7 @@ def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_
             "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
         },
     }
-    return list(trial.causes), fit.x, cv, {name: xs for name, (_, xs) in refits.items()}, entry
+    return list(trial.causes), fit.x, cv, {name: xs for name, (_, xs) in refits.items()}, entry, left_out
 
 
 def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):

@@ -99,17 +99,25 @@ def coefficient_std(problem: ExtendedProblem, fit, cause: Candidate) -> Optional
 
 def judgeable(c: Candidate, idx: np.ndarray, schemes: dict) -> dict:
     """Per fold scheme, the held-out samples (a mask over the positions in ``idx``) that can
-    judge ``c``: all of them, but for a step the samples of a fold whose training samples all
-    lie on one side of it (a step in the first or last block of the blocked folds) — there it is
-    a constant the set-up takes, and it predicts nothing in the block held out."""
-    if c.kind != "step":
+    judge ``c``: all of them, but those of a fold that cannot estimate it — for a step, a fold
+    whose training samples all lie on one side of it (a step in the first or last block of the
+    blocked folds: there it is a constant the set-up takes, and it predicts nothing in the block
+    held out); for a drift's exponential settling, a fold whose training samples all lie after
+    the settling (three time constants: its coefficient is then free, and its prediction in the
+    first block tens of millimetres off)."""
+    if c.kind == "step":
+        after = c.basis[idx, 0, 0] > 0
+        seen = [after, ~after]  # training samples needed on both sides
+    elif c.kind == "drift" and "settling" in c.detail:
+        fall = c.basis[idx, 0, 1]
+        seen = [fall - fall.min() >= np.exp(-3.0)]  # ... within the settling
+    else:
         return {name: slice(None) for name in schemes}
-    after = c.basis[idx, 0, 0] > 0
     out = {}
     for name, folds in schemes.items():
         mask = np.ones(len(idx), dtype=bool)
         for train, test in folds:
-            if after[train].all() or not after[train].any():
+            if not all(part[train].any() for part in seen):
                 mask[test] = False
         out[name] = mask
     return out
