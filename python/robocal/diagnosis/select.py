@@ -283,8 +283,8 @@ def gains_everywhere(c: Candidate, gains: dict) -> bool:
     return all(g > 0 for g in gains.values())
 
 
-#: A linear drift is judged before a wander when it gains at least this share of the wander's
-#: screening gain.
+#: A linear drift or a step is judged before a wander when it gains at least this share of the
+#: wander's screening gain.
 DRIFT_SHARE = 0.5
 
 
@@ -624,10 +624,11 @@ def _select(
         if inflation > 1.0:
             # The residuals wander in time: a wander is judged before the steps and trends that
             # would chop it up — after a significant temperature, the measured signal a wander
-            # would otherwise imitate (a warm-up is smooth in time), and after a drift that gains
-            # at least DRIFT_SHARE of what the wander gains: one coefficient per axis against
-            # dozens, and a wander fine enough follows a drift as well (a simulated drift at 9×
-            # its detection limit was named a wander).
+            # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
+            # that gains at least DRIFT_SHARE of what the wander gains: one coefficient per axis
+            # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
+            # (a simulated drift at 9× its detection limit was named a wander; on the public D2
+            # file a wander took the place of a 2.9 mm step and ended at 0.47 mm instead of 0.32).
             wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and is_significant(*s)), default=np.inf)
 
             def time_rank(s) -> int:
@@ -635,7 +636,7 @@ def _select(
                     return 3
                 if s[1].kind == "temperature":
                     return 0
-                if s[1].kind == "drift" and s[0] >= DRIFT_SHARE * wander_gain:
+                if s[1].kind in ("drift", "step") and s[0] >= DRIFT_SHARE * wander_gain:
                     return 1
                 return 2 if s[1].kind in TIME_TERMS else 3
 
