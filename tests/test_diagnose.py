@@ -331,7 +331,9 @@ def test_hidden_reading_convention_is_named(robot, measurement, kind):
     # convention makes it plausible at an equal or better held-out error.
     assert first["rmse_heldout_after"] <= 1.01 * first["rmse_heldout_before"]
     assert first["significance"]["implausible_before"] > 0 or first["rmse_heldout_after"] < 0.5 * first["rmse_heldout_before"]
-    assert report["baseline"]["implausible"] == []
+    # ... except perhaps the last joint's zero, which the free tool point absorbs: the data leave
+    # it undetermined and no convention of it is named (structure.absorbed_by_setup)
+    assert [f["name"] for f in report["baseline"]["implausible"]] in ([], [f"theta{data.q.shape[1]}"])
 
 
 @pytest.mark.parametrize("robot,measurement", [(r, m) for r in ROBOTS for m in ("cable", "position")])
