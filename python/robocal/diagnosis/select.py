@@ -54,7 +54,7 @@ from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rot
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
 from .validation import coefficient_std, fit_problem, fold_schemes, judgeable, nonlinear_cv
-from .wander import MAX_LAG1, ROUGHNESS, TIME_TERMS, Z_LAG1, acquisition_rank, residual_correlation, time_inflation, wander_candidate, within_session
+from .wander import ROUGHNESS, TIME_TERMS, residual_correlation, time_inflation, wander_candidate, within_session
 
 
 @dataclass
@@ -126,10 +126,9 @@ class _Screen:
     before, which was most of a diagnosis's time.
     """
 
-    def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int, rank: Optional[np.ndarray] = None):
+    def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
         self.J, self.r, self.k = _unit_columns(J), r, k
         self.m = len(r) // k
-        self.in_time = None if rank is None else np.argsort(rank)  # the samples in acquisition order
         self.folds = {name: [self._fold(train, test, self.J, r) for train, test in folds] for name, folds in schemes.items()}
         # The F test assumes one noise level for every row: a pose's position and rotation rows
         # (weighted as the fit weighs them) need not share one, and a test pooled over both
@@ -179,24 +178,11 @@ class _Screen:
             out[name] = err
         return out
 
-    def left_alike_in_time(self, e: np.ndarray) -> float:
-        """The AR(1) variance inflation of the residual rows ``e`` in acquisition order (their
-        first three components), 1 unless their lag-1 correlation is significant."""
-        E = e.reshape(self.m, self.k)[self.in_time][:, :3]
-        E = E - E.mean(axis=0)
-        total = float(np.sum(E * E))
-        rho = float(np.sum(E[1:] * E[:-1])) / total if total > 0 else 0.0
-        if rho * np.sqrt(self.m) < Z_LAG1:
-            return 1.0
-        rho = min(rho, MAX_LAG1)
-        return (1.0 + rho) / (1.0 - rho)
-
-    def f_test(self, C: np.ndarray, inflation: Optional[float] = 1.0, P: Optional[np.ndarray] = None) -> float:
+    def f_test(self, C: np.ndarray, inflation: float = 1.0, P: Optional[np.ndarray] = None) -> float:
         """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for independent
         Gaussian noise in the linearised model; for residuals correlated in time, the statistic
-        and the residual degrees of freedom divided by their variance ``inflation`` — None: that
-        of what is left once ``C`` is in (:meth:`left_alike_in_time`); a penalised ``C`` counts
-        its effective degrees of freedom)."""
+        and the residual degrees of freedom divided by their variance ``inflation``; a penalised
+        ``C`` counts its effective degrees of freedom)."""
         if self.whiten is not None:  # the penalty is in the residual's units: scaled as its rows are
             C, P = C * self.whiten[:, None], None if P is None else P * float(np.median(self.whiten))
         C, P = _unit_penalised(C, P)
@@ -207,8 +193,6 @@ class _Screen:
         rss1, dof = float(e @ e), len(self.r) - len(sv) - extra
         if extra < 0.5 or dof < 1 or rss1 <= 0:
             return 1.0
-        if inflation is None:
-            inflation = self.left_alike_in_time(e)
         return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0)))
 
 
@@ -294,33 +278,14 @@ WANDER_SPACINGS = (0.5, 1.0, 2.0)
 WANDER_STIFFER = (1.0, 10.0)
 
 
-#: A time term's harm beyond the random folds counts when the mean rise of the held-out
-#: squared errors is this many standard errors (of the effective sample size) above zero.
-HARM_Z = 2.0
-
-
-def significant_harm(before: np.ndarray, after: np.ndarray, rank: np.ndarray) -> bool:
-    """Whether the held-out squared errors (n, 2) ``after`` exceed those ``before`` beyond chance:
-    the mean rise per sample against its standard error, the samples (acquisition ranks
-    ``rank``) counted by their AR(1) effective size. Where the held-out blocks are dominated by
-    a wander no model predicts, every change of the geometry moves the blocked figure by 10 % or
-    more either way (a simulated cable wander: 0.081 -> 0.089 mm at z = 1.6)."""
-    d = (after.sum(axis=1) - before.sum(axis=1))[np.argsort(rank)]
-    if len(d) < 3 or not np.std(d) > 0:
-        return bool(np.mean(d) > 0) if len(d) else False
-    lag1 = float(np.clip(np.corrcoef(d[1:], d[:-1])[0, 1], 0.0, MAX_LAG1)) if np.std(d[1:]) > 0 and np.std(d[:-1]) > 0 else 0.0
-    effective = len(d) * (1.0 - lag1) / (1.0 + lag1)
-    return float(np.mean(d)) > HARM_Z * float(np.std(d)) / np.sqrt(effective)
-
-
-def improves(c: Candidate, scheme: str, before: np.ndarray, after: np.ndarray, rank: np.ndarray) -> bool:
+def improves(c: Candidate, scheme: str, before: np.ndarray, after: np.ndarray) -> bool:
     """Whether the held-out squared errors (n, 2) ``after`` adding ``c`` count as a gain over
-    ``before`` on ``scheme`` (samples of acquisition ranks ``rank``): a lower RMSE — a time
-    term must only do no harm beyond the random folds, within :data:`SESSION_TERM_COST` or
-    within chance (:func:`significant_harm`)."""
+    ``before`` on ``scheme``: a lower RMSE — a time term must only do no harm beyond the random
+    folds, within :data:`SESSION_TERM_COST` (judged against chance instead, a wander took the
+    place of a 0.3 mm step)."""
     b, a = judged_rmse(before), judged_rmse(after)
     if within_session(c) and scheme != "random":
-        return a <= (1.0 + SESSION_TERM_COST) * b or not significant_harm(before, after, rank)
+        return a <= (1.0 + SESSION_TERM_COST) * b
     return a < b
 
 
@@ -532,7 +497,6 @@ def _select(
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
-    rank = acquisition_rank(dataset, keep)
     schemes = fold_schemes(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
 
     causes: list[Candidate] = []
@@ -570,7 +534,7 @@ def _select(
         pool = [c for c in pool if c.kind != "step"] + [c for c in step_candidates(dataset, keep, r.reshape(len(keep), k)) if c.detail["sample"] not in taken]
         params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
-        screen = _Screen(J, r, schemes, k, rank)
+        screen = _Screen(J, r, schemes, k)
         model_err = screen.errors(np.zeros((len(r), 0)))
         # What is left alike in time (a wandering reading, a drift that is not linear) is no
         # independent evidence for the candidates that do not model it.
@@ -677,7 +641,7 @@ def _select(
             refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
             new_cv = {name: err for name, (err, _) in refits.items()}
             on = judgeable(c, keep, schemes)
-            lost = [name for name in schemes if not improves(c, name, current_cv[name][on[name]], new_cv[name][on[name]], rank[on[name]])]
+            lost = [name for name in schemes if not improves(c, name, current_cv[name][on[name]], new_cv[name][on[name]])]
             if lost:
                 rejected.append(
                     _record(
@@ -1063,7 +1027,6 @@ def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_
     if not linear:
         return list(model.causes), x, current_cv, fold_x, None, []
     before = judged_rmse(current_cv["random"])
-    rank = acquisition_rank(model.full_data, model.idx)
     best = None
     shapes = [drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)] + [drift_candidate(model.full_data, settling=tau) for tau in SETTLING_TIMES]
     steps = [c for c in model.causes if c.kind == "step"]
@@ -1082,7 +1045,7 @@ def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_
             physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
             gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
             on = judgeable(curved, model.idx, schemes)
-            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]], rank[on[name]]) for name in schemes):
+            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
                 key = (len(trial.causes), after)
                 if best is None or key < best[0]:
                     best = (key, curved, trial, fit, refits, cv, physical, leave_out)
@@ -1127,7 +1090,6 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
     cause earns its place (only the ``droppable`` ones are judged). Returns the causes kept,
     their fit, held-out errors and fold fits, and ``(cause, reason)`` of each one dropped."""
     causes, dropped = list(model.causes), []
-    rank = acquisition_rank(model.full_data, model.idx)
     while len(causes) >= 2:
         full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
         weakest, linear = None, _linearised(full, x)
@@ -1139,7 +1101,7 @@ def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: d
             cv = {name: err for name, (err, _) in refits.items()}
             without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
             on = judgeable(c, model.idx, schemes)
-            earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]], rank[on[name]]) for name in schemes)
+            earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]]) for name in schemes)
             earns = earns and without - with_it >= min_gain * without
             if not earns and (weakest is None or without < weakest[1]):
                 weakest = (c, without, rest, refits, with_it)

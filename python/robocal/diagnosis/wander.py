@@ -38,7 +38,7 @@ from scipy.stats import norm
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
 from .budget import REVISIT_TOLERANCE
-from .candidates import Candidate, acquisition_order
+from .candidates import Candidate, acquisition_order, curved_drift
 
 #: Kinds that are smooth functions of time within one session (this module's term).
 TIME_TERMS = ("wander",)
@@ -47,13 +47,11 @@ TIME_TERMS = ("wander",)
 def within_session(c: Candidate) -> bool:
     """Whether ``c`` is judged within its session only: a block of the session the fit never saw
     cannot tell where or how far it goes, so the blocked folds judge only that it does no harm
-    (:data:`TIME_TERMS`, and a drift: a curve would be extrapolated into a held-out end block, and
-    even a line's rate, fitted beside the geometry on four blocks, moves the fifth either way — a
-    simulated linear drift at 3.9× its detection limit gained 0.006 mm on the random folds, lost
-    as much on the blocked ones, and a joint map was named in its place). A step is not among
-    them: judged on every scheme (on the folds that can estimate it), it is not named at the
-    bends of a wandering reading."""
-    return c.kind in TIME_TERMS or c.kind == "drift"
+    (:data:`TIME_TERMS`, and a curved drift, whose curve a held-out end block would extrapolate).
+    A linear drift is not among them: judged so, it was named beside wanders and in the place of
+    steps. A step is not either: judged on every scheme (on the folds that can estimate it), it
+    is not named at the bends of a wandering reading."""
+    return c.kind in TIME_TERMS or curved_drift(c)
 
 
 #: Pairs up to this many samples apart in acquisition order are "near in time".
