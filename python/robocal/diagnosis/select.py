@@ -269,7 +269,7 @@ def gains_everywhere(c: Candidate, gains: dict) -> bool:
 
 #: A linear drift or a step is judged before a wander when it gains at least this share of the
 #: wander's screening gain.
-DRIFT_SHARE = 0.5
+SENSOR_TERM_SHARE = 0.5
 
 
 #: Knot spacings of the wander candidates, in correlation lengths of the residuals.
@@ -589,7 +589,7 @@ def _select(
             # The residuals wander in time: a wander is judged before the steps and trends that
             # would chop it up — after a significant temperature, the measured signal a wander
             # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
-            # that gains at least DRIFT_SHARE of what the wander gains: one coefficient per axis
+            # that gains at least SENSOR_TERM_SHARE of what the wander gains: one coefficient per axis
             # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
             # (a simulated drift at 9× its detection limit was named a wander; on the public D2
             # file a wander took the place of a 2.9 mm step and ended at 0.47 mm instead of 0.32).
@@ -600,7 +600,7 @@ def _select(
                     return 3
                 if s[1].kind == "temperature":
                     return 0
-                if s[1].kind in ("drift", "step") and s[0] >= DRIFT_SHARE * wander_gain:
+                if s[1].kind in ("drift", "step") and s[0] >= SENSOR_TERM_SHARE * wander_gain:
                     return 1
                 return 2 if s[1].kind in TIME_TERMS else 3
 
