@@ -50,7 +50,7 @@ import time
 import numpy as np
 
 from ..kernels import as_count, as_positive, as_tolerance, factor_damped, is_sparse
-from ..kernels import normal_equations
+from ..kernels import normal_equations, sparse_gram
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
@@ -174,11 +174,12 @@ def _minimise(
             fresh = False
             Jw, rw = (_scaled(J, rows=w), r * w) if weighted else (J, r)
             gram_at = J_at
-            gram, g = (None, Jw.T @ rw) if is_sparse(Jw) else normal_equations(Jw, rw)  # JᵀJ (n, n) and Jᵀr in one pass
+            # JᵀJ (n, n) and Jᵀr: a sparse J's from its rows' pairs of entries, a dense one's in one pass
+            gram, g = (sparse_gram(Jw), Jw.T @ rw) if is_sparse(Jw) else normal_equations(Jw, rw)
             if np.max(np.abs(g)) < gtol:
                 success, message = True, "`gtol` termination condition is satisfied"
                 break
-            squares = _column_squares(Jw) if gram is None else np.diag(gram).copy()
+            squares = np.diag(gram).copy()
             scale = squares if scale is None else np.maximum(scale, squares)
             d = np.sqrt(np.where(scale > 0, scale, 1.0))
             factored = _factor(Jw, d, gram)
@@ -260,12 +261,20 @@ def _minimise(
 NORMAL_CONDITION = 1e10
 
 
+#: Relative ridge on a sparse Jacobian's scaled normal matrix: keeps it definite where the data
+#: leave a direction free.
+SPARSE_RIDGE = 1e-12
+
+
 def _factor(Jw, d: np.ndarray, gram):
-    """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``): from the normal equations ``gram``
-    (``JwᵀJw``, dense ``Jw``) when they are well conditioned (:data:`NORMAL_CONDITION`), else
-    from a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`)."""
-    if gram is not None and gram.size:
-        normal = gram / np.outer(d, d)
+    """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``) from the normal equations ``gram``
+    (``JwᵀJw``). A dense ``Jw``'s when they are well conditioned (:data:`NORMAL_CONDITION`),
+    else a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`); a
+    sparse one's always (a model with joint maps: a QR would fill it in), with a relative ridge."""
+    normal = gram / np.outer(d, d)
+    if is_sparse(Jw):
+        return _DampedGram(normal + SPARSE_RIDGE * np.eye(len(normal)), lambda b: (Jw.T @ b) / d)
+    if gram.size:
         eigenvalues = np.linalg.eigvalsh(normal)
         if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:
             return _DampedGram(normal, lambda b: _product(b, Jw) / d)
@@ -298,11 +307,6 @@ class _DampedGram:
 def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a @ b`` of a matrix and a vector without the BLAS (see :func:`~robocal.calibration.result.sum_of_squares`)."""
     return np.einsum("ij,j->i", a, b) if a.ndim == 2 else np.einsum("i,ij->j", a, b)
-
-
-def _column_squares(J) -> np.ndarray:
-    """Squared column norms of a dense or a scipy.sparse ``J``."""
-    return np.asarray(J.multiply(J).sum(axis=0)).ravel() if is_sparse(J) else np.sum(J * J, axis=0)
 
 
 def _scaled(J, rows=None, columns=None):

@@ -391,13 +391,15 @@ def map_noise(residuals: np.ndarray) -> float:
     return float(np.sqrt(np.mean(robust_sigma(np.asarray(residuals)) ** 2)))
 
 
-def map_candidate(data: Dataset, joint: int, spacing: float, roughness: float, noise: float, angles: np.ndarray) -> Candidate:
+def map_candidate(data: Dataset, joint: int, spacing: float, roughness: float, noise: float, angles: np.ndarray, basis=None) -> Candidate:
     """The joint map of ``joint`` (0-based) with knots every ``spacing`` deg and second
     differences of prior width ``roughness`` deg, over the joint ``angles`` (rad) it is fitted
-    on (:func:`map_support`), weighed against residuals of scale ``noise`` mm."""
+    on (:func:`map_support`), weighed against residuals of scale ``noise`` mm. ``basis``: the
+    same map's basis at another roughness (shared: the screening computes its products once)."""
     detail = {"spacing": float(spacing), "roughness": float(roughness), **map_support(angles, spacing)}
     detail["weight"] = noise / (roughness * DEG)
-    return Candidate("joint_map", joint, "joints", map_basis(data.q[:, joint], detail), detail=detail, penalty=map_penalty(detail, detail["weight"]))
+    basis = map_basis(data.q[:, joint], detail) if basis is None else basis
+    return Candidate("joint_map", joint, "joints", basis, detail=detail, penalty=map_penalty(detail, detail["weight"]))
 
 
 #: A joint map's label, as :attr:`Candidate.label` writes it.
@@ -480,7 +482,9 @@ def map_candidates(robot: Robot, data: Dataset, joints: list[int], noise: float,
         if robot.joints[j].kind != "revolute":
             continue
         spacings = [spacing for spacing in MAP_SPACINGS_DEG if np.ptp(q[:, j]) / DEG >= 2.0 * spacing]  # two spacings at least across its range
-        out += [map_candidate(data, j, spacing, roughness, noise, q[:, j]) for spacing in spacings for roughness in MAP_ROUGHNESS_DEG]
+        for spacing in spacings:
+            first = map_candidate(data, j, spacing, MAP_ROUGHNESS_DEG[0], noise, q[:, j])
+            out += [first] + [map_candidate(data, j, spacing, roughness, noise, q[:, j], first.basis) for roughness in MAP_ROUGHNESS_DEG[1:]]
     return out
 
 
@@ -561,6 +565,30 @@ def acquisition_order(data: Dataset) -> np.ndarray:
     return np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
 
 
+def _summed_l2_cost():
+    """ruptures' l2 cost (a segment's squared deviations from its mean) from running sums: each
+    segment's cost in O(1) instead of a variance over its samples — binary segmentation asks for
+    every split of every segment, which made ruptures' own l2 cost O(m²) per split (two minutes of
+    a 12 000-sample diagnosis)."""
+    from ruptures.base import BaseCost
+
+    class SummedL2(BaseCost):
+        model = "l2 (running sums)"
+        min_size = 1
+
+        def fit(self, signal):
+            self.signal = x = signal.reshape(len(signal), -1)
+            self.s1 = np.vstack([np.zeros(x.shape[1]), np.cumsum(x, axis=0)])
+            self.s2 = np.concatenate([[0.0], np.cumsum(np.sum(x * x, axis=1))])
+            return self
+
+        def error(self, start, end):
+            s = self.s1[end] - self.s1[start]
+            return float(self.s2[end] - self.s2[start] - s @ s / (end - start))
+
+    return SummedL2()
+
+
 def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> list[Candidate]:
     """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
     samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
@@ -578,7 +606,7 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
     min_size = max(5, m // 100)
     if m < 2 * min_size + 1:
         return []
-    breaks = ruptures.Binseg(model="l2", min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
+    breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
     return [step_candidate(data, int(idx[order[b]])) for b in breaks if b < m]
 
 

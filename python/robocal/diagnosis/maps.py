@@ -45,7 +45,7 @@ class _NormalScreen:
     held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`)."""
 
     def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
-        self.k, self.n_data, self.q, self._covered = k, n_data, q, {}
+        self.k, self.n_data, self.q, self._covered, self._last = k, n_data, q, {}, None
         self.J, self.r = J, r
         self.JtJ, self.Jtr = _dense(J.T @ J), np.asarray(J.T @ r)
         self.Jd, self.rd = J[:n_data], r[:n_data]  # the data rows, all a candidate's columns touch
@@ -65,31 +65,43 @@ class _NormalScreen:
             self._covered[key] = np.repeat(inside, self.k).astype(np.float64)
         return self._covered[key]
 
+    def _products(self, C, cause) -> tuple:
+        """The normal-equation blocks of ``C`` with ``J`` and ``r``: over all data rows and per
+        fold the held-out rows' share. A map's roughness variants share their columns (and
+        :attr:`Candidate.basis`): their products are computed once (the last ones are kept)."""
+        if self._last is not None and cause is not None and self._last[0] is cause.basis:
+            return self._last[1]
+        products = (_dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd), {})
+        for name, folds in self.folds.items():
+            products[3][name] = []
+            for _, _, rows, Jte, _, _ in folds:
+                Cte = C[rows]
+                products[3][name].append((Cte, _dense(Cte.T @ Jte), np.asarray(Cte.T @ self.r[rows]), _dense(Cte.T @ Cte)))
+        if cause is not None:
+            self._last = (cause.basis, products)
+        return products
+
     def errors(self, C=None, P=None, joint_map=None) -> dict:
         """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``."""
-        if C is None:
-            CtC = CtJ = Ctr = None
-        else:
-            CtC, CtJ, Ctr = _dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd)
+        if C is not None:
+            CtC, CtJ, Ctr, held_out = self._products(C, joint_map)
             if P is not None:
                 CtC = CtC + P.T @ P
         out = {}
         for name, folds in self.folds.items():
             err = np.zeros(self.n_data // self.k)
-            for train, test, rows, Jte, JteJte, Jter in folds:
+            for i, (train, test, rows, Jte, JteJte, Jter) in enumerate(folds):
                 N, b = self.JtJ - JteJte, self.Jtr - Jter
                 if C is not None:
-                    Cte = C[rows]
-                    CteJ, Cter = _dense(Cte.T @ Jte), np.asarray(Cte.T @ self.r[rows])
-                    CC = CtC - _dense(Cte.T @ Cte)
+                    Cte, CteJ, Cter, CteCte = held_out[name][i]
                     CJ = CtJ - CteJ
-                    N = np.block([[N, CJ.T], [CJ, CC]])
+                    N = np.block([[N, CJ.T], [CJ, CtC - CteCte]])
                     b = np.concatenate([b, Ctr - Cter])
                 delta = _solve(N, b)
                 e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
                 if C is not None:
                     covered = self._covered_rows(joint_map, train, test) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
-                    e = e - (C[rows] @ delta[self.J.shape[1] :]) * covered
+                    e = e - (Cte @ delta[self.J.shape[1] :]) * covered
                 err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
             out[name] = err
         return out
@@ -137,10 +149,15 @@ def map_stage(
     *,
     alpha: float,
     min_gain: float,
+    only=None,
+    tests=None,
 ):
     """Joint maps added to ``model`` (see the module notes).
 
-    ``fold_x`` is the diagnosis' per-scheme fold fits of ``model`` (warm starts). Returns the new model, its
+    ``fold_x`` is the diagnosis' per-scheme fold fits of ``model`` (warm starts). ``only``: the
+    labels of the maps to offer (default all), ``tests``: the number of maps the F test is
+    corrected for (default those offered in the round) — an earlier pass's, to confirm its maps.
+    Returns the new model, its
     ``x``, held-out errors and fold fits, the report entries of the maps accepted and of those
     rejected (each with a ``candidate`` key: the :class:`Candidate`; an accepted map's
     ``replaces``: the harmonics it took the place of).
@@ -148,6 +165,7 @@ def map_stage(
     robot, data = model.robot, model.full_data
     moving = [j for j in range(robot.n_joints) if np.ptp(data.q[model.idx, j]) > 1e-6]
     pool = map_candidates(robot, data, moving, map_noise(model.data_residuals(x).reshape(len(model.idx), model.k)), model.idx)
+    pool = pool if only is None else [c for c in pool if c.label in only]
     accepted, rejected = [], []
     while pool:
         J, r = model.jacobian(x), model.residuals(x)
@@ -162,7 +180,7 @@ def map_stage(
             if c.joint not in best or score < best[c.joint][0]:
                 best[c.joint] = (score, c, errs, C)
         ranked = sorted(best.values(), key=lambda v: v[0])
-        n_tests = len(pool)
+        n_tests = len(pool) if tests is None else tests
         chosen = None
         for score, c, errs, C in ranked:
             gains = {name: rmse_of_squares(base_err[name]) - rmse_of_squares(errs[name]) for name in schemes}

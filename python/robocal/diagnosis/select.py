@@ -459,14 +459,31 @@ def diagnose(
         "hayati": hayati,
         "maps": maps,
     }
-    diagnosis, revealed = _select(rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), **settings)
+    diagnosis, revealed, decided = _select(rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), **settings)
     if len(revealed):
         # Gross errors the geometric baseline's large residuals hid, beyond the bound only once
-        # the causes are in: named, and the diagnosis repeated without them, so that every
-        # held-out figure (baseline included) is over the same samples.
-        diagnosis, _ = _select(rob, dataset, base, effects, rejected, np.union1d(diagnosis.outliers, revealed), revealed=revealed, **settings)
+        # the causes are in: named, and the causes found confirmed again without them (the
+        # search is not repeated), so that every held-out figure (baseline included) is over
+        # the same samples.
+        known = np.union1d(diagnosis.outliers, revealed)
+        diagnosis, _, _ = _select(rob, dataset, base, effects, rejected, known, revealed=revealed, replay=decided, **settings)
     diagnosis.time_s = time.perf_counter() - t0
     return diagnosis
+
+
+@dataclass
+class Decided:
+    """What a pass of :func:`_select` decided, for a second pass that only confirms it: the causes
+    its forward selection accepted (in order) and the maps its map stage accepted (labels), the
+    number of candidates and of maps its tests were corrected for (Bonferroni), and its refusals
+    and unexplained findings (reported as they were: decided over the samples it had)."""
+
+    causes: list
+    maps: set
+    tests: int
+    map_tests: int
+    rejected: list
+    unexplained: list
 
 
 def _select(
@@ -486,10 +503,13 @@ def _select(
     hayati: bool,
     maps: bool,
     revealed: Optional[np.ndarray] = None,
-) -> tuple[Diagnosis, np.ndarray]:
+    replay: Optional[Decided] = None,
+) -> tuple[Diagnosis, np.ndarray, Decided]:
     """One pass of :func:`diagnose` after the structural stage, with the ``known`` outliers
-    (``revealed``: those an earlier pass's final model named); and the kept samples its final
-    model puts beyond the outlier bound."""
+    (``revealed``: those an earlier pass's final model named); the kept samples its final
+    model puts beyond the outlier bound; and what it decided. With ``replay`` (an earlier pass's
+    decisions) only the causes and maps that pass accepted are offered, with its Bonferroni
+    counts, and its other refusals are reported as they were."""
     k = RESIDUAL_WIDTH[dataset.measurement]
     revealed = np.zeros(0, dtype=int) if revealed is None else revealed
     plots = {}
@@ -506,7 +526,7 @@ def _select(
     baseline = {name: nonlinear_cv(ext, f) for name, f in schemes.items()}
     baseline_cv = {name: err for name, (err, _) in baseline.items()}
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
-    pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati)
+    pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati) if replay is None else list(replay.causes)
     # A geometry that stays implausible after the reading conventions is structure not
     # explained: a flexible joint term would only make a wrong geometry fit better (D1: four joint
     # maps took 0.124 -> 0.067 mm beside a1 at -7858 mm). Those are not offered until it is.
@@ -518,8 +538,9 @@ def _select(
     # No wander while the geometric fit's residuals are alike in joint space and not beyond it
     # in time: that is evidence for the robot's causes, and a wander offered in a later round
     # would take what is left of them along the path (UR10 series A: 0.0755 -> 0.109 mm held out).
-    wander_offered = wander_test is None or wander_test["verdict"] != "joints"
+    wander_offered = replay is None and (wander_test is None or wander_test["verdict"] != "joints")
     current_cv = baseline_cv
+    searched = 0  # the most candidates a round screened
     last_round = (len(rejected), None)  # where the last screening round's refusals start, and its model's held-out RMSE
     while len(causes) < max_effects:
         last_round = (len(rejected), None)
@@ -530,8 +551,11 @@ def _select(
         # Steps where the current model's residuals change level: those of the geometric fit
         # alone misplace a step by the geometry's errors along the path (7-14 samples off on
         # simulated files).
-        taken = {c.detail["sample"] for c in causes if c.kind == "step"}
-        pool = [c for c in pool if c.kind != "step"] + [c for c in step_candidates(dataset, keep, r.reshape(len(keep), k)) if c.detail["sample"] not in taken]
+        if replay is None:
+            taken = {c.detail["sample"] for c in causes if c.kind == "step"}
+            pool = [c for c in pool if c.kind != "step"] + [
+                c for c in step_candidates(dataset, keep, r.reshape(len(keep), k)) if c.detail["sample"] not in taken
+            ]
         params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
         _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
         screen = _Screen(J, r, schemes, k)
@@ -551,7 +575,8 @@ def _select(
         # cost the blocked folds 47 %, ten times the penalty 10 % instead of 36 %). The most
         # flexible that does the geometry no harm is taken (each is tried in turn).
         length = None if round_test is None else round_test["correlation_length_samples"]
-        pool = [c for c in pool if c.kind != "wander"]
+        if replay is None:
+            pool = [c for c in pool if c.kind != "wander"]
         if wander_offered and length is not None and not any(c.kind == "wander" for c in causes):
             pool += [wander_candidate(dataset, length * factor, ROUGHNESS * stiffer) for factor in WANDER_SPACINGS for stiffer in WANDER_STIFFER]
         last_round = (last_round[0], rmse_of_squares(model_err["random"]))
@@ -570,7 +595,8 @@ def _select(
             gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
             scored.append((gains["random"], c, p_value, gains))
         scored.sort(key=lambda s: -s[0])
-        n_tests = len(scored)
+        n_tests = len(scored) if replay is None else replay.tests
+        searched = max(searched, n_tests)
 
         def tests_of(c: Candidate) -> int:
             # Bonferroni over the whole search, not one round: every candidate of every round the
@@ -700,6 +726,7 @@ def _select(
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
+    forward = list(causes)
     causes, x, current_cv, fold_x, curved, left_out = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
     for c in left_out:
         rejected.append(_retract(c, effects, plots, None, f"a curve of the drift ({curved['label']}) explains it as well"))
@@ -714,6 +741,7 @@ def _select(
     model = ExtendedProblem(base, causes, dataset, keep)
     if unexplained_structure:  # the causes found may have been what bent the geometry
         unexplained_structure = grossly_implausible(fit_problem(model, x0=x).implausible())
+    accepted_maps, rejected_maps = [], []
     if maps and not unexplained_structure:
         model, x, current_cv, fold_x, merged = merge_harmonics(model, x, schemes, current_cv, fold_x)
         # ``{label}`` is filled in by _take_map with the merged map's label.
@@ -723,7 +751,17 @@ def _select(
             test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme"
             significance = {"test": test, "p_value": None, "p_adjusted": None, "screening_gain_mm": None}
             _take_map(m, effects, rejected, plots, merged_why, significance)
-        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(model, x, schemes, current_cv, fold_x, alpha=alpha, min_gain=min_gain)
+        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
+            model,
+            x,
+            schemes,
+            current_cv,
+            fold_x,
+            alpha=alpha,
+            min_gain=min_gain,
+            only=None if replay is None else replay.maps,
+            tests=None if replay is None else replay.map_tests,
+        )
         replaced_why = "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)"
         map_test = (
             "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
@@ -785,54 +823,71 @@ def _select(
             "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
         }
         effects.insert(0, outliers_entry)
+    found = unexplained(rejected[last_round[0] : last_round[2]], last_round[1]) if replay is None else replay.unexplained
+    if replay is not None:  # the earlier pass's other refusals, as that pass measured them
+        decided_now = {e["label"] for e in rejected} | {e["label"] for e in effects}
+        rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
+    map_entries = accepted_maps + rejected_maps
+    decided = Decided(
+        forward,
+        {m["candidate"].label for m in map_entries if "reason" not in m},
+        searched,
+        max((m["tests"] for m in map_entries), default=0),
+        list(rejected),
+        found,
+    )
     structure_unexplained = None
     if unexplained_structure:
         far = f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits)"
         untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
         structure_unexplained = {"implausible": unexplained_structure, "note": f"{far} and no reading convention makes it plausible: {untried}"}
-    return Diagnosis(
-        robot=rob,
-        data=dataset,
-        baseline={
-            "rmse_heldout": reported_rmse(baseline_cv["random"]),
-            "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
-            "rmse_train": base_fit.metrics["train"]["rmse"],
-            **_rotation_entries(dataset, baseline_cv),
-            "n_params": int(len(base.free)),
-            "hayati": hayati,
-            "folds": folds,
-            # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
-            "residual_correlation": wander_test,
-            # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
-            # geometry fits the data only with parameters no robot has.
-            "implausible": base_fit.implausible(),
-        },
-        effects=effects,
-        rejected=rejected,
-        final={
-            "rmse_heldout": reported_rmse(current_cv["random"]),
-            "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]),
-            "n_params": int(model.n),
-            **_rotation_entries(dataset, current_cv),
-            "floor_mm": budget["floor_mm"],
-            "floor": budget,
-            # Share of the baseline's held-out mean square error above the floor that the causes explain.
-            "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
-            # The physical model: a tolerance prior where the geometry is undetermined
-            # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
-            "tolerance_prior": prior,
-            "rmse_heldout_unconstrained": unconstrained,
-            "implausible": final_fit.implausible(),
-            # Noise or not (tested), and what the selection refused although it would have explained much.
-            "structure_unexplained": structure_unexplained,
-            "residuals": leftover,
-            "unexplained": unexplained(rejected[last_round[0] : last_round[2]], last_round[1]),
-        },
-        model=model,
-        x=x,
-        outliers=[int(v) for v in outliers],
-        plots=plots,
-    ), _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
+    return (
+        Diagnosis(
+            robot=rob,
+            data=dataset,
+            baseline={
+                "rmse_heldout": reported_rmse(baseline_cv["random"]),
+                "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
+                "rmse_train": base_fit.metrics["train"]["rmse"],
+                **_rotation_entries(dataset, baseline_cv),
+                "n_params": int(len(base.free)),
+                "hayati": hayati,
+                "folds": folds,
+                # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
+                "residual_correlation": wander_test,
+                # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
+                # geometry fits the data only with parameters no robot has.
+                "implausible": base_fit.implausible(),
+            },
+            effects=effects,
+            rejected=rejected,
+            final={
+                "rmse_heldout": reported_rmse(current_cv["random"]),
+                "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]),
+                "n_params": int(model.n),
+                **_rotation_entries(dataset, current_cv),
+                "floor_mm": budget["floor_mm"],
+                "floor": budget,
+                # Share of the baseline's held-out mean square error above the floor that the causes explain.
+                "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
+                # The physical model: a tolerance prior where the geometry is undetermined
+                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
+                "tolerance_prior": prior,
+                "rmse_heldout_unconstrained": unconstrained,
+                "implausible": final_fit.implausible(),
+                # Noise or not (tested), and what the selection refused although it would have explained much.
+                "structure_unexplained": structure_unexplained,
+                "residuals": leftover,
+                "unexplained": found,
+            },
+            model=model,
+            x=x,
+            outliers=[int(v) for v in outliers],
+            plots=plots,
+        ),
+        _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound),
+        decided,
+    )
 
 
 def explained_shares(effects: list, baseline: float, final: float) -> None:
