@@ -281,7 +281,7 @@ def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
     x = np.clip(qj, float(detail["lo"]) * DEG, float(detail["hi"]) * DEG)
     B = sparse.csr_array(BSpline.design_matrix(x, t, MAP_DEGREE, extrapolate=True))
     inside = sparse.diags_array(map_coverage(qj, detail).astype(np.float64))
-    return (inside @ B @ sparse.csr_array(map_constraint(detail))).tocsr()
+    return (inside @ B @ sparse.csr_array(map_constraint(detail))).tocsr().sorted_indices()  # each row's columns ascending
 
 
 def map_penalty(detail: dict, weight: float) -> np.ndarray:

@@ -260,8 +260,7 @@ class ExtendedProblem:
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             from scipy import sparse
 
-            data_rows = sparse.diags_array(self.row_weights) @ self._sparse_data_rows(blocks, n)
-            return sparse.vstack([data_rows, sparse.csr_array(rows)], format="csr")
+            return sparse.vstack([self._sparse_data_rows(blocks, n), sparse.csr_array(rows)], format="csr")
         J = np.hstack(blocks) * self.row_weights[:, None]
         return np.vstack([J, rows]) if len(rows) else J
 
@@ -273,9 +272,11 @@ class ExtendedProblem:
         return self._residual_rows[id(cause)]
 
     def _sparse_data_rows(self, blocks: list, n: int):
-        """The data rows of the Jacobian as CSR, assembled straight from its blocks: the dense
-        ones (geometry, causes with a few columns) fill every row, the maps' sparse ones their
-        four entries. The pattern is computed once per problem; each call fills the values."""
+        """The data rows of the Jacobian, weighted (:attr:`row_weights`), as CSR assembled straight
+        from its blocks: the dense ones (geometry, causes with a few columns) fill every row, the
+        maps' sparse ones their four entries, each row's columns in ascending order (runs of
+        consecutive columns: what the core's Gram adds fastest). The pattern is computed once
+        per problem; each call fills the values."""
         from scipy import sparse
 
         offsets = np.concatenate([[0], np.cumsum([b.shape[1] for b in blocks])])
@@ -297,13 +298,14 @@ class ExtendedProblem:
                 indices[where] = b.indices + offsets[i]
                 at_thin.append(where)
                 slot = slot + count
-            layout = self._layout = (m, indptr, indices, at_dense, at_thin)
-        m, indptr, indices, at_dense, at_thin = layout
+            weights = np.repeat(self.row_weights, np.diff(indptr))
+            layout = self._layout = (m, indptr, indices, at_dense, at_thin, weights)
+        m, indptr, indices, at_dense, at_thin, weights = layout
         data = np.empty(len(indices))
         data[at_dense] = np.hstack([blocks[i] for i in dense])
         for i, where in zip(thin, at_thin):
             data[where] = blocks[i].data
-        return sparse.csr_array((data, indices, indptr), shape=(m, n))
+        return sparse.csr_array((data * weights, indices, indptr), shape=(m, n))
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)

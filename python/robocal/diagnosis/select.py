@@ -978,7 +978,7 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     entry = {**TOLERANCE_SIGMAS, "accepted": False}
     cv, fits = {}, {}
     for name, folds in schemes.items():  # random, blocked, then groups
-        cv[name], fits[name] = nonlinear_cv(physical, folds)
+        cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
         entry[f"rmse_heldout_{name}"] = reported_rmse(cv[name])
         if judged_rmse(cv[name]) > (1.0 + PRIOR_COST) * judged_rmse(current_cv[name]):
             entry["reason"] = prior_rejected(f"{name}-fold held-out", judged_rmse(current_cv[name]), judged_rmse(cv[name]), model.data.measurement)
