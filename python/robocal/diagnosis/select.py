@@ -562,7 +562,7 @@ def _select(
         model_err = screen.errors(np.zeros((len(r), 0)))
         # What is left alike in time (a wandering reading, a drift that is not linear) is no
         # independent evidence for the candidates that do not model it.
-        round_test = residual_correlation(dataset, keep, r.reshape(len(keep), k))
+        round_test = wander_test if not causes else residual_correlation(dataset, keep, r.reshape(len(keep), k))  # round 1: the baseline's residuals
         inflation = time_inflation(round_test)
         # Residuals alike in joint space and not beyond it in time are evidence for the robot's
         # causes: a wander would take them along the path (UR10 series B: 0.105 -> 0.137 mm).
