@@ -6,7 +6,7 @@ use _robocal::fixtures::hsr_jr680;
 use _robocal::kinematics::Chain;
 use _robocal::measurement::{sigma_residuals, Batch, Measurement};
 use _robocal::sigma::merwe_sigma_points;
-use _robocal::solve::{solve_damped, Damping};
+use _robocal::solve::{solve_damped, sparse_gram, Damping};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
 
@@ -116,9 +116,36 @@ fn bench_solve(c: &mut Criterion) {
     group.finish();
 }
 
+/// `JᵀJ` of a diagnosis' sparse Jacobian: 3 rows a sample (a tracker's position), 28 dense
+/// columns (the geometry and the set-up) and five joint maps of 120 B-spline coefficients, four
+/// consecutive ones a row, at a coefficient that moves slowly along the samples (a path) — the
+/// layout of UR10 series A with five maps (36 000 rows, 51 entries a row).
+fn bench_sparse_gram(c: &mut Criterion) {
+    let (dense, maps, width) = (28usize, 5usize, 120usize);
+    let ncols = dense + maps * width;
+    let mut group = c.benchmark_group("sparse_gram");
+    for samples in [1_000usize, 12_000] {
+        let (mut indptr, mut indices, mut data) = (vec![0usize], Vec::new(), Vec::new());
+        for row in 0..3 * samples {
+            indices.extend(0..dense);
+            for map in 0..maps {
+                let at = ((row / 3) * (map + 1) / 7) % (width - 4);
+                indices.extend((0..4).map(|t| dense + map * width + at + t));
+            }
+            data.extend((data.len()..indices.len()).map(|k| ((k as f64) * 0.618_033_988_75).fract() - 0.5));
+            indptr.push(indices.len());
+        }
+        group.throughput(Throughput::Elements(indices.len() as u64));
+        group.bench_with_input(BenchmarkId::new("ur10_five_maps", samples), &(indptr, indices, data), |b, (p, i, d)| {
+            b.iter(|| sparse_gram(black_box(p), i, d, ncols).unwrap())
+        });
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
-    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve
+    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve, bench_sparse_gram
 }
 criterion_main!(benches);
