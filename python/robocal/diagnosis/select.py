@@ -827,12 +827,11 @@ def _select(
     if replay is not None:  # the earlier pass's other refusals, as that pass measured them
         decided_now = {e["label"] for e in rejected} | {e["label"] for e in effects}
         rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
-    map_entries = accepted_maps + rejected_maps
     decided = Decided(
         forward,
-        {m["candidate"].label for m in map_entries if "reason" not in m},
+        {m["candidate"].label for m in accepted_maps},
         searched,
-        max((m["tests"] for m in map_entries), default=0),
+        max((m["tests"] for m in accepted_maps + rejected_maps), default=0),
         list(rejected),
         found,
     )

@@ -138,18 +138,18 @@ def judgeable(c: Candidate, idx: np.ndarray, schemes: dict) -> dict:
     the settling (three time constants: its coefficient is then free, and its prediction in the
     first block tens of millimetres off)."""
     if c.kind == "step":
-        after = c.basis[idx, 0, 0] > 0
-        seen = [after, ~after]  # training samples needed on both sides
+        estimable = lambda train: _on_both_sides(c, idx[train])
     elif c.kind == "drift" and "settling" in c.detail:
         fall = c.basis[idx, 0, 1]
-        seen = [fall - fall.min() >= np.exp(-3.0)]  # ... within the settling
+        within = fall - fall.min() >= np.exp(-3.0)
+        estimable = lambda train: within[train].any()  # training samples within the settling
     else:
         return {name: slice(None) for name in schemes}
     out = {}
     for name, folds in schemes.items():
         mask = np.ones(len(idx), dtype=bool)
         for train, test in folds:
-            if not all(part[train].any() for part in seen):
+            if not estimable(train):
                 mask[test] = False
         out[name] = mask
     return out
