@@ -99,13 +99,15 @@ def levenberg_marquardt(
     loss: str = "linear",
     f_scale: float = None,
     statistical_stop: bool = True,
+    with_std: bool = True,
 ) -> CalibrationResult:
     """Minimises ``½‖r(x)‖²`` (or the robust cost of ``loss``) of ``problem`` from ``x0``
     (default ``problem.x0``).
 
     Returns a :class:`CalibrationResult`; non-convergence within ``max_nfev`` is reported in
     ``success``/``message``, not raised; ``statistical_stop=False`` runs to scipy's
-    tolerances instead of stopping at the noise level (see the module notes). With a robust ``loss`` the result's ``robust`` holds
+    tolerances instead of stopping at the noise level (see the module notes); ``with_std=False``
+    leaves the result's ``std`` None (a fit whose ``x`` alone is wanted). With a robust ``loss`` the result's ``robust`` holds
     the loss, the scale and the rows of the samples beyond :data:`OUTLYING` scales. Without
     ``f_scale`` the scale is estimated from a plain fit, then once more from the robust fit.
     """
@@ -115,7 +117,9 @@ def levenberg_marquardt(
     max_nfev = as_count(max_nfev, "max_nfev")
     ftol, xtol, gtol, lam0 = (as_tolerance(v, n) for v, n in ((ftol, "ftol"), (xtol, "xtol"), (gtol, "gtol"), (lam0, "lam0")))
     start = time.perf_counter()
-    options = dict(max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=gtol, lam0=lam0, method=method, statistical_stop=bool(statistical_stop))
+    options = dict(
+        max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=gtol, lam0=lam0, method=method, statistical_stop=bool(statistical_stop), with_std=bool(with_std)
+    )
     fit = _minimise(problem, x0, _Cost(problem, "linear", 1.0), **options)
     if loss == "linear":
         return fit
@@ -155,7 +159,17 @@ GEODESIC_ALPHA = 0.75
 
 
 def _minimise(
-    problem: Problem, x0, objective: _Cost, max_nfev: int, ftol: float, xtol: float, gtol: float, lam0: float, method: str, statistical_stop: bool
+    problem: Problem,
+    x0,
+    objective: _Cost,
+    max_nfev: int,
+    ftol: float,
+    xtol: float,
+    gtol: float,
+    lam0: float,
+    method: str,
+    statistical_stop: bool,
+    with_std: bool,
 ) -> CalibrationResult:
     """The damped iteration on ``objective`` (see the module notes)."""
     start = time.perf_counter()
@@ -250,7 +264,9 @@ def _minimise(
     evaluated = None
     if best_x is x and J_at is x:
         evaluated = (r, J, gram if gram_at is x and not weighted else None)
-    result = CalibrationResult.from_fit(method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start, evaluated=evaluated)
+    result = CalibrationResult.from_fit(
+        method, problem, best_x, history, nit, nfev, success, message, time.perf_counter() - start, evaluated=evaluated, with_std=with_std
+    )
     result.njev = njev
     return result
 

@@ -299,10 +299,23 @@ class CalibrationResult:
 
     @classmethod
     def from_fit(
-        cls, method: str, problem: Problem, x, history, nit: int, nfev: int, success: bool, message: str, time_s: float, *, evaluated=None
+        cls,
+        method: str,
+        problem: Problem,
+        x,
+        history,
+        nit: int,
+        nfev: int,
+        success: bool,
+        message: str,
+        time_s: float,
+        *,
+        evaluated=None,
+        with_std: bool = True,
     ) -> "CalibrationResult":
-        """Wraps a fitted ``x``: cost, covariance-based ``std`` and training metrics.
-        ``evaluated``: ``(problem.residuals(x), problem.jacobian(x), JᵀJ or None)`` when the caller has them."""
+        """Wraps a fitted ``x``: cost, covariance-based ``std`` (``with_std=False``: None) and
+        training metrics. ``evaluated``: ``(problem.residuals(x), problem.jacobian(x), JᵀJ or
+        None)`` when the caller has them."""
         x = np.asarray(x, dtype=np.float64)
         held = bounds_against_nominal(problem, x)
         if held and success:  # the optimum lies beyond the bounds: no convergence to the data
@@ -310,12 +323,14 @@ class CalibrationResult:
                 False,
                 f"stopped at bounds that exclude the nominal value ({'; '.join(held)}): the data pull beyond them (the solver's stop: {message})",
             )
-        r, J, gram = evaluated if evaluated is not None else (problem.residuals(x), problem.jacobian(x), None)
+        if evaluated is None:
+            evaluated = (problem.residuals(x), problem.jacobian(x) if with_std else None, None)
+        r, J, gram = evaluated
         # A plain problem without priors and with unit row weights minimises its data residuals themselves.
         plain = type(problem) is Problem and not problem.prior and problem.data.measurement != "pose"
         data_r = r if plain else problem.data_residuals(x)
         std = None
-        if J.shape[0] > J.shape[1]:
+        if with_std and J.shape[0] > J.shape[1]:
             cov = None if gram is None else normal_covariance(gram, r)
             if cov is None:
                 cov, _, _, rank = covariance(J, r)

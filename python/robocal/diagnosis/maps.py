@@ -25,6 +25,7 @@ from scipy.stats import f as f_dist
 from ..kernels import is_sparse
 from ..progress import progress
 from ..stats import rmse_of_squares
+from ..threads import thread_map
 from .candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from .model import ExtendedProblem, judged_rmse, reported_rmse
 from .structure import EQUAL
@@ -82,28 +83,33 @@ class _NormalScreen:
         return products
 
     def errors(self, C=None, P=None, joint_map=None) -> dict:
-        """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``."""
+        """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``.
+        The folds are solved in parallel (:func:`~robocal.threads.thread_map`)."""
         if C is not None:
             CtC, CtJ, Ctr, held_out = self._products(C, joint_map)
             if P is not None:
                 CtC = CtC + P.T @ P
-        out = {}
-        for name, folds in self.folds.items():
-            err = np.zeros(self.n_data // self.k)
-            for i, (train, test, rows, Jte, JteJte, Jter) in enumerate(folds):
-                N, b = self.JtJ - JteJte, self.Jtr - Jter
-                if C is not None:
-                    Cte, CteJ, Cter, CteCte = held_out[name][i]
-                    CJ = CtJ - CteJ
-                    N = np.block([[N, CJ.T], [CJ, CtC - CteCte]])
-                    b = np.concatenate([b, Ctr - Cter])
-                delta = _solve(N, b)
-                e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
-                if C is not None:
-                    covered = self._covered_rows(joint_map, train, test) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
-                    e = e - (Cte @ delta[self.J.shape[1] :]) * covered
-                err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
-            out[name] = err
+
+        def fold_errors(at: tuple) -> np.ndarray:
+            name, i = at
+            train, test, rows, Jte, JteJte, Jter = self.folds[name][i]
+            N, b = self.JtJ - JteJte, self.Jtr - Jter
+            if C is not None:
+                Cte, CteJ, Cter, CteCte = held_out[name][i]
+                CJ = CtJ - CteJ
+                N = np.block([[N, CJ.T], [CJ, CtC - CteCte]])
+                b = np.concatenate([b, Ctr - Cter])
+            delta = _solve(N, b)
+            e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
+            if C is not None:
+                covered = self._covered_rows(joint_map, train, test) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
+                e = e - (Cte @ delta[self.J.shape[1] :]) * covered
+            return (e * e).reshape(-1, self.k).sum(axis=1)
+
+        at = [(name, i) for name, folds in self.folds.items() for i in range(len(folds))]
+        out = {name: np.zeros(self.n_data // self.k) for name in self.folds}
+        for (name, i), err in zip(at, thread_map(fold_errors, at)):
+            out[name][self.folds[name][i][1]] = err
         return out
 
     def f_test(self, C) -> tuple[float, int]:

@@ -260,7 +260,16 @@ class ExtendedProblem:
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             from scipy import sparse
 
-            return sparse.vstack([self._sparse_data_rows(blocks, n), sparse.csr_array(rows)], format="csr")
+            data_rows, extra = self._sparse_data_rows(blocks, n), sparse.csr_array(rows)
+            # stacked by hand: scipy's vstack re-checks and copies every index (6 ms a call on UR10 A)
+            return sparse.csr_array(
+                (
+                    np.concatenate([data_rows.data, extra.data]),
+                    np.concatenate([data_rows.indices, extra.indices.astype(data_rows.indices.dtype)]),
+                    np.concatenate([data_rows.indptr, extra.indptr[1:] + data_rows.nnz]),
+                ),
+                shape=(data_rows.shape[0] + extra.shape[0], n),
+            )
         J = np.hstack(blocks) * self.row_weights[:, None]
         return np.vstack([J, rows]) if len(rows) else J
 

@@ -42,6 +42,7 @@ from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
+from ..threads import thread_map
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from . import structure
@@ -167,15 +168,17 @@ class _Screen:
         """Held-out squared error per sample of ``r ≈ [J, C]·δ`` (``C`` penalised by ``P``)
         fitted per fold, per scheme."""
         C, P = _unit_penalised(C, P)
-        out = {}
-        for name, folds in self.folds.items():
-            err = np.zeros(self.m)
-            for fold in folds:
-                _, rows_te, test, *_ = fold
-                dJ, c = self._solve(fold, C, P)[:2]
-                e = self.r[rows_te] - self.J[rows_te] @ dJ - C[rows_te] @ c
-                err[test] = (e * e).reshape(-1, self.k).sum(axis=1)
-            out[name] = err
+
+        def fold_errors(fold: tuple) -> np.ndarray:  # one fold's held-out samples
+            rows_te = fold[1]
+            dJ, c = self._solve(fold, C, P)[:2]
+            e = self.r[rows_te] - self.J[rows_te] @ dJ - C[rows_te] @ c
+            return (e * e).reshape(-1, self.k).sum(axis=1)
+
+        folds = [(name, fold) for name, scheme in self.folds.items() for fold in scheme]
+        out = {name: np.zeros(self.m) for name in self.folds}
+        for (name, fold), err in zip(folds, thread_map(fold_errors, [fold for _, fold in folds])):
+            out[name][fold[2]] = err
         return out
 
     def f_test(self, C: np.ndarray, inflation: float = 1.0, P: Optional[np.ndarray] = None) -> float:

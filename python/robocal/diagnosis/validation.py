@@ -17,6 +17,7 @@ import numpy as np
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import start_parameters
 from ..data.splits import configuration_groups, kfold
+from ..threads import thread_map
 from .candidates import Candidate, map_within
 from .model import ExtendedProblem
 from .wander import wander_centred, wander_within
@@ -45,12 +46,13 @@ def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) ->
 WARM_DAMPING = 1e-6
 
 
-def fit_problem(problem: ExtendedProblem, x0=None):
+def fit_problem(problem: ExtendedProblem, x0=None, with_std: bool = True):
     """``problem`` fitted (nonlinear, stopping at the noise level) from ``x0``, a warm start, or
-    its own start."""
+    its own start; ``with_std=False``: without the parameters' standard deviations (a fold's
+    fit needs only its ``x``)."""
     if x0 is None:
-        return levenberg_marquardt(problem, method="diagnose")
-    return levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING)
+        return levenberg_marquardt(problem, method="diagnose", with_std=with_std)
+    return levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std)
 
 
 def fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.ndarray] = None) -> ExtendedProblem:
@@ -91,15 +93,21 @@ def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = Non
     each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
     for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
     and the fit is the start. Without it each fold starts from its own training samples'
-    set-up: never from a fit that saw its held-out samples."""
-    err, fits = np.zeros((len(ext.idx), 2)), []
-    for i, (train, test) in enumerate(folds):
+    set-up: never from a fit that saw its held-out samples. The folds are fitted in parallel
+    (:func:`~robocal.threads.thread_map`)."""
+
+    def fit_fold(i: int) -> tuple:
+        train, test = folds[i]
         setup, x0 = (None, None) if starts is None else starts[i]
         fold = fold_problem(ext, train, setup)
-        fit = fit_problem(fold, x0=x0)
-        err[test] = held_out_errors(ext, fold, train, test, fit.x)
-        fits.append((fold.base.start, fit.x))
-    return err, fits
+        fit = fit_problem(fold, x0=x0, with_std=False)
+        return held_out_errors(ext, fold, train, test, fit.x), (fold.base.start, fit.x)
+
+    err = np.zeros((len(ext.idx), 2))
+    fitted = thread_map(fit_fold, range(len(folds)))
+    for (_, test), (held_out, _) in zip(folds, fitted):
+        err[test] = held_out
+    return err, [fit for _, fit in fitted]
 
 
 def held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
