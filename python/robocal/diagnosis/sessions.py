@@ -32,6 +32,7 @@ from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
 from ..progress import progress
+from ..threads import thread_map
 from ..serial_robot import Robot
 from . import structure
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
@@ -197,21 +198,24 @@ class _Evaluator:
         """Per session, the :func:`~.model.squared_errors` of its samples under the model fitted
         on the others (joint maps over the others' range). Keeps, per session, which of them every map
         covers (``coverage``)."""
-        errors, covered = [], []
-        for h in range(len(self.sessions)):
+
+        def held_out_session(h: int) -> tuple:
             problems = self.problems(model, span=tuple(s for s in range(len(self.sessions)) if s != h))
             held = problems[h]
-            covered.append(map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q))
+            covered = map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q)
             train = model.stacked([p for s, p in enumerate(problems) if s != h])
             key = (model.conventions, h)  # a smaller model's fits on the same readings start it
-            fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose")
+            fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose", with_std=False)
             self._starts[(*key, "train")] = dict(zip(train.names, fit.x))
             part = Partial(held, [n for n in held.names if is_private(n, self.measurement)], self._held_start(held, self._starts[(*key, "train")]))
-            fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose")
+            fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose", with_std=False)
             self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
-            errors.append(squared_errors(part.data_residuals(fitted.x) * held.row_weights, held.k))
-        self.coverage[model] = covered
-        return errors
+            return squared_errors(part.data_residuals(fitted.x) * held.row_weights, held.k), covered
+
+        self.bases(model)  # built once, before the threads read it
+        left_out = thread_map(held_out_session, range(len(self.sessions)))  # the sessions left out in parallel
+        self.coverage[model] = [covered for _, covered in left_out]
+        return [errors for errors, _ in left_out]
 
     def rotation_entries(self, model: _Model, errors: list[np.ndarray]) -> dict:
         """The held-out orientation error of pose data from ``model``'s :meth:`held_out`
