@@ -249,7 +249,15 @@ class ExtendedProblem:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         J, p, parts = self._jacobian_columns(x, [])
         blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
-        n = sum(b.shape[1] for b in blocks)
+        if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
+            return self._sparse_jacobian(blocks)
+        J = np.hstack(blocks) * self.row_weights[:, None]
+        rows = self._constant_rows(J.shape[1])
+        return np.vstack([J, rows]) if len(rows) else J
+
+    def _constant_rows(self, n: int) -> np.ndarray:
+        """The Jacobian's rows beyond the data, (rows, n): the base problem's priors and the
+        causes' roughness penalties, which do not depend on ``x``."""
         rows = np.zeros((len(self._prior), n))
         for row, (i, _, sigma) in enumerate(self._prior):
             rows[row, i] = self.base.prior_scale / sigma
@@ -257,21 +265,7 @@ class ExtendedProblem:
             block = np.zeros((len(P), n))
             block[:, s] = P
             rows = np.vstack([rows, block])
-        if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
-            from scipy import sparse
-
-            data_rows, extra = self._sparse_data_rows(blocks, n), sparse.csr_array(rows)
-            # stacked by hand: scipy's vstack re-checks and copies every index (6 ms a call on UR10 A)
-            return sparse.csr_array(
-                (
-                    np.concatenate([data_rows.data, extra.data]),
-                    np.concatenate([data_rows.indices, extra.indices.astype(data_rows.indices.dtype)]),
-                    np.concatenate([data_rows.indptr, extra.indptr[1:] + data_rows.nnz]),
-                ),
-                shape=(data_rows.shape[0] + extra.shape[0], n),
-            )
-        J = np.hstack(blocks) * self.row_weights[:, None]
-        return np.vstack([J, rows]) if len(rows) else J
+        return rows
 
     def _basis_rows(self, cause: Candidate):
         """A joint map's basis at every residual row (its sample's row repeated ``k`` times), CSR;
@@ -280,19 +274,20 @@ class ExtendedProblem:
             self._residual_rows[id(cause)] = cause.basis[np.repeat(self.idx, self.k)].tocsr()
         return self._residual_rows[id(cause)]
 
-    def _sparse_data_rows(self, blocks: list, n: int):
-        """The data rows of the Jacobian, weighted (:attr:`row_weights`), as CSR assembled straight
-        from its blocks: the dense ones (geometry, causes with a few columns) fill every row, the
-        maps' sparse ones their four entries, each row's columns in ascending order (runs of
-        consecutive columns: what the core's Gram adds fastest). The pattern is computed once
-        per problem; each call fills the values."""
+    def _sparse_jacobian(self, blocks: list):
+        """The Jacobian as CSR assembled straight from its blocks: the data rows weighted
+        (:attr:`row_weights`) — the dense blocks (geometry, causes with a few columns) fill every
+        row, the maps' sparse ones their four entries, each row's columns in ascending order (runs
+        of consecutive columns: what the core's Gram adds fastest) — then the
+        :meth:`_constant_rows`. The pattern and the constant rows are laid out once per problem;
+        each call fills the data rows' values."""
         from scipy import sparse
 
         offsets = np.concatenate([[0], np.cumsum([b.shape[1] for b in blocks])])
+        n = int(offsets[-1])
         dense = [i for i, b in enumerate(blocks) if not is_sparse(b)]
         thin = [i for i, b in enumerate(blocks) if is_sparse(b)]
-        layout = self._layout
-        if layout is None:
+        if self._layout is None:
             m = blocks[0].shape[0]
             dense_cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in dense])
             counts = [np.diff(blocks[i].indptr) for i in thin]
@@ -308,13 +303,19 @@ class ExtendedProblem:
                 at_thin.append(where)
                 slot = slot + count
             weights = np.repeat(self.row_weights, np.diff(indptr))
-            layout = self._layout = (m, indptr, indices, at_dense, at_thin, weights)
-        m, indptr, indices, at_dense, at_thin, weights = layout
+            constant = sparse.csr_array(self._constant_rows(n))
+            nnz = int(indptr[-1])
+            indptr = np.concatenate([indptr, constant.indptr[1:] + nnz])
+            indices = np.concatenate([indices, constant.indices])
+            self._layout = (m + constant.shape[0], nnz, indptr, indices, at_dense, at_thin, weights, constant.data)
+        rows, nnz, indptr, indices, at_dense, at_thin, weights, constant = self._layout
         data = np.empty(len(indices))
         data[at_dense] = np.hstack([blocks[i] for i in dense])
         for i, where in zip(thin, at_thin):
             data[where] = blocks[i].data
-        return sparse.csr_array((data * weights, indices, indptr), shape=(m, n))
+        data[:nnz] *= weights
+        data[nnz:] = constant
+        return sparse.csr_array((data, indices, indptr), shape=(rows, n))
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)
