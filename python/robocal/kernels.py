@@ -194,6 +194,30 @@ def covariance(J, r, tol: float = 1e-9):
     return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), as_float(tol, "tol"))
 
 
+#: Singular values at or below this fraction of the largest count as zero in :func:`truncated_svd`.
+SVD_RCOND = 1e-10
+
+
+def unit_columns(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(A / scale, scale)``: the columns of a dense ``A`` (m, n) divided by their norms
+    ``scale`` (n,), a zero column left as it is (its scale 1). In these units the singular values
+    of a Jacobian compare directions of the data, not the units of its parameters."""
+    scale = np.linalg.norm(A, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    return A / scale, scale
+
+
+def truncated_svd(A: np.ndarray, rcond: Optional[float] = SVD_RCOND) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U (m, k), s (k,), Vt (k, n)`` of the thin SVD of a dense ``A`` (m, n) (scaled by the caller,
+    e.g. with :func:`unit_columns`), keeping the ``k`` singular values above ``rcond`` times the
+    largest: the directions the data determine (every one, zeros included, if ``rcond`` is None)."""
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    if rcond is None:
+        return U, s, Vt
+    keep = s > rcond * s[0] if s.size else s > 0
+    return U[:, keep], s[keep], Vt[keep]
+
+
 def configuration_groups(q, tol: float) -> np.ndarray:
     """One label per sample of ``q`` (m, N): samples whose joint values agree within ``tol`` on
     every joint (chained) share one, numbered ``0..g-1`` in order of first appearance — the

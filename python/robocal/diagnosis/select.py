@@ -37,7 +37,7 @@ from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
 from ..calibration.result import GROSS_FACTOR
-from ..kernels import as_count, as_float, as_tolerance, is_sparse
+from ..kernels import SVD_RCOND, as_count, as_float, as_tolerance, is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
@@ -96,19 +96,7 @@ class Diagnosis:
 
 
 #: Singular values below this fraction of the largest count as zero in the linear screening.
-RCOND = 1e-10
-
-
-def _basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``U, s, Vt`` of the SVD of ``A`` truncated at :data:`RCOND`."""
-    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
-    keep = sv > RCOND * sv[0] if sv.size else sv > 0
-    return U[:, keep], sv[keep], Vt[keep]
-
-
-def _unit_columns(A: np.ndarray) -> np.ndarray:
-    scale = np.linalg.norm(A, axis=0)
-    return A / np.where(scale > 0, scale, 1.0)
+RCOND = SVD_RCOND
 
 
 #: Residual components whose robust noise differs by more than this factor are scaled apart in
@@ -127,7 +115,7 @@ class _Screen:
     """
 
     def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
-        self.J, self.r, self.k = _unit_columns(J), r, k
+        self.J, self.r, self.k = unit_columns(J)[0], r, k
         self.m = len(r) // k
         self.folds = {name: [self._fold(train, test, self.J, r) for train, test in folds] for name, folds in schemes.items()}
         # The F test assumes one noise level for every row: a pose's position and rotation rows
@@ -137,11 +125,11 @@ class _Screen:
         sigma = robust_sigma(r.reshape(self.m, k))
         self.whiten = np.tile(1.0 / sigma, self.m) if k > 1 and np.max(sigma) > WHITEN_RATIO * np.min(sigma) else None
         w = np.ones(len(r)) if self.whiten is None else self.whiten
-        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), _unit_columns(J * w[:, None]), r * w)
+        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), unit_columns(J * w[:, None])[0], r * w)
 
     def _fold(self, train: np.ndarray, test: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
         rows_tr, rows_te = (train[:, None] * self.k + np.arange(self.k)).ravel(), (test[:, None] * self.k + np.arange(self.k)).ravel()
-        U, sv, Vt = _basis(J[rows_tr])
+        U, sv, Vt = truncated_svd(J[rows_tr], RCOND)
         coef = U.T @ r[rows_tr]
         return rows_tr, rows_te, test, U, sv, Vt, coef, r[rows_tr] - U @ coef
 

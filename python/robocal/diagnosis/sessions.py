@@ -27,7 +27,7 @@ from threadpoolctl import threadpool_limits
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
-from ..kernels import is_sparse
+from ..kernels import is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
@@ -254,12 +254,10 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
     then not defined), while a cause's own coefficient is still determined."""
     J, r = stacked.jacobian(x), stacked.residuals(x)
     J = J.toarray() if is_sparse(J) else J
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale == 0] = 1.0
-    U, sv, Vt = np.linalg.svd(J / scale, full_matrices=False)
-    keep = sv > 1e-10 * sv[0]
-    sigma2 = float(r @ r) / max(len(r) - int(keep.sum()), 1)
-    return np.sqrt(sigma2 * np.sum((Vt[keep] / sv[keep, None]) ** 2, axis=0)) / scale
+    scaled, scale = unit_columns(J)
+    _, sv, Vt = truncated_svd(scaled)
+    sigma2 = float(r @ r) / max(len(r) - len(sv), 1)
+    return np.sqrt(sigma2 * np.sum((Vt / sv[:, None]) ** 2, axis=0)) / scale
 
 
 def _rmse(errors: list[np.ndarray], rmse) -> float:
