@@ -27,7 +27,7 @@ from ..data.splits import configuration_groups, random_split
 from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
 from ..results import file_sha256
-from ..robot_file import read_document
+from ..robot_file import load_document
 from . import structure
 from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .model import ExtendedProblem
@@ -235,13 +235,20 @@ def _session_term(label: str) -> bool:
     return label.split(" ")[0] in SESSION_KINDS
 
 
+def _is_report(causes) -> bool:
+    """A diagnose report (dict) or its JSON file, rather than cause labels."""
+    return isinstance(causes, dict) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
+
+
+def _report(causes):
+    return load_document(causes, "diagnose report", "diagnosis")
+
+
 def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
     """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
     (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
     session fits its own). A step sits at one session's sample: it needs the report."""
-    listed = causes.get("model", {}).get("sessions") if isinstance(causes, dict) else None
-    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
-        listed = (read_document(causes, "diagnose report").get("model") or {}).get("sessions")
+    listed = (_report(causes).get("model") or {}).get("sessions") if _is_report(causes) else None
     if listed is not None:
         if not isinstance(listed, list) or len(listed) != n or not all(isinstance(e, dict) and isinstance(e.get("causes"), list) for e in listed):
             raise InvalidParameterError(f"the diagnose report's model.sessions must list the causes of each of the {n} sessions given, in order")
@@ -256,8 +263,8 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     """Cause labels from labels, a diagnose report (dict) or its JSON file — the report's
     reading conventions (``model.structure``) first, then its ``model.causes`` — and the
     report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
-    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
-        causes = read_document(causes, "diagnose report")
+    if _is_report(causes):
+        causes = _report(causes)
     prior = None
     if isinstance(causes, dict):
         try:
