@@ -933,11 +933,29 @@ PRIOR_COST = 0.05
 TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"]))}
 
 
-def prior_rejected(what: str, before: float, after: float, measurement: str) -> str:
-    """Why a tolerance prior that raised ``what`` RMSE (:func:`~.model.judged_rmse`) of
-    ``measurement`` data from ``before`` to ``after`` is not kept."""
-    raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
-    return f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+def judge_tolerance_prior(checks, measurement: str) -> dict:
+    """The report entry of a tolerance prior on the kinematics, judged by its held-out errors:
+    :data:`TOLERANCE_SIGMAS`, ``accepted`` and, per check, the held-out RMSE with the prior
+    (:func:`~.model.reported_rmse`); if it is not accepted, the ``reason``.
+
+    ``checks`` yields, in order, ``(key, what, without, with_prior)``: the entry's key, the
+    held-out error's name (``"random-fold held-out"``) and the squared errors
+    (:func:`~.model.squared_errors`) of ``measurement`` data without and with the prior. The prior
+    is accepted if on every check its :func:`~.model.judged_rmse` is within :data:`PRIOR_COST` of
+    the model's without it; the first check where it is not ends the judging (a lazy ``checks``
+    computes no more). Used by the single-session selection (every fold scheme) and the
+    multi-session one (leave-one-session-out).
+    """
+    entry = {**TOLERANCE_SIGMAS, "accepted": False}
+    for key, what, without, with_prior in checks:
+        entry[key] = reported_rmse(with_prior)
+        before, after = judged_rmse(without), judged_rmse(with_prior)
+        if not after <= (1.0 + PRIOR_COST) * before:
+            raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
+            entry["reason"] = f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+            return entry
+    entry["accepted"] = True
+    return entry
 
 
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
@@ -962,15 +980,16 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
     physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
     x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
-    entry = {**TOLERANCE_SIGMAS, "accepted": False}
     cv, fits = {}, {}
-    for name, folds in schemes.items():  # random, blocked, then groups
-        cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
-        entry[f"rmse_heldout_{name}"] = reported_rmse(cv[name])
-        if judged_rmse(cv[name]) > (1.0 + PRIOR_COST) * judged_rmse(current_cv[name]):
-            entry["reason"] = prior_rejected(f"{name}-fold held-out", judged_rmse(current_cv[name]), judged_rmse(cv[name]), model.data.measurement)
-            return model, fit, current_cv, fold_x, entry
-    entry["accepted"] = True
+
+    def checks():
+        for name, folds in schemes.items():  # random, blocked, then groups
+            cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
+            yield f"rmse_heldout_{name}", f"{name}-fold held-out", current_cv[name], cv[name]
+
+    entry = judge_tolerance_prior(checks(), model.data.measurement)
+    if not entry["accepted"]:
+        return model, fit, current_cv, fold_x, entry
     return physical, fit_problem(physical, x0=x0), cv, fits, entry
 
 
