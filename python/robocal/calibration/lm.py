@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from ..kernels import DampedNormal, as_count, as_positive, as_tolerance, factor_damped, is_sparse
+from ..kernels import as_count, as_positive, as_tolerance, factor_damped, is_sparse
 from ..kernels import normal_equations, sparse_gram
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
@@ -255,6 +255,10 @@ def _minimise(
     return result
 
 
+#: Ridge added to a sparse Jacobian's scaled normal matrix (unit diagonal): it keeps the
+#: matrix definite where the data leave a direction free.
+SPARSE_RIDGE = 1e-12
+
 #: Largest condition number of the scaled normal matrix ``D^-½·JᵀJ·D^-½`` whose Cholesky factor
 #: gives the steps (``J``'s condition up to 10⁵: steps accurate to ~10⁻⁶, and every step's gain
 #: is checked on the residuals); beyond it (D1: 10⁷) ``J·D^-½`` is factored by QR.
@@ -265,10 +269,10 @@ def _factor(Jw, d: np.ndarray, gram):
     """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``) from the normal equations ``gram``
     (``JwᵀJw``). A dense ``Jw``'s when they are well conditioned (:data:`NORMAL_CONDITION`),
     else a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`); a
-    sparse one's always (a model with joint maps: a QR would fill it in), with :class:`DampedNormal`'s ridge."""
+    sparse one's always (a model with joint maps: a QR would fill it in), with :data:`SPARSE_RIDGE`."""
     normal = gram / np.outer(d, d)
     if is_sparse(Jw):
-        return _DampedGram(normal + DampedNormal.RIDGE * np.eye(len(normal)), lambda b: (Jw.T @ b) / d)
+        return _DampedGram(normal + SPARSE_RIDGE * np.eye(len(normal)), lambda b: (Jw.T @ b) / d)
     if gram.size:
         eigenvalues = np.linalg.eigvalsh(normal)
         if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:
