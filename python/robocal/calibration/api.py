@@ -71,9 +71,9 @@ def load_inputs(
 
 
 def _check_named_robot(dataset: Dataset, named, model: Robot) -> None:
-    """An error when the data name a built-in robot and ``model`` is another built-in one (UR10
-    data fit an HSR's geometry to 0.04 mm with absurd parameters); a note on ``dataset`` when
-    ``model`` is a robot of the user's own under another name."""
+    """An error when the data name a built-in robot and ``model`` is another built-in one (one
+    robot's data can fit another's geometry closely with absurd parameters: docs/findings.md,
+    D3); a note on ``dataset`` when ``model`` is a robot of the user's own under another name."""
     if not isinstance(named, str) or named not in BUILTIN or named == model.name:
         return
     where = f" ({dataset.source})" if dataset.source else ""

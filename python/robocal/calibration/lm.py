@@ -4,7 +4,7 @@ for nonlinear least-squares minimization", arXiv:1201.5885).
 
 Calibration problems on real data are *sloppy*: a narrow workspace leaves long, curved valleys
 in which the cost still falls, slowly, over meters of link length. A plain LM crawls along them
-in thousands of tiny steps (2000 evaluations on D1 without converging). Three changes fix that:
+in thousands of tiny steps without converging (D1: docs/findings.md). Three changes fix that:
 
 - **Scaled damping with a memory, one factorisation per Jacobian.** Each step solves
   ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the running maximum of ``diag(JᵀJ)`` (MINPACK's scaling)

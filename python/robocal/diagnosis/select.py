@@ -516,8 +516,8 @@ def _select(
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati) if replay is None else list(replay.causes)
     # A geometry that stays implausible after the reading conventions is structure not
-    # explained: a flexible joint term would only make a wrong geometry fit better (D1: four joint
-    # maps took 0.124 -> 0.067 mm beside a1 at -7858 mm). Those are not offered until it is.
+    # explained: a flexible joint term would only make a wrong geometry fit better (D1's joint
+    # maps: docs/findings.md). Those are not offered until it is.
     unexplained_structure = grossly_implausible(base_fit.implausible())
     if unexplained_structure:
         pool = [c for c in pool if not is_flexible(c)]
@@ -525,7 +525,8 @@ def _select(
     wander_test = residual_correlation(dataset, keep, base_residuals)
     # No wander while the geometric fit's residuals are alike in joint space and not beyond it
     # in time: that is evidence for the robot's causes, and a wander offered in a later round
-    # would take what is left of them along the path (UR10 series A: 0.0755 -> 0.109 mm held out).
+    # would take what is left of them along the path, raising the held-out error (UR10 series A:
+    # docs/findings.md).
     wander_offered = replay is None and (wander_test is None or wander_test["verdict"] != "joints")
     current_cv = baseline_cv
     searched = 0  # the most candidates a round screened
@@ -553,7 +554,7 @@ def _select(
         round_test = wander_test if not causes else residual_correlation(dataset, keep, r.reshape(len(keep), k))  # round 1: the baseline's residuals
         inflation = time_inflation(round_test)
         # Residuals alike in joint space and not beyond it in time are evidence for the robot's
-        # causes: a wander would take them along the path (UR10 series B: 0.105 -> 0.137 mm).
+        # causes: a wander would take them along the path (UR10 series B: docs/findings.md, D3).
         in_joints = bool(round_test) and round_test.get("verdict") == "joints"
         # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
         # cause hid shows once that cause is in). Its knots at half the correlation length and
@@ -605,8 +606,8 @@ def _select(
             # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
             # that gains at least SENSOR_TERM_SHARE of what the wander gains: one coefficient per axis
             # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
-            # (a simulated drift at 9× its detection limit was named a wander; on the public D2
-            # file a wander took the place of a 2.9 mm step and ended at 0.47 mm instead of 0.32).
+            # (a simulated drift well beyond its detection limit was named a wander; on the public
+            # D2 file a wander took the place of the step and ended higher: docs/findings.md).
             wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and is_significant(*s)), default=np.inf)
 
             def time_rank(s) -> int:
@@ -1030,9 +1031,9 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
 
 
 #: A cause with a physical model of how it carries is tried before the best free joint shape
-#: when its screening gain is at least this share of the shape's (UR10 series A and C: joint 2's
-#: compliance 0.71–0.73 of the third harmonic that would take its place; simulated harmonics
-#: that a compliance only grazes: 0.02–0.03) — or whatever its share once the model has one.
+#: when its screening gain is at least this share of the shape's — or whatever its share once
+#: the model has one. The share separates a compliance that a harmonic would replace from a
+#: harmonic the compliance only grazes (the shares measured: docs/findings.md, D3).
 PHYSICS_SHARE = 0.5
 
 
@@ -1044,11 +1045,10 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     of that shape's gain, or any share if one is ``established`` (the model already has a
     compliance: the data have shown the robot bends under gravity, and the other loaded joints
     bend too). Within one session a harmonic — and then a joint map — can take a compliance's
-    shape: on UR10 series A, B and C they did and raised the error on the other series (to
-    2.0 mm on C from A with joint 2's compliance alone, absorbing joint 3's), while a
-    compliance, driven by the gravity torque of the pose, carries to any session; across
-    sessions a joint-1 and a joint-5 map taken first left joint 2's compliance 0.4 % and joint
-    3's none. A sensor's drift or step, a reading convention and a harmonic the compliance only
+    shape and raise the error on other sessions, while a compliance, driven by the gravity torque
+    of the pose, carries to any session; across sessions, maps of other joints taken first can
+    leave a compliance nothing to gain (both seen on the UR10 series: docs/findings.md, D3).
+    A sensor's drift or step, a reading convention and a harmonic the compliance only
     grazes keep their rank. Used by the single-session selection (screening gains) and the
     multi-session one (leave-one-session-out gains)."""
 
