@@ -5,7 +5,7 @@
 One UR10 series (positions; A: 11 911 samples, 35 733 residual rows) with a joint map on every
 joint (cubic B-splines, ``--spacing`` degrees, roughness 0.03°) fitted together with the
 geometry by robocal's LM from the same start, twice: with the model's sparse Jacobian (normal
-equations, :class:`robocal.kernels.DampedNormal`) and with the same Jacobian made dense (the Rust
+equations, the Cholesky factor of ``JᵀJ`` per damping) and with the same Jacobian made dense (the Rust
 column-pivoted QR every other fit uses). Both runs reach the same cost; the table gives the
 median wall time of ``--repeats`` runs, the Jacobian's size and the machine. Diagnose runs its
 fits with one BLAS thread (``threadpool_limits``), as this script asks for through the variable.
@@ -56,7 +56,7 @@ def main() -> None:
     noise = map_noise(plain.data_residuals(geometric.x).reshape(len(data), 3))
     maps = [map_candidate(data, j, args.spacing, 0.03, noise, data.q[:, j]) for j in range(6)]
     rows = []
-    for name, cls in (("sparse normal equations (DampedNormal)", ExtendedProblem), ("dense QR (Rust DampedQr)", Dense)):
+    for name, cls in (("sparse normal equations (the LM's Cholesky of JᵀJ)", ExtendedProblem), ("dense QR (Rust DampedQr)", Dense)):
         model = cls(base, maps, data, idx)
         x0 = np.concatenate([geometric.x, np.zeros(model.n - len(geometric.x))])
         times, fit = [], None

@@ -577,3 +577,24 @@ def test_a_region_of_large_residuals_is_not_named_as_outliers():
     z[region, 2] += 12.0
     suspects = np.sort(np.concatenate([[lone], region]))
     assert _isolated(q, z, suspects, np.arange(300), 8.0).tolist() == [lone]
+
+
+def test_tolerance_prior_is_judged_on_each_held_out_check_until_one_rejects_it():
+    from robocal.diagnosis.select import PRIOR_COST, judge_tolerance_prior
+
+    without = np.column_stack([np.ones(10), np.zeros(10)])  # squared errors (position, rotation): 1 mm RMS
+    cheap, costly = without * (1.0 + PRIOR_COST) ** 2 * 0.99, without * (1.0 + PRIOR_COST) ** 2 * 1.01
+    computed = []
+
+    def checks(second):
+        for name, with_prior in (("random", cheap), ("blocked", second), ("groups", cheap)):
+            computed.append(name)
+            yield f"rmse_heldout_{name}", f"{name}-fold held-out", without, with_prior
+
+    entry = judge_tolerance_prior(checks(costly), "position")
+    assert not entry["accepted"] and computed == ["random", "blocked"] and "rmse_heldout_groups" not in entry
+    assert "blocked-fold held-out RMSE from 1 to 1.05" in entry["reason"] and entry["rmse_heldout_blocked"] == pytest.approx(1.05 * np.sqrt(1.01))
+    computed.clear()
+    entry = judge_tolerance_prior(checks(cheap), "position")
+    assert entry["accepted"] and computed == ["random", "blocked", "groups"] and "reason" not in entry
+    assert not judge_tolerance_prior([("rmse_loso", "leave-one-session-out", without, without * np.nan)], "position")["accepted"]

@@ -14,7 +14,7 @@ from robocal.data.canonical import write_canonical
 from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
-from robocal.kernels import DampedNormal, factor_damped, sparse_gram
+from robocal.kernels import factor_damped, sparse_gram
 from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
@@ -193,15 +193,18 @@ def test_verify_names_the_samples_in_a_gap_of_the_maps_data(geared, tmp_path, ca
 @given(st.integers(0, 2**31 - 1), st.floats(1e-8, 1e2))
 @settings(max_examples=30, deadline=None)
 def test_the_sparse_damped_solve_matches_the_dense_qr(seed, lam):
-    """The normal-equation factor of a sparse Jacobian gives the dense QR's damped steps and
-    the same norm of the explained part."""
+    """The LM's damped steps of a sparse Jacobian (a model with joint maps), from its normal
+    equations, are the dense QR's, with the same norm of the explained part."""
+    from robocal.calibration.lm import _factor
+
     rng = np.random.default_rng(seed)
     J = rng.normal(size=(60, 8)) * rng.uniform(0.1, 10, size=8)
     b = rng.normal(size=60)
-    dense, normal = factor_damped(J), factor_damped(sparse.csr_array(J))
-    assert isinstance(normal, DampedNormal)
+    gram = sparse_gram(sparse.csr_array(J))
+    d = np.sqrt(np.diag(gram))
+    dense, normal = factor_damped(J / d), _factor(sparse.csr_array(J), d, gram)
     assert np.isclose(np.linalg.norm(normal.project(b)), np.linalg.norm(dense.project(b)), rtol=1e-8)
-    expected = np.linalg.solve(J.T @ J + lam * np.eye(8), J.T @ b)
+    expected = np.linalg.solve((J / d).T @ (J / d) + lam * np.eye(8), (J / d).T @ b)
     assert np.allclose(normal.solve(normal.project(b), lam), expected, rtol=1e-7, atol=1e-10)
     assert np.allclose(dense.solve(dense.project(b), lam), expected, rtol=1e-7, atol=1e-10)
 

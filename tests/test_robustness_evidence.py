@@ -14,7 +14,7 @@ import pytest
 import robocal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from robocal.calibration.api import calibrate
+from robocal import calibrate
 from robocal.cli import main
 from robocal.compensation import compensate, joint_limits
 from robocal.data import configuration_groups, kfold, random_split, write_canonical

@@ -102,16 +102,14 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "no
 
 
 def factor_damped(J):
-    """``J`` (m, n) factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
-    damped steps ``min ‖J·δ − b‖² + λ‖δ‖²``; a sparse ``J`` (scipy.sparse, a model with joint
-    maps) through its normal equations (:class:`DampedNormal`).
+    """A dense ``J`` (m, n) factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
+    damped steps ``min ‖J·δ − b‖² + λ‖δ‖²`` (a sparse ``J``, a model with joint maps, goes
+    through its normal equations in the LM: :func:`robocal.calibration.lm.levenberg_marquardt`).
 
     Returns a ``DampedQr`` with ``project(b)`` → ``c = Qᵀb`` (n,) — ``‖c‖`` is the norm of
     ``b``'s part that ``J`` explains — and ``solve(c, lam)`` → the step ``δ`` (n,). Scale the
     columns of ``J`` beforehand for Marquardt's damping.
     """
-    if is_sparse(J):
-        return DampedNormal(J)
     return _robocal.DampedQr(as_float_array(J, "J"))
 
 
@@ -135,37 +133,6 @@ def sparse_gram(J) -> np.ndarray:
     if not J.has_sorted_indices:
         J = J.sorted_indices()
     return _robocal.sparse_gram(J.indptr, J.indices, as_float_array(J.data, "J"), J.shape[1])
-
-
-class DampedNormal:
-    """The damped steps of a sparse ``J`` from its normal equations ``N = JᵀJ = L·Lᵀ``.
-
-    ``JᵀJ`` of a model with joint maps is cheap to form (each sample touches four spline
-    coefficients per map) and small (n × n), where a QR of ``J`` would fill it in. The same
-    ``project``/``solve`` as ``DampedQr`` in the basis ``Q = J·L⁻ᵀ`` (orthonormal columns):
-    ``c = L⁻¹·Jᵀb`` and the step ``(N + λI)⁻¹·L·c``, one Cholesky factor per damping. A
-    relative ridge of :data:`RIDGE` keeps ``N`` definite where the data leave a direction free.
-    """
-
-    RIDGE = 1e-12
-
-    def __init__(self, J):
-        from scipy.linalg import cholesky
-
-        self.J = J
-        N = sparse_gram(J)
-        self.N = N + self.RIDGE * max(float(np.max(np.diag(N))), 1e-300) * np.eye(len(N))
-        self.L = cholesky(self.N, lower=True)
-
-    def project(self, b: np.ndarray) -> np.ndarray:
-        from scipy.linalg import solve_triangular
-
-        return solve_triangular(self.L, self.J.T @ b, lower=True)
-
-    def solve(self, c: np.ndarray, lam: float) -> np.ndarray:
-        from scipy.linalg import cho_factor, cho_solve
-
-        return cho_solve(cho_factor(self.N + lam * np.eye(len(self.N)), lower=True), self.L @ c)
 
 
 def identifiability(J, tol: float = 1e-9) -> dict:
@@ -192,6 +159,30 @@ def covariance(J, r, tol: float = 1e-9):
         cov = (V[:, keep] / s2[keep]) @ V[:, keep].T * sigma2
         return cov, sigma2, dof, rank
     return _robocal.covariance(as_float_array(J, "J"), as_float_array(r, "r"), as_float(tol, "tol"))
+
+
+#: Singular values at or below this fraction of the largest count as zero in :func:`truncated_svd`.
+SVD_RCOND = 1e-10
+
+
+def unit_columns(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(A / scale, scale)``: the columns of a dense ``A`` (m, n) divided by their norms
+    ``scale`` (n,), a zero column left as it is (its scale 1). In these units the singular values
+    of a Jacobian compare directions of the data, not the units of its parameters."""
+    scale = np.linalg.norm(A, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    return A / scale, scale
+
+
+def truncated_svd(A: np.ndarray, rcond: Optional[float] = SVD_RCOND) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U (m, k), s (k,), Vt (k, n)`` of the thin SVD of a dense ``A`` (m, n) (scaled by the caller,
+    e.g. with :func:`unit_columns`), keeping the ``k`` singular values above ``rcond`` times the
+    largest: the directions the data determine (every one, zeros included, if ``rcond`` is None)."""
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    if rcond is None:
+        return U, s, Vt
+    keep = s > rcond * s[0] if s.size else s > 0
+    return U[:, keep], s[keep], Vt[keep]
 
 
 def configuration_groups(q, tol: float) -> np.ndarray:

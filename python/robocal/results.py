@@ -29,15 +29,13 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
 from typing import Optional
 
 from ._robocal import __version__
-from .exceptions import InvalidParameterError
 from .outputs import write_json
 from .robot_file import RESULT_SCHEMA as SCHEMA
-from .robot_file import calibrated_robot, check_nesting, read_document, robot_document
+from .robot_file import calibrated_robot, load_document, robot_document
 from .serial_robot import Robot
 
 
@@ -90,12 +88,5 @@ def load_result(source) -> tuple[Robot, dict]:
         Naming the file and what is wrong with it (unreadable, not JSON, another schema,
         missing or malformed keys).
     """
-    if not isinstance(source, (dict, str, os.PathLike)):
-        raise InvalidParameterError(f"a result must be a result file path or its document (dict); got {type(source).__name__} {source!r}")
-    where = str(source) if not isinstance(source, dict) else "result"
-    if isinstance(source, dict):
-        doc = source
-        check_nesting(doc, where, "robocal result file")
-    else:
-        doc = read_document(source, "robocal result file")
-    return calibrated_robot(doc, where), doc
+    doc = load_document(source, "robocal result file", "result")
+    return calibrated_robot(doc, "result" if isinstance(source, dict) else str(source)), doc

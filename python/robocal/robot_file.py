@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 from collections.abc import Hashable
 from pathlib import Path
 
@@ -283,6 +284,25 @@ def read_document(path, what: str = "robot file") -> object:
     path = Path(path)
     text = read_file(path, what)
     return parse_document(text, str(path), what, yaml_text=path.suffix.lower() in (".yaml", ".yml"))
+
+
+def load_document(source, what: str, called: str) -> object:
+    """The document ``source`` gives: the parsed file at a path (:func:`read_document`) or a
+    document already loaded (a dict), which is checked as a file's would be (:func:`check_nesting`).
+    ``what`` names the kind of file (``"robocal result file"``), ``called`` how messages name a
+    document given as a dict (``"result"``).
+
+    Raises
+    ------
+    InvalidParameterError
+        For anything but a path or a dict, or naming the file (or ``called``) and what is wrong with it.
+    """
+    if isinstance(source, dict):
+        check_nesting(source, called, what)
+        return source
+    if not isinstance(source, (str, os.PathLike)):
+        raise InvalidParameterError(f"a {called} must be a {what} path or its document (dict); got {type(source).__name__} {source!r}")
+    return read_document(source, what)
 
 
 def read_file(path, what: str = "robot file") -> str:

@@ -1,5 +1,6 @@
-"""The geometric calibration: data in, calibrated robot and held-out metrics out (the public
-:func:`robocal.calibrate` adds extended models, :mod:`robocal.diagnosis.extended`)."""
+"""The geometric calibration's steps: the inputs loaded and checked, the held-out split, the fit
+by a method of :data:`METHODS`. The public :func:`robocal.calibrate`
+(:mod:`robocal.diagnosis.extended`, which adds extended models) checks its arguments and runs them."""
 
 from __future__ import annotations
 
@@ -18,7 +19,6 @@ from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
-from .metrics import metrics
 from .problem import Problem, check_observations
 from .result import CalibrationResult
 
@@ -71,9 +71,9 @@ def load_inputs(
 
 
 def _check_named_robot(dataset: Dataset, named, model: Robot) -> None:
-    """An error when the data name a built-in robot and ``model`` is another built-in one (UR10
-    data fit an HSR's geometry to 0.04 mm with absurd parameters); a note on ``dataset`` when
-    ``model`` is a robot of the user's own under another name."""
+    """An error when the data name a built-in robot and ``model`` is another built-in one (one
+    robot's data can fit another's geometry closely with absurd parameters: docs/findings.md,
+    D3); a note on ``dataset`` when ``model`` is a robot of the user's own under another name."""
     if not isinstance(named, str) or named not in BUILTIN or named == model.name:
         return
     where = f" ({dataset.source})" if dataset.source else ""
@@ -94,37 +94,14 @@ def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:
     return result.problem.with_data(test).data_residuals(result.x)
 
 
-def calibrate(
-    data: Union[str, Path, Dataset],
-    *,
-    robot: Union[str, Robot, None] = None,
-    measurement: Optional[str] = None,
-    method: str = "lm",
-    test_fraction: float = 0.2,
-    seed: int = 0,
-    mask=None,
-    prior=None,
-    bounds=None,
-    kinematic_prior=None,
-    angle_unit: Optional[str] = None,
-    **options,
-) -> CalibrationResult:
-    """Calibrates ``robot`` on ``data`` with the geometric model and evaluates it on a held-out
-    random split: :func:`robocal.calibrate` (see its parameters) without ``causes``, which an
-    extended model of the diagnosis layer needs (:func:`robocal.diagnosis.extended.calibrate`)."""
-    check_method(method)
-    test_fraction = check_test_fraction(test_fraction)
-    dataset, r = load_inputs(data, robot, measurement, angle_unit)
-    problem, _, test_idx = held_out_problem(r, dataset, test_fraction, seed, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
-    fit = METHODS[method][2]
-    if "seed" in inspect.signature(fit).parameters:
+def fit(problem: Problem, method: str, seed: int, options: dict) -> CalibrationResult:
+    """``problem`` fitted by ``method`` (one of :data:`METHODS`, checked by the caller) with its
+    ``options``, refused by name if the method does not take them; a stochastic method also
+    takes ``seed``."""
+    function = METHODS[method][2]
+    if "seed" in inspect.signature(function).parameters:
         options = {**options, "seed": seed}
-    result = fit(problem, **checked_options(fit, method, options))
-    if test_idx is not None:
-        test = dataset.subset(test_idx)
-        result.metrics["test"] = metrics(held_out_residuals(result, test), test.measurement)
-        result.held_out = test
-    return result
+    return function(problem, **checked_options(function, method, options))
 
 
 def check_method(method) -> None:

@@ -4,7 +4,7 @@ for nonlinear least-squares minimization", arXiv:1201.5885).
 
 Calibration problems on real data are *sloppy*: a narrow workspace leaves long, curved valleys
 in which the cost still falls, slowly, over meters of link length. A plain LM crawls along them
-in thousands of tiny steps (2000 evaluations on D1 without converging). Three changes fix that:
+in thousands of tiny steps without converging (D1: docs/findings.md). Three changes fix that:
 
 - **Scaled damping with a memory, one factorisation per Jacobian.** Each step solves
   ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the running maximum of ``diag(JᵀJ)`` (MINPACK's scaling)
@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from ..kernels import DampedNormal, as_count, as_positive, as_tolerance, factor_damped, is_sparse
+from ..kernels import as_count, as_positive, as_tolerance, factor_damped, is_sparse
 from ..kernels import normal_equations, sparse_gram
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH
@@ -271,6 +271,10 @@ def _minimise(
     return result
 
 
+#: Ridge added to a sparse Jacobian's scaled normal matrix (unit diagonal): it keeps the
+#: matrix definite where the data leave a direction free.
+SPARSE_RIDGE = 1e-12
+
 #: Largest condition number of the scaled normal matrix ``D^-½·JᵀJ·D^-½`` whose Cholesky factor
 #: gives the steps (``J``'s condition up to 10⁵: steps accurate to ~10⁻⁶, and every step's gain
 #: is checked on the residuals); beyond it (D1: 10⁷) ``J·D^-½`` is factored by QR.
@@ -281,10 +285,10 @@ def _factor(Jw, d: np.ndarray, gram):
     """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``) from the normal equations ``gram``
     (``JwᵀJw``). A dense ``Jw``'s when they are well conditioned (:data:`NORMAL_CONDITION`),
     else a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`); a
-    sparse one's always (a model with joint maps: a QR would fill it in), with :class:`DampedNormal`'s ridge."""
+    sparse one's always (a model with joint maps: a QR would fill it in), with :data:`SPARSE_RIDGE`."""
     normal = gram / np.outer(d, d)
     if is_sparse(Jw):
-        return _DampedGram(normal + DampedNormal.RIDGE * np.eye(len(normal)), lambda b: (Jw.T @ b) / d)
+        return _DampedGram(normal + SPARSE_RIDGE * np.eye(len(normal)), lambda b: (Jw.T @ b) / d)
     if gram.size:
         eigenvalues = np.linalg.eigvalsh(normal)
         if eigenvalues[0] > eigenvalues[-1] / NORMAL_CONDITION:

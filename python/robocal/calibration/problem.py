@@ -43,7 +43,7 @@ MIN_CONFIGURATIONS = {"cable": 5, "position": 3, "pose": 3}
 #: The measured points' spread against the robot's tool points' at the same joint values
 #: (median distance from the median point; for cables, the lengths' spread) beyond which the
 #: observations are in another unit than mm: a rigid frame keeps distances (ratio about 1), a
-#: cable's length varies by a fraction of the points' spread (0.3–0.5 on the public data).
+#: cable's length varies by a fraction of the points' spread (the public cable data's: docs/findings.md, D1).
 SCALE_RATIO = {"cable": (0.02, 20.0), "position": (0.1, 10.0), "pose": (0.1, 10.0)}
 #: A sample whose observation lies further from the median than this many times the largest
 #: distance between the robot's tool points cannot be a reading of that robot: no rigid frame or
@@ -222,11 +222,10 @@ def initial_x(problem, x0=None) -> np.ndarray:
 
 
 #: Weight (mm/rad) of a pose's rotation residual against its position residual when the data
-#: record no per-reading standard deviations: the ratio the public UR10 tracker files record
-#: (position 0.006–0.012 mm, orientation 0.0017–0.0035° per component: 180–250 mm/rad).
-#: Unweighted (1 mm/rad) the orientation weighed nothing beside millimetres: on UR10 series C
-#: the held-out orientation error stayed at 0.057° after diagnose; weighted by 300 mm/rad,
-#: 0.014° at the same position error (1000 mm/rad cost position accuracy: 0.096 → 0.113 mm).
+#: record no per-reading standard deviations: about the ratio of a laser tracker's position to
+#: its orientation noise, as the public UR10 tracker files record them. Unweighted (1 mm/rad) the
+#: orientation would weigh nothing beside millimetres; much heavier, it costs position accuracy
+#: (the figures: docs/findings.md, D3).
 POSE_ROTATION_WEIGHT = 200.0
 
 

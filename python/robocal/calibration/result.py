@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..kernels import covariance, is_sparse, sparse_gram
+from ..kernels import covariance, is_sparse, sparse_gram, truncated_svd
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
@@ -237,7 +237,7 @@ class CalibrationResult:
             s2, V = np.linalg.eigh(sparse_gram(J) * np.outer(limits, limits))
             sv, Vt = np.sqrt(np.maximum(s2[::-1], 0.0)), V[:, ::-1].T  # largest first, as an SVD gives them
         else:
-            _, sv, Vt = np.linalg.svd(J * limits, full_matrices=False)
+            _, sv, Vt = truncated_svd(J * limits, rcond=None)  # every direction: a null one is the most undetermined
         noise = float(np.sqrt(r @ r / (J.shape[0] - J.shape[1])))
         names = list(self.problem.names)
         out = []

@@ -249,8 +249,8 @@ def map_constraint(detail: dict) -> np.ndarray:
     joint's ``theta`` offset and a linear one its scale error (``joint_scale``), which the
     geometry and the named causes fit; both are also the null space of the roughness penalty,
     so without them every part of a map is penalised and the geometry takes precedence. (Maps
-    that kept their linear part traded it with the geometry: a 0.4° map of UR10 Series A's
-    joint 1 that wrecked every other series.)"""
+    that kept their linear part traded it with the geometry and did not carry to other sessions:
+    docs/findings.md, D3.)"""
     t = _map_knots(detail)
     n = len(t) - MAP_DEGREE - 1
     xi = np.array([t[i + 1 : i + 1 + MAP_DEGREE].mean() for i in range(n)])
@@ -269,10 +269,10 @@ def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
     :func:`_map_knots`, constrained by :func:`map_constraint`. Where the map does not cover the
     angle (:func:`map_coverage`: beyond its range ``[lo, hi]`` or in a gap of its data) its rows
     are zero: the data say nothing of the error there, and the geometry's ``theta`` (fitted
-    with the map's mean) is the best guess. Holding the end value instead carried up to 1.9 mm
-    of error to UR10 series whose joint ranges the calibration never saw; bridging a gap (the
-    roughness penalty draws a straight line across it) raised UR10 series C, whose joint 2
-    sits in a 24° gap of series A and B, from 0.48 to 0.76 mm."""
+    with the map's mean) is the best guess. Holding the end value instead carries the map's
+    error to angles the calibration never saw, and bridging a gap (the roughness penalty draws a
+    straight line across it) to angles between those it saw (both measured across the UR10
+    series: docs/findings.md, D3)."""
     from scipy import sparse
     from scipy.interpolate import BSpline  # imported on use: only maps need it
 

@@ -2,9 +2,9 @@
 extended model — the diagnosed causes fitted together with the geometry — on one session or on
 several at once (one robot; each session with its own set-up and its own sensor terms).
 
-It sits above both the calibration (the geometric fit, :func:`robocal.calibration.calibrate`) and
-the diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) and is what
-:func:`robocal.calibrate` names.
+It sits above both the calibration (the geometric fit, :mod:`robocal.calibration.api`) and the
+diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) and is what
+:func:`robocal.calibrate` names: its arguments are checked here once, then the fit is dispatched.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from ..data.splits import configuration_groups, random_split
 from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
 from ..results import file_sha256
-from ..robot_file import read_document
+from ..robot_file import load_document
 from . import structure
 from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .model import ExtendedProblem
@@ -59,8 +59,9 @@ def calibrate(
     ----------
     data : path or Dataset, or a list of them
         A measurement file (canonical CSV or a public dataset, see :func:`robocal.data.load`)
-        or a :class:`Dataset`; a list of two or more: sessions of one robot, fitted at once
-        (:func:`calibrate_sessions`).
+        or a :class:`Dataset`; a list of two or more: sessions of one robot, fitted at once, each
+        with its own set-up and sensor terms and its own held-out samples (method ``lm``; the
+        result's ``sessions`` lists them).
     robot : str or Robot, optional
         Default: the robot recorded in the data.
     measurement : {"cable", "position", "pose"}, optional
@@ -103,88 +104,73 @@ def calibrate(
         ``to_dict()`` is the result JSON (``method``, ``parameters``, ``metrics`` with ``train``
         and ``test``, ...).
     """
-    if isinstance(data, (list, tuple)):
-        if mask is not None or prior is not None or bounds is not None:
-            raise InvalidParameterError("a fit on several sessions takes no `mask`, `prior` or `bounds`")
-        return calibrate_sessions(data, robot, measurement, method, test_fraction, seed, kinematic_prior, causes, angle_unit, **options)
-    if causes is None:
-        return api.calibrate(
-            data,
-            robot=robot,
-            measurement=measurement,
-            method=method,
-            test_fraction=test_fraction,
-            seed=seed,
-            mask=mask,
-            prior=prior,
-            bounds=bounds,
-            kinematic_prior=kinematic_prior,
-            angle_unit=angle_unit,
-            **options,
-        )
+    several = isinstance(data, (list, tuple))
+    if several and (mask is not None or prior is not None or bounds is not None):
+        raise InvalidParameterError("a fit on several sessions takes no `mask`, `prior` or `bounds`")
+    if several and method != "lm":
+        raise InvalidParameterError(f"a fit on several sessions is made by method 'lm' only; got {method!r}")
     api.check_method(method)
     test_fraction = api.check_test_fraction(test_fraction)
-    dataset, r = api.load_inputs(data, robot, measurement, angle_unit)
-    labels, reported_prior = read_causes(causes)
+    if several:
+        datasets, r = load_sessions(data, robot, measurement, angle_unit, "a fit on several sessions")
+    else:
+        dataset, r = api.load_inputs(data, robot, measurement, angle_unit)
+    labels, reported_prior = read_causes(causes) if causes is not None else ([], None)
     kinematic_prior = reported_prior if kinematic_prior is None else kinematic_prior
     parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
+    if several:
+        terms = session_terms(causes, labels, len(datasets))
+        return _fit_sessions(datasets, r, structures, labels, terms, kinematic_prior, test_fraction, seed, options)
+    if causes is None:
+        problem, _, test_idx = api.held_out_problem(r, dataset, test_fraction, seed, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
+        result = api.fit(problem, method, seed, options)
+        return _held_out(result, dataset, test_idx, lambda test: api.held_out_residuals(result, test))
     dataset = structure.apply_all(dataset, structures)  # the readings in the model's convention
     problem, train_idx, test_idx = api.held_out_problem(r, dataset, test_fraction, seed, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
     if method != "lm":
         raise InvalidParameterError(f"an extended model (causes) is fitted by method 'lm' only; got {method!r}")
     model = extended_problem(problem, dataset, train_idx, labels)
     logger.info("calibrate: %d training samples, %d causes, %d reading conventions", len(train_idx), len(labels), len(structures))
-    result = levenberg_marquardt(model, **api.checked_options(levenberg_marquardt, method, options))
+    result = api.fit(model, method, seed, options)
     logger.info("calibrate: %s after %d iterations, training RMSE %.4g", result.message, result.nit, result.metrics["train"]["rmse"])
     result.structure = [s.label for s in structures]
+    return _held_out(result, dataset, test_idx, lambda test: model.with_samples(test_idx).data_residuals(result.x))
+
+
+def _held_out(result: CalibrationResult, dataset: Dataset, test_idx: Optional[np.ndarray], residuals) -> CalibrationResult:
+    """``result`` with the metrics of ``residuals(test)`` on the held-out samples ``test_idx`` of ``dataset`` (if any)."""
     if test_idx is not None:
         test = dataset.subset(test_idx)
-        result.metrics["test"] = metrics(model.with_samples(test_idx).data_residuals(result.x), test.measurement)
+        result.metrics["test"] = metrics(residuals(test), test.measurement)
         result.held_out = test
     return result
 
 
-def calibrate_sessions(
-    data: list,
-    robot: Union[str, Robot, None] = None,
-    measurement: Optional[str] = None,
-    method: str = "lm",
-    test_fraction: float = 0.2,
-    seed: int = 0,
-    kinematic_prior=None,
-    causes=None,
-    angle_unit: Optional[str] = None,
-    **options,
+def _fit_sessions(
+    datasets: list[Dataset],
+    r: Robot,
+    structures: list,
+    shared: list[str],
+    terms: list[list[str]],
+    kinematic_prior,
+    test_fraction: float,
+    seed: int,
+    options: dict,
 ) -> CalibrationResult:
-    """One robot from several sessions: its kinematics, reading conventions and the causes on its
-    joints fitted on every session at once, each session with its own set-up (tracker base and
-    tool, or cable anchor and zero) and its own sensor terms (steps, drift, wander).
+    """One robot from several sessions (:func:`calibrate` given a list, its arguments checked):
+    its kinematics, reading conventions ``structures`` and the causes ``shared`` by its joints
+    fitted on every session at once, each session with its own set-up (tracker base and tool, or
+    cable anchor and zero) and its own sensor terms ``terms`` (steps, drift, wander).
 
-    ``data`` is a list of two or more files or Datasets of one robot and measurement, each given
-    once. A joint map covers its joint's angles in the training samples of every session. Each
-    session holds out ``test_fraction`` of its samples (seeded, repeated configurations whole);
-    ``metrics["test"]`` pools them. ``causes`` as for :func:`calibrate`; a multi-session diagnose
-    report also gives each session its own terms (``model.sessions``, matched in order). The other
-    parameters are :func:`calibrate`'s (method ``lm`` only).
-
-    Returns
-    -------
-    CalibrationResult
-        ``to_dict()`` is the result JSON with the robot and the first session's set-up in
-        ``parameters``, and ``sessions``: per session its ``source``, ``sha256``, ``rows_used``,
-        ``rows_held_out``, ``setup`` (name -> value, mm / rad), ``terms`` (labels) and ``metrics``.
+    A joint map covers its joint's angles in the training samples of every session. Each session
+    holds out ``test_fraction`` of its samples (seeded, repeated configurations whole);
+    ``metrics["test"]`` pools them. The result's ``to_dict()`` has the robot and the first
+    session's set-up in ``parameters``, and ``sessions``: per session its ``source``, ``sha256``,
+    ``rows_used``, ``rows_held_out``, ``setup`` (name -> value, mm / rad), ``terms`` (labels) and
+    ``metrics``.
     """
-    if method != "lm":
-        raise InvalidParameterError(f"a fit on several sessions is made by method 'lm' only; got {method!r}")
-    test_fraction = api.check_test_fraction(test_fraction)
-    datasets, r = load_sessions(data, robot, measurement, angle_unit, "a fit on several sessions")
-    labels, reported_prior = read_causes(causes) if causes is not None else ([], None)
-    kinematic_prior = reported_prior if kinematic_prior is None else kinematic_prior
-    structures = [s for s in (structure.parse(label, r.n_joints) for label in labels) if s is not None]
-    shared = [label for label in labels if structure.parse(label, r.n_joints) is None]
-    terms = session_terms(causes, shared, len(datasets))
     shared = [label for label in shared if not _session_term(label)]
     datasets = [structure.apply_all(d, structures) for d in datasets]
     splits = [_split(d, test_fraction, seed) for d in datasets]
@@ -198,7 +184,7 @@ def calibrate_sessions(
     if absent:
         raise InvalidParameterError(f"causes {absent} act in none of the sessions (unknown, or their joint does not move)")
     stacked = stack(problems)
-    result = levenberg_marquardt(stacked, **api.checked_options(levenberg_marquardt, method, options))
+    result = api.fit(stacked, "lm", seed, options)
     result.structure = [s.label for s in structures]
     result.sessions, pooled = [], []
     for s, (d, (train, test), problem, own) in enumerate(zip(datasets, splits, problems, terms)):
@@ -235,13 +221,20 @@ def _session_term(label: str) -> bool:
     return label.split(" ")[0] in SESSION_KINDS
 
 
+def _is_report(causes) -> bool:
+    """A diagnose report (dict) or its JSON file, rather than cause labels."""
+    return isinstance(causes, dict) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
+
+
+def _report(causes):
+    return load_document(causes, "diagnose report", "diagnosis")
+
+
 def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
     """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
     (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
     session fits its own). A step sits at one session's sample: it needs the report."""
-    listed = causes.get("model", {}).get("sessions") if isinstance(causes, dict) else None
-    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
-        listed = (read_document(causes, "diagnose report").get("model") or {}).get("sessions")
+    listed = (_report(causes).get("model") or {}).get("sessions") if _is_report(causes) else None
     if listed is not None:
         if not isinstance(listed, list) or len(listed) != n or not all(isinstance(e, dict) and isinstance(e.get("causes"), list) for e in listed):
             raise InvalidParameterError(f"the diagnose report's model.sessions must list the causes of each of the {n} sessions given, in order")
@@ -256,8 +249,8 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     """Cause labels from labels, a diagnose report (dict) or its JSON file — the report's
     reading conventions (``model.structure``) first, then its ``model.causes`` — and the
     report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
-    if isinstance(causes, (str, Path)) and str(causes).endswith(".json"):
-        causes = read_document(causes, "diagnose report")
+    if _is_report(causes):
+        causes = _report(causes)
     prior = None
     if isinstance(causes, dict):
         try:

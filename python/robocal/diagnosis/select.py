@@ -37,7 +37,7 @@ from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
 from ..calibration.result import GROSS_FACTOR
-from ..kernels import as_count, as_float, as_tolerance, is_sparse
+from ..kernels import SVD_RCOND, as_count, as_float, as_tolerance, is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
@@ -97,19 +97,7 @@ class Diagnosis:
 
 
 #: Singular values below this fraction of the largest count as zero in the linear screening.
-RCOND = 1e-10
-
-
-def _basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``U, s, Vt`` of the SVD of ``A`` truncated at :data:`RCOND`."""
-    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
-    keep = sv > RCOND * sv[0] if sv.size else sv > 0
-    return U[:, keep], sv[keep], Vt[keep]
-
-
-def _unit_columns(A: np.ndarray) -> np.ndarray:
-    scale = np.linalg.norm(A, axis=0)
-    return A / np.where(scale > 0, scale, 1.0)
+RCOND = SVD_RCOND
 
 
 #: Residual components whose robust noise differs by more than this factor are scaled apart in
@@ -128,7 +116,7 @@ class _Screen:
     """
 
     def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
-        self.J, self.r, self.k = _unit_columns(J), r, k
+        self.J, self.r, self.k = unit_columns(J)[0], r, k
         self.m = len(r) // k
         self.folds = {name: [self._fold(train, test, self.J, r) for train, test in folds] for name, folds in schemes.items()}
         # The F test assumes one noise level for every row: a pose's position and rotation rows
@@ -138,11 +126,11 @@ class _Screen:
         sigma = robust_sigma(r.reshape(self.m, k))
         self.whiten = np.tile(1.0 / sigma, self.m) if k > 1 and np.max(sigma) > WHITEN_RATIO * np.min(sigma) else None
         w = np.ones(len(r)) if self.whiten is None else self.whiten
-        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), _unit_columns(J * w[:, None]), r * w)
+        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), unit_columns(J * w[:, None])[0], r * w)
 
     def _fold(self, train: np.ndarray, test: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
         rows_tr, rows_te = (train[:, None] * self.k + np.arange(self.k)).ravel(), (test[:, None] * self.k + np.arange(self.k)).ravel()
-        U, sv, Vt = _basis(J[rows_tr])
+        U, sv, Vt = truncated_svd(J[rows_tr], RCOND)
         coef = U.T @ r[rows_tr]
         return rows_tr, rows_te, test, U, sv, Vt, coef, r[rows_tr] - U @ coef
 
@@ -531,8 +519,8 @@ def _select(
     fold_x = {name: xs for name, (_, xs) in baseline.items()}
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati) if replay is None else list(replay.causes)
     # A geometry that stays implausible after the reading conventions is structure not
-    # explained: a flexible joint term would only make a wrong geometry fit better (D1: four joint
-    # maps took 0.124 -> 0.067 mm beside a1 at -7858 mm). Those are not offered until it is.
+    # explained: a flexible joint term would only make a wrong geometry fit better (D1's joint
+    # maps: docs/findings.md). Those are not offered until it is.
     unexplained_structure = grossly_implausible(base_fit.implausible())
     if unexplained_structure:
         pool = [c for c in pool if not is_flexible(c)]
@@ -540,7 +528,8 @@ def _select(
     wander_test = residual_correlation(dataset, keep, base_residuals)
     # No wander while the geometric fit's residuals are alike in joint space and not beyond it
     # in time: that is evidence for the robot's causes, and a wander offered in a later round
-    # would take what is left of them along the path (UR10 series A: 0.0755 -> 0.109 mm held out).
+    # would take what is left of them along the path, raising the held-out error (UR10 series A:
+    # docs/findings.md).
     wander_offered = replay is None and (wander_test is None or wander_test["verdict"] != "joints")
     current_cv = baseline_cv
     searched = 0  # the most candidates a round screened
@@ -568,7 +557,7 @@ def _select(
         round_test = wander_test if not causes else residual_correlation(dataset, keep, r.reshape(len(keep), k))  # round 1: the baseline's residuals
         inflation = time_inflation(round_test)
         # Residuals alike in joint space and not beyond it in time are evidence for the robot's
-        # causes: a wander would take them along the path (UR10 series B: 0.105 -> 0.137 mm).
+        # causes: a wander would take them along the path (UR10 series B: docs/findings.md, D3).
         in_joints = bool(round_test) and round_test.get("verdict") == "joints"
         # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
         # cause hid shows once that cause is in). Its knots at half the correlation length and
@@ -620,8 +609,8 @@ def _select(
             # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
             # that gains at least SENSOR_TERM_SHARE of what the wander gains: one coefficient per axis
             # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
-            # (a simulated drift at 9× its detection limit was named a wander; on the public D2
-            # file a wander took the place of a 2.9 mm step and ended at 0.47 mm instead of 0.32).
+            # (a simulated drift well beyond its detection limit was named a wander; on the public
+            # D2 file a wander took the place of the step and ended higher: docs/findings.md).
             wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and is_significant(*s)), default=np.inf)
 
             def time_rank(s) -> int:
@@ -948,11 +937,29 @@ PRIOR_COST = 0.05
 TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"]))}
 
 
-def prior_rejected(what: str, before: float, after: float, measurement: str) -> str:
-    """Why a tolerance prior that raised ``what`` RMSE (:func:`~.model.judged_rmse`) of
-    ``measurement`` data from ``before`` to ``after`` is not kept."""
-    raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
-    return f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+def judge_tolerance_prior(checks, measurement: str) -> dict:
+    """The report entry of a tolerance prior on the kinematics, judged by its held-out errors:
+    :data:`TOLERANCE_SIGMAS`, ``accepted`` and, per check, the held-out RMSE with the prior
+    (:func:`~.model.reported_rmse`); if it is not accepted, the ``reason``.
+
+    ``checks`` yields, in order, ``(key, what, without, with_prior)``: the entry's key, the
+    held-out error's name (``"random-fold held-out"``) and the squared errors
+    (:func:`~.model.squared_errors`) of ``measurement`` data without and with the prior. The prior
+    is accepted if on every check its :func:`~.model.judged_rmse` is within :data:`PRIOR_COST` of
+    the model's without it; the first check where it is not ends the judging (a lazy ``checks``
+    computes no more). Used by the single-session selection (every fold scheme) and the
+    multi-session one (leave-one-session-out).
+    """
+    entry = {**TOLERANCE_SIGMAS, "accepted": False}
+    for key, what, without, with_prior in checks:
+        entry[key] = reported_rmse(with_prior)
+        before, after = judged_rmse(without), judged_rmse(with_prior)
+        if not after <= (1.0 + PRIOR_COST) * before:
+            raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
+            entry["reason"] = f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
+            return entry
+    entry["accepted"] = True
+    return entry
 
 
 def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
@@ -977,15 +984,16 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
     physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
     x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
-    entry = {**TOLERANCE_SIGMAS, "accepted": False}
     cv, fits = {}, {}
-    for name, folds in schemes.items():  # random, blocked, then groups
-        cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
-        entry[f"rmse_heldout_{name}"] = reported_rmse(cv[name])
-        if judged_rmse(cv[name]) > (1.0 + PRIOR_COST) * judged_rmse(current_cv[name]):
-            entry["reason"] = prior_rejected(f"{name}-fold held-out", judged_rmse(current_cv[name]), judged_rmse(cv[name]), model.data.measurement)
-            return model, fit, current_cv, fold_x, entry
-    entry["accepted"] = True
+
+    def checks():
+        for name, folds in schemes.items():  # random, blocked, then groups
+            cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
+            yield f"rmse_heldout_{name}", f"{name}-fold held-out", current_cv[name], cv[name]
+
+    entry = judge_tolerance_prior(checks(), model.data.measurement)
+    if not entry["accepted"]:
+        return model, fit, current_cv, fold_x, entry
     return physical, fit_problem(physical, x0=x0), cv, fits, entry
 
 
@@ -1026,9 +1034,9 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
 
 
 #: A cause with a physical model of how it carries is tried before the best free joint shape
-#: when its screening gain is at least this share of the shape's (UR10 series A and C: joint 2's
-#: compliance 0.71–0.73 of the third harmonic that would take its place; simulated harmonics
-#: that a compliance only grazes: 0.02–0.03) — or whatever its share once the model has one.
+#: when its screening gain is at least this share of the shape's — or whatever its share once
+#: the model has one. The share separates a compliance that a harmonic would replace from a
+#: harmonic the compliance only grazes (the shares measured: docs/findings.md, D3).
 PHYSICS_SHARE = 0.5
 
 
@@ -1040,11 +1048,10 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     of that shape's gain, or any share if one is ``established`` (the model already has a
     compliance: the data have shown the robot bends under gravity, and the other loaded joints
     bend too). Within one session a harmonic — and then a joint map — can take a compliance's
-    shape: on UR10 series A, B and C they did and raised the error on the other series (to
-    2.0 mm on C from A with joint 2's compliance alone, absorbing joint 3's), while a
-    compliance, driven by the gravity torque of the pose, carries to any session; across
-    sessions a joint-1 and a joint-5 map taken first left joint 2's compliance 0.4 % and joint
-    3's none. A sensor's drift or step, a reading convention and a harmonic the compliance only
+    shape and raise the error on other sessions, while a compliance, driven by the gravity torque
+    of the pose, carries to any session; across sessions, maps of other joints taken first can
+    leave a compliance nothing to gain (both seen on the UR10 series: docs/findings.md, D3).
+    A sensor's drift or step, a reading convention and a harmonic the compliance only
     grazes keep their rank. Used by the single-session selection (screening gains) and the
     multi-session one (leave-one-session-out gains)."""
 

@@ -27,7 +27,7 @@ from threadpoolctl import threadpool_limits
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
-from ..kernels import is_sparse
+from ..kernels import is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
@@ -38,14 +38,12 @@ from . import structure
 from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors
 from .select import (
-    PRIOR_COST,
-    TOLERANCE_SIGMAS,
     Diagnosis,
     baseline_mask,
     coefficient_reference,
     diagnose,
+    judge_tolerance_prior,
     physics_first,
-    prior_rejected,
     undetermined,
 )
 from .uncertainty import uncertainty_entries
@@ -258,12 +256,10 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
     then not defined), while a cause's own coefficient is still determined."""
     J, r = stacked.jacobian(x), stacked.residuals(x)
     J = J.toarray() if is_sparse(J) else J
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale == 0] = 1.0
-    U, sv, Vt = np.linalg.svd(J / scale, full_matrices=False)
-    keep = sv > 1e-10 * sv[0]
-    sigma2 = float(r @ r) / max(len(r) - int(keep.sum()), 1)
-    return np.sqrt(sigma2 * np.sum((Vt[keep] / sv[keep, None]) ** 2, axis=0)) / scale
+    scaled, scale = unit_columns(J)
+    _, sv, Vt = truncated_svd(scaled)
+    sigma2 = float(r @ r) / max(len(r) - len(sv), 1)
+    return np.sqrt(sigma2 * np.sum((Vt / sv[:, None]) ** 2, axis=0)) / scale
 
 
 def _rmse(errors: list[np.ndarray], rmse) -> float:
@@ -481,8 +477,10 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
 
 def _physical(evaluator: _Evaluator, model: _Model, current: list):
     """The selected model with a manufacturing-tolerance prior on the kinematics where its fit on
-    every session is implausible, kept if it costs at most :data:`PRIOR_COST` of the pooled
-    held-out RMSE (as :func:`~robocal.diagnosis.select.diagnose` does within one session).
+    every session is implausible, kept if its pooled leave-one-session-out RMSE is within
+    :data:`~robocal.diagnosis.select.PRIOR_COST` of the model's without it
+    (:func:`~robocal.diagnosis.select.judge_tolerance_prior`, as
+    :func:`~robocal.diagnosis.select.diagnose` judges it within one session).
     Returns the model, its held-out errors and the prior's report entry (None if not tried)."""
     stacked, _ = evaluator.fit(model)
     if not evaluator.implausible(model):
@@ -491,15 +489,8 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
     prior = kinematic_prior_pairs(robot, stacked.names, dict(zip(robot.param_names, robot.params)), TOLERANCE)
     trial = replace(model, prior=tuple(sorted(prior.items())))
     errors = evaluator.held_out(trial)
-    entry = {
-        **TOLERANCE_SIGMAS,
-        "rmse_loso": _rmse(errors, reported_rmse),
-        "accepted": _rmse(errors, judged_rmse) <= (1.0 + PRIOR_COST) * _rmse(current, judged_rmse),
-    }
-    if not entry["accepted"]:
-        entry["reason"] = prior_rejected("leave-one-session-out", _rmse(current, judged_rmse), _rmse(errors, judged_rmse), evaluator.measurement)
-        return model, current, entry
-    return trial, errors, entry
+    entry = judge_tolerance_prior([("rmse_loso", "leave-one-session-out", np.concatenate(current), np.concatenate(errors))], evaluator.measurement)
+    return (trial, errors, entry) if entry["accepted"] else (model, current, entry)
 
 
 def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:

@@ -1,8 +1,8 @@
 """Whether a diagnosis' outliers are readings taken before the arm settled.
 
-A reading taken right after a long joint move can be off by a vibration that has not died down:
-on UR10 series A half of the outliers its final model reveals are the first reading after a
-joint move of 90° or more, which 2.8 % of its samples are. Such an outlier is a bad reading, not
+A reading taken right after a long joint move can be off by a vibration that has not died down
+(on UR10 series A, far more of the outliers than of the samples are the first reading after a
+long move: docs/findings.md, D3). Such an outlier is a bad reading, not
 a model error; knowing its cause tells the user to add a settling time, not to re-calibrate.
 """
 

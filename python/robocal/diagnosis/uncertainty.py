@@ -21,8 +21,7 @@ def uncertainty_entries(problem, x: np.ndarray, causes) -> dict:
     - with two or more gravity compliances, each one's ``correlation`` with every other
       (``{label: r}``). Neighbouring joints carry much of the same gravity torque, so the split
       between their stiffnesses can be weakly determined whatever each one's standard deviation
-      says (UR10: joint 2 / joint 3 1.12 / 1.22 ·10⁵ N·m/rad on series A alone, 1.22 / 0.75 on
-      three series).
+      says (UR10 joints 2 and 3, one series against three: docs/findings.md, D3).
     """
     maps = [c for c in causes if c.kind == "joint_map"]
     compliances = [c for c in causes if c.kind in PHYSICAL_KINDS]

@@ -41,8 +41,8 @@ def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) ->
 
 #: Starting damping of a fit from a warm start (another model's or fold's fit): nearly
 #: Gauss-Newton. A model with joint maps has directions the data barely determine, and the
-#: default 1e-3 damped them away for ten steps while λ fell by 3 a step (UR10 series A: 11.6
-#: steps a fold fit, 5.4 from here; the same causes found). A step that fails raises λ.
+#: default 1e-3 damped them away for ten steps while λ fell by 3 a step (about twice the steps
+#: a fold fit, the same causes found: docs/findings.md, D3). A step that fails raises λ.
 WARM_DAMPING = 1e-6
 
 
@@ -83,8 +83,7 @@ def _pinned(step: Candidate) -> Candidate:
     """``step`` held at zero: a fold whose training samples all lie on one side of it knows
     nothing of it, and predicts its held-out samples as such a model would. Left free, its
     coefficient splits the set-up's offset at the whim of the solver's damping, and so did the
-    held-out error of the samples beyond it (D2's blocked folds: 0.80 or 0.85 mm by the
-    starting damping alone)."""
+    held-out error of the samples beyond it (D2's blocked folds: docs/findings.md)."""
     return replace(step, penalty=PINNED * np.eye(step.basis.shape[2]))
 
 

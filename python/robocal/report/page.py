@@ -49,7 +49,7 @@ from ..diagnosis.result_model import ResultModel, result_model
 from ..exceptions import InvalidParameterError, RobocalError
 from ..outputs import make_folder, write_text
 from ..results import file_sha256, load_result
-from ..robot_file import read_document
+from ..robot_file import load_document
 from ..serial_robot import Robot
 from .figures import (
     acceptance_figure,
@@ -150,10 +150,7 @@ def _same_file(doc: dict, path) -> bool:
 
 
 def _load_diagnosis(diagnosis) -> Optional[dict]:
-    if diagnosis is None or isinstance(diagnosis, dict):
-        report = diagnosis
-    else:
-        report = read_document(diagnosis, "diagnose report")
+    report = None if diagnosis is None else load_document(diagnosis, "diagnose report", "diagnosis")
     if report is not None:
         ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
         if not ok or held_key(report) not in report["baseline"]:
