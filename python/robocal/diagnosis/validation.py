@@ -39,11 +39,12 @@ def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) ->
     return schemes
 
 
-#: Starting damping of a fit from a warm start (another model's or fold's fit): nearly
-#: Gauss-Newton. A model with joint maps has directions the data barely determine, and the
-#: default 1e-3 damped them away for ten steps while λ fell by 3 a step (about twice the steps
-#: a fold fit, the same causes found: docs/findings.md, D3). A step that fails raises λ.
-WARM_DAMPING = 1e-6
+#: Starting damping of a fit from a warm start (another model's or fold's fit): Gauss-Newton.
+#: A model with joint maps has directions the data barely determine (scaled curvature 1e-7 and
+#: less): a damping above that moves along them a fraction of the way a step, and λ falls by 3
+#: a step only (1e-3: about ten steps a fold fit; 1e-6: five; here one step and the check). A
+#: step that fails raises λ.
+WARM_DAMPING = 1e-9
 
 
 def fit_problem(problem: ExtendedProblem, x0=None, with_std: bool = True):
