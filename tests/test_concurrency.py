@@ -108,6 +108,44 @@ def test_diagnose_is_deterministic():
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
 
 
+def test_diagnose_does_not_depend_on_its_threads(monkeypatch):
+    """The fold fits and screenings spread over threads (robocal.threads) give exactly what one
+    thread gives."""
+    data, _ = robocal.simulate("hsr-jr680", "position", samples=200, seed=4, effects=["joint_periodic:joint=2,amplitude=0.02"])
+    monkeypatch.setenv("ROBOCAL_THREADS", "1")
+    serial = without_times(robocal.diagnose(data, folds=4).to_dict())
+    monkeypatch.setenv("ROBOCAL_THREADS", "3")  # more threads than this machine may have cores
+    spread = without_times(robocal.diagnose(data, folds=4).to_dict())
+    assert serial["effects"], "the simulated harmonic should be found"
+    assert json.dumps(serial, sort_keys=True) == json.dumps(spread, sort_keys=True)
+
+
+def test_thread_map_keeps_the_order_and_raises_the_first_error(monkeypatch):
+    from robocal.threads import thread_map
+
+    monkeypatch.setenv("ROBOCAL_THREADS", "4")
+    assert thread_map(lambda i: i * i, range(50)) == [i * i for i in range(50)]
+    inner = thread_map(lambda i: thread_map(lambda j: (i, j), range(3)), range(4))  # nested: the inner runs in its thread
+    assert inner == [[(i, j) for j in range(3)] for i in range(4)]
+
+    def fails(i):
+        if i in (3, 7):
+            raise ValueError(f"item {i}")
+        return i
+
+    with pytest.raises(ValueError, match="item 3"):
+        thread_map(fails, range(10))
+
+
+@pytest.mark.parametrize("setting", ["0", "two", "-1", "1.5"])
+def test_a_bad_thread_setting_is_named(monkeypatch, setting):
+    from robocal.threads import cores
+
+    monkeypatch.setenv("ROBOCAL_THREADS", setting)
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="ROBOCAL_THREADS"):
+        cores()
+
+
 # -- (b) the core's thread count does not change a bit ----------------------------------------
 #: Written to a file and run in a fresh interpreter per thread count; saves every array it
 #: computes to the .npz given as its argument.

@@ -4,6 +4,9 @@ The work robocal spreads — a cross-validation's fold fits — spends its time 
 in NumPy/SciPy, which release the GIL, so threads run it in parallel without copying the data
 to other processes. A piece that spreads work again (a session's diagnosis, whose folds are
 spread) runs its own pieces one after the other: the cores are busy already.
+
+``ROBOCAL_THREADS=N`` caps the threads (1: everything in the calling thread), for a controller
+PC that must keep cores for other work.
 """
 
 from __future__ import annotations
@@ -12,11 +15,19 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
+from .exceptions import InvalidParameterError
+
 _inside = threading.local()
 
 
 def cores() -> int:
-    """The cores this process may run on."""
+    """The threads to spread work over: ``ROBOCAL_THREADS`` if set, else the cores this process
+    may run on."""
+    setting = os.environ.get("ROBOCAL_THREADS", "").strip()
+    if setting:
+        if not setting.isdigit() or int(setting) < 1:
+            raise InvalidParameterError(f"ROBOCAL_THREADS must be a whole number of threads, at least 1; got {setting!r}")
+        return int(setting)
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
