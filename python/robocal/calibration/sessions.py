@@ -145,6 +145,17 @@ def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return r[:n], r[n:]
 
 
+def _csr_with_every_entry(J):
+    """``J`` as CSR; a dense ``J`` with every entry kept, zeros too (its pattern then does not
+    depend on its values)."""
+    from scipy import sparse
+
+    if is_sparse(J):
+        return sparse.csr_array(J)
+    m, n = J.shape
+    return sparse.csr_array((np.ascontiguousarray(J).ravel(), np.tile(np.arange(n), m), np.arange(0, m * n + 1, n)), shape=(m, n))
+
+
 class Sessions:
     """One problem per session over a shared parameter vector.
 
@@ -171,6 +182,7 @@ class Sessions:
             self.maps.append(np.array(positions, dtype=int))
         self._x0 = np.array(start, dtype=np.float64)
         self.data = concatenate([p.data for p in self.problems])
+        self._layout = None  # of the stacked sparse Jacobian (:meth:`_stacked_sparse`)
 
     @property
     def x0(self) -> np.ndarray:
@@ -220,13 +232,7 @@ class Sessions:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         blocks = [(p.jacobian(self.session_x(x, s)), len(p.data) * RESIDUAL_WIDTH[p.data.measurement]) for s, p in enumerate(self.problems)]
         if any(is_sparse(J) for J, _ in blocks):  # joint maps: stacked sparse, data rows first
-            from scipy import sparse
-
-            def placement(cols):  # the 0/1 matrix that moves a session's columns to their places among all names
-                return sparse.csr_array((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), len(self.names)))
-
-            placed = [sparse.csr_array(J) @ placement(cols) for (J, _), cols in zip(blocks, self.maps)]
-            return sparse.vstack([J[:n] for J, (_, n) in zip(placed, blocks)] + [J[n:] for J, (_, n) in zip(placed, blocks)], format="csr")
+            return self._stacked_sparse([_csr_with_every_entry(J) for J, _ in blocks], [n for _, n in blocks])
         n_data, n_prior = sum(n for _, n in blocks), sum(J.shape[0] - n for J, n in blocks)
         J = np.zeros((n_data + n_prior, len(self.names)))
         at_data, at_prior = 0, n_data
@@ -235,6 +241,33 @@ class Sessions:
             J[at_prior : at_prior + Js.shape[0] - n, cols] = Js[n:]
             at_data, at_prior = at_data + n, at_prior + Js.shape[0] - n
         return J
+
+    def _stacked_sparse(self, blocks: list, n_data: list):
+        """The sessions' CSR Jacobians ``blocks`` (the first ``n_data`` rows of each its data
+        rows) stacked: every session's data rows, then every session's prior rows; each
+        session's columns moved to their places among all :attr:`names`, ascending in every row
+        (what the core's Gram adds fastest). The sessions' patterns do not change with ``x``:
+        where the entries go is worked out once, and each call only moves the values."""
+        from scipy import sparse
+
+        patterns = [(J.indptr, J.indices) for J in blocks]
+        if self._layout is None or not all(np.array_equal(a, b) and np.array_equal(c, d) for (a, c), (b, d) in zip(patterns, self._layout[3])):
+            starts = np.concatenate([[0], np.cumsum([J.nnz for J in blocks])])  # each block's entries among all
+            pieces = [(s, 0, n) for s, n in enumerate(n_data)] + [(s, n, J.shape[0]) for s, (J, n) in enumerate(zip(blocks, n_data))]
+            indptr, indices, source, at = [np.zeros(1, dtype=np.int64)], [], [], 0
+            for s, lo, hi in pieces:
+                J = blocks[s]
+                first, last = J.indptr[lo], J.indptr[hi]
+                cols = self.maps[s][J.indices[first:last]]
+                order = np.lexsort((cols, np.repeat(np.arange(hi - lo), np.diff(J.indptr[lo : hi + 1]))))
+                indices.append(cols[order])
+                source.append(starts[s] + first + order)
+                indptr.append(J.indptr[lo + 1 : hi + 1] - first + at)
+                at += last - first
+            self._layout = (np.concatenate(indptr), np.concatenate(indices), np.concatenate(source), [(a.copy(), c.copy()) for a, c in patterns])
+        indptr, indices, source, _ = self._layout
+        values = np.concatenate([J.data for J in blocks])[source]
+        return sparse.csr_array((values, indices, indptr), shape=(len(indptr) - 1, len(self.names)))
 
     def clip(self, x: np.ndarray) -> np.ndarray:
         x = np.array(x, dtype=np.float64)
