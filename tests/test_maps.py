@@ -15,7 +15,7 @@ from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
 from robocal.kernels import factor_damped, sparse_gram
-from robocal.diagnosis.candidates import map_basis, map_coverage, map_curve, map_support
+from robocal.diagnosis.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
 from robocal.report.figures import map_figure
@@ -107,19 +107,19 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys
     # compensating a target beyond the range says so
     q = second.q[~inside][:1]
     (row,) = robocal.compensate(result, fit.robot.predict("position", q))
-    assert "not corrected by its map: joint 2 beyond" in row["status"]
+    assert "beyond its map's data: joint 2 beyond" in row["status"]
     # and so does the command line
     save_result(result, tmp_path / "result.json")
     write_canonical(second, tmp_path / "second.csv")
     assert main(["verify", str(tmp_path / "result.json"), str(tmp_path / "second.csv")]) == 0
     out = capsys.readouterr().out
-    assert f"not corrected by its map: {coverage['outside']} samples have joint 2 beyond" in out
+    assert f"beyond its map's data: {coverage['outside']} samples have joint 2 beyond" in out
     assert f"within the maps' ranges ({covered['n']} of {report['metrics']['n']} samples)" in out
 
 
 @given(st.floats(-170, 0), st.floats(20, 300), st.sampled_from([2.0, 5.0, 15.0]))
 @settings(max_examples=40, deadline=None)
-def test_map_basis_has_no_constant_and_is_zero_beyond_its_range(lo, width, spacing):
+def test_map_basis_has_no_constant_and_fades_beyond_its_range(lo, width, spacing):
     detail = {"lo": lo, "hi": lo + width, "spacing": spacing}
     q = np.radians(np.linspace(lo - 30, lo + width + 30, 301))
     B = map_basis(q, detail).toarray()
@@ -132,7 +132,10 @@ def test_map_basis_has_no_constant_and_is_zero_beyond_its_range(lo, width, spaci
     assert np.std(line - Bd @ np.linalg.lstsq(Bd, line, rcond=None)[0]) > 1e-3 * np.std(line)
     inside = map_coverage(q, detail)
     assert np.all(inside == ((q >= np.radians(lo) - 1e-9) & (q <= np.radians(lo + width) + 1e-9)))
-    assert np.all(B[~inside] == 0.0)  # no correction beyond the fitted range
+    # beyond the fitted range: the row of its nearer end, fading over MAP_REACH_SPACINGS spacings
+    end = np.clip(q, np.radians(lo), np.radians(lo + width))
+    fade = np.exp(-np.abs(q - end) / np.radians(MAP_REACH_SPACINGS * spacing))
+    assert np.allclose(B[~inside], fade[~inside, None] * map_basis(end[~inside], detail).toarray())
     assert np.all(np.abs(B[inside]).sum(axis=1) > 0)
     curve = map_curve(detail, c)
     assert curve["angle_deg"][0] == lo and np.isclose(curve["angle_deg"][-1], lo + width)
@@ -142,14 +145,17 @@ def test_map_basis_has_no_constant_and_is_zero_beyond_its_range(lo, width, spaci
 @settings(max_examples=40, deadline=None)
 def test_a_map_covers_only_where_its_data_are(lo, band, gap_spacings, spacing):
     """Two bands of joint angles with a stretch of ``gap_spacings`` knot spacings between them:
-    more than MAP_GAP_SPACINGS is a gap, where the map corrects nothing; a narrower one is not."""
+    more than MAP_GAP_SPACINGS is a gap, where the map's correction fades from the nearer edge's;
+    a narrower one is not a gap."""
     gap = gap_spacings * spacing
     angles = np.radians(np.concatenate([np.linspace(lo, lo + band, 200), np.linspace(lo + band + gap, lo + 2 * band + gap, 200)]))
     detail = {"spacing": spacing, **map_support(angles, spacing)}
     (a, b), middle = detail["gaps"][0], np.radians(lo + band + gap / 2)
     assert len(detail["gaps"]) == 1 and lo + band <= a < b <= lo + band + gap
     assert not map_coverage(np.array([middle]), detail)[0]
-    assert np.all(map_basis(np.array([middle]), detail).toarray() == 0.0)
+    nearer = np.radians(a if middle - np.radians(a) <= np.radians(b) - middle else b)
+    fade = np.exp(-abs(middle - nearer) / np.radians(MAP_REACH_SPACINGS * spacing))
+    assert np.allclose(map_basis(np.array([middle]), detail).toarray(), fade * map_basis(np.array([nearer]), detail).toarray())
     assert np.all(map_coverage(angles, detail))  # every angle it was fitted on
     curve = map_curve(detail, np.ones(map_basis(angles, detail).shape[1]))
     assert not np.any((curve["angle_deg"] > a) & (curve["angle_deg"] < b))  # the table leaves the gap out
@@ -157,9 +163,26 @@ def test_a_map_covers_only_where_its_data_are(lo, band, gap_spacings, spacing):
     assert narrow["gaps"] == [] and map_coverage(np.array([middle]), narrow)[0]
 
 
+def test_a_maps_correction_fades_beyond_its_data():
+    """Beyond its range a map carries the correction of its end, fading as exp(-d / reach) with
+    the distance d (reach: MAP_REACH_SPACINGS knot spacings): next to its data it still corrects,
+    far from them it leaves the joint to the geometry's offset."""
+    detail = {"lo": -60.0, "hi": 20.0, "spacing": 2.0}
+    c = np.random.default_rng(1).normal(size=map_basis(np.zeros(1), detail).shape[1])
+    reach = MAP_REACH_SPACINGS * detail["spacing"]
+
+    def at(deg):
+        return float((map_basis(np.radians([deg]), detail) @ c)[0])
+
+    assert abs(at(20.0)) > 0 and abs(at(-60.0)) > 0
+    assert np.isclose(at(20.0 + reach), np.exp(-1.0) * at(20.0))
+    assert np.isclose(at(-60.0 - 2.0 * reach), np.exp(-2.0) * at(-60.0))
+    assert abs(at(20.0 + 12.0 * reach)) < 1e-5 * abs(at(20.0))
+
+
 def test_a_folds_map_corrects_only_the_angles_it_was_fitted_on(geared):
-    """Cross-validation scores a fold's map as a new session's: held-out samples beyond the
-    joint angles of the fold's training samples get no correction from it."""
+    """Cross-validation credits a fold's map nothing beyond the joint angles of the fold's
+    training samples (a new session gets its fading edge value: the folds do not count on it)."""
     data, diagnosis = geared
     model = diagnosis.model
     q2 = data.q[model.idx, 1]

@@ -286,8 +286,8 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dic
         beyond = [m for m in map_coverage_report(causes, q[None, :]) if m["outside"]]
         q = structure.to_readings(q[None, :], conventions)[0]
         status += note if status == "ok" else ""
-        if beyond:  # the map corrects nothing there: the user must know
-            status += "; not corrected by its map: " + ", ".join(f"joint {m['joint']} {uncovered_words(m)}" for m in beyond)
+        if beyond:  # the map's correction only fades out there: the user must know
+            status += "; beyond its map's data: " + ", ".join(f"joint {m['joint']} {uncovered_words(m)}" for m in beyond)
         out.append(
             {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
         )

@@ -990,7 +990,7 @@ def plan(
     required = _coverage(design.A, start, bins, covered) if bins else []
     if len(required) > poses:
         needed = f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned"
-        notes.append(f"{needed}: a map corrects nothing where its joint's range is left without poses")
+        notes.append(f"{needed}: a map's correction fades out within a few knot spacings where its joint's range is left without poses")
     readings_per_pose = RESIDUAL_WIDTH[measurement]
     if measured is None and poses * readings_per_pose <= len(design.names):
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")

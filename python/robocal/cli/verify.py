@@ -36,8 +36,8 @@ def summary(report: dict) -> str:
     for c in report.get("coverage", []):
         if c["outside"]:
             lines.append(
-                f"  not corrected by its map: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
-                f"(its fit had no data there; first rows {c['rows'][:5]})"
+                f"  beyond its map's data: {c['outside']} samples have joint {c['joint']} {uncovered_words(c)} "
+                f"(its fit had no data there: its correction fades out within a few knot spacings; first rows {c['rows'][:5]})"
             )
     iso = report.get("iso9283")
     if iso is not None:

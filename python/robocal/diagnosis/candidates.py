@@ -267,9 +267,10 @@ def map_constraint(detail: dict) -> np.ndarray:
 def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
     """``B·Z`` (m, n−1, scipy.sparse) of a joint map at angles ``qj`` (rad): cubic B-splines on
     :func:`_map_knots`, constrained by :func:`map_constraint`. Where the map does not cover the
-    angle (:func:`map_coverage`: beyond its range ``[lo, hi]`` or in a gap of its data) its rows
-    are zero: the data say nothing of the error there, and the geometry's ``theta`` (fitted
-    with the map's mean) is the best guess. Holding the end value instead carries the map's
+    angle (:func:`map_coverage`: beyond its range ``[lo, hi]`` or in a gap of its data) a row is
+    the row of the nearest angle it covers, fading out with the distance (:func:`map_reach`):
+    the data say nothing of the error far from them, and the geometry's ``theta`` (fitted with
+    the map's mean) is the best guess there. Holding the end value instead carries the map's
     error to angles the calibration never saw, and bridging a gap (the roughness penalty draws a
     straight line across it) to angles between those it saw (both measured across the UR10
     series: docs/findings.md, D3)."""
@@ -277,11 +278,33 @@ def map_basis(qj: np.ndarray, detail: dict) -> np.ndarray:
     from scipy.interpolate import BSpline  # imported on use: only maps need it
 
     t = _map_knots(detail)
+    nearest, fade = map_reach(qj, detail)
+    B = sparse.csr_array(BSpline.design_matrix(nearest, t, MAP_DEGREE, extrapolate=True))
+    return (sparse.diags_array(fade) @ B @ sparse.csr_array(map_constraint(detail))).tocsr().sorted_indices()  # each row's columns ascending
+
+
+#: Knot spacings over which a map's correction fades beyond its data: about the correlation
+#: length of the maps found (their autocorrelation falls to 1/e at 1.9–2.4 spacings on UR10
+#: series A or B alone, 2° knots). Fading from the edge value, the best linear guess of an error
+#: so correlated, lowered the held-out error of every UR10 series left out of a fit on the other
+#: two (pose: C 0.428 → 0.417, B 0.250 → 0.225, A 0.218 → 0.203 mm; positions: 0.442 → 0.439,
+#: 0.252 → 0.228, 0.218 → 0.201; 1 to 2.5 spacings alike), where a map that stopped at its data
+#: gave up what its edge value says of the angles next to them.
+MAP_REACH_SPACINGS = 2.0
+
+
+def map_reach(qj: np.ndarray, detail: dict) -> tuple[np.ndarray, np.ndarray]:
+    """For joint angles ``qj`` (m,) (rad): the nearest angle the map of ``detail`` covers (rad) and
+    the factor ``exp(−distance / reach)`` by which its correction there carries (1 where the map
+    covers ``qj``; ``reach`` :data:`MAP_REACH_SPACINGS` knot spacings)."""
     qj = np.asarray(qj, dtype=np.float64)
-    x = np.clip(qj, float(detail["lo"]) * DEG, float(detail["hi"]) * DEG)
-    B = sparse.csr_array(BSpline.design_matrix(x, t, MAP_DEGREE, extrapolate=True))
-    inside = sparse.diags_array(map_coverage(qj, detail).astype(np.float64))
-    return (inside @ B @ sparse.csr_array(map_constraint(detail))).tocsr().sorted_indices()  # each row's columns ascending
+    nearest = np.clip(qj, float(detail["lo"]) * DEG, float(detail["hi"]) * DEG)
+    for a, b in detail.get("gaps", ()):
+        a, b = float(a) * DEG, float(b) * DEG
+        within = (nearest > a) & (nearest < b)
+        nearest[within] = np.where(nearest[within] - a <= b - nearest[within], a, b)
+    reach = MAP_REACH_SPACINGS * float(detail["spacing"]) * DEG
+    return nearest, np.exp(-np.abs(qj - nearest) / reach)
 
 
 def map_penalty(detail: dict, weight: float) -> np.ndarray:
@@ -340,8 +363,9 @@ def covered_when_fitted_on(detail: dict, fitted: np.ndarray, qj: np.ndarray) -> 
 
 def map_within(c: Candidate, data: Dataset, angles: np.ndarray) -> Candidate:
     """The joint map ``c`` (its knots and coefficients unchanged) correcting only where the joint
-    ``angles`` (rad) it is fitted on support it: held-out samples beyond them are scored as the
-    map would treat a new session's (:func:`covered_when_fitted_on`)."""
+    ``angles`` (rad) it is fitted on support it (:func:`covered_when_fitted_on`): held-out samples
+    beyond them get nothing from it, where a new session's get its fading edge value
+    (:func:`map_reach`) — the folds do not credit a map with what it does beyond its data."""
     from scipy import sparse
 
     inside = sparse.diags_array(covered_when_fitted_on(c.detail, angles, data.q[:, c.joint]).astype(np.float64))
@@ -364,9 +388,9 @@ def result_maps(causes: list[dict]) -> list[tuple]:
 
 def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.ndarray] = None) -> list[dict]:
     """For each joint map among a result file's ``causes``: how many of the joint angles ``q``
-    (m, N, rad) it does not cover — beyond the range it was fitted on or in a gap of its data:
-    it corrects nothing there —, and the first rows (``rows``, default 0-based sample indices)
-    that it does not."""
+    (m, N, rad) it does not cover — beyond the range it was fitted on or in a gap of its data,
+    where its correction only fades out from its edge value (:func:`map_reach`) —, and the first
+    rows (``rows``, default 0-based sample indices) that it does not."""
     out = []
     for cause in causes:
         if cause.get("kind") != "joint_map":
@@ -380,7 +404,7 @@ def map_coverage_report(causes: list[dict], q: np.ndarray, rows: Optional[np.nda
 
 
 def uncovered_words(entry: dict) -> str:
-    """Where a :func:`map_coverage_report` entry's map corrects nothing, in words."""
+    """Where a :func:`map_coverage_report` entry's map has no data, in words."""
     lo, hi = entry["range_deg"]
     gaps = ", ".join(f"{a:g}..{b:g}" for a, b in entry.get("gaps_deg", []))
     return f"beyond the range {lo:g}..{hi:g} deg" + (f" or in the gaps {gaps} deg of its data" if gaps else "")

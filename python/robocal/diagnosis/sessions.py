@@ -138,8 +138,8 @@ class _Evaluator:
 
     def problems(self, model: _Model, span: Optional[tuple] = None) -> list[ExtendedProblem]:
         """Per session, the model's problem. Joint maps cover the joint's angles in the sessions
-        ``span`` (0-based; default all): one basis for every session, zero beyond (a left-out
-        session is placed as ``verify`` would place it)."""
+        ``span`` (0-based; default all): one basis for every session, fading beyond (a left-out
+        session is placed as ``verify`` would place it: :func:`~.candidates.map_reach`)."""
         span = tuple(range(len(self.sessions))) if span is None else span
         bases = self.bases(model)
         out = []

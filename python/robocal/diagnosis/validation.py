@@ -119,8 +119,8 @@ def held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarr
 def fold_causes(ext: ExtendedProblem, train: np.ndarray) -> list:
     """``ext``'s causes with each joint map covering only the angles of the training samples
     ``train`` (positions in ``ext.idx``): a fold's map is fitted on them alone, and beyond them
-    it corrects nothing — as on a new session, rather than where the roughness penalty alone
-    extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
+    it corrects nothing (a new session gets its fading edge value: no fold credits that),
+    rather than where the roughness penalty alone extrapolates it (a blocked fold's test block may visit joint ranges no other block does);
     likewise a wandering sensor's term covers only the stretches of the session it was fitted on."""
     angles = ext.full_data.q[ext.idx[train]]
     fitted = {

@@ -648,7 +648,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
         p = diagnosis_figure(diag, out / "diagnosis.png")
         joint_maps = [e for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]
         caption = (
-            "Joint map of joint {}: the correction of its angle against its reading (no correction beyond the range it was fitted on), "
+            "Joint map of joint {}: the correction of its angle against its reading (beyond the range it was fitted on its correction fades out within a few knot spacings), "
             "with ±2 standard deviations."
         )
         maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), caption.format(e["joint"])) for e in joint_maps]
