@@ -47,6 +47,7 @@ from .select import (
     undetermined,
 )
 from .uncertainty import uncertainty_entries
+from .validation import WARM_DAMPING
 from .wander import TIME_TERMS
 
 logger = logging.getLogger(__name__)
@@ -164,10 +165,7 @@ class _Evaluator:
         """The model fitted on every session (once per model): the stacked problem and its fit."""
         if model not in self._fits:
             stacked = model.stacked(self.problems(model))
-            key = (model.conventions, "all")
-            fit = levenberg_marquardt(stacked, x0=self._warm(key, stacked.names, stacked.x0), method="diagnose")
-            self._starts[key] = dict(zip(stacked.names, fit.x))
-            self._fits[model] = (stacked, fit)
+            self._fits[model] = (stacked, self._fitted(stacked, (model.conventions, "all"), with_std=True))
         return self._fits[model]
 
     def cause_check(self, model: _Model, label: str) -> Optional[str]:
@@ -203,11 +201,9 @@ class _Evaluator:
             covered = map_coverage_mask([(c.joint, c.detail) for c in held.causes if c.kind == "joint_map"], held.data.q)
             train = model.stacked([p for s, p in enumerate(problems) if s != h])
             key = (model.conventions, h)  # a smaller model's fits on the same readings start it
-            fit = levenberg_marquardt(train, x0=self._warm((*key, "train"), train.names, train.x0), method="diagnose", with_std=False)
-            self._starts[(*key, "train")] = dict(zip(train.names, fit.x))
+            self._fitted(train, (*key, "train"))
             part = Partial(held, [n for n in held.names if is_private(n, self.measurement)], self._held_start(held, self._starts[(*key, "train")]))
-            fitted = levenberg_marquardt(part, x0=self._warm((*key, "held"), part.names, part.x0), method="diagnose", with_std=False)
-            self._starts[(*key, "held")] = dict(zip(part.names, fitted.x))
+            fitted = self._fitted(part, (*key, "held"))
             return squared_errors(part.data_residuals(fitted.x) * held.row_weights, held.k), covered
 
         self.bases(model)  # built once, before the threads read it
@@ -244,10 +240,18 @@ class _Evaluator:
 
         return np.array([start(n, v) for n, v in zip(names, held.x0)])
 
-    def _warm(self, key, names: list[str], x0: np.ndarray) -> np.ndarray:
-        """``x0`` with the entries a previous fit of the same fold found (a smaller model's)."""
-        previous = self._starts.get(key, {})
-        return np.array([previous.get(n, v) for n, v in zip(names, x0)])
+    def _fitted(self, problem, key, with_std: bool = False):
+        """``problem`` fitted from ``problem.x0`` with the entries the previous fit of the same
+        ``key`` (the same readings and sessions; a smaller model's) found, kept for the next.
+        From such a warm start the fit begins as Gauss-Newton (:data:`~.validation.WARM_DAMPING`)."""
+        previous = self._starts.get(key)
+        if previous is None:
+            fit = levenberg_marquardt(problem, method="diagnose", with_std=with_std)
+        else:
+            x0 = np.array([previous.get(n, v) for n, v in zip(problem.names, problem.x0)])
+            fit = levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std)
+        self._starts[key] = dict(zip(problem.names, fit.x))
+        return fit
 
 
 def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
