@@ -13,7 +13,8 @@ UR10 Series A (11 911 tracker positions) and the three UR10 series as sessions o
 (``--no-sessions`` skips that). Every case runs in a process of its own, which reports its peak
 resident memory. Prints a Markdown table with the machine, the load, the thread settings, the
 number of candidates screened, what was found, the held-out RMSE before and after, the time and
-the peak memory.
+the peak memory; ``--figure PNG`` also draws time against samples (log-log, with the line of
+time proportional to samples through the smallest scaling case).
 """
 
 from __future__ import annotations
@@ -82,13 +83,16 @@ def run_one(case: str) -> None:
     print(json.dumps({"samples": samples, "screened": screened, "found": found, "before": before, "after": after, "time": elapsed, "peak_mb": peak}))
 
 
-def row(name: str, case: str, repeats: int) -> str:
+def row(name: str, case: str, repeats: int, measured: list) -> str:
+    """The table row of ``case`` run ``repeats`` times; appends ``(name, samples, median time)``
+    to ``measured``."""
     runs = []
     for _ in range(repeats):
         done = subprocess.run([sys.executable, __file__, "--one", case], capture_output=True, text=True, check=True)
         runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
     times = [r["time"] for r in runs]
     r = runs[-1]
+    measured.append((name, r["samples"], statistics.median(times)))
     return (
         f"| {name} | {r['samples']} | {r['screened']} | {r['found']} | {r['before']:.4f} → {r['after']:.4f} | "
         f"{statistics.median(times):.2f} | {', '.join(f'{t:.2f}' for t in times)} | {max(x['peak_mb'] for x in runs):.0f} |"
@@ -102,6 +106,7 @@ def main() -> None:
     parser.add_argument("--no-public", action="store_true", help="skip the public files")
     parser.add_argument("--no-sessions", action="store_true", help="skip the three UR10 series as sessions")
     parser.add_argument("--no-scaling", action="store_true", help="skip the simulated UR10 files of 12 500 and 50 000 samples")
+    parser.add_argument("--figure", help="also draw time against samples into this PNG")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # a single case, in a process of its own
     args = parser.parse_args()
     if args.one:
@@ -116,17 +121,48 @@ def main() -> None:
     )
     print("| data | samples | candidates screened (first round) | found | held-out RMSE (mm) | median time (s) | runs (s) | peak memory (MB) |")
     print("|---|---|---|---|---|---|---|---|")
+    measured: list = []
     for measurement, _ in CASES:
-        print(row(f"simulated HSR JR680 {measurement}", f"simulated:{measurement},{args.samples}", args.repeats), flush=True)
+        print(row(f"simulated HSR JR680 {measurement}", f"simulated:{measurement},{args.samples}", args.repeats, measured), flush=True)
     if not args.no_scaling:
         for samples in SCALING:
-            print(row("simulated UR10 position, gear mesh on joints 2 and 3", f"scaling:{samples}", 1), flush=True)
+            print(row("simulated UR10 position, gear mesh on joints 2 and 3", f"scaling:{samples}", 1, measured), flush=True)
     if not args.no_public:
         for name in PUBLIC:
-            print(row(name, f"public:{name}", 1), flush=True)
+            print(row(name, f"public:{name}", 1, measured), flush=True)
         if not args.no_sessions:
-            print(row("D3 Series A + B + C UR10 position, as sessions", "sessions:", 1), flush=True)
+            print(row("D3 Series A + B + C UR10 position, as sessions", "sessions:", 1, measured), flush=True)
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+    if args.figure:
+        draw(measured, args.figure)
+
+
+def draw(measured: list, path: str) -> None:
+    """Time against samples, log-log, each case a labelled point; the scaling cases joined, with
+    the line of time proportional to samples through the first of them."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    scaling = [(n, t) for name, n, t in measured if name.startswith("simulated UR10")]
+    for name, n, t in measured:
+        ax.plot(n, t, "o", color="C0" if name.startswith("simulated UR10") else "C1")
+        ax.annotate(name.replace("simulated ", "sim. "), (n, t), textcoords="offset points", xytext=(5, 3), fontsize=7)
+    if len(scaling) > 1:
+        (n0, t0), ns = scaling[0], [n for n, _ in scaling]
+        ax.plot(ns, [t for _, t in scaling], "-", color="C0")
+        ax.plot([n0, max(ns)], [t0, t0 * max(ns) / n0], ":", color="grey", label="time ∝ samples")
+        ax.legend(loc="upper left", fontsize=8)
+    ax.set(xscale="log", yscale="log", xlabel="samples", ylabel="diagnose wall time (s)", title="robocal diagnose: time against samples")
+    ax.set_xlim(min(n for _, n, _ in measured) / 1.5, max(n for _, n, _ in measured) * 6)  # room for the labels
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    print(f"figure: {path}")
 
 
 if __name__ == "__main__":

@@ -63,6 +63,16 @@ def _plain(detail: dict) -> dict:
     return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in detail.items()}
 
 
+def _rows_of(cache: dict, basis, rows):
+    """``basis[rows]`` as CSR (``rows`` or a function giving them), kept in ``cache`` under the
+    basis itself: a problem's samples do not change, and a map's roughness variants share one
+    basis, so they share its rows too (the entry holds the basis, so its id is not reused)."""
+    held = cache.get(id(basis))
+    if held is None or held[0] is not basis:
+        held = cache[id(basis)] = (basis, basis[rows() if callable(rows) else rows].tocsr())
+    return held[1]
+
+
 class ExtendedProblem:
     """Geometric free parameters and cause coefficients, on the samples ``idx`` of ``data``.
 
@@ -163,10 +173,8 @@ class ExtendedProblem:
         return q
 
     def _sample_basis(self, cause: Candidate):
-        """A joint map's basis at the problem's samples, CSR; cached."""
-        if id(cause) not in self._sample_rows:
-            self._sample_rows[id(cause)] = cause.basis[self.idx].tocsr()
-        return self._sample_rows[id(cause)]
+        """A joint map's basis at the problem's samples, CSR; cached (:func:`_rows_of`)."""
+        return _rows_of(self._sample_rows, cause.basis, self.idx)
 
     def _jacobian_columns(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
         """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``."""
@@ -269,10 +277,8 @@ class ExtendedProblem:
 
     def _basis_rows(self, cause: Candidate):
         """A joint map's basis at every residual row (its sample's row repeated ``k`` times), CSR;
-        cached: the samples of a problem do not change."""
-        if id(cause) not in self._residual_rows:
-            self._residual_rows[id(cause)] = cause.basis[np.repeat(self.idx, self.k)].tocsr()
-        return self._residual_rows[id(cause)]
+        cached (:func:`_rows_of`)."""
+        return _rows_of(self._residual_rows, cause.basis, lambda: np.repeat(self.idx, self.k))
 
     def _sparse_jacobian(self, blocks: list):
         """The Jacobian as CSR assembled straight from its blocks: the data rows weighted

@@ -718,6 +718,9 @@ def _select(
         current_cv = new_cv
 
     last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
+    # The last round's screening is done with: its per-fold bases are the largest arrays of a
+    # diagnosis (a sixth of its peak memory at 3000 samples), not to be carried through the maps.
+    screen = J = r = None
     forward = list(causes)
     causes, x, current_cv, fold_x, curved, left_out = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
     for c in left_out:
