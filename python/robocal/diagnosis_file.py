@@ -21,9 +21,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, List, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from .exceptions import InvalidParameterError
 from .robot_file import load_document
 from .schemas import Implausible, validate
 
@@ -256,6 +257,8 @@ class DiagnosisReport(BaseModel):
     model: Optional[ReportModel] = None
     sessions: Optional[List[SessionReport]] = None
     time_s: Optional[float] = None
+    #: How messages name the report: its file, or "diagnose report" for a document given as a dict.
+    _where: str = PrivateAttr(default="diagnose report")
 
     @model_validator(mode="after")
     def _held_out_baseline(self) -> "DiagnosisReport":
@@ -276,9 +279,15 @@ class DiagnosisReport(BaseModel):
         return "rmse_loso" if self.several else "rmse_heldout"
 
     @property
-    def structure(self) -> List[str]:
-        """Labels of the reading conventions the model applies."""
-        return list(self.model.structure) if self.model is not None else []
+    def where(self) -> str:
+        """How messages name the report: ``diagnose report FILE`` (or without a file, for a dict)."""
+        return self._where
+
+    def needs_model(self, reader: str) -> ReportModel:
+        """The report's ``model``, or an error naming the file: ``reader`` (what reads it) needs it."""
+        if self.model is None:
+            raise InvalidParameterError(f"{self.where} lacks key 'model': {reader} takes the diagnosed model (model.causes)")
+        return self.model
 
 
 SessionReport.model_rebuild()
@@ -307,4 +316,6 @@ def load_diagnosis(source: Union[str, Path, dict, DiagnosisReport]) -> Diagnosis
         return source
     doc = load_document(source, "diagnose report", "diagnose report")
     where = "diagnose report" if isinstance(source, dict) else f"diagnose report {source}"
-    return validate(DiagnosisReport, doc, where)
+    report = validate(DiagnosisReport, doc, where)
+    report._where = where
+    return report
