@@ -266,6 +266,9 @@ class DiagnosisReport(BaseModel):
         if getattr(self.baseline, key) is None:
             several = " (a report on several sessions)" if self.several else ""
             raise PydanticCustomError("missing_figure", f"key 'baseline' lacks {key}{several}: not a `robocal diagnose --json` report")
+        for i, e in enumerate(self.effects, start=1):
+            if e.rmse_after is None:
+                raise PydanticCustomError("missing_figure", f"effect {i} ({e.label!r}) lacks {key}_after")
         return self
 
     @property
@@ -277,6 +280,11 @@ class DiagnosisReport(BaseModel):
     def held_key(self) -> str:
         """The name of the held-out RMSE: ``rmse_loso`` over several sessions, else ``rmse_heldout``."""
         return "rmse_loso" if self.several else "rmse_heldout"
+
+    @property
+    def structure(self) -> List[str]:
+        """Labels of the reading conventions the model applies (none without a model)."""
+        return list(self.model.structure) if self.model is not None else []
 
     @property
     def where(self) -> str:
