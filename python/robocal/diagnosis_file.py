@@ -70,7 +70,7 @@ class Curve(BaseModel):
 
 
 class Effect(BaseModel):
-    """A cause of the report, found (``effects``) or refused (:class:`Rejected`): its ``kind``,
+    """A cause of the report, found (``effects``) or refused (``rejected``, with its ``reason``): its ``kind``,
     ``joint`` (1-based; None for the sensor, drift, outliers), ``label`` (what ``calibrate
     --causes`` takes) and physical ``params``, with the held-out RMSE before and after it was
     added — cross-validated within one session (``rmse_heldout_*``) or leave-one-session-out
@@ -81,8 +81,10 @@ class Effect(BaseModel):
     label: str
     joint: Optional[int] = None
     params: Optional[dict[str, Any]] = None
+    # one session: cross-validated
     rmse_heldout_before: Optional[float] = None
     rmse_heldout_after: Optional[float] = None
+    # several sessions: leave-one-session-out, pooled and per session
     rmse_loso_before: Optional[float] = None
     rmse_loso_after: Optional[float] = None
     per_session_before: List[float] = []
@@ -95,6 +97,10 @@ class Effect(BaseModel):
     #: An outliers entry's test of readings taken right after long joint moves.
     after_long_moves: Optional[dict[str, Any]] = None
     curve: Optional[Curve] = None
+    # a refused cause's
+    reason: str = ""
+    gain_mm: Optional[float] = None
+    replaced_by: Optional[str] = None
 
     @field_validator("params")
     @classmethod
@@ -112,19 +118,9 @@ class Effect(BaseModel):
         return self.rmse_loso_after if self.rmse_loso_after is not None else self.rmse_heldout_after
 
 
-class Rejected(Effect):
-    """A cause tried and refused: why (``reason``), its screening gain, the cause put in its place."""
-
-    reason: str = ""
-    gain_mm: Optional[float] = None
-    replaced_by: Optional[str] = None
-
-
-class Revisits(BaseModel):
-    model_config = _REPORT
-    pairs: int
-    repeatability_mm: float
-    systematic_mm: float
+#: A cause tried and refused: an :class:`Effect` with why (``reason``), its screening gain
+#: (``gain_mm``, none for a cause put in another's place) and the cause put in its place.
+Rejected = Effect
 
 
 class Floor(BaseModel):
@@ -135,6 +131,16 @@ class Floor(BaseModel):
     sensor_mm: Optional[float] = None
     note: str = ""
     revisits: Optional[Revisits] = None
+
+
+class Revisits(BaseModel):
+    """The joint configurations measured twice: ``pairs`` of them, one reading's repeatability
+    and the final model's error they share beyond it (mm)."""
+
+    model_config = _REPORT
+    pairs: int
+    repeatability_mm: float
+    systematic_mm: float
 
 
 class TolerancePrior(BaseModel):
@@ -177,19 +183,19 @@ class Figures(BaseModel):
     model_config = _REPORT
     rmse_heldout: Optional[float] = None
     rmse_heldout_blocked: Optional[float] = None
-    rmse_heldout_unconstrained: Optional[float] = None
-    rmse_loso: Optional[float] = None
-    rmse_loso_unconstrained: Optional[float] = None
     per_session: List[float] = []
-    per_session_covered: List[Covered] = []
+    rmse_loso: Optional[float] = None
     rmse_train: Optional[float] = None
+    per_session_covered: List[Covered] = []
+    rmse_heldout_unconstrained: Optional[float] = None
+    rmse_loso_unconstrained: Optional[float] = None
+    rotation_per_session_deg: List[float] = []
     rotation_rmse_heldout_deg: Optional[float] = None
     rotation_rmse_heldout_blocked_deg: Optional[float] = None
     rotation_rmse_loso_deg: Optional[float] = None
-    rotation_per_session_deg: List[float] = []
+    implausible: List[Implausible] = []
     n_params: Optional[int] = None
     folds: Optional[int] = None
-    implausible: List[Implausible] = []
     floor_mm: Optional[float] = None
     floor: Optional[Floor] = None
     explained: Optional[float] = None
@@ -299,6 +305,7 @@ class DiagnosisReport(BaseModel):
 
 
 SessionReport.model_rebuild()
+Floor.model_rebuild()
 
 
 def load_diagnosis(source: Union[str, Path, dict, DiagnosisReport]) -> DiagnosisReport:
