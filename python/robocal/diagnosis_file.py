@@ -21,7 +21,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, List, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator
 from pydantic_core import PydanticCustomError
 
 from .exceptions import InvalidParameterError
@@ -194,8 +194,8 @@ class Figures(BaseModel):
     rotation_rmse_heldout_blocked_deg: Optional[float] = None
     rotation_rmse_loso_deg: Optional[float] = None
     implausible: List[Implausible] = []
-    n_params: Optional[int] = None
-    folds: Optional[int] = None
+    n_params: Optional[int] = Field(default=None, ge=0)
+    folds: Optional[int] = Field(default=None, ge=2)
     floor_mm: Optional[float] = None
     floor: Optional[Floor] = None
     explained: Optional[float] = None
@@ -248,16 +248,17 @@ class SessionReport(BaseModel):
 class DiagnosisReport(BaseModel):
     """A diagnose report (``robocal diagnose --json``), one session or several (``sessions``).
 
-    ``baseline`` and ``effects`` are required (with the baseline's held-out RMSE); ``model`` is
-    what ``calibrate --causes`` needs (:meth:`needs_model`)."""
+    No key is required of every report: ``calibrate --causes`` and ``plan`` need the ``model``
+    (:meth:`needs_model`), the page and the summaries the held-out figures (:meth:`needs_figures`).
+    A key that is there must have its type."""
 
     model_config = _REPORT
     robot: Optional[str] = None
     measurement: Optional[str] = None
-    samples: Optional[int] = None
+    samples: Optional[int] = Field(default=None, ge=0)
     source: Optional[str] = None
-    baseline: Figures
-    effects: List[Effect]
+    baseline: Optional[Figures] = None
+    effects: List[Effect] = []
     rejected: List[Rejected] = []
     final: Optional[Figures] = None
     model: Optional[ReportModel] = None
@@ -265,17 +266,6 @@ class DiagnosisReport(BaseModel):
     time_s: Optional[float] = None
     #: How messages name the report: its file, or "diagnose report" for a document given as a dict.
     _where: str = PrivateAttr(default="diagnose report")
-
-    @model_validator(mode="after")
-    def _held_out_baseline(self) -> "DiagnosisReport":
-        key = self.held_key
-        if getattr(self.baseline, key) is None:
-            several = " (a report on several sessions)" if self.several else ""
-            raise PydanticCustomError("missing_figure", f"key 'baseline' lacks {key}{several}: not a `robocal diagnose --json` report")
-        for i, e in enumerate(self.effects, start=1):
-            if e.rmse_after is None:
-                raise PydanticCustomError("missing_figure", f"effect {i} ({e.label!r}) lacks {key}_after")
-        return self
 
     @property
     def several(self) -> bool:
@@ -297,11 +287,28 @@ class DiagnosisReport(BaseModel):
         """How messages name the report: ``diagnose report FILE`` (or without a file, for a dict)."""
         return self._where
 
-    def needs_model(self, reader: str) -> ReportModel:
-        """The report's ``model``, or an error naming the file: ``reader`` (what reads it) needs it."""
+    def needs_model(self) -> ReportModel:
+        """The report's ``model`` (what ``calibrate --causes`` fits and ``plan`` plans for), or an
+        error naming the file."""
         if self.model is None:
-            raise InvalidParameterError(f"{self.where} lacks key 'model': {reader} takes the diagnosed model (model.causes)")
+            raise InvalidParameterError(f"{self.where} lacks key 'model': the diagnosed causes to fit are its model.causes")
         return self.model
+
+    def needs_figures(self, reader: str) -> "DiagnosisReport":
+        """The report, or an error naming the file if it lacks the held-out figures ``reader``
+        (what shows them) needs: the baseline's held-out RMSE, the effects, each with its
+        held-out RMSE after it was added."""
+        key, missing = self.held_key, None
+        if self.baseline is None or getattr(self.baseline, key) is None:
+            missing = f"key 'baseline', key {key!r}"
+        elif "effects" not in self.model_fields_set:
+            missing = "key 'effects'"
+        else:
+            missing = next((f"effect {i}, key '{key}_after'" for i, e in enumerate(self.effects, start=1) if e.rmse_after is None), None)
+        if missing:
+            several = " (several sessions)" if self.several else ""
+            raise InvalidParameterError(f"{self.where} lacks {missing}{several}: {reader} takes the held-out figures of a `robocal diagnose --json` report")
+        return self
 
 
 SessionReport.model_rebuild()

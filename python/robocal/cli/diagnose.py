@@ -36,7 +36,7 @@ def _implausible(flags: list) -> str:
 
 def summary(report) -> str:
     """A few lines for the terminal (a report on one session: typed, or its document)."""
-    report = load_diagnosis(report)
+    report = load_diagnosis(report).needs_figures("the summary")
     b, f = report.baseline, report.final
     lines = [
         f"{printable(report.robot, one_line=True)}, {report.measurement} data, {report.samples} samples: geometric baseline "
@@ -113,8 +113,8 @@ def _origin(entry: Effect) -> str:
 
 def sessions_summary(report) -> str:
     """A few lines for the terminal on a multi-session report (typed, or its document)."""
-    report = load_diagnosis(report)
-    b, f, model = report.baseline, report.final, report.needs_model("the summary")
+    report = load_diagnosis(report).needs_figures("the summary")
+    b, f, model = report.baseline, report.final, report.needs_model()
     rmse = lambda values: " / ".join(f"{v:.4f}" for v in values)  # noqa: E731
     lines = [f"{printable(report.robot, one_line=True)}, {report.measurement} data, {len(report.sessions)} sessions:"]
     for i, s in enumerate(report.sessions, start=1):

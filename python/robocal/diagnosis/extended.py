@@ -233,7 +233,7 @@ def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
     (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
     session fits its own). A step sits at one session's sample: it needs the report."""
     report = load_diagnosis(causes) if _is_report(causes) else None
-    listed = report.needs_model("a fit on several sessions").sessions if report is not None else None
+    listed = report.needs_model().sessions if report is not None else None
     if listed is not None:
         if len(listed) != n:
             raise InvalidParameterError(
@@ -252,7 +252,7 @@ def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
     its ``model.causes`` — and the report's tolerance prior ``(mm, deg)`` on the kinematics, if
     its final model has one."""
     if _is_report(causes):
-        model = load_diagnosis(causes).needs_model("`calibrate --causes`")
+        model = load_diagnosis(causes).needs_model()
         return model.structure + model.causes, None if model.kinematic_prior is None else tuple(model.kinematic_prior)
     if isinstance(causes, str):
         causes = [causes]

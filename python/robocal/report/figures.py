@@ -226,7 +226,7 @@ def acceptance_figure(figures: dict, maps: bool, out: Path) -> Path:
 
 
 def _diagnosis_steps(report) -> list[tuple[str, float]]:
-    report = load_diagnosis(report)
+    report = load_diagnosis(report).needs_figures("the held-out RMSE figure")
     steps = []
     outliers = [e for e in report.effects if e.kind == "outliers"]
     if outliers and outliers[0].rmse_heldout_before is not None:
@@ -242,7 +242,7 @@ def diagnosis_figure(report, path: Path) -> Path:
     """A bar chart of the held-out RMSE of a diagnose report (one session or several; typed, or
     its document: :func:`robocal.load_diagnosis`) as its causes are added, written to ``path``."""
     plt = _pyplot()
-    report = load_diagnosis(report)
+    report = load_diagnosis(report).needs_figures("the held-out RMSE figure")
     steps = _diagnosis_steps(report)
     names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
     # Constrained layout and a figure title: long cause labels push the axes right, and a title
