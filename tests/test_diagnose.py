@@ -526,9 +526,9 @@ def test_outliers_that_follow_long_joint_moves_are_named_as_unsettled_readings()
     spread = after_long_moves(moved, np.setdiff1d(np.arange(0, 400, 50), after))
     assert not spread["settling"] and spread["outliers"] == 0
     assert after_long_moves(data, after[:8]) is None  # no long moves on the simulated path
-    words = settling_words({"after_long_moves": found})
+    words = settling_words(found)
     assert "8 of 8 follow a joint move of 90 deg or more" in words and "before the arm settled" in words
-    assert settling_words({"after_long_moves": spread}) == "" and settling_words({"after_long_moves": {"settling": True, "of": "x"}}) == ""
+    assert settling_words(spread) == "" and settling_words({"settling": True, "of": "x"}) == ""
 
 
 def test_a_joint_error_seen_only_in_the_orientation_is_found_on_pose_data():

@@ -18,6 +18,7 @@ from robocal.kernels import factor_damped, sparse_gram
 from robocal.diagnosis.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
+from robocal.diagnosis_file import Effect
 from robocal.report.figures import map_figure
 from robocal.simulation import simulate
 
@@ -210,7 +211,9 @@ def test_verify_names_the_samples_in_a_gap_of_the_maps_data(geared, tmp_path, ca
     assert f"{coverage['outside']} samples have joint 2 beyond the range" in (out := capsys.readouterr().out) and "or in the gaps" in out
     # the map's plot breaks its line at the gap
     curve = map_curve(cause["detail"], np.asarray(cause["coefficients"]))
-    assert map_figure({"joint": 2, "label": cause["label"], "curve": curve}, tmp_path / "map.png").stat().st_size > 0
+    curve = {k: [float(v) for v in values] for k, values in curve.items()}  # as the report holds it
+    effect = Effect(kind="joint_map", joint=2, label=cause["label"], curve=curve, rmse_heldout_after=0.0)
+    assert map_figure(effect, tmp_path / "map.png").stat().st_size > 0
 
 
 @given(st.integers(0, 2**31 - 1), st.floats(1e-8, 1e2))

@@ -9,7 +9,9 @@ The public API: the functions that mirror the command line (``load``, ``simulate
 ``calibrate``, ``diagnose``, ``verify``, ``compensate``, ``plan`` …; positional for their data
 or file arguments, keyword-only options), robots (``robot``, ``write_robot``, the
 roboticstoolbox bridge) and the types they take and return (``Robot``, ``Dataset``,
-``CalibrationResult``, ``Diagnosis``, ``SessionsDiagnosis``, ``Plan`` …).
+``CalibrationResult``, ``Diagnosis``, ``SessionsDiagnosis``, ``Plan`` …), and the documents they
+write read back typed (``load_result``, ``load_diagnosis``: a diagnose report as a
+:class:`~robocal.diagnosis_file.DiagnosisReport`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ __all__ = [
     "Constraints",
     "Dataset",
     "Diagnosis",
+    "DiagnosisReport",
     "Joint",
     "MassModel",
     "Plan",
@@ -43,6 +46,7 @@ __all__ = [
     "exceptions",
     "from_roboticstoolbox",
     "load",
+    "load_diagnosis",
     "load_result",
     "plan",
     "robot",
@@ -63,6 +67,7 @@ _LAZY = {
     "diagnose": ("robocal.diagnosis", "diagnose"),
     "compensate": ("robocal.compensation", "compensate"),
     "load_result": ("robocal.results", "load_result"),
+    "load_diagnosis": ("robocal.diagnosis_file", "load_diagnosis"),
     "verify": ("robocal.verification", "verify"),
     "plan": ("robocal.planning", "plan"),
     "from_roboticstoolbox": ("robocal.rtb", "from_roboticstoolbox"),
@@ -71,6 +76,7 @@ _LAZY = {
     "CalibrationResult": ("robocal.calibration.result", "CalibrationResult"),
     "Diagnosis": ("robocal.diagnosis", "Diagnosis"),
     "SessionsDiagnosis": ("robocal.diagnosis", "SessionsDiagnosis"),
+    "DiagnosisReport": ("robocal.diagnosis_file", "DiagnosisReport"),
     "Plan": ("robocal.planning", "Plan"),
     "Constraints": ("robocal.planning", "Constraints"),
 }

@@ -203,7 +203,7 @@ def _where(loc: tuple, document: str) -> str:
     loc = tuple(k for k in loc if k not in ("document", "vector"))  # the robot_model form's tag
     while i < len(loc):
         key = loc[i]
-        if key in ("joints", "parameters", "implausible", "links") and i + 1 < len(loc) and isinstance(loc[i + 1], int):
+        if key in ("joints", "parameters", "implausible", "links", "effects", "sessions") and i + 1 < len(loc) and isinstance(loc[i + 1], int):
             words.append(f"{key.rstrip('s')} {loc[i + 1] + 1}")
             i += 2
         else:
@@ -223,7 +223,7 @@ def validate(model: type[BaseModel], document, where: str) -> BaseModel:
         if e["type"] == "missing":  # all keys missing at the same place, in one message
             keys = [str(x["loc"][-1]) for x in errors if x["type"] == "missing" and x["loc"][:-1] == e["loc"][:-1]]
             raise InvalidParameterError(f"{where}: {_where(e['loc'][:-1], 'the document')} lacks {', '.join(keys)}") from None
-        got = "" if e["type"] in ("missing", "extra_forbidden", "link_count") else f"; got {repr(e.get('input'))[:60]}"
+        got = "" if e["type"] in ("missing", "extra_forbidden", "link_count", "quantity") else f"; got {repr(e.get('input'))[:60]}"
         what = "unknown key" if e["type"] == "extra_forbidden" else e["msg"][0].lower() + e["msg"][1:]
         if e["type"] == "extra_forbidden" and model is RobotSpec:
             top = e["loc"][0] if len(e["loc"]) > 1 else None

@@ -24,8 +24,9 @@ CONTRADICTED = "the data demand them (a geometry within the tolerances fits wors
 
 def implausible_meaning(tolerance_prior) -> str:
     """What a final model's implausible parameters mean, given the report's ``tolerance_prior``
-    entry: demanded by the data if the prior was tried and not kept, undetermined otherwise."""
-    return CONTRADICTED if tolerance_prior and not tolerance_prior.get("accepted") else UNDETERMINED
+    (:class:`~robocal.diagnosis_file.TolerancePrior` or None): demanded by the data if the prior
+    was tried and not kept, undetermined otherwise."""
+    return CONTRADICTED if tolerance_prior is not None and not tolerance_prior.accepted else UNDETERMINED
 
 
 #: Deviations beyond this many times :data:`PLAUSIBLE` (100 mm, 20 deg) are no error of an arm's

@@ -8,9 +8,9 @@ import json
 from ..calibration.api import METHODS
 from ..calibration.result import describe_implausible
 from ..diagnosis.extended import calibrate
+from ..diagnosis_file import load_diagnosis
 from ..outputs import printable
 from ..results import save_result
-from ..robot_file import read_document
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     report = args.causes[0] if args.causes and len(args.causes) == 1 and args.causes[0].endswith(".json") else None
     if report is not None:
-        read_document(report, "diagnose report")  # a corrupt report (too deep, a key twice) is refused naming the file
+        report = load_diagnosis(report)  # a corrupt or malformed report is refused naming the file, before the data are read
     data = args.data[0] if len(args.data) == 1 else args.data
     result = calibrate(
         data,

@@ -5,137 +5,145 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 from ..calibration.result import describe_implausible, implausible_meaning
 from ..diagnosis import diagnose
 from ..diagnosis.leftover import leftover_words
+from ..diagnosis_file import Effect, Figures, Quantity, load_diagnosis
 from ..outputs import make_folder, printable, save_figure, write_text
 from ..report.figures import diagnosis_figure, map_figure
 from ..report.text import correlation_words, map_tables, settling_words
 from .arguments import add_data_arguments
 
 
-def _quantities(params: dict) -> str:
+def _quantities(params: Optional[dict]) -> str:
     shown = []
-    for name, q in params.items():
-        if isinstance(q, dict) and q.get("value") is not None and np.isfinite(q["value"]):
-            sd = f" ± {q['std']:.2g}" if q.get("std") is not None else ""
-            shown.append(f"{name} {q['value']:.4g}{sd} {q['unit']}".rstrip())
+    for name, q in (params or {}).items():
+        if isinstance(q, Quantity) and q.value is not None and np.isfinite(q.value):
+            sd = f" ± {q.std:.2g}" if q.std is not None else ""
+            shown.append(f"{name} {q.value:.4g}{sd} {q.unit}".rstrip())
         elif isinstance(q, list):
             shown.append(f"{name} {q[:8]}{' ...' if len(q) > 8 else ''}")
     return ", ".join(shown)
 
 
-def summary(report: dict) -> str:
-    """A few lines for the terminal."""
-    b, f = report["baseline"], report["final"]
+def _implausible(flags: list) -> str:
+    return describe_implausible([flag.model_dump() for flag in flags])
+
+
+def summary(report) -> str:
+    """A few lines for the terminal (a report on one session: typed, or its document)."""
+    report = load_diagnosis(report).needs_figures("the summary")
+    b, f = report.baseline, report.final
     lines = [
-        f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {report['samples']} samples: geometric baseline "
-        f"({b['n_params']} parameters) held-out RMSE {b['rmse_heldout']:.4f} mm (blocked {b['rmse_heldout_blocked']:.4f} mm)"
+        f"{printable(report.robot, one_line=True)}, {report.measurement} data, {report.samples} samples: geometric baseline "
+        f"({b.n_params} parameters) held-out RMSE {b.rmse_heldout:.4f} mm (blocked {b.rmse_heldout_blocked:.4f} mm)"
     ]
-    if b["implausible"]:
-        lines.append("  warning: geometric baseline: " + describe_implausible(b["implausible"]))
-    if not report["effects"]:
+    if b.implausible:
+        lines.append("  warning: geometric baseline: " + _implausible(b.implausible))
+    if not report.effects:
         lines.append("  no cause beyond the geometric model is significant")
-    for e in report["effects"]:
-        where = f" joint {e['joint']}" if e["joint"] is not None else ""
+    for e in report.effects:
+        where = f" joint {e.joint}" if e.joint is not None else ""
         lines.append(
-            f"  + {e['kind']}{where}: {_quantities(e['params'])}{correlation_words(e)}{settling_words(e)}; "
-            f"held-out RMSE {e['rmse_heldout_before']:.4f} -> {e['rmse_heldout_after']:.4f} mm"
-            + (f" ({share:.0%} of what the causes explain)" if isinstance(share := e.get("share_of_explained"), float) else "")
+            f"  + {e.kind}{where}: {_quantities(e.params)}{correlation_words(e.correlation)}{settling_words(e.after_long_moves)}; "
+            f"held-out RMSE {e.rmse_heldout_before:.4f} -> {e.rmse_heldout_after:.4f} mm"
+            + (f" ({e.share_of_explained:.0%} of what the causes explain)" if e.share_of_explained is not None else "")
         )
-    lines.append(f"  final held-out RMSE {f['rmse_heldout']:.4f} mm (blocked {f['rmse_heldout_blocked']:.4f} mm), {f['n_params']} parameters")
-    if "rotation_rmse_heldout_deg" in f:
+    lines.append(f"  final held-out RMSE {f.rmse_heldout:.4f} mm (blocked {f.rmse_heldout_blocked:.4f} mm), {f.n_params} parameters")
+    if f.rotation_rmse_heldout_deg is not None:
         lines.append(
-            f"  held-out orientation RMS {b['rotation_rmse_heldout_deg']:.4f} -> {f['rotation_rmse_heldout_deg']:.4f} deg "
-            f"(blocked {b['rotation_rmse_heldout_blocked_deg']:.4f} -> {f['rotation_rmse_heldout_blocked_deg']:.4f} deg)"
+            f"  held-out orientation RMS {b.rotation_rmse_heldout_deg:.4f} -> {f.rotation_rmse_heldout_deg:.4f} deg "
+            f"(blocked {b.rotation_rmse_heldout_blocked_deg:.4f} -> {f.rotation_rmse_heldout_blocked_deg:.4f} deg)"
         )
-    lines += _physical_lines(f, "rmse_heldout")
-    if "floor_mm" in f:
+    lines += _physical_lines(f, several=False)
+    floor = f.floor if f.floor_mm is not None else None
+    if floor is not None:
         lines.append(
-            f"  error floor from the data's own resolution {f['floor_mm']:.4f} mm "
-            f"(joints {f['floor']['joints_mm']:.4f}, sensor {f['floor']['sensor_mm']:.4f} mm; "
-            f"{f['floor']['note']}): {max(f['rmse_heldout'] - f['floor_mm'], 0.0):.4f} mm above it"
+            f"  error floor from the data's own resolution {f.floor_mm:.4f} mm "
+            f"(joints {floor.joints_mm:.4f}, sensor {floor.sensor_mm:.4f} mm; "
+            f"{floor.note}): {max(f.rmse_heldout - f.floor_mm, 0.0):.4f} mm above it"
         )
-    if "floor_mm" in f and (revisits := f["floor"].get("revisits")):
+    if floor is not None and (revisits := floor.revisits):
         lines.append(
-            f"  measured at {revisits['pairs']} revisits of a joint configuration: one reading's repeatability {revisits['repeatability_mm']:.4f} mm; "
-            f"what the final model still gets wrong there, beyond that noise, at least {revisits['systematic_mm']:.4f} mm"
+            f"  measured at {revisits.pairs} revisits of a joint configuration: one reading's repeatability {revisits.repeatability_mm:.4f} mm; "
+            f"what the final model still gets wrong there, beyond that noise, at least {revisits.systematic_mm:.4f} mm"
         )
-    if report["effects"] and f.get("explained") is not None:
-        lines.append(f"  the causes explain {f['explained']:.0%} of the baseline's held-out mean square error above that floor")
-    if f.get("structure_unexplained"):
-        lines.append(f"  structure unexplained: {f['structure_unexplained']['note']}")
-    if words := leftover_words(f):
+    if report.effects and f.explained is not None:
+        lines.append(f"  the causes explain {f.explained:.0%} of the baseline's held-out mean square error above that floor")
+    if f.structure_unexplained:
+        lines.append(f"  structure unexplained: {f.structure_unexplained.get('note')}")
+    if words := leftover_words(f.residuals):
         lines.append(f"  what is left: {words}")
-    for u in f.get("unexplained") or []:
+    for u in f.unexplained:
         lines.append(
-            f"  unexplained finding: {u['label']} would explain {u['share']:.0%} of the held-out mean square error left "
-            f"({_quantities(u['params'] or {})}); refused: {u['reason']}"
+            f"  unexplained finding: {u.label} would explain {u.share:.0%} of the held-out mean square error left "
+            f"({_quantities(u.params)}); refused: {u.reason}"
         )
-    for r in report["rejected"][:3]:
-        gain = "" if r.get("gain_mm") is None else f"gain {r['gain_mm']:.2g} mm, "  # none for a cause put in another's place
-        lines.append(f"  rejected {r['label']}: {gain}{r['reason']}")
+    for r in report.rejected[:3]:
+        gain = "" if r.gain_mm is None else f"gain {r.gain_mm:.2g} mm, "  # none for a cause put in another's place
+        lines.append(f"  rejected {r.label}: {gain}{r.reason}")
     return "\n".join(lines)
 
 
-def _physical_lines(final: dict, key: str) -> list[str]:
+def _physical_lines(final: Figures, several: bool) -> list[str]:
     """The final model's tolerance prior (kept or why not) and its implausible parameters."""
-    lines, prior = [], final.get("tolerance_prior")
-    if prior and prior["accepted"]:
+    lines, prior = [], final.tolerance_prior
+    if prior and prior.accepted:
         lines.append(
-            f"  physical model: the geometry held near nominal by a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) "
-            f"where the data leave it undetermined; unconstrained held-out RMSE {final[key + '_unconstrained']:.4f} mm"
+            f"  physical model: the geometry held near nominal by a tolerance prior (±{prior.sigma_mm:g} mm, ±{prior.sigma_deg:g} deg) "
+            f"where the data leave it undetermined; unconstrained held-out RMSE {final.unconstrained(several):.4f} mm"
         )
     elif prior:
-        lines.append(f"  no physical model: a tolerance prior (±{prior['sigma_mm']:g} mm, ±{prior['sigma_deg']:g} deg) was tried; {prior['reason']}")
-    if final.get("implausible"):
-        lines.append("  warning: final model: " + describe_implausible(final["implausible"], meaning=implausible_meaning(prior)))
+        lines.append(f"  no physical model: a tolerance prior (±{prior.sigma_mm:g} mm, ±{prior.sigma_deg:g} deg) was tried; {prior.reason}")
+    if final.implausible:
+        flags = [flag.model_dump() for flag in final.implausible]
+        lines.append("  warning: final model: " + describe_implausible(flags, meaning=implausible_meaning(prior)))
     return lines
 
 
-def _origin(entry: dict) -> str:
+def _origin(entry: Effect) -> str:
     """Where a multi-session candidate came from: sessions whose own diagnosis found it, or the
     robot's mass model (gravity compliance is always judged)."""
-    return f"found in sessions {entry['found_in_sessions']}" if entry["found_in_sessions"] else "from the mass model"
+    return f"found in sessions {entry.found_in_sessions}" if entry.found_in_sessions else "from the mass model"
 
 
-def sessions_summary(report: dict) -> str:
-    """A few lines for the terminal on a multi-session report."""
-    b, f = report["baseline"], report["final"]
+def sessions_summary(report) -> str:
+    """A few lines for the terminal on a multi-session report (typed, or its document)."""
+    report = load_diagnosis(report).needs_figures("the summary")
+    b, f, model = report.baseline, report.final, report.needs_model()
     rmse = lambda values: " / ".join(f"{v:.4f}" for v in values)  # noqa: E731
-    lines = [f"{printable(report['robot'], one_line=True)}, {report['measurement']} data, {len(report['sessions'])} sessions:"]
-    for i, s in enumerate(report["sessions"], start=1):
-        own = [e["label"] for e in s["diagnosis"]["effects"]]
+    lines = [f"{printable(report.robot, one_line=True)}, {report.measurement} data, {len(report.sessions)} sessions:"]
+    for i, s in enumerate(report.sessions, start=1):
+        own = [e.label for e in s.diagnosis.effects] if s.diagnosis is not None else []
+        lines.append(f"  session {i} ({s.source or 'data'}, {s.samples} samples) on its own: " + ("; ".join(own) if own else "nothing beyond the geometry"))
+    lines.append(f"  geometric model, leave-one-session-out RMSE {b.rmse_loso:.4f} mm (per session {rmse(b.per_session)})")
+    if b.implausible:
+        lines.append("  warning: geometric model on all sessions: " + _implausible(b.implausible))
+    for e in report.effects:
         lines.append(
-            f"  session {i} ({s['source'] or 'data'}, {s['samples']} samples) on its own: " + ("; ".join(own) if own else "nothing beyond the geometry")
+            f"  + {e.label} ({_origin(e)}): {_quantities(e.params)}{correlation_words(e.correlation)}; held-out "
+            f"{e.rmse_loso_before:.4f} -> {e.rmse_loso_after:.4f} mm (per session {rmse(e.per_session_after)})"
         )
-    lines.append(f"  geometric model, leave-one-session-out RMSE {b['rmse_loso']:.4f} mm (per session {rmse(b['per_session'])})")
-    if b["implausible"]:
-        lines.append("  warning: geometric model on all sessions: " + describe_implausible(b["implausible"]))
-    for e in report["effects"]:
+    for r in report.rejected:
+        lines.append(f"  not carried: {r.label} ({_origin(r)}): {r.reason}")
+    for i, s in enumerate(model.sessions or [], start=1):
+        if s.causes:
+            lines.append(f"  session {i} keeps its own: {'; '.join(s.causes)}")
+    lines.append(f"  final leave-one-session-out RMSE {f.rmse_loso:.4f} mm (per session {rmse(f.per_session)})")
+    if f.rotation_rmse_loso_deg is not None:
         lines.append(
-            f"  + {e['label']} ({_origin(e)}): {_quantities(e['params'])}{correlation_words(e)}; held-out "
-            f"{e['rmse_loso_before']:.4f} -> {e['rmse_loso_after']:.4f} mm (per session {rmse(e['per_session_after'])})"
+            f"  held-out orientation RMS {b.rotation_rmse_loso_deg:.4f} -> {f.rotation_rmse_loso_deg:.4f} deg "
+            f"(per session {' / '.join(f'{v:.4f}' for v in f.rotation_per_session_deg)})"
         )
-    for r in report["rejected"]:
-        lines.append(f"  not carried: {r['label']} ({_origin(r)}): {r['reason']}")
-    for i, s in enumerate(report["model"]["sessions"], start=1):
-        if s["causes"]:
-            lines.append(f"  session {i} keeps its own: {'; '.join(s['causes'])}")
-    lines.append(f"  final leave-one-session-out RMSE {f['rmse_loso']:.4f} mm (per session {rmse(f['per_session'])})")
-    if "rotation_rmse_loso_deg" in f:
-        lines.append(
-            f"  held-out orientation RMS {b['rotation_rmse_loso_deg']:.4f} -> {f['rotation_rmse_loso_deg']:.4f} deg "
-            f"(per session {' / '.join(f'{v:.4f}' for v in f['rotation_per_session_deg'])})"
-        )
-    covered = f.get("per_session_covered", [])
-    if covered and any(c.startswith("joint_map") for c in report["model"]["causes"]):
-        parts = [f"{c['rmse']:.4f} mm on {c['samples']}" if c["rmse"] is not None else "none covered" for c in covered]
+    covered = f.per_session_covered
+    if covered and any(c.startswith("joint_map") for c in model.causes):
+        parts = [f"{c.rmse:.4f} mm on {c.samples}" if c.rmse is not None else "none covered" for c in covered]
         lines.append(f"  where the joint maps fitted on the other sessions apply: {', '.join(parts)} samples")
-    lines += _physical_lines(f, "rmse_loso")
+    lines += _physical_lines(f, several=True)
     return "\n".join(lines)
 
 
@@ -173,10 +181,10 @@ def write_figures(diagnosis, out: Path) -> list[Path]:
         path = save_figure(fig, out / f"cause_{i}.png", dpi=120)
         plt.close(fig)
         paths.append(path)
-    report = diagnosis.to_dict()
-    for e in report["effects"]:
-        if e.get("kind") == "joint_map" and "curve" in e:
-            paths.append(map_figure(e, Path(out) / f"map_joint{e['joint']}.png"))
+    report = load_diagnosis(diagnosis.to_dict())
+    for e in report.effects:
+        if e.kind == "joint_map" and e.curve is not None:
+            paths.append(map_figure(e, Path(out) / f"map_joint{e.joint}.png"))
     for name, text in map_tables(report):
         write_text(Path(out) / name, text)
     return paths + [diagnosis_figure(report, Path(out) / "heldout_rmse.png")]

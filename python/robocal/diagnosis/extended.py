@@ -24,10 +24,10 @@ from ..calibration.result import CalibrationResult
 from ..calibration.sessions import SESSION_KINDS, is_private, load_sessions, session_problems
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, random_split
+from ..diagnosis_file import DiagnosisReport, load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
 from ..results import file_sha256
-from ..robot_file import load_document
 from . import structure
 from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .model import ExtendedProblem
@@ -85,10 +85,10 @@ def calibrate(
     kinematic_prior : (float, float), optional
         ``(mm, deg)`` Gaussian prior at nominal on every estimated kinematic parameter (see
         :meth:`Problem.build`).
-    causes : list of str, dict or path, optional
+    causes : list of str, DiagnosisReport, dict or path, optional
         An extended model: cause labels as ``robocal diagnose`` reports them (e.g.
         ``"joint_periodic joint 2 harmonic=3"``, ``"joint_sign joint 4"``), or a diagnose report
-        (dict or JSON file) whose causes — and the tolerance prior of its final model, unless
+        (:func:`robocal.load_diagnosis`: typed, a dict or its JSON file) whose causes — and the tolerance prior of its final model, unless
         ``kinematic_prior`` is given — are taken. Reading conventions (``joint_zero``,
         ``joint_sign``, ``joint_reference``) transform the joint readings before the fit. Fitted with the geometric parameters by ``method="lm"``; the result
         JSON then has ``causes`` with their physical parameters.
@@ -111,6 +111,8 @@ def calibrate(
         raise InvalidParameterError(f"a fit on several sessions is made by method 'lm' only; got {method!r}")
     api.check_method(method)
     test_fraction = api.check_test_fraction(test_fraction)
+    if _is_report(causes):
+        causes = load_diagnosis(causes)  # read and checked once, before the data
     if several:
         datasets, r = load_sessions(data, robot, measurement, angle_unit, "a fit on several sessions")
     else:
@@ -222,23 +224,22 @@ def _session_term(label: str) -> bool:
 
 
 def _is_report(causes) -> bool:
-    """A diagnose report (dict) or its JSON file, rather than cause labels."""
-    return isinstance(causes, dict) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
-
-
-def _report(causes):
-    return load_document(causes, "diagnose report", "diagnosis")
+    """A diagnose report (typed, a dict or its JSON file), rather than cause labels."""
+    return isinstance(causes, (dict, DiagnosisReport)) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
 
 
 def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
     """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
     (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
     session fits its own). A step sits at one session's sample: it needs the report."""
-    listed = (_report(causes).get("model") or {}).get("sessions") if _is_report(causes) else None
+    report = load_diagnosis(causes) if _is_report(causes) else None
+    listed = report.needs_model().sessions if report is not None else None
     if listed is not None:
-        if not isinstance(listed, list) or len(listed) != n or not all(isinstance(e, dict) and isinstance(e.get("causes"), list) for e in listed):
-            raise InvalidParameterError(f"the diagnose report's model.sessions must list the causes of each of the {n} sessions given, in order")
-        return [[str(c) for c in e["causes"]] for e in listed]
+        if len(listed) != n:
+            raise InvalidParameterError(
+                f"{report.where}: key 'model', key 'sessions' lists {len(listed)} sessions; the causes of each of the {n} sessions given are needed, in order"
+            )
+        return [list(entry.causes) for entry in listed]
     steps = [label for label in labels if label.startswith("step ")]
     if steps:
         raise InvalidParameterError(f"{steps[0]!r} is a step of one session's sensor: for several sessions pass the multi-session diagnose report")
@@ -246,23 +247,18 @@ def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
 
 
 def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
-    """Cause labels from labels, a diagnose report (dict) or its JSON file — the report's
-    reading conventions (``model.structure``) first, then its ``model.causes`` — and the
-    report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
+    """Cause labels from labels or a diagnose report (:func:`robocal.load_diagnosis`: typed, a
+    dict or its JSON file) — the report's reading conventions (``model.structure``) first, then
+    its ``model.causes`` — and the report's tolerance prior ``(mm, deg)`` on the kinematics, if
+    its final model has one."""
     if _is_report(causes):
-        causes = _report(causes)
-    prior = None
-    if isinstance(causes, dict):
-        try:
-            prior = causes["model"].get("kinematic_prior")
-            causes = list(causes["model"].get("structure", [])) + list(causes["model"]["causes"])
-        except (KeyError, TypeError, AttributeError):
-            raise InvalidParameterError("a diagnose report needs model.causes (the JSON of `robocal diagnose --json`)") from None
+        model = load_diagnosis(causes).needs_model()
+        return model.structure + model.causes, None if model.kinematic_prior is None else tuple(model.kinematic_prior)
     if isinstance(causes, str):
         causes = [causes]
     if not isinstance(causes, (list, tuple)) or not all(isinstance(c, str) for c in causes):
         raise InvalidParameterError(f"`causes` must be cause labels, a diagnose report or its JSON file; got {causes!r}")
-    return list(causes), None if prior is None else tuple(prior)
+    return list(causes), None
 
 
 def extended_problem(

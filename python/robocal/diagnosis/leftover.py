@@ -92,10 +92,10 @@ def unexplained(rejected: list, rmse: Optional[float]) -> list[dict]:
     return sorted(out, key=lambda o: -o["share"])
 
 
-def leftover_words(final: dict) -> Optional[str]:
-    """One sentence on what the final model leaves (for the command line and the report), or
-    None for a report without the tests."""
-    verdict = final.get("residuals") if isinstance(final, dict) else None
+def leftover_words(verdict: Optional[dict]) -> Optional[str]:
+    """One sentence on what the final model leaves (its ``residuals`` verdict,
+    :func:`residual_verdict`: for the command line and the report), or None for a report
+    without the tests."""
     if not isinstance(verdict, dict) or not isinstance(verdict.get("findings"), list):
         return None
     if verdict.get("noise"):

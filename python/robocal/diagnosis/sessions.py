@@ -29,6 +29,7 @@ from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_p
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
 from ..kernels import is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
+from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..physics import DEG
 from ..progress import progress
@@ -348,17 +349,17 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     found: dict = {}  # label -> (candidate, sessions it was found in)
     replaced: dict = {}  # label -> sessions in which a joint map took the place of this harmonic
     for s, session in enumerate(sessions, start=1):
-        report = session.diagnosis.to_dict()
-        for label in report["model"]["structure"]:
+        report = load_diagnosis(session.diagnosis.to_dict())  # the session's report as a reader sees it
+        for label in report.structure:
             found.setdefault(label, (structure.parse(label, rob.n_joints), []))[1].append(s)
         for c in session.diagnosis.model.causes:
             if c.kind not in SESSION_TERMS:
                 found.setdefault(c.label, (c, []))[1].append(s)
                 if c.kind == "joint_map":
                     evaluator.maps.setdefault(c.label, c)
-        for r in report["rejected"]:
-            if r.get("replaced_by"):
-                replaced.setdefault(r["label"], []).append(s)
+        for r in report.rejected:
+            if r.replaced_by:
+                replaced.setdefault(r.label, []).append(s)
     # Gravity compliance is the cause with a physical model of how it carries to other poses;
     # within one session a harmonic may fit its shape better and win the selection, so every
     # compliance the robot's mass model offers is judged across sessions too. A harmonic that a

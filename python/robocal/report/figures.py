@@ -15,8 +15,9 @@ from typing import Optional
 import numpy as np
 
 from ..calibration.problem import is_kinematic
+from ..diagnosis_file import Effect, load_diagnosis
 from ..outputs import save_figure
-from .text import SHOWN, held_key
+from .text import SHOWN
 
 
 _DPI = 120
@@ -224,23 +225,24 @@ def acceptance_figure(figures: dict, maps: bool, out: Path) -> Path:
     return _save(fig, out / "acceptance.png")
 
 
-def _diagnosis_steps(report: dict) -> list[tuple[str, float]]:
-    effects, key = report["effects"], held_key(report)
+def _diagnosis_steps(report) -> list[tuple[str, float]]:
+    report = load_diagnosis(report).needs_figures("the held-out RMSE figure")
     steps = []
-    outliers = [e for e in effects if e.get("kind") == "outliers"]
-    if outliers and outliers[0].get("rmse_heldout_before") is not None:
-        steps.append(("geometric, outliers kept", float(outliers[0]["rmse_heldout_before"])))
-    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), float(report["baseline"][key])))
-    for e in effects:
-        if e.get("kind") != "outliers":
-            steps.append((f"+ {e.get('label') or e.get('kind')}", float(e[f"{key}_after"])))
+    outliers = [e for e in report.effects if e.kind == "outliers"]
+    if outliers and outliers[0].rmse_heldout_before is not None:
+        steps.append(("geometric, outliers kept", outliers[0].rmse_heldout_before))
+    steps.append(("geometric baseline" + (" (outliers removed)" if steps else ""), report.baseline.held_out(report.several)))
+    for e in report.effects:
+        if e.kind != "outliers":
+            steps.append((f"+ {e.label}", e.rmse_after))
     return steps
 
 
-def diagnosis_figure(report: dict, path: Path) -> Path:
-    """A bar chart of the held-out RMSE of a diagnose report (one session or several) as its
-    causes are added, written to ``path``."""
+def diagnosis_figure(report, path: Path) -> Path:
+    """A bar chart of the held-out RMSE of a diagnose report (one session or several; typed, or
+    its document: :func:`robocal.load_diagnosis`) as its causes are added, written to ``path``."""
     plt = _pyplot()
+    report = load_diagnosis(report).needs_figures("the held-out RMSE figure")
     steps = _diagnosis_steps(report)
     names, rmse = [s[0] for s in steps], np.array([s[1] for s in steps])
     # Constrained layout and a figure title: long cause labels push the axes right, and a title
@@ -253,30 +255,30 @@ def diagnosis_figure(report: dict, path: Path) -> Path:
         ax.text(v, yi, f" {v:.4g} mm{change}", va="center", fontsize=8)
     ax.set_yticks(y, [textwrap.fill(n, 34) for n in names], fontsize=9)
     ax.set_xlim(0, rmse.max() * 1.3)
-    folds = report["baseline"].get("folds")
-    how = ", leave-one-session-out" if "sessions" in report else (f", {folds}-fold cross-validation" if folds else "")
+    folds = report.baseline.folds
+    how = ", leave-one-session-out" if report.several else (f", {folds}-fold cross-validation" if folds else "")
     ax.set(xlabel=f"held-out RMSE (mm){how}")
     fig.suptitle("Held-out error as the diagnosed causes are added", fontsize=11)
     return _save(fig, Path(path))
 
 
-def map_figure(effect: dict, path: Path) -> Path:
+def map_figure(effect: Effect, path: Path) -> Path:
     """A joint map of a diagnose report (an effect with a ``curve``): the correction of the
     joint's angle against its reading, with its ±2 std band, written to ``path``."""
     plt = _pyplot()
-    curve = effect["curve"]
-    angle, value = np.asarray(curve["angle_deg"]), np.asarray(curve["value_deg"]) * 3600.0
-    band = 2.0 * np.asarray(curve.get("std_deg", np.zeros(len(angle)))) * 3600.0
+    curve = effect.curve
+    angle, value = np.asarray(curve.angle_deg), np.asarray(curve.value_deg) * 3600.0
+    band = 2.0 * np.asarray(curve.std_deg if curve.std_deg is not None else np.zeros(len(angle))) * 3600.0
     # the curve leaves out the gaps of the map's data (it corrects nothing there): break the line
     steps = np.diff(angle)
     breaks = np.flatnonzero(steps > 1.5 * np.median(steps)) + 1 if len(steps) else []
     angle, value, band = (np.insert(a, breaks, np.nan) for a in (angle, value, band))
     fig, ax = plt.subplots(figsize=(7.0, 3.4))
-    if "std_deg" in curve:
+    if curve.std_deg is not None:
         ax.fill_between(angle, value - band, value + band, color="tab:blue", alpha=0.25, lw=0, label="±2 std")
     ax.plot(angle, value, color="tab:blue", lw=1.2, label="map")
     ax.axhline(0.0, color="0.5", lw=0.6)
-    ax.set(xlabel=f"joint {effect['joint']} reading (deg)", ylabel="correction (arcsec)", title=effect["label"])
+    ax.set(xlabel=f"joint {effect.joint} reading (deg)", ylabel="correction (arcsec)", title=effect.label)
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     return _save(fig, Path(path))

@@ -46,10 +46,10 @@ from ..data.dataset import Dataset
 from ..diagnosis import structure
 from ..diagnosis.leftover import leftover_words
 from ..diagnosis.result_model import ResultModel, result_model
+from ..diagnosis_file import DiagnosisReport, Quantity, load_diagnosis
 from ..exceptions import InvalidParameterError, RobocalError
 from ..outputs import make_folder, write_text
 from ..results import file_sha256, load_result
-from ..robot_file import load_document
 from ..serial_robot import Robot
 from .figures import (
     acceptance_figure,
@@ -63,7 +63,7 @@ from .figures import (
     residual_figures,
     rms,
 )
-from .text import SHOWN, correlation_words, held_key, settling_words
+from .text import SHOWN, correlation_words, settling_words
 
 logger = logging.getLogger(__name__)
 
@@ -147,18 +147,6 @@ def _fitted(doc: dict) -> dict:
 def _same_file(doc: dict, path) -> bool:
     recorded = _fitted(doc).get("sha256")
     return isinstance(recorded, str) and file_sha256(path) == recorded
-
-
-def _load_diagnosis(diagnosis) -> Optional[dict]:
-    report = None if diagnosis is None else load_document(diagnosis, "diagnose report", "diagnosis")
-    if report is not None:
-        ok = isinstance(report, dict) and isinstance(report.get("baseline"), dict) and isinstance(report.get("effects"), list)
-        if not ok or held_key(report) not in report["baseline"]:
-            raise InvalidParameterError(
-                f"{diagnosis if not isinstance(diagnosis, dict) else 'diagnosis'}: not a `robocal diagnose --json` report "
-                "(needs baseline.rmse_heldout, or baseline.rmse_loso for several sessions, and effects)"
-            )
-    return report
 
 
 def nominal_robot(robot: Robot, doc: dict) -> Robot:
@@ -411,9 +399,11 @@ def _quantities(params) -> str:
         return _esc(params)
     shown = []
     for name, q in params.items():
-        if isinstance(q, dict) and q.get("value") is not None:
-            sd = f" ± {q['std']:.2g}" if q.get("std") is not None else ""
-            shown.append(f"{_esc(name)} {q['value']:.4g}{sd} {_esc(q.get('unit', ''))}")
+        if isinstance(q, dict):  # a result file's cause
+            q = Quantity(value=q.get("value"), std=q.get("std"), unit=q.get("unit", ""))
+        if isinstance(q, Quantity) and q.value is not None:
+            sd = f" ± {q.std:.2g}" if q.std is not None else ""
+            shown.append(f"{_esc(name)} {q.value:.4g}{sd} {_esc(q.unit)}")
         elif isinstance(q, list):
             shown.append(f"{_esc(name)} {_esc(q[:8])}{' …' if len(q) > 8 else ''} ({len(q)})")
         else:
@@ -430,23 +420,24 @@ def _causes(doc: dict) -> str:
     return intro + _table(["cause", "parameters", "implausible"], rows)
 
 
-def _diagnosis_table(report: dict) -> str:
-    key, rows = held_key(report), []
-    for e in report["effects"]:
-        quantities = _quantities(e.get("params")) + _esc(correlation_words(e) + settling_words(e))
-        rows.append([_esc(e.get("label") or e.get("kind")), quantities, _fixed(e.get(f"{key}_before"), 4), _fixed(e.get(f"{key}_after"), 4)])
-    b, f = report["baseline"], report.get("final") or {}
+def _diagnosis_table(report: DiagnosisReport) -> str:
+    rows = []
+    for e in report.effects:
+        quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + settling_words(e.after_long_moves))
+        rows.append([_esc(e.label), quantities, _fixed(e.rmse_before, 4), _fixed(e.rmse_after, 4)])
+    several, b, f = report.several, report.baseline, report.final
+    final = None if f is None else f.held_out(several)
     intro = (
-        f"<p>{_esc(report.get('robot', ''))}, {_esc(report.get('measurement', ''))} data, {_esc(report.get('samples', '?'))} samples"
-        f"{' from ' + _esc(report['source']) if report.get('source') else ''}: geometric baseline held-out RMSE {_fixed(b[key], 4)} mm"
-        f"{', final ' + _fixed(f[key], 4) + ' mm' if f.get(key) is not None else ''}.</p>"
+        f"<p>{_esc(report.robot or '')}, {_esc(report.measurement or '')} data, {_esc(report.samples if report.samples is not None else '?')} samples"
+        f"{' from ' + _esc(report.source) if report.source else ''}: geometric baseline held-out RMSE {_fixed(b.held_out(several), 4)} mm"
+        f"{', final ' + _fixed(final, 4) + ' mm' if final is not None else ''}.</p>"
     )
-    words = leftover_words(f)
+    words = None if f is None else leftover_words(f.residuals)
     left = f"<p>What is left: {_esc(words)}.</p>" if words else ""
-    found = [u for u in f.get("unexplained") or [] if isinstance(u, dict)]
+    found = [] if f is None else f.unexplained
     if found:
-        share = [f"{u['share']:.0%}" if isinstance(u.get("share"), (int, float)) else "?" for u in found]
-        unexplained = [[_esc(u.get("label")), _esc(s), _esc(u.get("reason", ""))] for u, s in zip(found, share)]
+        share = [f"{u.share:.0%}" if u.share is not None else "?" for u in found]
+        unexplained = [[_esc(u.label), _esc(s), _esc(u.reason)] for u, s in zip(found, share)]
         left += _table(["unexplained finding", "share of the error left", "refused because"], unexplained)
     if not rows:
         return intro + "<p>No cause beyond the geometric model is significant.</p>" + left
@@ -457,16 +448,15 @@ def _diagnosis_table(report: dict) -> str:
 STRUCTURAL = structure.KINDS + ("step",)
 
 
-def _structure_section(report: dict) -> str:
+def _structure_section(report: DiagnosisReport) -> str:
     """The structural causes found (reading conventions, sensor steps) with the alternatives the
     data could not tell apart, and the structural hypotheses rejected."""
-    found = [e for e in report["effects"] if e.get("kind") in STRUCTURAL]
-    tried = [r for r in report.get("rejected", []) if r.get("kind") in STRUCTURAL]
+    found = [e for e in report.effects if e.kind in STRUCTURAL]
+    tried = [r for r in report.rejected if r.kind in STRUCTURAL]
     if not found and not tried:
         return ""
     rows = [
-        [_esc(e["label"]), _quantities(e.get("params")), _esc(", ".join((e.get("significance") or {}).get("undetermined_between") or []) or "none")]
-        for e in found
+        [_esc(e.label), _quantities(e.params), _esc(", ".join(map(str, (e.significance or {}).get("undetermined_between") or [])) or "none")] for e in found
     ]
     part = (
         "<h3>Structure</h3><p>How the controller reports its joints (a zero 90° away or re-mastered, a reversed sign, a joint read "
@@ -476,64 +466,67 @@ def _structure_section(report: dict) -> str:
     if rows:
         part += _table(["found", "parameters", "alternatives the data cannot tell apart"], rows)
     if tried:
-        part += _table(["rejected", "why"], [[_esc(r["label"]), _esc(r.get("reason", ""))] for r in tried[:8]])
+        part += _table(["rejected", "why"], [[_esc(r.label), _esc(r.reason)] for r in tried[:8]])
     return part
 
 
-def _budget_section(report: dict) -> str:
+def _budget_section(report: DiagnosisReport) -> str:
     """The error budget (what the data's resolution explains) and the physical model's state."""
-    f = report.get("final") or {}
+    f = report.final
+    if f is None:
+        return ""
     part = ""
-    floor = f.get("floor")
-    if isinstance(floor, dict) and f.get("floor_mm") is not None and f.get("rmse_heldout") is not None:
-        rows = [["final held-out RMSE", _fixed(f["rmse_heldout"], 4)]]
-        if f.get("rotation_rmse_heldout_deg") is not None:
-            rows.append(["final held-out orientation RMS (deg)", _fixed(f["rotation_rmse_heldout_deg"], 4)])
-        above = max(f["rmse_heldout"] - f["floor_mm"], 0.0)
+    floor = f.floor
+    if floor is not None and f.floor_mm is not None and f.rmse_heldout is not None:
+        rows = [["final held-out RMSE", _fixed(f.rmse_heldout, 4)]]
+        if f.rotation_rmse_heldout_deg is not None:
+            rows.append(["final held-out orientation RMS (deg)", _fixed(f.rotation_rmse_heldout_deg, 4)])
+        above = max(f.rmse_heldout - f.floor_mm, 0.0)
         rows += [
-            ["floor from the joint readings' resolution", _fixed(floor.get("joints_mm"), 4)],
-            ["floor from the sensor's resolution and noise", _fixed(floor.get("sensor_mm"), 4)],
-            ["floor (both)", _fixed(f["floor_mm"], 4)],
+            ["floor from the joint readings' resolution", _fixed(floor.joints_mm, 4)],
+            ["floor from the sensor's resolution and noise", _fixed(floor.sensor_mm, 4)],
+            ["floor (both)", _fixed(f.floor_mm, 4)],
             ["unexplained above the floor", _fixed(above, 4)],
         ]
-        if revisits := floor.get("revisits"):
+        if revisits := floor.revisits:
             rows += [
-                [f"repeatability of one reading, measured at {revisits['pairs']} revisited joint configurations", _fixed(revisits["repeatability_mm"], 4)],
-                ["final model's error shared by the revisits, beyond their noise (at least)", _fixed(revisits["systematic_mm"], 4)],
+                [f"repeatability of one reading, measured at {revisits.pairs} revisited joint configurations", _fixed(revisits.repeatability_mm, 4)],
+                ["final model's error shared by the revisits, beyond their noise (at least)", _fixed(revisits.systematic_mm, 4)],
             ]
-        if f.get("explained") is not None:
-            rows.append(["share of the baseline's held-out mean square error above the floor explained", f"{f['explained']:.0%}"])
-        intro = f"<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains ({_esc(floor.get('note', ''))}).</p>"
+        if f.explained is not None:
+            rows.append(["share of the baseline's held-out mean square error above the floor explained", f"{f.explained:.0%}"])
+        intro = f"<h3>Error budget</h3><p>How much of the remaining error the data's own resolution explains ({_esc(floor.note)}).</p>"
         part += intro + _table(["", "mm"], rows, numeric={1})
-    prior = f.get("tolerance_prior")
+    prior = f.tolerance_prior
     if prior:
-        if prior.get("accepted"):
-            unconstrained = _fixed(f.get(held_key(report) + "_unconstrained"), 4)
+        if prior.accepted:
+            unconstrained = _fixed(f.unconstrained(report.several), 4)
             part += (
                 '<p class="note">Physical model: where the data leave the geometry undetermined it is held near nominal by a tolerance prior '
-                f"(±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°); unconstrained held-out RMSE {unconstrained} mm.</p>"
+                f"(±{_esc(prior.sigma_mm)} mm, ±{_esc(prior.sigma_deg)}°); unconstrained held-out RMSE {unconstrained} mm.</p>"
             )
         else:
-            tried = f"a tolerance prior (±{_esc(prior['sigma_mm'])} mm, ±{_esc(prior['sigma_deg'])}°) was tried"
-            part += f'<p class="warn">No physical model: {tried}; {_esc(prior.get("reason", ""))}.</p>'
-    if f.get("implausible"):
-        part += '<p class="warn">Final model: ' + _esc(describe_implausible(f["implausible"], meaning=implausible_meaning(prior))) + ".</p>"
+            tried = f"a tolerance prior (±{_esc(prior.sigma_mm)} mm, ±{_esc(prior.sigma_deg)}°) was tried"
+            part += f'<p class="warn">No physical model: {tried}; {_esc(prior.reason)}.</p>'
+    if f.implausible:
+        flags = [flag.model_dump() for flag in f.implausible]
+        part += '<p class="warn">Final model: ' + _esc(describe_implausible(flags, meaning=implausible_meaning(prior))) + ".</p>"
     return part
 
 
-def _sessions_section(report: dict) -> str:
+def _sessions_section(report: DiagnosisReport) -> str:
     """Per session of a multi-session diagnosis: what its own data show and what it keeps."""
-    if "sessions" not in report:
+    if not report.several:
         return ""
-    own = (report.get("model") or {}).get("sessions") or []
+    own = report.model.sessions if report.model is not None and report.model.sessions is not None else []
+    per_session = report.final.per_session if report.final is not None else []
     rows = []
-    for i, s in enumerate(report["sessions"]):
-        d = s.get("diagnosis") or {}
-        kept = own[i]["causes"] if i < len(own) else []
-        alone = "; ".join(e.get("label", "") for e in d.get("effects", [])) or "none"
-        per_session = report["final"].get("per_session", [])
+    for i, s in enumerate(report.sessions):
+        kept = own[i].causes if i < len(own) else []
+        alone = "; ".join(e.label for e in s.diagnosis.effects) if s.diagnosis is not None else ""
         left_out = _fixed(per_session[i], 4) if i < len(per_session) else ""
-        rows.append([str(i + 1), _esc(s.get("source") or ""), str(s.get("samples", "")), _esc(alone), _esc("; ".join(kept) or "none"), left_out])
+        samples = "" if s.samples is None else str(s.samples)
+        rows.append([str(i + 1), _esc(s.source or ""), samples, _esc(alone or "none"), _esc("; ".join(kept) or "none"), left_out])
     return (
         "<h3>Sessions</h3><p>Each session diagnosed on its own; a cause of the robot is kept only if it lowers the error of sessions it was not "
         "fitted on. Session terms (steps, drift, outliers, set-up) stay with their session.</p>"
@@ -575,7 +568,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     """
     robot, doc = load_result(result)
     implausible = checked_implausible(robot, doc)
-    diag = _load_diagnosis(diagnosis)
+    diag = None if diagnosis is None else load_diagnosis(diagnosis).needs_figures("report --diagnosis")
     d = _load_data(doc, data, angle_unit, robot)
     out = make_folder(out)
     meas = doc["measurement"]
@@ -646,12 +639,12 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     diag_html = ""
     if diag is not None:
         p = diagnosis_figure(diag, out / "diagnosis.png")
-        joint_maps = [e for e in diag.get("effects", []) if e.get("kind") == "joint_map" and "curve" in e]
+        joint_maps = [e for e in diag.effects if e.kind == "joint_map" and e.curve is not None]
         caption = (
             "Joint map of joint {}: the correction of its angle against its reading (beyond the range it was fitted on its correction fades out within a few knot spacings), "
             "with ±2 standard deviations."
         )
-        maps = [_figure(map_figure(e, out / f"map_joint{e['joint']}.png"), caption.format(e["joint"])) for e in joint_maps]
+        maps = [_figure(map_figure(e, out / f"map_joint{e.joint}.png"), caption.format(e.joint)) for e in joint_maps]
         chart = _figure(p, "Held-out RMSE of the geometric baseline and after each diagnosed cause is added (cross-validated by robocal diagnose).")
         sections = [_diagnosis_table(diag), "".join(maps), _structure_section(diag), _budget_section(diag), _sessions_section(diag)]
         diag_html = "<h2>Diagnosis</h2>" + chart + "".join(sections)

@@ -7,30 +7,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnosis_file import DiagnosisReport
+
 
 #: deviation display: unit in the file -> (unit shown, factor)
 SHOWN = {"mm": ("mm", 1.0), "rad": ("deg", float(np.degrees(1.0))), "1": ("ppm", 1e6)}
 
 
-def held_key(report: dict) -> str:
-    """The key of a report's held-out RMSE: cross-validated within one session, or
-    leave-one-session-out over several."""
-    return "rmse_loso" if "sessions" in report else "rmse_heldout"
-
-
-def correlation_words(effect: dict) -> str:
-    """A compliance's correlation with the other compliances (how well the data split them), as
-    plain text; entries a hand-edited file makes other than numbers are left out."""
-    others = effect.get("correlation")
+def correlation_words(others) -> str:
+    """A compliance's correlation with the other compliances (an effect's ``correlation``: how
+    well the data split them), as plain text; entries a hand-edited file makes other than numbers
+    are left out."""
     if not isinstance(others, dict):
         return ""
     return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
 
 
-def settling_words(effect: dict) -> str:
-    """Whether an outliers entry's readings follow long joint moves beyond chance (readings taken
-    before the arm settled), as plain text; "" otherwise or for a hand-edited entry."""
-    moves = effect.get("after_long_moves")
+def settling_words(moves) -> str:
+    """Whether an outliers entry's readings follow long joint moves beyond chance (its
+    ``after_long_moves``: readings taken before the arm settled), as plain text; "" otherwise or
+    for a hand-edited entry."""
     if not isinstance(moves, dict) or not moves.get("settling"):
         return ""
     try:
@@ -42,14 +38,14 @@ def settling_words(effect: dict) -> str:
         return ""
 
 
-def map_tables(report: dict) -> list[tuple[str, str]]:
+def map_tables(report: DiagnosisReport) -> list[tuple[str, str]]:
     """``(file name, CSV text)`` of every joint map of a diagnose report: angle, correction and
     its standard deviation in degrees, one row per point of the curve."""
     out = []
-    for e in report.get("effects", []):
-        if e.get("kind") == "joint_map" and "curve" in e:
-            c = e["curve"]
-            rows = zip(c["angle_deg"], c["value_deg"], c.get("std_deg", [float("nan")] * len(c["angle_deg"])))
+    for e in report.effects:
+        if e.kind == "joint_map" and e.curve is not None:
+            c = e.curve
+            rows = zip(c.angle_deg, c.value_deg, c.std_deg if c.std_deg is not None else [float("nan")] * len(c.angle_deg))
             text = "angle_deg,correction_deg,std_deg\n" + "".join(f"{a:.6f},{v:.9g},{sd:.9g}\n" for a, v, sd in rows)
-            out.append((f"map_joint{e['joint']}.csv", text))
+            out.append((f"map_joint{e.joint}.csv", text))
     return out
