@@ -250,8 +250,11 @@ class Sessions:
         where the entries go is worked out once, and each call only moves the values."""
         from scipy import sparse
 
-        patterns = [(J.indptr, J.indices) for J in blocks]
-        if self._layout is None or not all(np.array_equal(a, b) and np.array_equal(c, d) for (a, c), (b, d) in zip(patterns, self._layout[3])):
+        # A session's pattern is fixed: an extended problem lays its sparse Jacobian out once, a
+        # dense one keeps every entry. Its rows' lengths guard the layout (a full comparison of
+        # the column indices cost as much as the gather).
+        patterns = [J.indptr for J in blocks]
+        if self._layout is None or not all(np.array_equal(a, b) for a, b in zip(patterns, self._layout[3])):
             starts = np.concatenate([[0], np.cumsum([J.nnz for J in blocks])])  # each block's entries among all
             pieces = [(s, 0, n) for s, n in enumerate(n_data)] + [(s, n, J.shape[0]) for s, (J, n) in enumerate(zip(blocks, n_data))]
             indptr, indices, source, at = [np.zeros(1, dtype=np.int64)], [], [], 0
@@ -264,7 +267,7 @@ class Sessions:
                 source.append(starts[s] + first + order)
                 indptr.append(J.indptr[lo + 1 : hi + 1] - first + at)
                 at += last - first
-            self._layout = (np.concatenate(indptr), np.concatenate(indices), np.concatenate(source), [(a.copy(), c.copy()) for a, c in patterns])
+            self._layout = (np.concatenate(indptr), np.concatenate(indices), np.concatenate(source), [a.copy() for a in patterns])
         indptr, indices, source, _ = self._layout
         values = np.concatenate([J.data for J in blocks])[source]
         return sparse.csr_array((values, indices, indptr), shape=(len(indptr) - 1, len(self.names)))
