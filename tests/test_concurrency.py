@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -111,22 +112,28 @@ def test_diagnose_is_deterministic():
 def test_diagnose_does_not_depend_on_its_threads(monkeypatch):
     """The fold fits and screenings spread over threads (robocal.threads) give exactly what one
     thread gives."""
+    from robocal import threads
+
     data, _ = robocal.simulate("hsr-jr680", "position", samples=200, seed=4, effects=["joint_periodic:joint=2,amplitude=0.02"])
     monkeypatch.setenv("ROBOCAL_THREADS", "1")
     serial = without_times(robocal.diagnose(data, folds=4).to_dict())
     monkeypatch.setenv("ROBOCAL_THREADS", "3")  # more threads than this machine may have cores
+    monkeypatch.setattr(threads, "MIN_ROWS", 0)  # this small problem spread too
     spread = without_times(robocal.diagnose(data, folds=4).to_dict())
     assert serial["effects"], "the simulated harmonic should be found"
     assert json.dumps(serial, sort_keys=True) == json.dumps(spread, sort_keys=True)
 
 
 def test_thread_map_keeps_the_order_and_raises_the_first_error(monkeypatch):
-    from robocal.threads import thread_map
+    from robocal.threads import MIN_ROWS, thread_map
 
     monkeypatch.setenv("ROBOCAL_THREADS", "4")
-    assert thread_map(lambda i: i * i, range(50)) == [i * i for i in range(50)]
-    inner = thread_map(lambda i: thread_map(lambda j: (i, j), range(3)), range(4))  # nested: the inner runs in its thread
+    big = MIN_ROWS  # a problem large enough to spread
+    assert thread_map(lambda i: i * i, range(50), rows=big) == [i * i for i in range(50)]
+    inner = thread_map(lambda i: thread_map(lambda j: (i, j), range(3), rows=big), range(4), rows=big)  # nested: the inner runs in its thread
     assert inner == [[(i, j) for j in range(3)] for i in range(4)]
+    where = thread_map(lambda i: threading.get_ident(), range(8), rows=MIN_ROWS - 1)  # small: in the calling thread
+    assert set(where) == {threading.get_ident()}
 
     def fails(i):
         if i in (3, 7):
@@ -134,7 +141,7 @@ def test_thread_map_keeps_the_order_and_raises_the_first_error(monkeypatch):
         return i
 
     with pytest.raises(ValueError, match="item 3"):
-        thread_map(fails, range(10))
+        thread_map(fails, range(10), rows=big)
 
 
 @pytest.mark.parametrize("setting", ["0", "two", "-1", "1.5"])

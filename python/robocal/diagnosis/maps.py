@@ -114,7 +114,7 @@ class _NormalScreen:
 
         at = [(name, i) for name, folds in self.folds.items() for i in range(len(folds))]
         out = {name: np.zeros(self.n_data // self.k) for name in self.folds}
-        for (name, i), err in zip(at, thread_map(fold_errors, at)):
+        for (name, i), err in zip(at, thread_map(fold_errors, at, rows=self.n_data)):
             out[name][self.folds[name][i][1]] = err
         return out
 

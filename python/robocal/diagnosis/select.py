@@ -165,7 +165,7 @@ class _Screen:
 
         folds = [(name, fold) for name, scheme in self.folds.items() for fold in scheme]
         out = {name: np.zeros(self.m) for name in self.folds}
-        for (name, fold), err in zip(folds, thread_map(fold_errors, [fold for _, fold in folds])):
+        for (name, fold), err in zip(folds, thread_map(fold_errors, [fold for _, fold in folds], rows=len(self.r))):
             out[name][fold[2]] = err
         return out
 

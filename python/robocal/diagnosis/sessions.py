@@ -208,7 +208,7 @@ class _Evaluator:
             return squared_errors(part.data_residuals(fitted.x) * held.row_weights, held.k), covered
 
         self.bases(model)  # built once, before the threads read it
-        left_out = thread_map(held_out_session, range(len(self.sessions)))  # the sessions left out in parallel
+        left_out = thread_map(held_out_session, range(len(self.sessions)))  # the sessions left out in parallel (each a nonlinear fit)
         self.coverage[model] = [covered for _, covered in left_out]
         return [errors for errors, _ in left_out]
 

@@ -104,7 +104,7 @@ def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = Non
         return held_out_errors(ext, fold, train, test, fit.x), (fold.base.start, fit.x)
 
     err = np.zeros((len(ext.idx), 2))
-    fitted = thread_map(fit_fold, range(len(folds)))
+    fitted = thread_map(fit_fold, range(len(folds)))  # a whole nonlinear fit a fold: worth a thread at any size
     for (_, test), (held_out, _) in zip(folds, fitted):
         err[test] = held_out
     return err, [fit for _, fit in fitted]
