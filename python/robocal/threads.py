@@ -34,7 +34,8 @@ def cores() -> int:
 
 #: A screening (a small linear solve per fold) on fewer residual rows than this runs in the
 #: calling thread: its NumPy calls are short, and the threads' contention for the interpreter
-#: cost more than a second core gave (2 000 cable lengths: 2.0 s alone, 2.8 s spread).
+#: cost more than a second core gave (the simulated cable case of benches/bench_diagnose.py:
+#: docs/benchmarks.md).
 MIN_ROWS = 10_000
 
 

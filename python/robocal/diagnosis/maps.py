@@ -40,8 +40,8 @@ def _dense(A) -> np.ndarray:
 
 
 def _gram(A) -> np.ndarray:
-    """``AᵀA``, dense; a sparse ``A``'s in the Rust core (scipy's sparse product of a Jacobian
-    with joint maps was three times slower on UR10 A)."""
+    """``AᵀA``, dense; a sparse ``A``'s from the Rust core's sparse Gram (what the LM uses too)
+    rather than scipy's sparse product."""
     return sparse_gram(A) if is_sparse(A) else A.T @ A
 
 
