@@ -20,6 +20,7 @@ fold of every scheme: a map is accepted only if it lowers the held-out RMSE of e
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 from scipy.stats import f as f_dist
 
 from ..kernels import is_sparse, sparse_gram
@@ -49,7 +50,12 @@ class _NormalScreen:
     """Held-out errors of ``r ≈ J·δ + C·c`` (``C`` penalised by ``P``), fitted per fold through
     the normal equations. ``J``'s rows beyond the data (priors, accepted maps' roughness) stay in
     every training set. ``q`` are the samples' joint angles: a fold's map corrects only the
-    held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`)."""
+    held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`).
+
+    A scheme's held-out folds partition the data rows. ``C``'s products with the held-out rows of
+    every fold come from one sparse product per scheme: ``C`` with each entry moved to its row's
+    fold's copy of the columns (:meth:`_by_fold`) — scipy's overhead per product, not the work,
+    was the cost of one product per fold."""
 
     def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
         self.k, self.n_data, self.q, self._covered, self._last = k, n_data, q, {}, None
@@ -57,33 +63,57 @@ class _NormalScreen:
         self.JtJ, self.Jtr = _gram(J), np.asarray(J.T @ r)
         self.Jd, self.rd = J[:n_data], r[:n_data]  # the data rows, all a candidate's columns touch
         self.folds = {name: [self._rows(train, test) for train, test in folds] for name, folds in schemes.items()}
+        self.fold_of_row = {}
+        for name, folds in self.folds.items():
+            label = np.full(n_data, -1)
+            for i, (_, _, rows, _, _, _) in enumerate(folds):
+                label[rows] = i
+            if np.any(label < 0):
+                raise ValueError(f"the held-out folds of scheme {name!r} leave data rows out")
+            self.fold_of_row[name] = label
 
     def _rows(self, train: np.ndarray, test: np.ndarray) -> tuple:
         rows = (test[:, None] * self.k + np.arange(self.k)).ravel()
         Jte = self.J[rows]
         return train, test, rows, Jte, _gram(Jte), np.asarray(Jte.T @ self.r[rows])
 
-    def _covered_rows(self, joint_map, train: np.ndarray, test: np.ndarray) -> np.ndarray:
-        """1 for the residual rows of held-out samples ``test`` that the map fitted on the
-        samples ``train`` covers, else 0."""
-        key = (joint_map.joint, joint_map.detail["spacing"], id(train))  # the same for every roughness
+    def _covered_rows(self, joint_map, name: str) -> np.ndarray:
+        """Per data row, 1 if the map fitted on the training samples of the row's fold of scheme
+        ``name`` covers the row's sample, else 0."""
+        key = (joint_map.joint, joint_map.detail["spacing"], name)  # the same for every roughness
         if key not in self._covered:
-            inside = covered_when_fitted_on(joint_map.detail, self.q[train, joint_map.joint], self.q[test, joint_map.joint])
-            self._covered[key] = np.repeat(inside, self.k).astype(np.float64)
+            covered = np.zeros(self.n_data)
+            for train, test, rows, _, _, _ in self.folds[name]:
+                inside = covered_when_fitted_on(joint_map.detail, self.q[train, joint_map.joint], self.q[test, joint_map.joint])
+                covered[rows] = np.repeat(inside, self.k)
+            self._covered[key] = covered
         return self._covered[key]
 
+    def _by_fold(self, C, name: str):
+        """``C`` (data rows, n) as (data rows, folds·n): each row's entries in its fold's copy of
+        the columns."""
+        n, folds = C.shape[1], len(self.folds[name])
+        label = np.repeat(self.fold_of_row[name], np.diff(C.indptr))
+        return sparse.csr_array((C.data, C.indices + n * label, C.indptr), shape=(self.n_data, n * folds))
+
     def _products(self, C, cause) -> tuple:
-        """The normal-equation blocks of ``C`` with ``J`` and ``r``: over all data rows and per
-        fold the held-out rows' share. A map's roughness variants share their columns (and
-        :attr:`Candidate.basis`): their products are computed once (the last ones are kept)."""
+        """The normal-equation blocks of ``C`` with ``J`` and ``r``: over all data rows, and per
+        scheme ``C`` by fold (:meth:`_by_fold`) with its folds' held-out shares. A map's roughness
+        variants share their columns (and :attr:`Candidate.basis`): their products are computed
+        once (the last ones are kept)."""
         if self._last is not None and cause is not None and self._last[0] is cause.basis:
             return self._last[1]
+        C = sparse.csr_array(C)
+        C.sort_indices()
+        n = C.shape[1]
         products = (_dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd), {})
         for name, folds in self.folds.items():
-            products[3][name] = []
-            for _, _, rows, Jte, _, _ in folds:
-                Cte = C[rows]
-                products[3][name].append((Cte, _dense(Cte.T @ Jte), np.asarray(Cte.T @ self.r[rows]), _dense(Cte.T @ Cte)))
+            F = len(folds)
+            Cf = self._by_fold(C, name)
+            CtJ = _dense(Cf.T @ self.Jd).reshape(F, n, -1)
+            Ctr = np.asarray(Cf.T @ self.rd).reshape(F, n)
+            CtC = sparse.csr_array(Cf.T @ Cf)
+            products[3][name] = (Cf, CtJ, Ctr, [CtC[i * n : (i + 1) * n, i * n : (i + 1) * n].toarray() for i in range(F)])
         if cause is not None:
             self._last = (cause.basis, products)
         return products
@@ -91,31 +121,35 @@ class _NormalScreen:
     def errors(self, C=None, P=None, joint_map=None) -> dict:
         """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``.
         The folds are solved in parallel (:func:`~robocal.threads.thread_map`)."""
+        p = self.J.shape[1]
         if C is not None:
             CtC, CtJ, Ctr, held_out = self._products(C, joint_map)
             if P is not None:
                 CtC = CtC + P.T @ P
 
-        def fold_errors(at: tuple) -> np.ndarray:
+        def fold_solution(at: tuple) -> np.ndarray:
             name, i = at
-            train, test, rows, Jte, JteJte, Jter = self.folds[name][i]
+            _, _, _, _, JteJte, Jter = self.folds[name][i]
             N, b = self.JtJ - JteJte, self.Jtr - Jter
             if C is not None:
-                Cte, CteJ, Cter, CteCte = held_out[name][i]
-                CJ = CtJ - CteJ
-                N = np.block([[N, CJ.T], [CJ, CtC - CteCte]])
-                b = np.concatenate([b, Ctr - Cter])
-            delta = _solve(N, b)
-            e = self.r[rows] - Jte @ delta[: self.J.shape[1]]
-            if C is not None:
-                covered = self._covered_rows(joint_map, train, test) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
-                e = e - (Cte @ delta[self.J.shape[1] :]) * covered
-            return (e * e).reshape(-1, self.k).sum(axis=1)
+                _, CteJ, Cter, CteCte = held_out[name]
+                CJ = CtJ - CteJ[i]
+                N = np.block([[N, CJ.T], [CJ, CtC - CteCte[i]]])
+                b = np.concatenate([b, Ctr - Cter[i]])
+            return _solve(N, b)
 
         at = [(name, i) for name, folds in self.folds.items() for i in range(len(folds))]
-        out = {name: np.zeros(self.n_data // self.k) for name in self.folds}
-        for (name, i), err in zip(at, thread_map(fold_errors, at, rows=self.n_data)):
-            out[name][self.folds[name][i][1]] = err
+        solutions = dict(zip(at, thread_map(fold_solution, at, rows=self.n_data)))
+        out = {}
+        for name, folds in self.folds.items():
+            e = self.rd.copy()
+            for i, (_, _, rows, Jte, _, _) in enumerate(folds):
+                e[rows] -= Jte @ solutions[name, i][:p]
+            if C is not None:  # every row's prediction by its own fold's coefficients, in one product
+                correction = held_out[name][0] @ np.concatenate([solutions[name, i][p:] for i in range(len(folds))])
+                covered = self._covered_rows(joint_map, name) if joint_map is not None and joint_map.kind == "joint_map" else 1.0
+                e -= correction * covered
+            out[name] = (e * e).reshape(-1, self.k).sum(axis=1)
         return out
 
     def f_test(self, C) -> tuple[float, int]:

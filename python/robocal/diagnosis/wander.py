@@ -26,6 +26,7 @@ carried to another one.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import replace
 from typing import Optional
 
@@ -112,6 +113,47 @@ def correlation_length(e: np.ndarray) -> Optional[float]:
     return float(next((lag for lag in range(2, longest) if rho(lag)[axis] < first[axis] / np.e), longest))
 
 
+#: The pairs of the last few sample sets tested (:func:`_pairs`): a diagnosis tests the same
+#: samples' residuals once a round.
+_PAIRS: dict = {}
+_PAIRS_LOCK = threading.Lock()  # the sessions of a multi-session diagnosis are tested in threads
+
+
+def _pairs(data: Dataset, idx: np.ndarray) -> Optional[tuple]:
+    """The pairs :func:`residual_correlation` compares, which depend on the samples only: the
+    samples' acquisition order; each sample's :data:`NEIGHBOURS` nearest neighbours in joint space
+    more than ``2·MAX_LAG`` apart in time (positions in that order) and the typical distance to
+    them; the pairs up to :data:`MAX_LAG` apart in time, their joint distances and which of them
+    are farther apart than that; and which samples moved from the one before. None with too
+    few neighbour pairs. Cached by data set and samples (the entry holds the data set, so its
+    id is not reused)."""
+    key = (id(data), idx.tobytes())
+    with _PAIRS_LOCK:
+        if key in _PAIRS:
+            return _PAIRS[key][1]
+    m = len(idx)
+    order = np.argsort(acquisition_rank(data, idx))
+    q = data.q[idx][order]
+    far = 2 * MAX_LAG
+    dist, near = cKDTree(q).query(q, min(m, NEIGHBOURS + 2 * far + 2))
+    keep = np.abs(near - np.arange(m)[:, None]) > far
+    keep &= np.cumsum(keep, axis=1) <= NEIGHBOURS  # each sample's nearest ones far enough apart in time
+    ji, jj, jd = np.nonzero(keep)[0], near[keep], dist[keep]
+    pairs = None
+    if len(ji) >= 10:
+        reach = float(np.median(jd))
+        ti = np.concatenate([np.arange(m - lag) for lag in range(1, MAX_LAG + 1)])
+        tj = np.concatenate([np.arange(lag, m) for lag in range(1, MAX_LAG + 1)])
+        td = np.linalg.norm(q[ti] - q[tj], axis=1)
+        moved = np.any(np.abs(q[1:] - q[:-1]) > REVISIT_TOLERANCE, axis=1)  # a row repeated in the file is no neighbour in time
+        pairs = (order, ji, jj, reach, ti, tj, td, td > reach, moved)
+    with _PAIRS_LOCK:
+        if len(_PAIRS) >= 4:
+            _PAIRS.pop(next(iter(_PAIRS)))
+        _PAIRS[key] = (data, pairs)
+    return pairs
+
+
 def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> Optional[dict]:
     """The test of the module notes on ``residuals`` (len(idx), k) of the samples ``idx``.
 
@@ -123,31 +165,15 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     m = len(idx)
     if m < 4 * MAX_LAG:
         return None
-    pos = acquisition_rank(data, idx)
-    order = np.argsort(pos)
+    pairs = _pairs(data, idx)
+    if pairs is None:
+        return None
+    order, ji, jj, reach, ti, tj, td, apart, moved = pairs
     e = _sensor_part(data, residuals)[order]
-    q = data.q[idx][order]
     var = float(np.mean(np.sum(e * e, axis=1)))
     if var <= 0:
         return None
-    tree = cKDTree(q)
     far = 2 * MAX_LAG
-    dist, near = tree.query(q, min(m, NEIGHBOURS + 2 * far + 2))
-    i_rows, j_rows, d_rows = [], [], []
-    for i in range(m):
-        keep = np.abs(near[i] - i) > far
-        i_rows.append(np.full(NEIGHBOURS, i)[: keep.sum()][:NEIGHBOURS])
-        j_rows.append(near[i][keep][:NEIGHBOURS])
-        d_rows.append(dist[i][keep][:NEIGHBOURS])
-    ji, jj, jd = (np.concatenate(v) for v in (i_rows, j_rows, d_rows))
-    if len(ji) < 10:
-        return None
-    reach = float(np.median(jd))  # the typical distance to a neighbour in joint space
-    ti = np.concatenate([np.arange(m - lag) for lag in range(1, MAX_LAG + 1)])
-    tj = np.concatenate([np.arange(lag, m) for lag in range(1, MAX_LAG + 1)])
-    td = np.linalg.norm(q[ti] - q[tj], axis=1)
-    apart = td > reach
-    moved = np.any(np.abs(q[1:] - q[:-1]) > REVISIT_TOLERANCE, axis=1)  # a row repeated in the file is no neighbour in time
     lag1 = float(np.mean(np.sum(e[1:][moved] * e[:-1][moved], axis=1))) / var if moved.any() else 0.0
     entry = {
         "lag1": {"correlation": lag1, "z": lag1 * float(np.sqrt(max(int(moved.sum()), 1)))},
