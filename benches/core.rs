@@ -6,7 +6,7 @@ use _robocal::fixtures::hsr_jr680;
 use _robocal::kinematics::Chain;
 use _robocal::measurement::{sigma_residuals, Batch, Measurement};
 use _robocal::sigma::merwe_sigma_points;
-use _robocal::solve::{solve_damped, sparse_gram, Damping};
+use _robocal::solve::{fold_products, solve_damped, sparse_gram, Csr, Damping};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
 
@@ -116,25 +116,31 @@ fn bench_solve(c: &mut Criterion) {
     group.finish();
 }
 
-/// `JᵀJ` of a diagnosis' sparse Jacobian: 3 rows a sample (a tracker's position), 28 dense
-/// columns (the geometry and the set-up) and five joint maps of 120 B-spline coefficients, four
-/// consecutive ones a row, at a coefficient that moves slowly along the samples (a path) — the
-/// layout of UR10 series A with five maps (36 000 rows, 51 entries a row).
-fn bench_sparse_gram(c: &mut Criterion) {
+/// A diagnosis' sparse Jacobian as CSR `(indptr, indices, data, ncols)`: 3 rows a sample (a
+/// tracker's position), 28 dense columns (the geometry and the set-up) and five joint maps of
+/// 120 B-spline coefficients, four consecutive ones a row, at a coefficient that moves slowly
+/// along the samples (a path) — the layout of UR10 series A with five maps (36 000 rows, 51
+/// entries a row).
+fn five_map_rows(samples: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, usize) {
     let (dense, maps, width) = (28usize, 5usize, 120usize);
-    let ncols = dense + maps * width;
+    let (mut indptr, mut indices, mut data) = (vec![0usize], Vec::new(), Vec::new());
+    for row in 0..3 * samples {
+        indices.extend(0..dense);
+        for map in 0..maps {
+            let at = ((row / 3) * (map + 1) / 7) % (width - 4);
+            indices.extend((0..4).map(|t| dense + map * width + at + t));
+        }
+        data.extend((data.len()..indices.len()).map(|k| ((k as f64) * 0.618_033_988_75).fract() - 0.5));
+        indptr.push(indices.len());
+    }
+    (indptr, indices, data, dense + maps * width)
+}
+
+/// `JᵀJ` of that Jacobian.
+fn bench_sparse_gram(c: &mut Criterion) {
     let mut group = c.benchmark_group("sparse_gram");
     for samples in [1_000usize, 12_000] {
-        let (mut indptr, mut indices, mut data) = (vec![0usize], Vec::new(), Vec::new());
-        for row in 0..3 * samples {
-            indices.extend(0..dense);
-            for map in 0..maps {
-                let at = ((row / 3) * (map + 1) / 7) % (width - 4);
-                indices.extend((0..4).map(|t| dense + map * width + at + t));
-            }
-            data.extend((data.len()..indices.len()).map(|k| ((k as f64) * 0.618_033_988_75).fract() - 0.5));
-            indptr.push(indices.len());
-        }
+        let (indptr, indices, data, ncols) = five_map_rows(samples);
         group.throughput(Throughput::Elements(indices.len() as u64));
         group.bench_with_input(BenchmarkId::new("ur10_five_maps", samples), &(indptr, indices, data), |b, (p, i, d)| {
             b.iter(|| sparse_gram(black_box(p), i, d, ncols).unwrap())
@@ -143,9 +149,32 @@ fn bench_sparse_gram(c: &mut Criterion) {
     group.finish();
 }
 
+/// A map screening's per-fold blocks on that layout: a sixth joint's map candidate (120
+/// coefficients, four a row) against the Jacobian, over two labellings of ten folds (random and
+/// blocked cross-validation).
+fn bench_fold_products(c: &mut Criterion) {
+    let mut group = c.benchmark_group("fold_products");
+    for samples in [1_000usize, 12_000] {
+        let (indptr, indices, data, ncols) = five_map_rows(samples);
+        let rows = indptr.len() - 1;
+        let c_indptr: Vec<usize> = (0..=rows).map(|i| 4 * i).collect();
+        let c_indices: Vec<usize> = (0..rows).flat_map(|i| (0..4).map(move |t| (i / 3) * 116 / (rows / 3) + t)).collect();
+        let c_data: Vec<f64> = (0..c_indices.len()).map(|k| ((k as f64) * 0.414_213_562_37).fract() - 0.5).collect();
+        let r: Vec<f64> = (0..rows).map(|i| ((i as f64) * 0.732_050_807_57).fract() - 0.5).collect();
+        let labels = vec![(0..rows).map(|i| (i / 3 * 7919) % 10).collect::<Vec<_>>(), (0..rows).map(|i| i * 10 / rows).collect()];
+        group.throughput(Throughput::Elements(indices.len() as u64));
+        group.bench_function(BenchmarkId::new("ur10_sixth_map", samples), |b| {
+            let cand = Csr { indptr: &c_indptr, indices: &c_indices, data: &c_data, ncols: 120 };
+            let j = Csr { indptr: &indptr, indices: &indices, data: &data, ncols };
+            b.iter(|| fold_products(black_box(cand), j, &r, &labels, &[10, 10]).unwrap())
+        });
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
-    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve, bench_sparse_gram
+    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve, bench_sparse_gram, bench_fold_products
 }
 criterion_main!(benches);

@@ -14,7 +14,7 @@ from robocal.data.canonical import write_canonical
 from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
-from robocal.kernels import factor_damped, sparse_gram
+from robocal.kernels import factor_damped, fold_products, sparse_gram
 from robocal.diagnosis.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
@@ -261,6 +261,34 @@ def test_the_rust_gram_of_a_sparse_jacobian_is_the_dense_product(seed, m, n, den
     # scipy stores small matrices' indices as int32, large ones' as int64: both are read
     J64 = sparse.csr_array((J.data, J.indices.astype(np.int64), J.indptr.astype(np.int64)), shape=J.shape)
     assert np.array_equal(sparse_gram(J64), sparse_gram(J))
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(1, 40), st.integers(1, 6), st.integers(1, 9), st.integers(1, 4))
+@settings(max_examples=40, deadline=None)
+def test_the_rust_fold_products_are_the_dense_products_of_each_folds_rows(seed, m, nc, p, folds):
+    """A screening's per-fold blocks (the Rust core, one pass over the rows) are NumPy's products
+    of each fold's rows, for every labelling."""
+    rng = np.random.default_rng(seed)
+    C = sparse.random_array((m, nc), density=0.4, format="csr", random_state=rng)
+    J = sparse.random_array((m, p), density=0.6, format="csr", random_state=rng)
+    r = rng.normal(size=m)
+    labels = [rng.integers(0, folds, size=m), np.arange(m) % 2]
+    Cd, Jd = C.toarray(), J.toarray()
+    for (CtJ, Ctr, CtC), label, count in zip(fold_products(C, J, r, labels, [folds, 2]), labels, [folds, 2]):
+        assert CtJ.shape == (count, nc, p) and Ctr.shape == (count, nc) and CtC.shape == (count, nc, nc)
+        for f in range(count):
+            rows = label == f
+            assert np.allclose(CtJ[f], Cd[rows].T @ Jd[rows], rtol=1e-12, atol=1e-14)
+            assert np.allclose(Ctr[f], Cd[rows].T @ r[rows], rtol=1e-12, atol=1e-14)
+            assert np.allclose(CtC[f], Cd[rows].T @ Cd[rows], rtol=1e-12, atol=1e-14)
+
+
+def test_the_rust_fold_products_refuse_a_label_beyond_the_folds():
+    C = sparse.csr_array(np.eye(3))
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="row 2 fold 5 of 2"):
+        fold_products(C, C, np.ones(3), [np.array([0, 1, 5])], [2])
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="C has 3 rows but J has 2"):
+        fold_products(C, C[:2], np.ones(3), [np.zeros(3)], [1])
 
 
 def test_the_rust_gram_refuses_malformed_input():

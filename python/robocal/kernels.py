@@ -135,6 +135,15 @@ def sparse_gram(J) -> np.ndarray:
     return _robocal.sparse_gram(J.indptr, J.indices, as_float_array(J.data, "J"), J.shape[1])
 
 
+def fold_products(C, J, r, labels: list, folds: list) -> list:
+    """Per fold of each labelling (``labels[s]``: a fold below ``folds[s]`` per row), the fold's
+    rows' ``(CᵀJ (F, nc, p), Cᵀr (F, nc), CᵀC (F, nc, nc))`` of scipy.sparse ``C`` and ``J`` and
+    ``r``, in Rust: one pass over the rows for every fold of every labelling."""
+    C, J = (A.tocsr() for A in (C, J))
+    csr = lambda A, arg: (A.indptr, A.indices, as_float_array(A.data, arg), A.shape[1])
+    return _robocal.fold_products(csr(C, "C"), csr(J, "J"), as_float_array(r, "r"), [np.asarray(label, dtype=np.int64) for label in labels], [int(f) for f in folds])
+
+
 def identifiability(J, tol: float = 1e-9) -> dict:
     """Rank, singular values, identifiable subset and redundancies of a Jacobian (m, n).
 

@@ -306,6 +306,48 @@ fn sparse_gram<'py>(py: Python<'py>, indptr: &Bound<'py, PyAny>, indices: &Bound
     matrix(py, gram, ncols, ncols)
 }
 
+type Arr3<'py> = Bound<'py, PyArray3<f64>>;
+
+/// Per fold of each labelling (`labels[s]`: a fold below `folds[s]` per row), the fold's rows'
+/// `(CᵀJ (F, nc, p), Cᵀr (F, nc), CᵀC (F, nc, nc))` of the CSR matrices `C` and `J` (each
+/// `(indptr, indices, data, ncols)`) and `r`.
+#[pyfunction]
+#[allow(non_snake_case)]
+fn fold_products<'py>(
+    py: Python<'py>,
+    C: (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, usize),
+    J: (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, usize),
+    r: &Bound<'py, PyAny>,
+    labels: Vec<Bound<'py, PyAny>>,
+    folds: Vec<usize>,
+) -> PyResult<Vec<(Arr3<'py>, Arr2<'py>, Arr3<'py>)>> {
+    let csr = |(indptr, indices, data, ncols): &(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, usize), arg: &'static str| {
+        PyResult::Ok((index_array(indptr, "indptr")?, index_array(indices, "indices")?, array1(data, arg, None)?, *ncols))
+    };
+    let (c, j) = (csr(&C, "C")?, csr(&J, "J")?);
+    let r = array1(r, "r", None)?;
+    let labels = labels.iter().map(|l| index_array(l, "labels")).collect::<PyResult<Vec<_>>>()?;
+    let products = py
+        .detach(|| {
+            let c = solve::Csr { indptr: &c.0, indices: &c.1, data: &c.2, ncols: c.3 };
+            let j = solve::Csr { indptr: &j.0, indices: &j.1, data: &j.2, ncols: j.3 };
+            solve::fold_products(c, j, &r, &labels, &folds)
+        })
+        .map_err(core_err)?;
+    let (nc, p) = (C.3, J.3);
+    products
+        .into_iter()
+        .zip(&folds)
+        .map(|(out, &f)| {
+            Ok((
+                PyArray1::from_vec(py, out.ctj).reshape([f, nc, p])?,
+                matrix(py, out.ctr, f, nc)?,
+                PyArray1::from_vec(py, out.ctc).reshape([f, nc, nc])?,
+            ))
+        })
+        .collect()
+}
+
 /// The normal equations `(JᵀJ (n, n), Jᵀr (n,))` of a dense `J` (m, n) and `r` (m,).
 #[pyfunction]
 #[pyo3(signature = (J, r))]
@@ -376,6 +418,7 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_damped, m)?)?;
     m.add_class::<PyDampedQr>()?;
     m.add_function(wrap_pyfunction!(sparse_gram, m)?)?;
+    m.add_function(wrap_pyfunction!(fold_products, m)?)?;
     m.add_function(wrap_pyfunction!(configuration_groups, m)?)?;
     m.add_function(wrap_pyfunction!(normal_equations, m)?)?;
     // The core parallelises over samples (rayon); faer's own threads only add hand-over cost to

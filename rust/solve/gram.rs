@@ -19,21 +19,10 @@ pub const MAX_GRAM_COLUMNS: usize = 10_000;
 
 /// `JᵀJ` (n × n, row-major) of the CSR matrix `(indptr, indices, data)` with `ncols` columns.
 pub fn sparse_gram(indptr: &[usize], indices: &[usize], data: &[f64], ncols: usize) -> CoreResult<Vec<f64>> {
-    let bad = |reason: String| Err(CoreError::InvalidParameter { arg: "J", reason });
     if ncols > MAX_GRAM_COLUMNS {
-        return bad(format!("at most {MAX_GRAM_COLUMNS} columns; got {ncols}"));
+        return Err(CoreError::InvalidParameter { arg: "J", reason: format!("at most {MAX_GRAM_COLUMNS} columns; got {ncols}") });
     }
-    if indptr.is_empty() || indptr[0] != 0 || indptr.windows(2).any(|w| w[1] < w[0]) {
-        return bad("indptr must start at 0 and never decrease".into());
-    }
-    let nnz = indptr[indptr.len() - 1];
-    if indices.len() != nnz || data.len() != nnz {
-        return bad(format!("indptr ends at {nnz} but there are {} indices and {} values", indices.len(), data.len()));
-    }
-    if let Some(&c) = indices.iter().find(|&&c| c >= ncols) {
-        return bad(format!("column index {c} is not below the column count {ncols}"));
-    }
-    check_finite("J", data)?;
+    check_csr("J", &Csr { indptr, indices, data, ncols })?;
     let rows = indptr.len() - 1;
     let step = rows.div_ceil(PARTS).max(1);
     let partial = |part: usize| {
@@ -143,6 +132,113 @@ pub fn normal_equations(j: &[f64], r: &[f64], m: usize, n: usize) -> CoreResult<
     Ok((gram, g))
 }
 
+/// A CSR matrix borrowed from its three arrays.
+#[derive(Clone, Copy)]
+pub struct Csr<'a> {
+    pub indptr: &'a [usize],
+    pub indices: &'a [usize],
+    pub data: &'a [f64],
+    pub ncols: usize,
+}
+
+impl Csr<'_> {
+    fn rows(&self) -> usize {
+        self.indptr.len() - 1
+    }
+
+    /// Row `i`'s column indices and values.
+    fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        let (a, b) = (self.indptr[i], self.indptr[i + 1]);
+        (&self.indices[a..b], &self.data[a..b])
+    }
+}
+
+/// Errors: `InvalidParameter` (an `indptr` that does not start at 0 or decreases, lengths that
+/// disagree with it, a column index beyond `ncols`), `NonFinite`.
+fn check_csr(arg: &'static str, m: &Csr) -> CoreResult<()> {
+    let bad = |reason: String| Err(CoreError::InvalidParameter { arg, reason });
+    if m.indptr.is_empty() || m.indptr[0] != 0 || m.indptr.windows(2).any(|w| w[1] < w[0]) {
+        return bad("indptr must start at 0 and never decrease".into());
+    }
+    let nnz = m.indptr[m.indptr.len() - 1];
+    if m.indices.len() != nnz || m.data.len() != nnz {
+        return bad(format!("indptr ends at {nnz} but there are {} indices and {} values", m.indices.len(), m.data.len()));
+    }
+    if let Some(&c) = m.indices.iter().find(|&&c| c >= m.ncols) {
+        return bad(format!("column index {c} is not below the column count {}", m.ncols));
+    }
+    check_finite(arg, m.data)
+}
+
+/// Largest output of [`fold_products`], in doubles over all labellings (8·10⁸ bytes).
+pub const MAX_FOLD_PRODUCTS: usize = 100_000_000;
+
+/// One labelling's products: `CᵀJ` (folds × nc × p), `Cᵀr` (folds × nc), `CᵀC` (folds × nc × nc),
+/// row-major.
+#[derive(Debug)]
+pub struct FoldProducts {
+    pub ctj: Vec<f64>,
+    pub ctr: Vec<f64>,
+    pub ctc: Vec<f64>,
+}
+
+/// The products of `C` (n × nc) with `J` (n × p), `r` (n) and itself over the rows of each fold:
+/// for each labelling (`labels[s]`, a fold below `folds[s]` per row), fold `f`'s
+/// `C_fᵀJ_f, C_fᵀr_f, C_fᵀC_f`. A screening's held-out folds need these for every candidate;
+/// one pass over the rows gives them all (per row, every pair of a `C` entry with a `J` entry),
+/// where scipy built a sparse product per fold or one of `C` spread over the folds' columns at
+/// several times the cost. Labellings run in parallel, each summing its rows in order, so the
+/// result does not depend on the number of threads.
+///
+/// Errors: `InvalidParameter` (a malformed CSR, `J`, `r` or a labelling of another row count, a
+/// label not below its fold count, an output beyond [`MAX_FOLD_PRODUCTS`]), `NonFinite`.
+pub fn fold_products(c: Csr, j: Csr, r: &[f64], labels: &[Vec<usize>], folds: &[usize]) -> CoreResult<Vec<FoldProducts>> {
+    check_csr("C", &c)?;
+    check_csr("J", &j)?;
+    check_finite("r", r)?;
+    let bad = |arg: &'static str, reason: String| Err(CoreError::InvalidParameter { arg, reason });
+    let n = c.rows();
+    if j.rows() != n || r.len() != n {
+        return bad("J", format!("C has {n} rows but J has {} and r {}", j.rows(), r.len()));
+    }
+    if labels.len() != folds.len() {
+        return bad("labels", format!("{} labellings but {} fold counts", labels.len(), folds.len()));
+    }
+    let (nc, p) = (c.ncols, j.ncols);
+    let size: usize = folds.iter().map(|&f| f.saturating_mul(nc).saturating_mul(p + nc + 1)).fold(0, usize::saturating_add);
+    if size > MAX_FOLD_PRODUCTS {
+        return bad("C", format!("the products would hold {size} values; at most {MAX_FOLD_PRODUCTS}"));
+    }
+    for (s, (label, &count)) in labels.iter().zip(folds).enumerate() {
+        if label.len() != n {
+            return bad("labels", format!("labelling {s} has {} labels for {n} rows", label.len()));
+        }
+        if let Some(row) = label.iter().position(|&f| f >= count) {
+            return bad("labels", format!("labelling {s} gives row {row} fold {} of {count}", label[row]));
+        }
+    }
+    let one = |(label, &count): (&Vec<usize>, &usize)| {
+        let mut out = FoldProducts { ctj: vec![0.0; count * nc * p], ctr: vec![0.0; count * nc], ctc: vec![0.0; count * nc * nc] };
+        for (i, &f) in label.iter().enumerate() {
+            let ((c_cols, c_vals), (j_cols, j_vals)) = (c.row(i), j.row(i));
+            for (&a, &ca) in c_cols.iter().zip(c_vals) {
+                let at = f * nc + a;
+                let ctj = &mut out.ctj[at * p..(at + 1) * p];
+                for (&b, &jb) in j_cols.iter().zip(j_vals) {
+                    ctj[b] += ca * jb;
+                }
+                out.ctr[at] += ca * r[i];
+                let ctc = &mut out.ctc[at * nc..(at + 1) * nc];
+                for (&b, &cb) in c_cols.iter().zip(c_vals) {
+                    ctc[b] += ca * cb;
+                }
+            }
+        }
+        out
+    };
+    Ok(labels.par_iter().zip(folds).map(one).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -250,5 +346,74 @@ mod tests {
         assert!(sparse_gram(&[0, 2], &[0, 1], &[1.0, f64::NAN], 3).is_err()); // not finite
         assert!(sparse_gram(&[0, 3], &[0, 1], &[1.0, 2.0], 3).is_err()); // lengths disagree
         assert_eq!(sparse_gram(&[0], &[], &[], 2).unwrap(), vec![0.0; 4]); // no rows
+    }
+
+    #[test]
+    fn fold_products_match_the_definition() {
+        // 7 rows, C (7 × 2), J (7 × 3), two labellings
+        // rows with one, two or no entries of C
+        let c_rows: Vec<Vec<(usize, f64)>> = (0..7).map(|i| match i % 3 {
+            0 => vec![(0, 1.0 + i as f64)],
+            1 => vec![(0, -2.0), (1, 0.5 * i as f64)],
+            _ => vec![],
+        }).collect();
+        let j_rows: Vec<Vec<(usize, f64)>> = (0..7).map(|i| vec![(0, 1.0), (2, (i as f64).sin())]).collect();
+        let csr = |rows: &Vec<Vec<(usize, f64)>>| {
+            let mut indptr = vec![0];
+            let (mut indices, mut data) = (vec![], vec![]);
+            for row in rows {
+                for &(c, v) in row {
+                    indices.push(c);
+                    data.push(v);
+                }
+                indptr.push(indices.len());
+            }
+            (indptr, indices, data)
+        };
+        let ((ci, cj, cd), (ji, jj, jd)) = (csr(&c_rows), csr(&j_rows));
+        let r: Vec<f64> = (0..7).map(|i| i as f64 - 3.0).collect();
+        let labels = vec![vec![0, 1, 2, 0, 1, 2, 0], vec![1, 1, 1, 0, 0, 0, 0]];
+        let c = Csr { indptr: &ci, indices: &cj, data: &cd, ncols: 2 };
+        let j = Csr { indptr: &ji, indices: &jj, data: &jd, ncols: 3 };
+        let out = fold_products(c, j, &r, &labels, &[3, 2]).unwrap();
+        let dense = |rows: &Vec<Vec<(usize, f64)>>, i: usize, n: usize| {
+            let mut v = vec![0.0; n];
+            for &(a, x) in &rows[i] {
+                v[a] += x;
+            }
+            v
+        };
+        for (s, products) in out.iter().enumerate() {
+            let folds = if s == 0 { 3 } else { 2 };
+            let (mut ctj, mut ctr, mut ctc) = (vec![0.0; folds * 6], vec![0.0; folds * 2], vec![0.0; folds * 4]);
+            for i in 0..7 {
+                let (f, ci, ji) = (labels[s][i], dense(&c_rows, i, 2), dense(&j_rows, i, 3));
+                for a in 0..2 {
+                    for b in 0..3 {
+                        ctj[(f * 2 + a) * 3 + b] += ci[a] * ji[b];
+                    }
+                    ctr[f * 2 + a] += ci[a] * r[i];
+                    for b in 0..2 {
+                        ctc[(f * 2 + a) * 2 + b] += ci[a] * ci[b];
+                    }
+                }
+            }
+            for (got, want) in [(&products.ctj, &ctj), (&products.ctr, &ctr), (&products.ctc, &ctc)] {
+                assert!(got.iter().zip(want.iter()).all(|(g, w)| (g - w).abs() <= 1e-12 * (1.0 + w.abs())), "{got:?} != {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn fold_products_refuse_malformed_input() {
+        let (indptr, indices, data) = (vec![0, 1, 2], vec![0, 1], vec![1.0, 2.0]);
+        let c = Csr { indptr: &indptr, indices: &indices, data: &data, ncols: 2 };
+        let err = |labels: Vec<Vec<usize>>, folds: &[usize], r: &[f64]| fold_products(c, c, r, &labels, folds).unwrap_err().to_string();
+        assert!(err(vec![vec![0, 2]], &[2], &[1.0, 1.0]).contains("row 1 fold 2 of 2"));
+        assert!(err(vec![vec![0]], &[2], &[1.0, 1.0]).contains("1 labels for 2 rows"));
+        assert!(err(vec![vec![0, 1]], &[2], &[1.0]).contains("C has 2 rows"));
+        assert!(err(vec![vec![0, 1]], &[2], &[1.0, f64::NAN]).contains("`r` must be finite"));
+        let bad = Csr { indptr: &indptr, indices: &[0, 5], data: &data, ncols: 2 };
+        assert!(fold_products(bad, c, &[1.0, 1.0], &[vec![0, 0]], &[1]).unwrap_err().to_string().contains("column index 5"));
     }
 }

@@ -23,7 +23,7 @@ import numpy as np
 from scipy import sparse
 from scipy.stats import f as f_dist
 
-from ..kernels import is_sparse, sparse_gram
+from ..kernels import fold_products, is_sparse, sparse_gram
 from ..progress import progress
 from ..stats import rmse_of_squares
 from ..threads import thread_map
@@ -52,16 +52,16 @@ class _NormalScreen:
     every training set. ``q`` are the samples' joint angles: a fold's map corrects only the
     held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`).
 
-    A scheme's held-out folds partition the data rows. ``C``'s products with the held-out rows of
-    every fold come from one sparse product per scheme: ``C`` with each entry moved to its row's
-    fold's copy of the columns (:meth:`_by_fold`) — scipy's overhead per product, not the work,
-    was the cost of one product per fold."""
+    A scheme's held-out folds partition the data rows: ``C``'s products with the held-out rows of
+    every fold of every scheme come from one pass of the Rust core over the rows
+    (:func:`~robocal.kernels.fold_products`), and every held-out prediction from one product of
+    ``C`` by fold (:meth:`_by_fold`)."""
 
     def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
         self.k, self.n_data, self.q, self._covered, self._last = k, n_data, q, {}, None
         self.J, self.r = J, r
         self.JtJ, self.Jtr = _gram(J), np.asarray(J.T @ r)
-        self.Jd, self.rd = J[:n_data], r[:n_data]  # the data rows, all a candidate's columns touch
+        self.Jd, self.rd = sparse.csr_array(J[:n_data]), r[:n_data]  # the data rows, all a candidate's columns touch
         self.folds = {name: [self._rows(train, test) for train, test in folds] for name, folds in schemes.items()}
         self.fold_of_row = {}
         for name, folds in self.folds.items():
@@ -98,22 +98,18 @@ class _NormalScreen:
 
     def _products(self, C, cause) -> tuple:
         """The normal-equation blocks of ``C`` with ``J`` and ``r``: over all data rows, and per
-        scheme ``C`` by fold (:meth:`_by_fold`) with its folds' held-out shares. A map's roughness
-        variants share their columns (and :attr:`Candidate.basis`): their products are computed
-        once (the last ones are kept)."""
+        scheme ``C`` by fold (:meth:`_by_fold`) with its folds' held-out shares
+        (:func:`~robocal.kernels.fold_products`; all rows: the first scheme's folds summed). A
+        map's roughness variants share their columns (and :attr:`Candidate.basis`): their
+        products are computed once (the last ones are kept)."""
         if self._last is not None and cause is not None and self._last[0] is cause.basis:
             return self._last[1]
         C = sparse.csr_array(C)
-        C.sort_indices()
-        n = C.shape[1]
-        products = (_dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd), {})
-        for name, folds in self.folds.items():
-            F = len(folds)
-            Cf = self._by_fold(C, name)
-            CtJ = _dense(Cf.T @ self.Jd).reshape(F, n, -1)
-            Ctr = np.asarray(Cf.T @ self.rd).reshape(F, n)
-            CtC = sparse.csr_array(Cf.T @ Cf)
-            products[3][name] = (Cf, CtJ, Ctr, [CtC[i * n : (i + 1) * n, i * n : (i + 1) * n].toarray() for i in range(F)])
+        names = list(self.folds)
+        by_scheme = fold_products(C, self.Jd, self.rd, [self.fold_of_row[name] for name in names], [len(self.folds[name]) for name in names])
+        CtJ, Ctr, CtC = by_scheme[0]
+        held_out = {name: (self._by_fold(C, name), *products) for name, products in zip(names, by_scheme)}
+        products = (CtC.sum(axis=0), CtJ.sum(axis=0), Ctr.sum(axis=0), held_out)
         if cause is not None:
             self._last = (cause.basis, products)
         return products
