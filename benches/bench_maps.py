@@ -24,8 +24,8 @@ from machine import cpu_model
 
 import robocal
 from robocal.calibration.problem import Problem
-from robocal.diagnosis.candidates import map_candidate, map_noise
-from robocal.diagnosis.model import ExtendedProblem
+from robocal.causes.candidates import map_candidate, map_noise
+from robocal.causes.problem import ExtendedProblem
 from robocal.diagnosis.select import baseline_mask
 from robocal.diagnosis.validation import fit_problem
 

@@ -48,7 +48,7 @@ from machine import cpu_model
 
 import robocal
 from robocal.calibration.problem import is_kinematic, start_parameters
-from robocal.diagnosis import structure
+from robocal.causes import structure
 from robocal.planning import CRITERIA, Constraints, candidate_poses
 from robocal.simulation import CABLE_RANGE, setup, simulate
 

@@ -8,7 +8,7 @@ default geometric errors and sensor noise): the built-in robots (HSR JR680, ABB 
 cable / position / pose × a *scenario*: clean (no effect, ~16 % of the files), one hidden cause, or
 two of different scenarios. The scenarios cover every cause kind diagnose can name:
 
-- reading conventions (:class:`robocal.diagnosis.structure.Structure`, applied to the readings with
+- reading conventions (:class:`robocal.causes.structure.Structure`, applied to the readings with
   ``Structure.invert``): on one joint a quarter/half-turn zero offset (``joint_zero``), a sign flip
   (``joint_sign``) or a reading relative to the previous joint (``joint_reference``, ±1); on two
   joints at once zero offsets and sign flips. Zero offsets are not put on joint 1 (a rotation of
@@ -85,7 +85,7 @@ from pathlib import Path
 
 import numpy as np
 import robocal
-from robocal.diagnosis.structure import KINDS as CONVENTION_KINDS, Structure, parse_all, to_model
+from robocal.causes.structure import KINDS as CONVENTION_KINDS, Structure, parse_all, to_model
 from robocal.serial_robot import setup_names
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, setup, simulate

@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 import robocal
 from robocal.diagnosis.budget import REVISIT_TOLERANCE
-from robocal.diagnosis.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
-from robocal.diagnosis.model import ExtendedProblem, reported_rmse
+from robocal.causes.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
+from robocal.causes.problem import ExtendedProblem, reported_rmse
 from robocal.diagnosis.select import diagnose
 from robocal.diagnosis.validation import coefficient_std, fit_problem, fold_problem, fold_schemes, held_out_errors, nonlinear_cv
 from robocal.diagnosis.settling import LONG_MOVE_DEG, preceding_move_deg

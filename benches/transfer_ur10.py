@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 import robocal
-from robocal.diagnosis import structure
-from robocal.diagnosis.candidates import map_coverage_mask, result_maps
+from robocal.causes import structure
+from robocal.causes.candidates import map_coverage_mask, result_maps
 
 #: Fewest covered samples the within-range comparison is made on.
 MIN_COVERED = 50

@@ -162,7 +162,7 @@ def _assert_pose_targets_reached(doc: dict, m: int, seed: int) -> None:
     vectors within the limits: compensate, given the targets alone, reaches every one within
     the limits — checked on the model, not taken from the status."""
     from robocal.compensation import Targets, joint_limits
-    from robocal.diagnosis.candidates import joint_offsets
+    from robocal.causes.candidates import joint_offsets
 
     robot, _ = robocal.load_result(doc)
     offsets = joint_offsets(robot, doc.get("causes", []))

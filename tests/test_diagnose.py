@@ -21,8 +21,9 @@ import pytest
 
 import robocal
 from robocal.calibration import Problem
+from robocal.causes import LIMITS
 from robocal.data import Dataset
-from robocal.diagnosis import LIMITS, diagnose
+from robocal.diagnosis import diagnose
 from robocal.physics import DEG
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, simulate
@@ -242,7 +243,7 @@ def test_bad_arguments_are_named():
 
 def test_extended_model_residuals_match_its_jacobian():
     """The cause columns are the derivatives of the extended residuals (finite differences)."""
-    from robocal.diagnosis import ExtendedProblem, library
+    from robocal.causes import ExtendedProblem, library
 
     data, _ = simulate("hsr-jr680", "position", samples=40, seed=4)
     robot = robocal.robot("hsr-jr680")
@@ -403,7 +404,7 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     """A convention that lowers the number of implausible parameters but leaves the geometry
     implausible without a 10 % held-out gain is rejected with its numbers, in the same record
     shape as every other rejected cause (the command-line summary prints them)."""
-    from robocal.diagnosis import structure
+    from robocal.causes import structure
     from robocal.cli.diagnose import summary
 
     data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
@@ -429,7 +430,7 @@ def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
     ``PHYSICS_SHARE`` of the best free joint shape's gain goes before it; a weaker one, an
     insignificant one and the shapes keep their rank, and a sensor's drift stays ahead. The
     multi-session round orders its trials, ranked by held-out RMSE, by the same rule."""
-    from robocal.diagnosis.candidates import Candidate
+    from robocal.causes.candidates import Candidate
     from robocal.diagnosis.select import PHYSICS_SHARE, physics_first
 
     def entry(kind, joint, gain, stage="joints"):
@@ -463,8 +464,8 @@ def test_compliance_correlations_match_a_numpy_covariance():
     fit's covariance σ²(JᵀJ)⁻¹ computed densely with NumPy; one compliance has none."""
     from robocal.calibration.lm import levenberg_marquardt
     from robocal.calibration.problem import Problem
-    from robocal.diagnosis.candidates import library
-    from robocal.diagnosis.model import ExtendedProblem
+    from robocal.causes.candidates import library
+    from robocal.causes.problem import ExtendedProblem
     from robocal.diagnosis.select import baseline_mask
     from robocal.diagnosis.uncertainty import uncertainty_entries
 

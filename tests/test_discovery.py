@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robocal.diagnosis import diagnose
-from robocal.diagnosis.structure import Structure, to_readings
+from robocal.causes.structure import Structure, to_readings
 from robocal.simulation import simulate
 
 
@@ -216,8 +216,8 @@ def test_a_fold_that_cannot_see_a_step_holds_it_at_zero():
     from 0.80 to 0.85 mm with the starting damping alone)."""
     from robocal.calibration.problem import Problem
     from robocal.diagnosis import validation
-    from robocal.diagnosis.candidates import step_candidate
-    from robocal.diagnosis.model import ExtendedProblem
+    from robocal.causes.candidates import step_candidate
+    from robocal.causes.problem import ExtendedProblem
 
     data, _ = simulate("abb-irb120", "cable", samples=300, seed=4, effects=["step:sample=20,size=0.5"])
     base = Problem.build(robot_of(data), data)

@@ -15,7 +15,7 @@ from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
 from robocal.kernels import factor_damped, fold_products, sparse_gram
-from robocal.diagnosis.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
+from robocal.causes.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
 from robocal.diagnosis_file import Effect
@@ -303,7 +303,7 @@ def test_the_rust_gram_refuses_malformed_input():
 def test_a_result_cause_needs_a_list_of_coefficients():
     """A result file whose joint cause holds a bare number is refused by name (it once reached
     the matrix product of the compensation)."""
-    from robocal.diagnosis.candidates import joint_offsets
+    from robocal.causes.candidates import joint_offsets
 
     with pytest.raises(robocal.exceptions.InvalidParameterError, match="joint_scale.*list of 1 finite coefficients"):
         joint_offsets(robocal.robot("ur10"), [{"kind": "joint_scale", "joint": 2, "detail": {}, "coefficients": 0.0}])

@@ -16,7 +16,7 @@ from hypothesis.extra.numpy import arrays
 
 import robocal
 from robocal import simulation as sim
-from robocal.diagnosis.candidates import has_mass_model, library
+from robocal.causes.candidates import has_mass_model, library
 from robocal.exceptions import InvalidParameterError
 from robocal.physics import GRAVITY, MASS_MODELS, MassModel, gravity_torques, mass_model
 from robocal.robot_file import robot_document

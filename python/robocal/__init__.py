@@ -62,7 +62,7 @@ __all__ = [
 _LAZY = {
     "load": ("robocal.data", "load"),
     "simulate": ("robocal.simulation", "simulate"),
-    "calibrate": ("robocal.diagnosis.extended", "calibrate"),
+    "calibrate": ("robocal.causes.extended", "calibrate"),
     "calibrate_many": ("robocal.fleet", "calibrate_many"),
     "diagnose": ("robocal.diagnosis", "diagnose"),
     "compensate": ("robocal.compensation", "compensate"),

@@ -36,8 +36,8 @@ from typing import Optional
 import numpy as np
 
 from .kernels import as_float_array, solve_damped
-from .diagnosis import structure
-from .diagnosis.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
+from .causes import structure
+from .causes.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
 from .data.table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError

@@ -23,8 +23,8 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
+from .causes.extended import calibrate
 from .data.dataset import Dataset
-from .diagnosis.extended import calibrate
 from .exceptions import InvalidParameterError, RobocalError
 
 logger = logging.getLogger(__name__)

@@ -141,7 +141,9 @@ def fold_products(C, J, r, labels: list, folds: list) -> list:
     ``r``, in Rust: one pass over the rows for every fold of every labelling."""
     C, J = (A.tocsr() for A in (C, J))
     csr = lambda A, arg: (A.indptr, A.indices, as_float_array(A.data, arg), A.shape[1])
-    return _robocal.fold_products(csr(C, "C"), csr(J, "J"), as_float_array(r, "r"), [np.asarray(label, dtype=np.int64) for label in labels], [int(f) for f in folds])
+    return _robocal.fold_products(
+        csr(C, "C"), csr(J, "J"), as_float_array(r, "r"), [np.asarray(label, dtype=np.int64) for label in labels], [int(f) for f in folds]
+    )
 
 
 def identifiability(J, tol: float = 1e-9) -> dict:

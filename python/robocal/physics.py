@@ -2,7 +2,7 @@
 the joints and the approach direction that decides a joint's backlash.
 
 Part of the model layer: the simulator's effects (:mod:`robocal.effects`) generate data with it
-and the diagnosis (:mod:`robocal.diagnosis.candidates`) fits the same signatures.
+and the diagnosis (:mod:`robocal.causes.candidates`) fits the same signatures.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ The poses come from a pool of candidates drawn uniformly within the joint ranges
 the cell allows them (:class:`Constraints`). Each candidate contributes the rows ``J_i`` of the
 identification Jacobian of the model a calibration will fit — the identifiable geometry of
 :meth:`~robocal.calibration.problem.Problem.build` and, given a diagnosis or an extended result,
-the causes acting on the joints (:class:`~robocal.diagnosis.model.ExtendedProblem`) — so the
+the causes acting on the joints (:class:`~robocal.causes.problem.ExtendedProblem`) — so the
 plan is judged on the same Jacobian the fit uses, evaluated by the Rust core.
 
 Criterion (``criterion="I"``, the default): I-optimality, ``min tr(W M⁻¹)``, the mean variance of
@@ -49,11 +49,11 @@ from threadpoolctl import threadpool_limits
 from .calibration.api import load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
 from .calibration.sessions import SESSION_KINDS, concatenate
+from .causes import structure
+from .causes.extended import extended_problem, read_causes
 from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
-from .diagnosis import structure
-from .diagnosis.extended import extended_problem, read_causes
 from .exceptions import InvalidParameterError
 from .outputs import Staged
 from .physics import DEG
@@ -511,7 +511,7 @@ def _prediction_rms(M: np.ndarray, W: np.ndarray, sigma: float) -> Optional[floa
 def map_bins(q: np.ndarray, lower: float, upper: float, spacing: float) -> np.ndarray:
     """Bin (0-based) of each angle ``q`` (rad) in ``lower..upper`` cut into bins of ``spacing``
     (rad): a pose in every bin leaves no stretch longer than two spacings without one (what a
-    joint map needs, :data:`~robocal.diagnosis.candidates.MAP_GAP_SPACINGS`)."""
+    joint map needs, :data:`~robocal.causes.candidates.MAP_GAP_SPACINGS`)."""
     bins = max(1, int(math.ceil((upper - lower) / spacing - 1e-9)))
     return np.clip(((q - lower) / spacing).astype(int), 0, bins - 1)
 
@@ -715,7 +715,7 @@ def _shown(std: Optional[np.ndarray], unit: str) -> Optional[float]:
 def _cause_std(design: _Design, u: _Uncertainty, robot: Robot) -> list:
     """Per cause acting on the joints or the readings, its physical quantities' standard
     deviations (a joint map: its largest over the range), None where undetermined."""
-    from .diagnosis.candidates import map_curve
+    from .causes.candidates import map_curve
 
     out = []
     for c, s in zip(design.causes, design.slices):

@@ -10,7 +10,7 @@ terms (a step of its sensor's zero, its drift, its outliers) are not carried. Be
 calibrated model's eq. (28) metrics it reports the nominal model's on the same data, set-up
 re-fitted the same way: what the calibration gains where it was not fitted; and the acceptance
 figures of ISO 9283 (:mod:`robocal.acceptance`). The model is the one ``robocal report`` draws
-(:func:`~robocal.diagnosis.result_model.result_model`).
+(:func:`~robocal.causes.result_model.result_model`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from .calibration.api import load_inputs
 from .calibration.lm import levenberg_marquardt
 from .calibration.metrics import metrics
 from .calibration.problem import Problem
+from .causes.result_model import result_model
 from .data.dataset import Dataset
-from .diagnosis.result_model import result_model
 from .results import file_sha256, load_result
 from .serial_robot import Robot, setup_names
 
@@ -96,7 +96,7 @@ def verify(
         names fitted on ``data``) and ``setup`` (their values), ``nominal`` (the nominal model's
         ``metrics`` and ``metrics_covered``), ``applied`` (``structure`` and ``causes`` labels), ``not_applied``
         (``{label, reason}``), ``coverage`` (per joint map: the samples beyond its fitted range,
-        :func:`~robocal.diagnosis.candidates.map_coverage_report`), ``iso9283`` (the acceptance
+        :func:`~robocal.causes.candidates.map_coverage_report`), ``iso9283`` (the acceptance
         figures of the calibrated model, :func:`robocal.acceptance.iso9283`: position,
         orientation and distance accuracy, repeatability), ``robot``, ``measurement``,
         ``samples``, ``data`` (its source).

@@ -1,6 +1,6 @@
 """The geometric calibration's steps: the inputs loaded and checked, the held-out split, the fit
 by a method of :data:`METHODS`. The public :func:`robocal.calibrate`
-(:mod:`robocal.diagnosis.extended`, which adds extended models) checks its arguments and runs them."""
+(:mod:`robocal.causes.extended`, which adds extended models) checks its arguments and runs them."""
 
 from __future__ import annotations
 

@@ -286,7 +286,7 @@ class CalibrationResult:
 
     def _with_model(self, doc: dict) -> dict:
         """What goes beyond the geometry: an extended model's causes
-        (:class:`robocal.diagnosis.ExtendedProblem`), a robust fit's outliers, the reading
+        (:class:`robocal.causes.ExtendedProblem`), a robust fit's outliers, the reading
         conventions, the sessions of a fit on several."""
         if hasattr(self.problem, "describe_causes"):
             doc["causes"] = self.problem.describe_causes(self.x, self.std)

@@ -7,7 +7,7 @@ import json
 
 from ..calibration.api import METHODS
 from ..calibration.result import describe_implausible
-from ..diagnosis.extended import calibrate
+from ..causes.extended import calibrate
 from ..diagnosis_file import load_diagnosis
 from ..outputs import printable
 from ..results import save_result

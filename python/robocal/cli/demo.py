@@ -18,8 +18,8 @@ import numpy as np
 from .. import __version__
 from ..calibration.api import held_out_problem
 from ..calibration.problem import is_kinematic
+from ..causes.extended import calibrate
 from ..diagnosis import diagnose
-from ..diagnosis.extended import calibrate
 from ..exceptions import InvalidParameterError
 from ..outputs import make_folder, write_json
 from ..robot import robot as load_robot

@@ -6,7 +6,7 @@ import argparse
 import json
 
 from ..acceptance import summary_rows
-from ..diagnosis.candidates import uncovered_words
+from ..causes.candidates import uncovered_words
 from ..outputs import printable, write_text
 from ..verification import verify
 from .arguments import add_angle_unit_argument

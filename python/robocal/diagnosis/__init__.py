@@ -1,12 +1,10 @@
 """Diagnosis: what the geometric model gets wrong on measured data, its cause, and the gain of
 modelling it (:func:`diagnose`)."""
 
-from .candidates import LIMITS, Candidate, library
-from .model import ExtendedProblem
 from .select import Diagnosis, diagnose as diagnose_session
 from .sessions import SessionsDiagnosis, diagnose_sessions
 
-__all__ = ["LIMITS", "Candidate", "Diagnosis", "ExtendedProblem", "SessionsDiagnosis", "diagnose", "diagnose_session", "diagnose_sessions", "library"]
+__all__ = ["Diagnosis", "SessionsDiagnosis", "diagnose", "diagnose_session", "diagnose_sessions"]
 
 
 def diagnose(data, *, robot=None, **options):

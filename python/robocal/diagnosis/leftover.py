@@ -17,8 +17,9 @@ from typing import Optional
 
 import numpy as np
 
+from ..causes.wander import TIME_TERMS
 from ..data.dataset import Dataset
-from .wander import TIME_TERMS, Z_BOUND, residual_correlation
+from .wander import Z_BOUND, residual_correlation
 
 #: A final RMSE beyond this multiple of the floor is more than the data's resolution.
 FLOOR_MULTIPLE = 3.0

@@ -27,9 +27,9 @@ from ..kernels import fold_products, is_sparse, sparse_gram
 from ..progress import progress
 from ..stats import rmse_of_squares
 from ..threads import thread_map
-from .candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
-from .model import ExtendedProblem, judged_rmse, reported_rmse
-from .structure import EQUAL
+from ..causes.candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
+from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
+from ..causes.structure import EQUAL
 from .validation import fit_problem, nonlinear_cv
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).

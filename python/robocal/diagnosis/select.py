@@ -45,17 +45,18 @@ from ..progress import progress
 from ..threads import thread_map
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
-from . import structure
+from ..causes import structure
 from .budget import floor as error_floor
 from .budget import repeatability
-from .candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library, step_candidates
+from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library, step_candidates
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
-from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
+from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
 from .uncertainty import uncertainty_entries
 from .validation import coefficient_std, fit_problem, fold_schemes, judgeable, nonlinear_cv
-from .wander import ROUGHNESS, TIME_TERMS, residual_correlation, time_inflation, wander_candidate, within_session
+from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
+from .wander import residual_correlation, time_inflation
 
 
 @dataclass

@@ -27,6 +27,10 @@ from threadpoolctl import threadpool_limits
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
+from ..causes import structure
+from ..causes.candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
+from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors, stack
+from ..causes.wander import TIME_TERMS
 from ..kernels import is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..diagnosis_file import load_diagnosis
@@ -35,9 +39,6 @@ from ..physics import DEG
 from ..progress import progress
 from ..threads import thread_map
 from ..serial_robot import Robot
-from . import structure
-from .candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
-from .model import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors
 from .select import (
     Diagnosis,
     baseline_mask,
@@ -49,7 +50,6 @@ from .select import (
 )
 from .uncertainty import uncertainty_entries
 from .validation import WARM_DAMPING
-from .wander import TIME_TERMS
 
 logger = logging.getLogger(__name__)
 
@@ -97,22 +97,6 @@ class _Model:
         return stack(problems, dict(self.prior))
 
 
-def stack(problems: list, prior: Optional[dict] = None) -> Sessions:
-    """The sessions' extended problems stacked, the ``prior`` (if any) and the joint maps'
-    roughness penalties on the first one only: they act on the shared entries once."""
-    first, rest = problems[0], [_without_penalties(p) for p in problems[1:]]
-    if prior:
-        first = ExtendedProblem(replace(first.base, prior=prior), first.causes, first.full_data, first.idx)
-    return Sessions([first] + rest)
-
-
-def _without_penalties(problem: ExtendedProblem) -> ExtendedProblem:
-    if not any(c.penalty is not None for c in problem.causes):
-        return problem
-    causes = [replace(c, penalty=None) if c.penalty is not None else c for c in problem.causes]
-    return ExtendedProblem(problem.base, causes, problem.full_data, problem.idx)
-
-
 class _Evaluator:
     """Per-session problems of a model (cached by their conventions) and their
     leave-one-session-out errors."""
@@ -141,7 +125,7 @@ class _Evaluator:
     def problems(self, model: _Model, span: Optional[tuple] = None) -> list[ExtendedProblem]:
         """Per session, the model's problem. Joint maps cover the joint's angles in the sessions
         ``span`` (0-based; default all): one basis for every session, fading beyond (a left-out
-        session is placed as ``verify`` would place it: :func:`~.candidates.map_reach`)."""
+        session is placed as ``verify`` would place it: :func:`~robocal.causes.candidates.map_reach`)."""
         span = tuple(range(len(self.sessions))) if span is None else span
         bases = self.bases(model)
         out = []
@@ -192,7 +176,7 @@ class _Evaluator:
         return implausible_parameters(self.robot, dict(zip(stacked.names, fit.x)))
 
     def held_out(self, model: _Model) -> list[np.ndarray]:
-        """Per session, the :func:`~.model.squared_errors` of its samples under the model fitted
+        """Per session, the :func:`~robocal.causes.problem.squared_errors` of its samples under the model fitted
         on the others (joint maps over the others' range). Keeps, per session, which of them every map
         covers (``coverage``)."""
 
@@ -268,7 +252,7 @@ def _pseudo_std(stacked: Sessions, x: np.ndarray) -> np.ndarray:
 
 
 def _rmse(errors: list[np.ndarray], rmse) -> float:
-    """Pooled held-out RMSE of per-session :func:`~.model.squared_errors`: what selection judges
+    """Pooled held-out RMSE of per-session :func:`~robocal.causes.problem.squared_errors`: what selection judges
     (``rmse=judged_rmse``) or what the report states (``reported_rmse``)."""
     return rmse(np.concatenate(errors))
 

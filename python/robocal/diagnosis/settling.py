@@ -13,8 +13,8 @@ from typing import Optional
 import numpy as np
 from scipy.stats import binomtest
 
+from ..causes.candidates import acquisition_order
 from ..data.dataset import Dataset
-from .candidates import acquisition_order
 
 #: A joint move at least this large (deg, the largest over the joints) counts as long.
 LONG_MOVE_DEG = 90.0

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..causes.candidates import PHYSICAL_KINDS, map_curve
 from ..kernels import covariance
-from .candidates import PHYSICAL_KINDS, map_curve
 
 
 def uncertainty_entries(problem, x: np.ndarray, causes) -> dict:
     """Report entries of ``causes`` fitted at ``x`` of ``problem`` (one session's
-    :class:`~.model.ExtendedProblem` or the sessions stacked), keyed by cause label:
+    :class:`~robocal.causes.problem.ExtendedProblem` or the sessions stacked), keyed by cause label:
 
     - a joint map's ``curve``: its angles, values and standard deviation (deg; the roughness
       prior included). Its coefficients are the entries named ``"<label> c<i>"``.

@@ -18,9 +18,9 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import start_parameters
 from ..data.splits import configuration_groups, kfold
 from ..threads import thread_map
-from .candidates import Candidate, map_within
-from .model import ExtendedProblem
-from .wander import wander_centred, wander_within
+from ..causes.candidates import Candidate, map_within
+from ..causes.problem import ExtendedProblem
+from ..causes.wander import wander_centred, wander_within
 
 
 def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) -> dict:

@@ -9,7 +9,7 @@ The page, the inputs it reads and their evaluation; the figures are in
 1. the per-sample error before calibration (nominal kinematics, measurement set-up refitted by
    :func:`~robocal.calibration.problem.start_parameters`) and after it, as histograms and along
    the samples, held-out samples marked. "After" is the model ``verify`` evaluates
-   (:func:`~robocal.diagnosis.result_model.result_model`: the result's reading conventions and
+   (:func:`~robocal.causes.result_model.result_model`: the result's reading conventions and
    joint causes), so an extended result's figures include its causes; beside them the ISO 9283
    acceptance figures of the held-out samples (:mod:`robocal.acceptance`) with the accuracy of
    each target;
@@ -42,10 +42,10 @@ from ..calibration.api import load_inputs
 from ..calibration.metrics import sample_errors
 from ..calibration.problem import implausible_parameters, start_parameters
 from ..calibration.result import describe_implausible, implausible_meaning
+from ..causes import structure
+from ..causes.result_model import ResultModel, result_model
 from ..data.dataset import Dataset
-from ..diagnosis import structure
 from ..diagnosis.leftover import leftover_words
-from ..diagnosis.result_model import ResultModel, result_model
 from ..diagnosis_file import DiagnosisReport, Quantity, load_diagnosis
 from ..exceptions import InvalidParameterError, RobocalError
 from ..outputs import make_folder, write_text

@@ -3,7 +3,7 @@ extended model — the diagnosed causes fitted together with the geometry — on
 several at once (one robot; each session with its own set-up and its own sensor terms).
 
 It sits above both the calibration (the geometric fit, :mod:`robocal.calibration.api`) and the
-diagnosis (the causes, :class:`~robocal.diagnosis.model.ExtendedProblem`) and is what
+cause model (:class:`~robocal.causes.problem.ExtendedProblem`) and is what
 :func:`robocal.calibrate` names: its arguments are checked here once, then the fit is dispatched.
 """
 
@@ -30,8 +30,7 @@ from ..serial_robot import Robot
 from ..results import file_sha256
 from . import structure
 from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
-from .model import ExtendedProblem
-from .sessions import stack
+from .problem import ExtendedProblem, stack
 from .wander import wander_candidate
 
 logger = logging.getLogger(__name__)

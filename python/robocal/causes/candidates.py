@@ -431,7 +431,7 @@ MAP_LABEL = re.compile(r"joint_map joint (\d+) spacing=([0-9.]+) roughness=([0-9
 
 
 #: Harmonics the library offers one at a time; higher ones (a reducer's gear mesh) are found
-#: where several of these fit together (:func:`~.maps.merge_harmonics`).
+#: where several of these fit together (:func:`~robocal.diagnosis.maps.merge_harmonics`).
 LIBRARY_HARMONICS = (1, 2, 3)
 #: The highest harmonic tried in the place of several.
 MAX_HARMONIC = 8

@@ -3,16 +3,20 @@
 :class:`ExtendedProblem` has the interface the production LM works on (``x0``, ``residuals``,
 ``jacobian``, ``data_residuals``, ``clip``, ``data``), so the same solver fits it; every residual
 and Jacobian is evaluated by the Rust core (at the effect-corrected joint angles), only the
-cause columns are assembled here.
+cause columns are assembled here. Several sessions' extended problems are fitted at once
+stacked (:func:`stack`).
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import cached_property
+from typing import Optional
 
 import numpy as np
 
 from ..calibration.problem import Problem, fit_row_weights, rotation_weight
+from ..calibration.sessions import Sessions
 from ..kernels import is_sparse
 from ..data.dataset import Dataset
 from ..serial_robot import RESIDUAL_WIDTH
@@ -326,3 +330,19 @@ class ExtendedProblem:
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)
         return 0.5 * float(r @ r)
+
+
+def stack(problems: list, prior: Optional[dict] = None) -> Sessions:
+    """The sessions' extended problems stacked, the ``prior`` (if any) and the joint maps'
+    roughness penalties on the first one only: they act on the shared entries once."""
+    first, rest = problems[0], [_without_penalties(p) for p in problems[1:]]
+    if prior:
+        first = ExtendedProblem(replace(first.base, prior=prior), first.causes, first.full_data, first.idx)
+    return Sessions([first] + rest)
+
+
+def _without_penalties(problem: ExtendedProblem) -> ExtendedProblem:
+    if not any(c.penalty is not None for c in problem.causes):
+        return problem
+    causes = [replace(c, penalty=None) if c.penalty is not None else c for c in problem.causes]
+    return ExtendedProblem(problem.base, causes, problem.full_data, problem.idx)
