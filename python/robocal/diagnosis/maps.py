@@ -5,11 +5,11 @@ angle (energy at 10-30 cycles per revolution on the UR10), which a few harmonics
 *joint map* is a cubic B-spline correction of one joint's angle over the range the data cover,
 with a second-difference roughness penalty (a P-spline, Eilers & Marx 1996); its constant is
 left to the geometry's ``theta`` offset and its linear part to ``joint_scale``
-(:func:`~.candidates.map_constraint`).
+(:func:`~robocal.causes.candidates.map_constraint`).
 
 The stage runs after the named causes. Each round screens, for every joint without a map, every
-knot spacing and roughness of :data:`~.candidates.MAP_SPACINGS_DEG` ×
-:data:`~.candidates.MAP_ROUGHNESS_DEG` against the current model, linearised, through the
+knot spacing and roughness of :data:`~robocal.causes.candidates.MAP_SPACINGS_DEG` ×
+:data:`~robocal.causes.candidates.MAP_ROUGHNESS_DEG` against the current model, linearised, through the
 normal equations (cheap: a map's columns are sparse); the best variant per joint by held-out
 error summed over the fold schemes is checked by the extra-sum-of-squares F test of its
 unpenalised columns (Bonferroni over the variants tried) and then re-fitted (nonlinear) on every
@@ -50,7 +50,7 @@ class _NormalScreen:
     """Held-out errors of ``r ≈ J·δ + C·c`` (``C`` penalised by ``P``), fitted per fold through
     the normal equations. ``J``'s rows beyond the data (priors, accepted maps' roughness) stay in
     every training set. ``q`` are the samples' joint angles: a fold's map corrects only the
-    held-out samples within its training samples' angles (:func:`~.candidates.covered_when_fitted_on`).
+    held-out samples within its training samples' angles (:func:`~robocal.causes.candidates.covered_when_fitted_on`).
 
     A scheme's held-out folds partition the data rows: ``C``'s products with the held-out rows of
     every fold of every scheme come from one pass of the Rust core over the rows
@@ -282,9 +282,9 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
     Harmonics 1-3 are the library's; a joint whose error holds a higher harmonic (a reducer's
     gear mesh) is approximated by two or three of them, each a claim of a gear harmonic that is
     not there. Where the model holds two or more harmonics of a joint, first the single harmonic
-    (1 to :data:`~.candidates.MAX_HARMONIC`), then the joint's map, each the best screened
+    (1 to :data:`~robocal.causes.candidates.MAX_HARMONIC`), then the joint's map, each the best screened
     against the model without them, is fitted in their place and kept if its held-out error is
-    within :data:`~.structure.EQUAL` of theirs on every scheme: the same error, one honest claim
+    within :data:`~robocal.causes.structure.EQUAL` of theirs on every scheme: the same error, one honest claim
     — "harmonic h of this joint" or "a periodic error of this joint", with its curve — instead of
     several. Returns the model, its ``x``, held-out errors, fold fits and the report entries of
     the causes merged in (``candidate``, ``replaces``, ``params``, held-out RMSE before and after)."""

@@ -89,7 +89,7 @@ def _pinned(step: Candidate) -> Candidate:
 
 
 def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
-    """Held-out :func:`~.model.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
+    """Held-out :func:`~robocal.causes.problem.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
     each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
     for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
     and the fit is the start. Without it each fold starts from its own training samples'
@@ -111,7 +111,7 @@ def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = Non
 
 
 def held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """:func:`~.model.squared_errors` of ``ext``'s samples ``test`` (positions in ``ext.idx``)
+    """:func:`~robocal.causes.problem.squared_errors` of ``ext``'s samples ``test`` (positions in ``ext.idx``)
     under the fit ``x`` of ``fold``, the problem of the training samples ``train``."""
     return ExtendedProblem(fold.base, fold_causes(ext, train), ext.full_data, ext.idx[test]).squared_errors(x)
 
