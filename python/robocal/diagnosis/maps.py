@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.stats import f as f_dist
 
 from ..kernels import fold_products, is_sparse, sparse_gram
@@ -58,7 +59,7 @@ class _NormalScreen:
     ``C`` by fold (:meth:`_by_fold`)."""
 
     def __init__(self, J, r: np.ndarray, schemes: dict, k: int, n_data: int, q: np.ndarray):
-        self.k, self.n_data, self.q, self._covered, self._last = k, n_data, q, {}, None
+        self.k, self.n_data, self.q, self._covered, self._last, self._factors = k, n_data, q, {}, None, {}
         self.J, self.r = J, r
         self.JtJ, self.Jtr = _gram(J), np.asarray(J.T @ r)
         self.Jd, self.rd = sparse.csr_array(J[:n_data]), r[:n_data]  # the data rows, all a candidate's columns touch
@@ -109,30 +110,59 @@ class _NormalScreen:
         by_scheme = fold_products(C, self.Jd, self.rd, [self.fold_of_row[name] for name in names], [len(self.folds[name]) for name in names])
         CtJ, Ctr, CtC = by_scheme[0]
         held_out = {name: (self._by_fold(C, name), *products) for name, products in zip(names, by_scheme)}
-        products = (CtC.sum(axis=0), CtJ.sum(axis=0), Ctr.sum(axis=0), held_out)
+        products = (CtC.sum(axis=0), CtJ.sum(axis=0), Ctr.sum(axis=0), held_out, {})  # {}: per fold, A⁻¹Bᵀ and what follows of it
         if cause is not None:
             self._last = (cause.basis, products)
         return products
 
+    def _geometry(self, name: str, i: int) -> tuple:
+        """Fold ``i`` of scheme ``name``: its training rows' normal equations ``A·δ = b`` of ``J``,
+        their unit-diagonal scaling ``d``, the scaled and ridged ``A``'s Cholesky factor and the
+        solution ``y0`` without a candidate (scaled) — or None for both if the factor fails.
+        Computed once per fold, for every candidate."""
+        if (name, i) not in self._factors:
+            _, _, _, _, JteJte, Jter = self.folds[name][i]
+            A, b = self.JtJ - JteJte, self.Jtr - Jter
+            d = _diagonal_scale(A)
+            try:
+                factor = cho_factor(A / np.outer(d, d) + RIDGE * np.eye(len(A)))
+                self._factors[name, i] = (b, d, factor, cho_solve(factor, b / d))
+            except LinAlgError:
+                self._factors[name, i] = (b, d, None, None)
+        return self._factors[name, i]
+
     def errors(self, C=None, P=None, joint_map=None) -> dict:
         """Held-out squared error per sample, per scheme; ``C`` the columns of ``joint_map``.
-        The folds are solved in parallel (:func:`~robocal.threads.thread_map`)."""
+
+        Each fold's system ``[A Bᵀ; B D]`` (``J`` and ``C``'s blocks, scaled to a unit diagonal
+        with the ridge, as :func:`_solve` does) is solved by its Schur complement: ``A``'s factor
+        is the fold's for every candidate, and ``A⁻¹Bᵀ`` the basis' for every roughness (only
+        ``D`` holds the penalty), so a roughness variant costs a solve of ``C``'s size. The folds
+        are solved in parallel (:func:`~robocal.threads.thread_map`)."""
         p = self.J.shape[1]
         if C is not None:
-            CtC, CtJ, Ctr, held_out = self._products(C, joint_map)
+            CtC, CtJ, Ctr, held_out, shared = self._products(C, joint_map)
             if P is not None:
                 CtC = CtC + P.T @ P
 
         def fold_solution(at: tuple) -> np.ndarray:
             name, i = at
-            _, _, _, _, JteJte, Jter = self.folds[name][i]
-            N, b = self.JtJ - JteJte, self.Jtr - Jter
-            if C is not None:
-                _, CteJ, Cter, CteCte = held_out[name]
-                CJ = CtJ - CteJ[i]
-                N = np.block([[N, CJ.T], [CJ, CtC - CteCte[i]]])
-                b = np.concatenate([b, Ctr - Cter[i]])
-            return _solve(N, b)
+            b, d, factor, y0 = self._geometry(name, i)
+            if C is None:
+                return y0 / d if factor is not None else _solve(self.JtJ - self.folds[name][i][4], b)
+            _, CteJ, Cter, CteCte = held_out[name]
+            B, D, bC = CtJ - CteJ[i], CtC - CteCte[i], Ctr - Cter[i]
+            if factor is None:
+                return _solve(np.block([[self.JtJ - self.folds[name][i][4], B.T], [B, D]]), np.concatenate([b, bC]))
+            if at not in shared:
+                Bj = B / d
+                W = cho_solve(factor, Bj.T)
+                shared[at] = (W, Bj @ W, Bj @ y0)
+            W, M, g = shared[at]
+            dC = _diagonal_scale(D)
+            S = (D - M) / np.outer(dC, dC) + RIDGE * np.eye(len(D))
+            yC = np.linalg.solve(S, (bC - g) / dC)
+            return np.concatenate([(y0 - W @ (yC / dC)) / d, yC / dC])
 
         at = [(name, i) for name, folds in self.folds.items() for i in range(len(folds))]
         solutions = dict(zip(at, thread_map(fold_solution, at, rows=self.n_data)))
