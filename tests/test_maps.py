@@ -14,7 +14,7 @@ from robocal.data.canonical import write_canonical
 from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal
-from robocal.kernels import factor_damped, fold_products, sparse_gram
+from robocal.kernels import factor_damped, fold_products, sparse_gram, stack_csr
 from robocal.causes.candidates import MAP_REACH_SPACINGS, map_basis, map_coverage, map_curve, map_support
 from robocal.diagnosis.validation import fold_causes
 from robocal.physics import DEG
@@ -281,6 +281,31 @@ def test_the_rust_fold_products_are_the_dense_products_of_each_folds_rows(seed, 
             assert np.allclose(CtJ[f], Cd[rows].T @ Jd[rows], rtol=1e-12, atol=1e-14)
             assert np.allclose(Ctr[f], Cd[rows].T @ r[rows], rtol=1e-12, atol=1e-14)
             assert np.allclose(CtC[f], Cd[rows].T @ Cd[rows], rtol=1e-12, atol=1e-14)
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(1, 30), st.integers(1, 5), st.integers(0, 3), st.integers(0, 4))
+@settings(max_examples=40, deadline=None)
+def test_the_rust_stacked_jacobian_is_scipys_stack_of_its_blocks(seed, m, nd, n_thin, n_extra):
+    """A sparse Jacobian laid out by the Rust core from its blocks (dense columns first in every
+    row, then each thin block's entries, weighted rows, then the extra rows) is scipy's stack."""
+    rng = np.random.default_rng(seed)
+    dense = rng.normal(size=(m, nd))
+    thin = [sparse.random_array((m, 4), density=0.5, format="csr", random_state=rng) for _ in range(n_thin)]
+    n = nd + 4 * n_thin
+    extra = sparse.random_array((n_extra, n), density=0.5, format="csr", random_state=rng)
+    w = rng.uniform(0.5, 2.0, size=m)
+    indptr, indices, data = stack_csr(dense, np.arange(nd), [(b, nd + 4 * t) for t, b in enumerate(thin)], w, extra)
+    got = sparse.csr_array((data, indices, indptr), shape=(m + n_extra, n)).toarray()
+    expected = np.vstack([np.hstack([dense] + [b.toarray() for b in thin]) * w[:, None], extra.toarray()])
+    assert np.array_equal(got, expected)
+    assert stack_csr(dense, np.arange(nd), [(b, nd + 4 * t) for t, b in enumerate(thin)], w, extra, pattern=False)[:2] == (None, None)
+
+
+def test_the_rust_stacked_jacobian_refuses_a_block_of_another_row_count():
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="a block has 2 rows; the dense block 3"):
+        stack_csr(np.ones((3, 2)), np.arange(2), [(sparse.csr_array(np.ones((2, 1))), 2)], np.ones(3), sparse.csr_array((0, 3)))
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="column index 4 is not below the column count 3"):
+        stack_csr(np.ones((3, 2)), np.array([0, 4]), [], np.ones(3), sparse.csr_array((0, 3)))
 
 
 def test_the_rust_fold_products_refuse_a_label_beyond_the_folds():

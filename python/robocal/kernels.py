@@ -146,6 +146,24 @@ def fold_products(C, J, r, labels: list, folds: list) -> list:
     )
 
 
+def stack_csr(dense: np.ndarray, dense_cols: np.ndarray, thin: list, weights: np.ndarray, extra, pattern: bool = True) -> tuple:
+    """``(indptr, indices, data)`` of a Jacobian from its blocks, in Rust: per data row the dense
+    block's values (``dense`` (m, nd), columns ``dense_cols``), then each thin block's entries
+    (``thin``: pairs of a scipy.sparse block (m, ·) and its column offset), all times the row's
+    ``weights``; then the rows of ``extra`` (scipy.sparse, the Jacobian's column count).
+    ``pattern=False``: the values only (``indptr`` and ``indices`` None), for a pattern known."""
+    blocks = [(b.indptr, b.indices, as_float_array(b.data, "thin"), int(offset)) for b, offset in ((b.tocsr(), o) for b, o in thin)]
+    extra = extra.tocsr()
+    return _robocal.stack_csr(
+        as_float_array(dense, "dense"),
+        np.asarray(dense_cols, dtype=np.int64),
+        blocks,
+        as_float_array(weights, "weights"),
+        (extra.indptr, extra.indices, as_float_array(extra.data, "extra"), extra.shape[1]),
+        pattern,
+    )
+
+
 def identifiability(J, tol: float = 1e-9) -> dict:
     """Rank, singular values, identifiable subset and redundancies of a Jacobian (m, n).
 

@@ -348,6 +348,45 @@ fn fold_products<'py>(
         .collect()
 }
 
+/// The CSR arrays of a Jacobian from its blocks: the dense block `dense` (m, nd) in columns
+/// `dense_cols`, the thin CSR blocks (each `(indptr, indices, data, column offset)`), every data
+/// row times `weights` (m,), then the rows of the CSR `extra` (`(indptr, indices, data,
+/// ncols)`). Returns `(indptr, indices, data)`, the first two None unless `pattern`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn stack_csr<'py>(
+    py: Python<'py>,
+    dense: &Bound<'py, PyAny>,
+    dense_cols: &Bound<'py, PyAny>,
+    thin: Vec<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, usize)>,
+    weights: &Bound<'py, PyAny>,
+    extra: (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, usize),
+    pattern: bool,
+) -> PyResult<(Option<Bound<'py, PyArray1<i64>>>, Option<Bound<'py, PyArray1<i64>>>, Arr1<'py>)> {
+    let (dense, _, _) = array2(dense, "dense", None)?;
+    let dense_cols = index_array(dense_cols, "dense_cols")?;
+    let weights = array1(weights, "weights", None)?;
+    let thin = thin
+        .iter()
+        .map(|(indptr, indices, data, offset)| PyResult::Ok((index_array(indptr, "indptr")?, index_array(indices, "indices")?, array1(data, "thin", None)?, *offset)))
+        .collect::<PyResult<Vec<_>>>()?;
+    let extra = (index_array(&extra.0, "indptr")?, index_array(&extra.1, "indices")?, array1(&extra.2, "extra", None)?, extra.3);
+    let (layout, data) = py
+        .detach(|| {
+            let blocks: Vec<(solve::Csr, usize)> =
+                thin.iter().map(|(p, i, d, offset)| (solve::Csr { indptr: p, indices: i, data: d, ncols: extra.3.saturating_sub(*offset) }, *offset)).collect();
+            let extra = solve::Csr { indptr: &extra.0, indices: &extra.1, data: &extra.2, ncols: extra.3 };
+            solve::stack_csr(&dense, &dense_cols, &blocks, &weights, extra, pattern)
+        })
+        .map_err(core_err)?;
+    let as_i64 = |v: Vec<usize>| PyArray1::from_vec(py, v.into_iter().map(|x| x as i64).collect::<Vec<i64>>());
+    let (indptr, indices) = match layout {
+        Some((indptr, indices)) => (Some(as_i64(indptr)), Some(as_i64(indices))),
+        None => (None, None),
+    };
+    Ok((indptr, indices, PyArray1::from_vec(py, data)))
+}
+
 /// The normal equations `(JᵀJ (n, n), Jᵀr (n,))` of a dense `J` (m, n) and `r` (m,).
 #[pyfunction]
 #[pyo3(signature = (J, r))]
@@ -419,6 +458,7 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDampedQr>()?;
     m.add_function(wrap_pyfunction!(sparse_gram, m)?)?;
     m.add_function(wrap_pyfunction!(fold_products, m)?)?;
+    m.add_function(wrap_pyfunction!(stack_csr, m)?)?;
     m.add_function(wrap_pyfunction!(configuration_groups, m)?)?;
     m.add_function(wrap_pyfunction!(normal_equations, m)?)?;
     // The core parallelises over samples (rayon); faer's own threads only add hand-over cost to

@@ -170,6 +170,63 @@ fn check_csr(arg: &'static str, m: &Csr) -> CoreResult<()> {
     check_finite(arg, m.data)
 }
 
+/// The CSR arrays of a Jacobian laid out from its blocks: per row `i` of the `m` data rows, the
+/// dense block's `nd` values (row-major `dense`, in columns `dense_cols`), then each thin block's
+/// entries (CSR, `m` rows, columns shifted by its offset), all times `weights[i]`; then the rows
+/// of `extra` as they are (a problem's prior and roughness rows), whose column count is the
+/// Jacobian's (a thin block's is what its offset leaves). Returns the pattern `(indptr,
+/// indices)` if `pattern` is set (a problem's is the same at every `x`: the caller keeps the
+/// first) and the values. One pass: what scipy needed an index layout and a scatter for.
+///
+/// Errors: `InvalidParameter` (a malformed CSR, a block of another row count, lengths that
+/// disagree), `NonFinite`.
+pub fn stack_csr(dense: &[f64], dense_cols: &[usize], thin: &[(Csr, usize)], weights: &[f64], extra: Csr, pattern: bool) -> CoreResult<(Option<(Vec<usize>, Vec<usize>)>, Vec<f64>)> {
+    let (m, nd) = (weights.len(), dense_cols.len());
+    let bad = |arg: &'static str, reason: String| Err(CoreError::InvalidParameter { arg, reason });
+    if dense.len() != m * nd {
+        return bad("dense", format!("{m} rows of {nd} values need {} values; got {}", m * nd, dense.len()));
+    }
+    check_finite("dense", dense)?;
+    check_finite("weights", weights)?;
+    check_csr("extra", &extra)?;
+    if let Some(&c) = dense_cols.iter().find(|&&c| c >= extra.ncols) {
+        return bad("dense_cols", format!("column index {c} is not below the column count {}", extra.ncols));
+    }
+    for (block, _) in thin {
+        check_csr("thin", block)?;
+        if block.rows() != m {
+            return bad("thin", format!("a block has {} rows; the dense block {m}", block.rows()));
+        }
+    }
+    let nnz = m * nd + thin.iter().map(|(b, _)| b.data.len()).sum::<usize>() + extra.data.len();
+    let mut data = Vec::with_capacity(nnz);
+    for i in 0..m {
+        let w = weights[i];
+        data.extend(dense[i * nd..(i + 1) * nd].iter().map(|v| v * w));
+        for (block, _) in thin {
+            data.extend(block.row(i).1.iter().map(|v| v * w));
+        }
+    }
+    data.extend_from_slice(extra.data);
+    if !pattern {
+        return Ok((None, data));
+    }
+    let (mut indptr, mut indices) = (Vec::with_capacity(m + extra.rows() + 1), Vec::with_capacity(nnz));
+    indptr.push(0);
+    for i in 0..m {
+        indices.extend_from_slice(dense_cols);
+        for (block, offset) in thin {
+            indices.extend(block.row(i).0.iter().map(|c| c + offset));
+        }
+        indptr.push(indices.len());
+    }
+    for i in 0..extra.rows() {
+        indices.extend_from_slice(extra.row(i).0);
+        indptr.push(indices.len());
+    }
+    Ok((Some((indptr, indices)), data))
+}
+
 /// Largest output of [`fold_products`], in doubles over all labellings (8·10⁸ bytes).
 pub const MAX_FOLD_PRODUCTS: usize = 100_000_000;
 
@@ -415,5 +472,22 @@ mod tests {
         assert!(err(vec![vec![0, 1]], &[2], &[1.0, f64::NAN]).contains("`r` must be finite"));
         let bad = Csr { indptr: &indptr, indices: &[0, 5], data: &data, ncols: 2 };
         assert!(fold_products(bad, c, &[1.0, 1.0], &[vec![0, 0]], &[1]).unwrap_err().to_string().contains("column index 5"));
+    }
+
+    #[test]
+    fn stack_csr_lays_dense_then_thin_entries_then_extra_rows() {
+        // 2 rows: dense columns [0, 1]; a thin block at offset 2 with row 0: col 1, row 1: none
+        let (tp, ti, td) = (vec![0, 1, 1], vec![1], vec![5.0]);
+        let thin = [(Csr { indptr: &tp, indices: &ti, data: &td, ncols: 2 }, 2)];
+        let (ep, ei, ed) = (vec![0, 1], vec![3], vec![7.0]);
+        let extra = Csr { indptr: &ep, indices: &ei, data: &ed, ncols: 4 };
+        let (layout, data) = stack_csr(&[1.0, 2.0, 3.0, 4.0], &[0, 1], &thin, &[10.0, 100.0], extra, true).unwrap();
+        let (indptr, indices) = layout.unwrap();
+        assert_eq!(indptr, vec![0, 3, 5, 6]);
+        assert_eq!(indices, vec![0, 1, 3, 0, 1, 3]);
+        assert_eq!(data, vec![10.0, 20.0, 50.0, 300.0, 400.0, 7.0]);
+        let (layout, values) = stack_csr(&[1.0, 2.0, 3.0, 4.0], &[0, 1], &thin, &[10.0, 100.0], extra, false).unwrap();
+        assert!(layout.is_none() && values == data);
+        assert!(stack_csr(&[1.0, 2.0, 3.0], &[0, 1], &thin, &[10.0, 100.0], extra, true).unwrap_err().to_string().contains("need 4 values"));
     }
 }

@@ -18,7 +18,7 @@
 //!   of `O(m·n²)`. The caller scales the columns (`J·D^-½`) to get Marquardt's damping.
 
 mod gram;
-pub use gram::{fold_products, normal_equations, sparse_gram, Csr, FoldProducts, MAX_FOLD_PRODUCTS, MAX_GRAM_COLUMNS};
+pub use gram::{fold_products, normal_equations, sparse_gram, stack_csr, Csr, FoldProducts, MAX_FOLD_PRODUCTS, MAX_GRAM_COLUMNS};
 
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;

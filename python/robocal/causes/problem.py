@@ -17,7 +17,7 @@ import numpy as np
 
 from ..calibration.problem import Problem, fit_row_weights, rotation_weight
 from ..calibration.sessions import Sessions
-from ..kernels import is_sparse
+from ..kernels import is_sparse, stack_csr
 from ..data.dataset import Dataset
 from ..serial_robot import RESIDUAL_WIDTH
 from ..stats import rmse_of_squares
@@ -105,11 +105,12 @@ class ExtendedProblem:
         theta = {self.robot.index(f"theta{j + 1}") for j in range(self.robot.n_joints)}
         self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
         self._theta = sorted(theta)
-        # Joint maps' sparse basis rows (per cause) and the CSR pattern of the Jacobian, built
+        # Joint maps' sparse basis rows (per cause) and the Jacobian's rows beyond the data, built
         # on first use: the samples of a problem do not change.
         self._sample_rows: dict = {}
         self._residual_rows: dict = {}
-        self._layout = None
+        self._constant_csr = None
+        self._pattern = None  # the sparse Jacobian's (indptr, indices): the same at every x
 
     # -- the vector ---------------------------------------------------------------------------
     @property
@@ -285,47 +286,25 @@ class ExtendedProblem:
         return _rows_of(self._residual_rows, cause.basis, lambda: np.repeat(self.idx, self.k))
 
     def _sparse_jacobian(self, blocks: list):
-        """The Jacobian as CSR assembled straight from its blocks: the data rows weighted
-        (:attr:`row_weights`) — the dense blocks (geometry, causes with a few columns) fill every
-        row, the maps' sparse ones their four entries, each row's columns in ascending order (runs
-        of consecutive columns: what the core's Gram adds fastest) — then the
-        :meth:`_constant_rows`. The pattern and the constant rows are laid out once per problem;
-        each call fills the data rows' values."""
+        """The Jacobian as CSR, laid out from its blocks by the Rust core
+        (:func:`~robocal.kernels.stack_csr`): the data rows weighted (:attr:`row_weights`) — the
+        dense blocks (geometry, causes with a few columns) fill every row, the maps' sparse ones
+        their four entries, each row's columns in ascending order (runs of consecutive columns:
+        what the core's Gram adds fastest) — then the :meth:`_constant_rows`."""
         from scipy import sparse
 
         offsets = np.concatenate([[0], np.cumsum([b.shape[1] for b in blocks])])
         n = int(offsets[-1])
         dense = [i for i, b in enumerate(blocks) if not is_sparse(b)]
-        thin = [i for i, b in enumerate(blocks) if is_sparse(b)]
-        if self._layout is None:
-            m = blocks[0].shape[0]
-            dense_cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in dense])
-            counts = [np.diff(blocks[i].indptr) for i in thin]
-            indptr = np.concatenate([[0], np.cumsum(len(dense_cols) + sum(counts))])
-            indices = np.empty(indptr[-1], dtype=np.int64)
-            at_dense = indptr[:-1, None] + np.arange(len(dense_cols))
-            indices[at_dense] = dense_cols
-            slot, at_thin = indptr[:-1] + len(dense_cols), []
-            for i, count in zip(thin, counts):
-                b = blocks[i]
-                where = np.repeat(slot, count) + (np.arange(b.nnz) - np.repeat(b.indptr[:-1], count))
-                indices[where] = b.indices + offsets[i]
-                at_thin.append(where)
-                slot = slot + count
-            weights = np.repeat(self.row_weights, np.diff(indptr))
-            constant = sparse.csr_array(self._constant_rows(n))
-            nnz = int(indptr[-1])
-            indptr = np.concatenate([indptr, constant.indptr[1:] + nnz])
-            indices = np.concatenate([indices, constant.indices])
-            self._layout = (m + constant.shape[0], nnz, indptr, indices, at_dense, at_thin, weights, constant.data)
-        rows, nnz, indptr, indices, at_dense, at_thin, weights, constant = self._layout
-        data = np.empty(len(indices))
-        data[at_dense] = np.hstack([blocks[i] for i in dense])
-        for i, where in zip(thin, at_thin):
-            data[where] = blocks[i].data
-        data[:nnz] *= weights
-        data[nnz:] = constant
-        return sparse.csr_array((data, indices, indptr), shape=(rows, n))
+        if self._constant_csr is None:
+            self._constant_csr = sparse.csr_array(self._constant_rows(n))
+        dense_cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in dense])
+        thin = [(blocks[i], int(offsets[i])) for i, b in enumerate(blocks) if is_sparse(b)]
+        indptr, indices, data = stack_csr(np.hstack([blocks[i] for i in dense]), dense_cols, thin, self.row_weights, self._constant_csr, self._pattern is None)
+        if self._pattern is None:
+            self._pattern = (indptr, indices)
+        indptr, indices = self._pattern
+        return sparse.csr_array((data, indices, indptr), shape=(len(indptr) - 1, n))
 
     def cost(self, x: np.ndarray) -> float:
         r = self.residuals(x)
