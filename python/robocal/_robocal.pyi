@@ -42,13 +42,20 @@ def merwe_sigma_points(x: F64, P: F64, alpha: float, beta: float, kappa: float) 
 def unscented_transform(sigmas_x: F64, sigmas_y: F64, Wm: F64, Wc: F64) -> tuple[F64, F64, F64]: ...
 def sparse_gram(indptr: NDArray[np.int64] | NDArray[np.int32], indices: NDArray[np.int64] | NDArray[np.int32], data: F64, ncols: int) -> F64: ...
 def fold_products(
-def stack_csr(dense: F64, dense_cols: NDArray[np.int64], thin: list[tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int]], weights: F64, extra: tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int], pattern: bool) -> tuple[NDArray[np.int64] | None, NDArray[np.int64] | None, F64]: ...
     C: tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int],
     J: tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int],
     r: F64,
     labels: list[NDArray[np.int64]],
     folds: list[int],
 ) -> list[tuple[F64, F64, F64]]: ...
+def stack_csr(
+    dense: F64,
+    dense_cols: NDArray[np.int64],
+    thin: list[tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int]],
+    weights: F64,
+    extra: tuple[NDArray[np.int64] | NDArray[np.int32], NDArray[np.int64] | NDArray[np.int32], F64, int],
+    pattern: bool,
+) -> tuple[NDArray[np.int64] | None, NDArray[np.int64] | None, F64]: ...
 
 class DampedQr:
     def __init__(self, J: F64) -> None: ...

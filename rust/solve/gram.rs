@@ -170,6 +170,9 @@ fn check_csr(arg: &'static str, m: &Csr) -> CoreResult<()> {
     check_finite(arg, m.data)
 }
 
+/// A CSR matrix's `(indptr, indices)`.
+pub type CsrPattern = (Vec<usize>, Vec<usize>);
+
 /// The CSR arrays of a Jacobian laid out from its blocks: per row `i` of the `m` data rows, the
 /// dense block's `nd` values (row-major `dense`, in columns `dense_cols`), then each thin block's
 /// entries (CSR, `m` rows, columns shifted by its offset), all times `weights[i]`; then the rows
@@ -180,7 +183,7 @@ fn check_csr(arg: &'static str, m: &Csr) -> CoreResult<()> {
 ///
 /// Errors: `InvalidParameter` (a malformed CSR, a block of another row count, lengths that
 /// disagree), `NonFinite`.
-pub fn stack_csr(dense: &[f64], dense_cols: &[usize], thin: &[(Csr, usize)], weights: &[f64], extra: Csr, pattern: bool) -> CoreResult<(Option<(Vec<usize>, Vec<usize>)>, Vec<f64>)> {
+pub fn stack_csr(dense: &[f64], dense_cols: &[usize], thin: &[(Csr, usize)], weights: &[f64], extra: Csr, pattern: bool) -> CoreResult<(Option<CsrPattern>, Vec<f64>)> {
     let (m, nd) = (weights.len(), dense_cols.len());
     let bad = |arg: &'static str, reason: String| Err(CoreError::InvalidParameter { arg, reason });
     if dense.len() != m * nd {
