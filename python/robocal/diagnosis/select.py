@@ -1,23 +1,43 @@
 """Choosing causes by held-out gain: ``robocal.diagnose``.
 
-1. Fit the geometric baseline (the identifiable subset; Hayati ``beta`` on nominally parallel
-   axes unless ``hayati=False``). Gross outliers are named first: samples whose residual lies
-   beyond the Bonferroni bound of a robust (MAD) noise scale and beyond :data:`GROSS_SIGMAS`,
-   re-decided after refitting without them until the set is stable, and checked again under
-   the final extended model.
-2. Screen every candidate by cross-validation of the model linearised at the current fit:
-   per fold, least squares of the residuals on ``[J_model, C_candidate]`` over the training
-   samples (the geometric columns refit with it, so what the geometry can absorb is projected
-   off), errors on the held-out samples. Two fold schemes: random k-fold and contiguous blocks
-   in acquisition order (a cause must also help on a block of the session it was not fitted
-   on), plus leave-one-group-out when ``groups`` are given.
-3. A candidate is significant if the extra-sum-of-squares F test of adding its columns passes at
-   ``alpha`` / (number of candidates × rounds the selection may run) (Bonferroni over the whole search), its held-out gain is positive on every
-   fold scheme and at least ``min_gain`` of the held-out RMSE. The one with the largest gain is fitted (nonlinear,
-   all parameters re-fitted) and kept if its physical parameters are plausible
-   (:data:`~robocal.diagnosis.candidates.LIMITS`); otherwise the next one is tried.
-4. Repeat from 2 with the extended model until nothing is significant. The held-out RMSE of
-   every model along the way is then measured honestly: nonlinear re-fits per fold.
+:func:`diagnose` first applies the reading conventions that make an implausible geometry
+plausible (:func:`_structure`, :mod:`.structure`), then runs one pass of the selection
+(:func:`_select`), and a second pass, which only confirms what the first decided, when the first
+pass's final model shows gross outliers that the geometric baseline's residuals hid. A pass is a
+sequence of stages, each a function that takes the pass's state (:class:`Pass`: the kept samples
+and their fold schemes, the current model with its fit, held-out errors and fold fits, and the
+report as far as it is written) and leaves it updated:
+
+1. :func:`geometric_baseline`: the geometric baseline (the identifiable subset; Hayati ``beta``
+   on nominally parallel axes unless ``hayati=False``), fitted and cross-validated. Gross
+   outliers are named first: samples whose residual lies beyond the Bonferroni bound of a robust
+   (MAD) noise scale and beyond :data:`GROSS_SIGMAS`, re-decided after refitting without them
+   until the set is stable (and checked again under the final model, stage 8).
+2. :func:`forward_selection`: causes added one at a time, in rounds of two steps.
+   :func:`screen_round` screens every candidate by cross-validation of the model linearised at
+   the current fit (:class:`~.screening.Screen`): per fold, least squares of the residuals on
+   ``[J_model, C_candidate]`` over the training samples (the geometric columns refit with it, so
+   what the geometry can absorb is projected off), errors on the held-out samples. Two fold
+   schemes: random k-fold and contiguous blocks in acquisition order (a cause must also help on
+   a block of the session it was not fitted on), plus leave-one-group-out when ``groups`` are
+   given. A candidate is significant if the extra-sum-of-squares F test of adding its columns
+   passes at ``alpha`` / (number of candidates × rounds the selection may run) (Bonferroni over
+   the whole search), its held-out gain is positive on every fold scheme and at least
+   ``min_gain`` of the held-out RMSE. :func:`confirm` then fits the significant ones in order
+   (largest gain first, with the exceptions of :func:`confirmation_order`; nonlinear, all
+   parameters re-fitted) and takes the first whose physical parameters are plausible
+   (:data:`~robocal.diagnosis.candidates.LIMITS`) and whose held-out gain survives nonlinear
+   re-fits per fold. The rounds end when one takes nothing.
+3. :func:`try_curved_drift`: a linear drift replaced by a curved one where that gains.
+4. :func:`backward`: every cause must still earn its place once those found after it are in.
+5. :func:`joint_maps`: a joint error map per joint (:mod:`.maps`), then the backward check again.
+6. :func:`recheck_compliances`: a gravity compliance whose size became implausible or
+   undetermined is dropped.
+7. :func:`physical_model`: a tolerance prior on the kinematics where the data leave the geometry
+   undetermined, kept if it costs at most :data:`PRIOR_COST` of held-out error.
+8. The report: :func:`describe_causes` (uncertainties, shares of what is explained),
+   :func:`final_residuals` (error floor, what the residuals are), :func:`name_outliers` (the
+   outliers re-decided under the final model), :func:`baseline_entry` and :func:`final_entry`.
 """
 
 from __future__ import annotations
@@ -30,19 +50,17 @@ from typing import Optional, Union
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
-from scipy.stats import f as f_dist
 from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
-from ..calibration.result import GROSS_FACTOR
-from ..kernels import SVD_RCOND, as_count, as_float, as_tolerance, is_sparse, truncated_svd, unit_columns
+from ..calibration.result import GROSS_FACTOR, CalibrationResult
+from ..kernels import as_count, as_float, as_tolerance, is_sparse
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..exceptions import InvalidParameterError
 from ..progress import progress
-from ..threads import thread_map
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from ..causes import structure
@@ -53,6 +71,7 @@ from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
 from .settling import after_long_moves
+from .screening import Screen
 from .uncertainty import uncertainty_entries
 from .validation import coefficient_std, fit_problem, fold_schemes, judgeable, nonlinear_cv
 from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
@@ -95,104 +114,6 @@ class Diagnosis:
             },
             "time_s": self.time_s,
         }
-
-
-#: Singular values below this fraction of the largest count as zero in the linear screening.
-RCOND = SVD_RCOND
-
-
-#: Residual components whose robust noise differs by more than this factor are scaled apart in
-#: the screening's F test.
-WHITEN_RATIO = 1.2
-
-
-class _Screen:
-    """Linear screening of candidates against the current model ``r ≈ J·δ``.
-
-    Adding columns ``C`` to ``J`` is solved by the Frisch–Waugh–Lovell split: ``C`` and ``r``
-    projected off ``J``'s (truncated) column space, the small problem in ``C`` solved there and
-    ``J``'s coefficients recovered from the SVD. The SVD of each fold's ``J`` is computed once per
-    round and shared by every candidate — one ``lstsq`` of ``[J, C]`` per candidate and fold
-    before, which was most of a diagnosis's time.
-    """
-
-    def __init__(self, J: np.ndarray, r: np.ndarray, schemes: dict, k: int):
-        self.J, self.r, self.k = unit_columns(J)[0], r, k
-        self.m = len(r) // k
-        self.folds = {name: [self._fold(train, test, self.J, r) for train, test in folds] for name, folds in schemes.items()}
-        # The F test assumes one noise level for every row: a pose's position and rotation rows
-        # (weighted as the fit weighs them) need not share one, and a test pooled over both
-        # over-rates a candidate that touches the noisier rows (a step of the position reading
-        # on clean pose data: p = 1e-6). Its rows are scaled by each component's robust noise.
-        sigma = robust_sigma(r.reshape(self.m, k))
-        self.whiten = np.tile(1.0 / sigma, self.m) if k > 1 and np.max(sigma) > WHITEN_RATIO * np.min(sigma) else None
-        w = np.ones(len(r)) if self.whiten is None else self.whiten
-        self.all = self._fold(np.arange(self.m), np.array([], dtype=int), unit_columns(J * w[:, None])[0], r * w)
-
-    def _fold(self, train: np.ndarray, test: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
-        rows_tr, rows_te = (train[:, None] * self.k + np.arange(self.k)).ravel(), (test[:, None] * self.k + np.arange(self.k)).ravel()
-        U, sv, Vt = truncated_svd(J[rows_tr], RCOND)
-        coef = U.T @ r[rows_tr]
-        return rows_tr, rows_te, test, U, sv, Vt, coef, r[rows_tr] - U @ coef
-
-    def _solve(self, fold: tuple, C: np.ndarray, P: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray, float]:
-        """Coefficients ``(δ_J, c)`` of ``r ≈ J·δ_J + C·c`` on the fold's training rows (``c``
-        penalised by ``‖P·c‖²`` if ``P`` is given: a wander's roughness), and the degrees of
-        freedom ``C`` adds (its rank, or the trace of its share of the hat matrix)."""
-        rows_tr, _, _, U, sv, Vt, coef, r_perp = fold
-        if C.shape[1] == 0:
-            return Vt.T @ (coef / sv), np.zeros(0), 0
-        Ct = C[rows_tr]
-        UC = U.T @ Ct
-        C_perp = Ct - U @ UC
-        if P is None:
-            c, _, rank, _ = np.linalg.lstsq(C_perp, r_perp, rcond=RCOND * (sv[0] if sv.size else 1.0) / max(np.linalg.norm(C_perp, 2), 1e-300))
-            return Vt.T @ ((coef - UC @ c) / sv), c, float(rank)
-        G = C_perp.T @ C_perp
-        inverse = np.linalg.pinv(G + P.T @ P, rcond=RCOND)
-        c = inverse @ (C_perp.T @ r_perp)
-        return Vt.T @ ((coef - UC @ c) / sv), c, float(np.trace(inverse @ G))
-
-    def errors(self, C: np.ndarray, P: Optional[np.ndarray] = None) -> dict:
-        """Held-out squared error per sample of ``r ≈ [J, C]·δ`` (``C`` penalised by ``P``)
-        fitted per fold, per scheme."""
-        C, P = _unit_penalised(C, P)
-
-        def fold_errors(fold: tuple) -> np.ndarray:  # one fold's held-out samples
-            rows_te = fold[1]
-            dJ, c = self._solve(fold, C, P)[:2]
-            e = self.r[rows_te] - self.J[rows_te] @ dJ - C[rows_te] @ c
-            return (e * e).reshape(-1, self.k).sum(axis=1)
-
-        folds = [(name, fold) for name, scheme in self.folds.items() for fold in scheme]
-        out = {name: np.zeros(self.m) for name in self.folds}
-        for (name, fold), err in zip(folds, thread_map(fold_errors, [fold for _, fold in folds], rows=len(self.r))):
-            out[name][fold[2]] = err
-        return out
-
-    def f_test(self, C: np.ndarray, inflation: float = 1.0, P: Optional[np.ndarray] = None) -> float:
-        """p-value of the extra-sum-of-squares F test for adding ``C`` (exact for independent
-        Gaussian noise in the linearised model; for residuals correlated in time, the statistic
-        and the residual degrees of freedom divided by their variance ``inflation``; a penalised
-        ``C`` counts its effective degrees of freedom)."""
-        if self.whiten is not None:  # the penalty is in the residual's units: scaled as its rows are
-            C, P = C * self.whiten[:, None], None if P is None else P * float(np.median(self.whiten))
-        C, P = _unit_penalised(C, P)
-        _, _, _, U, sv, _, coef, r_perp = self.all
-        _, c, extra = self._solve(self.all, C, P)
-        rss0 = float(r_perp @ r_perp)
-        e = r_perp - (C - U @ (U.T @ C)) @ c
-        rss1, dof = float(e @ e), len(self.r) - len(sv) - extra
-        if extra < 0.5 or dof < 1 or rss1 <= 0:
-            return 1.0
-        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0)))
-
-
-def _unit_penalised(C: np.ndarray, P: Optional[np.ndarray]) -> tuple[np.ndarray, Optional[np.ndarray]]:
-    """``C`` with unit columns, and its penalty ``P`` for the coefficients so scaled."""
-    scale = np.linalg.norm(C, axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
-    return C / scale, None if P is None else P / scale
 
 
 #: Kinds that belong to the session and change smoothly in time (a wandering sensor): fitted
@@ -501,410 +422,600 @@ def _select(
     (``revealed``: those an earlier pass's final model named); the kept samples its final
     model puts beyond the outlier bound; and what it decided. With ``replay`` (an earlier pass's
     decisions) only the causes and maps that pass accepted are offered, with its Bonferroni
-    counts, and its other refusals are reported as they were."""
-    k = RESIDUAL_WIDTH[dataset.measurement]
-    revealed = np.zeros(0, dtype=int) if revealed is None else revealed
-    plots = {}
-    outliers, z_bound, x_outliers = _outliers(base, dataset, known)
-    keep = np.setdiff1d(np.arange(len(dataset)), outliers)
-    order = acquisition_order(dataset)
-    kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
-    schemes = fold_schemes(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
+    counts, and its other refusals are reported as they were.
 
-    causes: list[Candidate] = []
-    ext = ExtendedProblem(base, causes, dataset, keep)
-    base_fit = fit_problem(ext, x0=x_outliers)
-    x = base_fit.x
-    baseline = {name: nonlinear_cv(ext, f) for name, f in schemes.items()}
-    baseline_cv = {name: err for name, (err, _) in baseline.items()}
-    fold_x = {name: xs for name, (_, xs) in baseline.items()}
+    The stages of the module notes, in order, on the pass's :class:`Pass`."""
+    revealed = np.zeros(0, dtype=int) if revealed is None else revealed
+    state = geometric_baseline(rob, dataset, base, known, effects, rejected, folds=folds, seed=seed, groups=groups, min_gain=min_gain)
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati) if replay is None else list(replay.causes)
     # A geometry that stays implausible after the reading conventions is structure not
     # explained: a flexible joint term would only make a wrong geometry fit better (D1's joint
     # maps: docs/findings.md). Those are not offered until it is.
-    unexplained_structure = grossly_implausible(base_fit.implausible())
+    unexplained_structure = grossly_implausible(state.baseline.fit.implausible())
     if unexplained_structure:
         pool = [c for c in pool if not is_flexible(c)]
-    base_residuals = ext.residuals(x).reshape(len(keep), k)
-    wander_test = residual_correlation(dataset, keep, base_residuals)
-    # No wander while the geometric fit's residuals are alike in joint space and not beyond it
-    # in time: that is evidence for the robot's causes, and a wander offered in a later round
-    # would take what is left of them along the path, raising the held-out error (UR10 series A:
-    # docs/findings.md).
-    wander_offered = replay is None and (wander_test is None or wander_test["verdict"] != "joints")
-    current_cv = baseline_cv
-    searched = 0  # the most candidates a round screened
-    last_round = (len(rejected), None)  # where the last screening round's refusals start, and its model's held-out RMSE
-    while len(causes) < max_effects:
-        last_round = (len(rejected), None)
-        ext = ExtendedProblem(base, causes, dataset, keep)
-        rows = len(keep) * k  # the data rows: a penalised cause (a wander) appends its roughness rows
-        J = ext.jacobian(x)[:rows]
-        r = ext.residuals(x)[:rows]
-        # Steps where the current model's residuals change level: those of the geometric fit
-        # alone misplace a step by the geometry's errors along the path (7-14 samples off on
-        # simulated files).
-        if replay is None:
-            taken = {c.detail["sample"] for c in causes if c.kind == "step"}
-            pool = [c for c in pool if c.kind != "step"] + [
-                c for c in step_candidates(dataset, keep, r.reshape(len(keep), k)) if c.detail["sample"] not in taken
-            ]
-        params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
-        _, p, parts = ext._jacobian_columns(x, [rob.index(n) for n in params])
-        screen = _Screen(J, r, schemes, k)
-        model_err = screen.errors(np.zeros((len(r), 0)))
-        # What is left alike in time (a wandering reading, a drift that is not linear) is no
-        # independent evidence for the candidates that do not model it.
-        round_test = wander_test if not causes else residual_correlation(dataset, keep, r.reshape(len(keep), k))  # round 1: the baseline's residuals
-        inflation = time_inflation(round_test)
-        # Residuals alike in joint space and not beyond it in time are evidence for the robot's
-        # causes: a wander would take them along the path (UR10 series B: docs/findings.md, D3).
-        in_joints = bool(round_test) and round_test.get("verdict") == "joints"
-        # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
-        # cause hid shows once that cause is in). Its knots at half the correlation length and
-        # coarser, and its roughness penalty as set and stronger: noise and unmodelled causes
-        # shorten the measured length, and a wander more flexible than the sensor's takes
-        # geometry along (simulated wanders of length 17-20 measured 8-16; knots 4 samples apart
-        # cost the blocked folds 47 %, ten times the penalty 10 % instead of 36 %). The most
-        # flexible that does the geometry no harm is taken (each is tried in turn).
-        length = None if round_test is None else round_test["correlation_length_samples"]
-        if replay is None:
-            pool = [c for c in pool if c.kind != "wander"]
-        if wander_offered and length is not None and not any(c.kind == "wander" for c in causes):
-            pool += [wander_candidate(dataset, length * factor, ROUGHNESS * stiffer) for factor in WANDER_SPACINGS for stiffer in WANDER_STIFFER]
-        last_round = (last_round[0], rmse_of_squares(model_err["random"]))
-        scored = []
-        for c in progress(pool, desc=f"diagnose: screening round {len(causes) + 1}", unit="candidate"):
-            if in_joints and c.kind in TIME_TERMS:
-                continue
-            # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
-            if c.stage == "parameters":
-                C = parts["extra"][:, [params.index(n) for n in c.params]] * ext.row_weights[:, None]
-            else:
-                C = ext.weighted_columns(x, c, parts, p)
-            errs = screen.errors(C, c.penalty)
-            p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation, c.penalty)
-            on = judgeable(c, keep, schemes)
-            gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
-            scored.append((gains["random"], c, p_value, gains))
-        scored.sort(key=lambda s: -s[0])
-        n_tests = len(scored) if replay is None else replay.tests
-        searched = max(searched, n_tests)
-
-        def tests_of(c: Candidate) -> int:
-            # Bonferroni over the whole search, not one round: every candidate of every round the
-            # selection may run (max_effects). A step's position was chosen from the data among
-            # every sample: Bonferroni over those positions as well (its p-value is that of the
-            # best of them).
-            return (n_tests + (len(r) // k if c.kind == "step" else 0)) * max(1, max_effects)
-
-        def is_significant(gain: float, c: Candidate, p_value: float, gains: dict) -> bool:
-            relevant = gain >= min_gain * rmse_of_squares(model_err["random"])
-            return p_value * tests_of(c) < alpha and relevant and gains_everywhere(c, gains)
-
-        scored = simplest_first(scored)
-        scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: is_significant(*s), established=any(c.kind in PHYSICAL_KINDS for c in causes))
-        if inflation > 1.0:
-            # The residuals wander in time: a wander is judged before the steps and trends that
-            # would chop it up — after a significant temperature, the measured signal a wander
-            # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
-            # that gains at least SENSOR_TERM_SHARE of what the wander gains: one coefficient per axis
-            # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
-            # (a simulated drift well beyond its detection limit was named a wander; on the public
-            # D2 file a wander took the place of the step and ended higher: docs/findings.md).
-            wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and is_significant(*s)), default=np.inf)
-
-            def time_rank(s) -> int:
-                if not is_significant(*s):
-                    return 3
-                if s[1].kind == "temperature":
-                    return 0
-                if s[1].kind in ("drift", "step") and s[0] >= SENSOR_TERM_SHARE * wander_gain:
-                    return 1
-                return 2 if s[1].kind in TIME_TERMS else 3
-
-            scored = sorted(scored, key=time_rank)
-        accepted = None
-        joint_trials = 0
-        for gain, c, p_value, gains in scored:
-            significant = is_significant(gain, c, p_value, gains)
-            if not significant and c.kind == "step":
-                if not any(x["label"] == c.label for x in rejected):
-                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, "not significant over every possible step position"))
-                continue
-            if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
-                continue
-            if c.stage == "joints":
-                if joint_trials >= MAX_TRIALS:
-                    rejected.append(
-                        _record(
-                            c,
-                            gain,
-                            gains,
-                            p_value,
-                            tests_of(c),
-                            None,
-                            f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round",
-                        )
-                    )
-                    continue
-                joint_trials += 1
-            trial = ExtendedProblem(base, causes + [c], dataset, keep)
-            fit = fit_problem(trial, x0=trial.start_from(x, ext))
-            physical, why = c.physical(trial.coefficients(fit.x, c), coefficient_std(trial, fit, c), rob, rob.params)
-            why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), coefficient_std(trial, fit, c))
-            if why is not None:
-                rejected.append(_record(c, gain, gains, p_value, tests_of(c), physical, why))
-                continue
-            # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
-            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-            new_cv = {name: err for name, (err, _) in refits.items()}
-            on = judgeable(c, keep, schemes)
-            lost = [name for name in schemes if not improves(c, name, current_cv[name][on[name]], new_cv[name][on[name]])]
-            if lost:
-                rejected.append(
-                    _record(
-                        c,
-                        gain,
-                        gains,
-                        p_value,
-                        tests_of(c),
-                        physical,
-                        "no held-out gain after the nonlinear re-fit: "
-                        + ", ".join(
-                            f"{name} folds {judged_rmse(current_cv[name][on[name]]):.4g} -> {judged_rmse(new_cv[name][on[name]]):.4g} mm" for name in lost
-                        ),
-                    )
-                )
-                continue
-            accepted = (c, fit, p_value, gains, physical, trial, new_cv, {name: xs for name, (_, xs) in refits.items()})
-            break
-        if accepted is None:
-            for gain, c, p_value, gains in scored[:5]:
-                if not any(r["label"] == c.label for r in rejected):
-                    if p_value * tests_of(c) >= alpha:
-                        why = "not significant"
-                    elif gain < min_gain * rmse_of_squares(model_err["random"]):
-                        why = f"held-out gain below {min_gain:.1%} of the RMSE"
-                    else:
-                        why = "no gain on every fold scheme"
-                    rejected.append(_record(c, gain, gains, p_value, tests_of(c), None, why))
-            break
-        c, fit, p_value, gains, physical, trial, new_cv, fold_x = accepted
-        # For the report's plot: the residual the cause was found in, against its fitted signature.
-        signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - coefficient_reference(c, rob))
-        plots[c.label] = {"residual": r, "signature": signature, "k": k}
-        causes.append(c)
-        pool = [o for o in pool if o is not c]
-        x = fit.x
-        effects.append(
-            {
-                "kind": c.kind,
-                "joint": None if c.joint is None else c.joint + 1,
-                "label": c.label,
-                "params": physical,
-                "rmse_heldout_before": reported_rmse(current_cv["random"]),
-                "rmse_heldout_after": reported_rmse(new_cv["random"]),
-                "significance": {
-                    "test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
-                    "p_value": p_value,
-                    "p_adjusted": min(1.0, p_value * tests_of(c)),
-                    "candidates": n_tests,
-                    "screening_gain_mm": gains,
-                    "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]),
-                    "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"]),
-                },
-            }
-        )
-        current_cv = new_cv
-
-    last_round = (*last_round, len(rejected))  # ... and where they end (maps are screened otherwise)
-    # The last round's screening is done with: its per-fold bases are the largest arrays of a
-    # diagnosis (a sixth of its peak memory at 3000 samples), not to be carried through the maps.
-    screen = J = r = None
-    forward = list(causes)
-    causes, x, current_cv, fold_x, curved, left_out = _curved_drift(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain)
-    for c in left_out:
-        rejected.append(_retract(c, effects, plots, None, f"a curve of the drift ({curved['label']}) explains it as well"))
-    if curved is not None:  # in the linear drift's place, in the report too
-        linear = next(e for e in effects if e["kind"] == "drift")
-        effects[effects.index(linear)] = curved
-        if linear["label"] in plots:
-            plots[curved["label"]] = plots.pop(linear["label"])
-    causes, x, current_cv, fold_x, dropped = backward(ExtendedProblem(base, causes, dataset, keep), x, schemes, current_cv, fold_x, min_gain, not_physical)
-    for c, why in dropped:
-        rejected.append(_retract(c, effects, plots, None, why))
-    model = ExtendedProblem(base, causes, dataset, keep)
+    searched, found = forward_selection(state, pool, alpha=alpha, max_effects=max_effects, replay=replay)
+    forward = list(state.model.causes)
+    try_curved_drift(state)
+    backward(state, not_physical)
     if unexplained_structure:  # the causes found may have been what bent the geometry
-        unexplained_structure = grossly_implausible(fit_problem(model, x0=x).implausible())
-    accepted_maps, rejected_maps = [], []
-    if maps and not unexplained_structure:
-        model, x, current_cv, fold_x, merged = merge_harmonics(model, x, schemes, current_cv, fold_x)
-        # ``{label}`` is filled in by _take_map with the merged map's label.
-        within = f"the same held-out error within {structure.EQUAL:.0%}"
-        merged_why = f"merged with the joint's other harmonics into {{label}} ({within}: one periodic error of the joint, not several gear harmonics)"
-        for m in merged:
-            test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme"
-            significance = {"test": test, "p_value": None, "p_adjusted": None, "screening_gain_mm": None}
-            _take_map(m, effects, rejected, plots, merged_why, significance)
-        model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
-            model,
-            x,
-            schemes,
-            current_cv,
-            fold_x,
-            alpha=alpha,
-            min_gain=min_gain,
-            only=None if replay is None else replay.maps,
-            tests=None if replay is None else replay.map_tests,
-        )
-        replaced_why = "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)"
-        map_test = (
-            "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
-            "held-out gain of the penalised map required on every fold scheme"
-        )
-        for m in accepted_maps:
-            significance = {"test": map_test, "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"]}
-            _take_map(m, effects, rejected, plots, replaced_why, significance)
-        for m in rejected_maps:
-            c = m["candidate"]
-            rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
-        if accepted_maps and any(c.kind != "joint_map" for c in model.causes):
-            # a map may explain what a cause found before it took (a time term along a path
-            # that sweeps the mapped joint): every earlier free shape must earn its place again
-            # (a gravity compliance keeps its place before a map, as in the forward selection)
-            kept, x, current_cv, fold_x, dropped = backward(
-                model, x, schemes, current_cv, fold_x, min_gain, lambda c: c.kind != "joint_map" and not_physical(c)
-            )
-            model = ExtendedProblem(base, kept, dataset, keep)
-            for c, why in dropped:
-                rejected.append(_retract(c, effects, plots, None, why))
-    model, x, current_cv, fold_x, dropped = _recheck_compliance(model, x, schemes, current_cv, fold_x)
-    for c, physical, why in dropped:
-        rejected.append(_retract(c, effects, plots, physical, f"dropped once the causes found after it were in: {why}"))
-    unconstrained = reported_rmse(current_cv["random"])
-    model, final_fit, current_cv, fold_x, prior = _physical(model, x, schemes, current_cv, fold_x)
-    x = final_fit.x
-    described = uncertainty_entries(model, x, model.causes)
-    for effect in effects:
-        effect.update(described.get(effect["label"], {}))
-    explained_shares(effects, reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]))
-    budget = error_floor(rob, dataset.subset(keep), model.full(x))
-    r = _all_residuals(model, x)
-    budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
-    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(current_cv["random"]), budget)
-    z = r / robust_sigma(r[keep])  # in robust sigmas of the kept samples' residuals
-    beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
-    if len(outliers) and model.causes:
-        # Re-decided with the extended model: a sample flagged only because an unmodelled cause
-        # bent the residuals is not an outlier.
-        outliers = outliers[beyond[outliers]]
-    if len(outliers):
-        everyone = ExtendedProblem(base, [], dataset, np.arange(len(dataset)))
-        before, _ = nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
-        outliers_entry = {
-            "kind": "outliers",
-            "joint": None,
-            "label": "outliers",
-            "params": {
-                "rows": [int(v) for v in dataset.rows[outliers]],
-                "samples": [int(v) for v in outliers],
-                "threshold_sigma": z_bound,
-                # rows beyond the bound only under the final model (hidden by the baseline's residuals)
-                "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]],
-            },
-            "rmse_heldout_before": reported_rmse(before),
-            "rmse_heldout_after": reported_rmse(baseline_cv["random"]),
-            "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
-            "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
-        }
-        effects.insert(0, outliers_entry)
-    found = unexplained(rejected[last_round[0] : last_round[2]], last_round[1]) if replay is None else replay.unexplained
+        unexplained_structure = grossly_implausible(fit_problem(state.model, x0=state.x).implausible())
+    accepted_maps, rejected_maps = joint_maps(state, alpha, replay) if maps and not unexplained_structure else ([], [])
+    recheck_compliances(state)
+    unconstrained = reported_rmse(state.cv["random"])  # the final model's held-out error without a tolerance prior
+    final_fit, prior = physical_model(state)
+    describe_causes(state)
+    budget, leftover, z = final_residuals(state)
+    outliers, beyond_bound = name_outliers(state, z, revealed, folds=folds, seed=seed)
     if replay is not None:  # the earlier pass's other refusals, as that pass measured them
-        decided_now = {e["label"] for e in rejected} | {e["label"] for e in effects}
-        rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
+        decided_now = {e["label"] for e in state.rejected} | {e["label"] for e in state.effects}
+        state.rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
     decided = Decided(
         forward,
         {m["candidate"].label for m in accepted_maps},
         searched,
         max((m["tests"] for m in accepted_maps + rejected_maps), default=0),
-        list(rejected),
+        list(state.rejected),
         found,
     )
-    structure_unexplained = None
-    if unexplained_structure:
-        far = f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits)"
-        untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
-        structure_unexplained = {"implausible": unexplained_structure, "note": f"{far} and no reading convention makes it plausible: {untried}"}
-    return (
-        Diagnosis(
-            robot=rob,
-            data=dataset,
-            baseline={
-                "rmse_heldout": reported_rmse(baseline_cv["random"]),
-                "rmse_heldout_blocked": reported_rmse(baseline_cv["blocked"]),
-                "rmse_train": base_fit.metrics["train"]["rmse"],
-                **_rotation_entries(dataset, baseline_cv),
-                "n_params": int(len(base.free)),
-                "hayati": hayati,
-                "folds": folds,
-                # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
-                "residual_correlation": wander_test,
-                # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
-                # geometry fits the data only with parameters no robot has.
-                "implausible": base_fit.implausible(),
-            },
-            effects=effects,
-            rejected=rejected,
-            final={
-                "rmse_heldout": reported_rmse(current_cv["random"]),
-                "rmse_heldout_blocked": reported_rmse(current_cv["blocked"]),
-                "n_params": int(model.n),
-                **_rotation_entries(dataset, current_cv),
-                "floor_mm": budget["floor_mm"],
-                "floor": budget,
-                # Share of the baseline's held-out mean square error above the floor that the causes explain.
-                "explained": _explained(reported_rmse(baseline_cv["random"]), reported_rmse(current_cv["random"]), budget["floor_mm"]),
-                # The physical model: a tolerance prior where the geometry is undetermined
-                # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
-                "tolerance_prior": prior,
-                "rmse_heldout_unconstrained": unconstrained,
-                "implausible": final_fit.implausible(),
-                # Noise or not (tested), and what the selection refused although it would have explained much.
-                "structure_unexplained": structure_unexplained,
-                "residuals": leftover,
-                "unexplained": found,
-            },
-            model=model,
-            x=x,
-            outliers=[int(v) for v in outliers],
-            plots=plots,
-        ),
-        _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound),
-        decided,
+    diagnosis = Diagnosis(
+        robot=rob,
+        data=dataset,
+        baseline=baseline_entry(state, hayati=hayati, folds=folds),
+        effects=state.effects,
+        rejected=state.rejected,
+        final=final_entry(state, final_fit, prior, unconstrained, budget, leftover, found, unexplained_structure),
+        model=state.model,
+        x=state.x,
+        outliers=[int(v) for v in outliers],
+        plots=state.plots,
     )
+    return diagnosis, beyond_bound, decided
 
 
-def explained_shares(effects: list, baseline: float, final: float) -> None:
-    """Each found cause's ``share_of_explained``: the held-out mean square error its own step
-    removed (``before² − after²``, in the order the causes were found) as a share of all that
-    the causes removed from the geometric baseline (``baseline² − final²``). Reading conventions
-    act before the baseline and outliers are left out of it: None for them."""
-    total = baseline**2 - final**2
-    for e in effects:
-        inside = e["kind"] not in structure.KINDS and e["kind"] != "outliers" and total > 0
-        e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
+@dataclass
+class Baseline:
+    """The geometric baseline of a pass (:func:`geometric_baseline`): its fit on the kept samples
+    and held-out squared errors per fold scheme, the outliers named before any cause is in (and
+    their bound, in robust sigmas), and the test of its residuals for correlation in acquisition
+    order and in joint space (:func:`~.wander.residual_correlation`)."""
+
+    fit: CalibrationResult
+    cv: dict
+    outliers: np.ndarray
+    bound: float
+    residual_test: Optional[dict]
 
 
-def _take_map(m: dict, effects: list, rejected: list, plots: dict, why_replaced: str, significance: dict) -> None:
+@dataclass
+class Pass:
+    """One pass of the selection (:func:`_select`) as its stages hand it on.
+
+    The data, the samples kept (the baseline's outliers left out) and their fold ``schemes``,
+    the geometric ``baseline``; the current ``model``, its fit ``x``, its held-out squared
+    errors per fold scheme (``cv``) and fold fits (``fold_x``: where the next nonlinear re-fits
+    start); and the report as far as it is written: the causes' ``effects``, the ``rejected``
+    candidates and the causes' ``plots``. Each stage reads it and leaves it updated."""
+
+    robot: Robot
+    dataset: Dataset
+    base: Problem
+    keep: np.ndarray
+    schemes: dict
+    min_gain: float
+    baseline: Baseline
+    model: ExtendedProblem
+    x: np.ndarray
+    cv: dict
+    fold_x: dict
+    effects: list
+    rejected: list
+    plots: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        """Residual rows per sample."""
+        return self.model.k
+
+    def problem(self, causes: list) -> ExtendedProblem:
+        """The model of ``causes`` on the kept samples."""
+        return ExtendedProblem(self.base, causes, self.dataset, self.keep)
+
+    def retract(self, c: Candidate, physical, reason: str) -> None:
+        """The accepted cause ``c`` out of the report, into the rejected with ``reason``
+        (:func:`_retract`)."""
+        self.rejected.append(_retract(c, self.effects, self.plots, physical, reason))
+
+
+def geometric_baseline(
+    rob: Robot, dataset: Dataset, base: Problem, known: np.ndarray, effects: list, rejected: list, *, folds: int, seed: int, groups, min_gain: float
+) -> Pass:
+    """Stage 1: the gross outliers named (the ``known`` ones among them: :func:`_outliers`), the
+    fold schemes drawn over the samples kept, and the geometric baseline fitted and
+    cross-validated there. The pass starts from the baseline, with the report so far (``effects``
+    and ``rejected``: the reading conventions')."""
+    outliers, z_bound, x_outliers = _outliers(base, dataset, known)
+    keep = np.setdiff1d(np.arange(len(dataset)), outliers)
+    order = acquisition_order(dataset)
+    kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
+    schemes = fold_schemes(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
+    ext = ExtendedProblem(base, [], dataset, keep)
+    fit = fit_problem(ext, x0=x_outliers)
+    refits = {name: nonlinear_cv(ext, f) for name, f in schemes.items()}
+    cv = {name: err for name, (err, _) in refits.items()}
+    fold_x = {name: xs for name, (_, xs) in refits.items()}
+    residual_test = residual_correlation(dataset, keep, ext.residuals(fit.x).reshape(len(keep), ext.k))
+    baseline = Baseline(fit, cv, outliers, z_bound, residual_test)
+    return Pass(rob, dataset, base, keep, schemes, min_gain, baseline, ext, fit.x, cv, fold_x, effects, rejected)
+
+
+def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int, replay: Optional[Decided]) -> tuple[int, list]:
+    """Stage 2: causes added one at a time from ``pool``. Each round screens every candidate
+    against the current model (:func:`screen_round`) and fits the significant ones in order
+    until one passes the nonlinear checks (:func:`confirm`); the rounds stop when one takes
+    nothing or ``max_effects`` causes are in.
+
+    Returns the most candidates a round screened (the Bonferroni count a replay uses) and the
+    candidates the last round refused although they would have explained much
+    (:func:`~.leftover.unexplained`; a replay's: the earlier pass's)."""
+    # No wander while the geometric fit's residuals are alike in joint space and not beyond it
+    # in time: that is evidence for the robot's causes, and a wander offered in a later round
+    # would take what is left of them along the path, raising the held-out error (UR10 series A:
+    # docs/findings.md).
+    wander_test = state.baseline.residual_test
+    wander_offered = replay is None and (wander_test is None or wander_test["verdict"] != "joints")
+    searched = 0  # the most candidates a round screened
+    last_refusals, last_rmse = len(state.rejected), None  # where the last round's refusals start, and its model's held-out RMSE
+    while len(state.model.causes) < max_effects:
+        last_refusals = len(state.rejected)
+        screening = screen_round(state, pool, wander_offered, alpha=alpha, max_effects=max_effects, replay=replay)
+        last_rmse, searched = screening.rmse, max(searched, screening.candidates)
+        taken = confirm(state, screening)
+        if taken is None:
+            _refuse_best(state, screening)
+            break
+        pool = [o for o in screening.offered if o is not taken]
+    if replay is not None:
+        return searched, replay.unexplained
+    return searched, unexplained(state.rejected[last_refusals:], last_rmse)
+
+
+@dataclass
+class Round:
+    """A screening round (:func:`screen_round`) as :func:`confirm` takes it: the candidates
+    ``offered``, those screened ``ranked`` in the order they are tried — ``(gain, candidate,
+    p_value, gains)``: the held-out gain on the random folds and per fold scheme (mm) and the F
+    test's p-value — and what judges them: the current model's ``residual`` (its data rows),
+    its held-out RMSE on the random folds in the screening, and the number of ``candidates``
+    the tests are corrected for."""
+
+    offered: list
+    ranked: list
+    residual: np.ndarray
+    rmse: float
+    candidates: int
+    k: int
+    alpha: float
+    min_gain: float
+    max_effects: int
+
+    def tests(self, c: Candidate) -> int:
+        """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
+        # Bonferroni over the whole search, not one round: every candidate of every round the
+        # selection may run (max_effects). A step's position was chosen from the data among
+        # every sample: Bonferroni over those positions as well (its p-value is that of the
+        # best of them).
+        return (self.candidates + (len(self.residual) // self.k if c.kind == "step" else 0)) * max(1, self.max_effects)
+
+    def significant(self, gain: float, c: Candidate, p_value: float, gains: dict) -> bool:
+        """Whether a screened candidate passes the F test at ``alpha`` / :meth:`tests`, gains at
+        least ``min_gain`` of the held-out RMSE and gains on every fold scheme."""
+        relevant = gain >= self.min_gain * self.rmse
+        return p_value * self.tests(c) < self.alpha and relevant and gains_everywhere(c, gains)
+
+    def refusal(self, item: tuple, physical, reason: str) -> dict:
+        """The report's record of the screened ``item`` refused for ``reason``."""
+        gain, c, p_value, gains = item
+        return _record(c, gain, gains, p_value, self.tests(c), physical, reason)
+
+
+def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float, max_effects: int, replay: Optional[Decided]) -> Round:
+    """One round's screening: the candidates of ``pool`` with this round's steps and wanders
+    (:func:`round_candidates`), each scored against the current model linearised at its fit
+    (:class:`~.screening.Screen`: held-out gain per fold scheme, F test), and ranked in the order
+    :func:`confirm` tries them (:func:`confirmation_order`). The screening's per-fold bases, the
+    largest arrays of a diagnosis (a sixth of its peak memory at 3000 samples), are locals here:
+    freed when the round ends, not carried through the later stages."""
+    ext, x, k, keep, schemes = state.model, state.x, state.k, state.keep, state.schemes
+    rows = len(keep) * k  # the data rows: a penalised cause (a wander) appends its roughness rows
+    J = ext.jacobian(x)[:rows]
+    r = ext.residuals(x)[:rows]
+    # What is left alike in time (a wandering reading, a drift that is not linear) is no
+    # independent evidence for the candidates that do not model it (round 1: the baseline's
+    # residuals, tested already).
+    round_test = residual_correlation(state.dataset, keep, r.reshape(len(keep), k)) if ext.causes else state.baseline.residual_test
+    inflation = time_inflation(round_test)
+    # Residuals alike in joint space and not beyond it in time are evidence for the robot's
+    # causes: a wander would take them along the path (UR10 series B: docs/findings.md, D3).
+    in_joints = bool(round_test) and round_test.get("verdict") == "joints"
+    pool = round_candidates(state, pool, r, round_test, wander_offered, replay)
+    params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
+    _, p, parts = ext._jacobian_columns(x, [state.robot.index(n) for n in params])
+    screen = Screen(J, r, schemes, k)
+    model_err = screen.errors(np.zeros((len(r), 0)))
+    scored = []
+    for c in progress(pool, desc=f"diagnose: screening round {len(ext.causes) + 1}", unit="candidate"):
+        if in_joints and c.kind in TIME_TERMS:
+            continue
+        # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
+        if c.stage == "parameters":
+            C = parts["extra"][:, [params.index(n) for n in c.params]] * ext.row_weights[:, None]
+        else:
+            C = ext.weighted_columns(x, c, parts, p)
+        errs = screen.errors(C, c.penalty)
+        p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation, c.penalty)
+        on = judgeable(c, keep, schemes)
+        gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
+        scored.append((gains["random"], c, p_value, gains))
+    candidates = len(scored) if replay is None else replay.tests
+    screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects)
+    screening.ranked = confirmation_order(scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes))
+    return screening
+
+
+def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_test: Optional[dict], wander_offered: bool, replay: Optional[Decided]) -> list:
+    """``pool`` with a round's own candidates (a replay's pool as it is): steps where the current
+    model's ``residual`` changes level, and wanders on the ``residual_test``'s correlation length
+    while they are ``wander_offered`` and the model has none."""
+    if replay is not None:
+        return pool
+    causes, keep, k = state.model.causes, state.keep, state.k
+    # Steps where the current model's residuals change level: those of the geometric fit
+    # alone misplace a step by the geometry's errors along the path (7-14 samples off on
+    # simulated files).
+    taken = {c.detail["sample"] for c in causes if c.kind == "step"}
+    pool = [c for c in pool if c.kind != "step"] + [
+        c for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k)) if c.detail["sample"] not in taken
+    ]
+    # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
+    # cause hid shows once that cause is in). Its knots at half the correlation length and
+    # coarser, and its roughness penalty as set and stronger: noise and unmodelled causes
+    # shorten the measured length, and a wander more flexible than the sensor's takes
+    # geometry along (simulated wanders of length 17-20 measured 8-16; knots 4 samples apart
+    # cost the blocked folds 47 %, ten times the penalty 10 % instead of 36 %). The most
+    # flexible that does the geometry no harm is taken (each is tried in turn).
+    length = None if residual_test is None else residual_test["correlation_length_samples"]
+    pool = [c for c in pool if c.kind != "wander"]
+    if wander_offered and length is not None and not any(c.kind == "wander" for c in causes):
+        pool += [wander_candidate(state.dataset, length * factor, ROUGHNESS * stiffer) for factor in WANDER_SPACINGS for stiffer in WANDER_STIFFER]
+    return pool
+
+
+def confirmation_order(scored: list, significant, inflation: float, established: bool) -> list:
+    """A round's ``scored`` candidates (``(gain, candidate, p_value, gains)``; ``significant``
+    judges one: :meth:`Round.significant`) in the order :func:`confirm` tries them: largest gain
+    first, the simpler of two alike first (:func:`simplest_first`), a gravity compliance before
+    the free joint shape it resembles (:func:`physics_first`; ``established``: the model has
+    one), and, when the residuals wander in time (``inflation`` > 1), the significant time terms
+    ahead of the rest."""
+    scored = sorted(scored, key=lambda s: -s[0])
+    scored = simplest_first(scored)
+    scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: significant(*s), established=established)
+    if inflation > 1.0:
+        # The residuals wander in time: a wander is judged before the steps and trends that
+        # would chop it up — after a significant temperature, the measured signal a wander
+        # would otherwise imitate (a warm-up is smooth in time), and after a drift or a step
+        # that gains at least SENSOR_TERM_SHARE of what the wander gains: one coefficient per axis
+        # against dozens, and a wander fine enough follows a drift, or smooths a jump, as well
+        # (a simulated drift well beyond its detection limit was named a wander; on the public
+        # D2 file a wander took the place of the step and ended higher: docs/findings.md).
+        wander_gain = max((s[0] for s in scored if s[1].kind in TIME_TERMS and significant(*s)), default=np.inf)
+
+        def time_rank(s) -> int:
+            if not significant(*s):
+                return 3
+            if s[1].kind == "temperature":
+                return 0
+            if s[1].kind in ("drift", "step") and s[0] >= SENSOR_TERM_SHARE * wander_gain:
+                return 1
+            return 2 if s[1].kind in TIME_TERMS else 3
+
+        scored = sorted(scored, key=time_rank)
+    return scored
+
+
+def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
+    """The nonlinear checks of a round's significant candidates, in the round's order: each is
+    fitted (all parameters re-fitted); the first whose physical parameters are plausible
+    (:data:`~robocal.diagnosis.candidates.LIMITS`) and determined and whose held-out gain
+    survives the nonlinear re-fits on every fold scheme is taken into the model and the report
+    (:func:`_take_cause`) and returned; None if none is. Each one that fails is refused with its
+    reason (as is a step that is not significant); after :data:`MAX_TRIALS` joint candidates,
+    the rest are not fitted."""
+    rob, ext, x, keep, schemes, rejected = state.robot, state.model, state.x, state.keep, state.schemes, state.rejected
+    joint_trials = 0
+    for item in screening.ranked:
+        _, c, p_value, gains = item
+        significant = screening.significant(*item)
+        if not significant and c.kind == "step":
+            if not any(e["label"] == c.label for e in rejected):
+                rejected.append(screening.refusal(item, None, "not significant over every possible step position"))
+            continue
+        if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
+            continue
+        if c.stage == "joints":
+            if joint_trials >= MAX_TRIALS:
+                why = f"not fitted: {MAX_TRIALS} joint candidates with larger screening gains failed the nonlinear checks this round"
+                rejected.append(screening.refusal(item, None, why))
+                continue
+            joint_trials += 1
+        trial = state.problem(ext.causes + [c])
+        fit = fit_problem(trial, x0=trial.start_from(x, ext))
+        physical, why = c.physical(trial.coefficients(fit.x, c), coefficient_std(trial, fit, c), rob, rob.params)
+        why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), coefficient_std(trial, fit, c))
+        if why is not None:
+            rejected.append(screening.refusal(item, physical, why))
+            continue
+        # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
+        refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in state.fold_x[name]]) for name, f in schemes.items()}
+        new_cv = {name: err for name, (err, _) in refits.items()}
+        on = judgeable(c, keep, schemes)
+        lost = [name for name in schemes if not improves(c, name, state.cv[name][on[name]], new_cv[name][on[name]])]
+        if lost:
+            worse = ", ".join(f"{name} folds {judged_rmse(state.cv[name][on[name]]):.4g} -> {judged_rmse(new_cv[name][on[name]]):.4g} mm" for name in lost)
+            rejected.append(screening.refusal(item, physical, f"no held-out gain after the nonlinear re-fit: {worse}"))
+            continue
+        _take_cause(state, screening, c, p_value, gains, physical, trial, fit, refits)
+        return c
+    return None
+
+
+def _take_cause(
+    state: Pass, screening: Round, c: Candidate, p_value: float, gains: dict, physical, trial: ExtendedProblem, fit: CalibrationResult, refits: dict
+) -> None:
+    """The confirmed cause ``c`` taken: ``trial`` (the model with it, fitted by ``fit``, its fold
+    re-fits ``refits``) becomes the current model; its report entry and its plot (the residual
+    it was found in, against its fitted signature) are written."""
+    new_cv = {name: err for name, (err, _) in refits.items()}
+    signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - coefficient_reference(c, state.robot))
+    state.plots[c.label] = {"residual": screening.residual, "signature": signature, "k": state.k}
+    state.effects.append(
+        {
+            "kind": c.kind,
+            "joint": None if c.joint is None else c.joint + 1,
+            "label": c.label,
+            "params": physical,
+            "rmse_heldout_before": reported_rmse(state.cv["random"]),
+            "rmse_heldout_after": reported_rmse(new_cv["random"]),
+            "significance": {
+                "test": "extra-sum-of-squares F test of the linearised model, Bonferroni over the candidates; held-out gain required on every fold scheme",
+                "p_value": p_value,
+                "p_adjusted": min(1.0, p_value * screening.tests(c)),
+                "candidates": screening.candidates,
+                "screening_gain_mm": gains,
+                "rmse_heldout_blocked_before": reported_rmse(state.cv["blocked"]),
+                "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"]),
+            },
+        }
+    )
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
+
+
+def _refuse_best(state: Pass, screening: Round) -> None:
+    """A round that took nothing: its five best candidates not refused yet, refused with the test
+    they failed."""
+    for item in screening.ranked[:5]:
+        gain, c, p_value, _ = item
+        if not any(e["label"] == c.label for e in state.rejected):
+            if p_value * screening.tests(c) >= screening.alpha:
+                why = "not significant"
+            elif gain < screening.min_gain * screening.rmse:
+                why = f"held-out gain below {screening.min_gain:.1%} of the RMSE"
+            else:
+                why = "no gain on every fold scheme"
+            state.rejected.append(screening.refusal(item, None, why))
+
+
+def try_curved_drift(state: Pass) -> None:
+    """Stage 3: a drift that is not linear (a warm-up, a stand settling). The model's linear
+    drift, if it has one, is replaced by the best of a natural spline of time
+    (:data:`~.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
+    (:data:`~.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
+    ``min_gain`` of it and does no harm on the others. Its leftovers would otherwise be taken by
+    steps, harmonics and couplings that the backward check then no longer needs (a drift fast
+    at first left a step in its first dozen samples). In the report, the curved drift's entry
+    (and plot) takes the linear one's place, and the steps it made unnecessary are retracted."""
+    model, x, schemes, current_cv, fold_x, min_gain = state.model, state.x, state.schemes, state.cv, state.fold_x, state.min_gain
+    linear = [c for c in model.causes if c.kind == "drift"]
+    if not linear:
+        return
+    before = judged_rmse(current_cv["random"])
+    best = None
+    shapes = [drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)] + [drift_candidate(model.full_data, settling=tau) for tau in SETTLING_TIMES]
+    steps = [c for c in model.causes if c.kind == "step"]
+    for curved in shapes:
+        # with the steps, and without them: a drift fast at first has bred a step in its first
+        # samples before the curved shape was tried; the model without them is simpler, and
+        # taken when it is as good
+        for leave_out in [[], steps] if steps else [[]]:
+            trial = ExtendedProblem(
+                model.base, [curved if c is linear[0] else c for c in model.causes if not any(c is o for o in leave_out)], model.full_data, model.idx
+            )
+            fit = fit_problem(trial, x0=trial.start_from(x, model))
+            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+            cv = {name: err for name, (err, _) in refits.items()}
+            after = judged_rmse(cv["random"])
+            physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
+            gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
+            on = judgeable(curved, model.idx, schemes)
+            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
+                key = (len(trial.causes), after)
+                if best is None or key < best[0]:
+                    best = (key, curved, trial, fit, refits, cv, physical, leave_out)
+    if best is None:
+        return
+    _, curved, trial, fit, refits, cv, physical, left_out = best
+    shape = (
+        f"a line and an exponential settling of time constant {curved.detail['settling']:g} of the session"
+        if "settling" in curved.detail
+        else f"a natural spline of time of {CURVED_DRIFT_DEGREE} coefficients"
+    )
+    polynomial = f"{shape} in the place of the linear drift (the best held-out of {len(shapes)} shapes)"
+    entry = {
+        "kind": "drift",
+        "joint": None,
+        "label": curved.label,
+        "params": physical,
+        "rmse_heldout_before": reported_rmse(current_cv["random"]),
+        "rmse_heldout_after": reported_rmse(cv["random"]),
+        "significance": {
+            "test": f"{polynomial}: held-out gain of at least {min_gain:.1%} on the random folds, no harm on the others",
+            "p_value": None,
+            "p_adjusted": None,
+            "screening_gain_mm": None,
+            "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]),
+            "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
+        },
+    }
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, {name: xs for name, (_, xs) in refits.items()}
+    for c in left_out:
+        state.retract(c, None, f"a curve of the drift ({curved.label}) explains it as well")
+    replaced = next(e for e in state.effects if e["kind"] == "drift")  # in the linear drift's place, in the report too
+    state.effects[state.effects.index(replaced)] = entry
+    if replaced["label"] in state.plots:
+        state.plots[curved.label] = state.plots.pop(replaced["label"])
+
+
+def backward(state: Pass, droppable=lambda c: True) -> None:
+    """Stage 4: every cause of the model must still earn its place once the causes found after
+    it are in.
+
+    The forward selection judges a cause against the model before it; leftovers of a cause
+    whose model is slightly off (a compliance on masses that are not the mass model's, a drift
+    that is not linear), or of a cause found later, are taken by small causes that the later
+    model no longer needs. Each cause is left out in turn and the model re-fitted (nonlinear,
+    on every fold scheme, from the fold fits of the full model); a cause whose removal costs
+    less than the forward test asks of a new one (a held-out gain on every scheme, at least
+    ``min_gain`` of the RMSE on the random folds) is dropped, the cheapest first, until every
+    cause earns its place (only the ``droppable`` ones are judged). The causes dropped are
+    retracted from the report. Run again after the maps (:func:`joint_maps`)."""
+    model, x, schemes, current_cv, fold_x, min_gain = state.model, state.x, state.schemes, state.cv, state.fold_x, state.min_gain
+    causes = list(model.causes)
+    while len(causes) >= 2:
+        full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
+        weakest, linear = None, _linearised(full, x)
+        for c in filter(droppable, causes):
+            if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
+                continue
+            rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
+            refits = {name: nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
+            cv = {name: err for name, (err, _) in refits.items()}
+            without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
+            on = judgeable(c, model.idx, schemes)
+            earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]]) for name in schemes)
+            earns = earns and without - with_it >= min_gain * without
+            if not earns and (weakest is None or without < weakest[1]):
+                weakest = (c, without, rest, refits, with_it)
+        if weakest is None:
+            break
+        c, without, rest, refits, with_it = weakest
+        state.retract(c, None, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without")
+        x = fit_problem(rest, x0=rest.start_from(x, full)).x
+        current_cv, fold_x = {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
+        causes = list(rest.causes)
+    state.model, state.x, state.cv, state.fold_x = state.problem(causes), x, current_cv, fold_x
+
+
+#: A cause whose linearised held-out gain over the model without it is this many times what
+#: the forward test asks earns its place without the nonlinear re-fits.
+CLEAR_MARGIN = 3.0
+
+
+def _linearised(full: ExtendedProblem, x: np.ndarray) -> Optional[tuple]:
+    """The data rows of ``full``'s Jacobian and residuals at ``x``, once per backward round, or
+    None for a sparse Jacobian (joint maps), which the linear pre-check does not take."""
+    J = full.jacobian(x)
+    if is_sparse(J):
+        return None
+    rows = len(full.idx) * full.k
+    return J[:rows, : full.n], full.residuals(x)[:rows]
+
+
+def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candidate, schemes: dict, min_gain: float) -> bool:
+    """Whether ``c`` earns its place in ``full`` by a wide margin already in the model
+    linearised at ``x`` (``linear``: :func:`_linearised`; the screening's cross-validation of its
+    columns against the rest, its coefficients set to zero in the residual): the backward check
+    then needs no nonlinear re-fits for it. Only for a cause with columns of its own."""
+    if c.stage == "parameters":
+        return False
+    J, r = linear
+    at = full.slices[full.causes.index(c)]
+    C = J[:, at]
+    rest = np.delete(J, np.arange(at.start, at.stop), axis=1)
+    screen = Screen(rest, r + C @ np.asarray(x)[at], schemes, full.k)  # the residual with the cause taken out
+    base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C, c.penalty)
+    on = judgeable(c, full.idx, schemes)
+    gains = {name: rmse_of_squares(base[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
+    return gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
+
+
+def joint_maps(state: Pass, alpha: float, replay: Optional[Decided]) -> tuple[list, list]:
+    """Stage 5: joint error maps (:mod:`.maps`). A joint's harmonics are merged into one map
+    where it does as well (:func:`~.maps.merge_harmonics`); then a map per joint is screened and
+    confirmed (:func:`~.maps.map_stage`; a ``replay`` offers only the maps the earlier pass took,
+    with its Bonferroni count). Each map taken enters the report in the place of the causes it
+    replaces, each refused one among the rejected; if a map was taken, the earlier free shapes
+    go through the :func:`backward` check again. Returns the map stage's records of the maps
+    accepted and refused."""
+    model, x, current_cv, fold_x, merged = merge_harmonics(state.model, state.x, state.schemes, state.cv, state.fold_x)
+    state.model, state.x, state.cv, state.fold_x = model, x, current_cv, fold_x
+    # ``{label}`` is filled in by _take_map with the merged map's label.
+    within = f"the same held-out error within {structure.EQUAL:.0%}"
+    merged_why = f"merged with the joint's other harmonics into {{label}} ({within}: one periodic error of the joint, not several gear harmonics)"
+    for m in merged:
+        test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme"
+        significance = {"test": test, "p_value": None, "p_adjusted": None, "screening_gain_mm": None}
+        _take_map(state, m, merged_why, significance)
+    model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
+        model,
+        x,
+        state.schemes,
+        current_cv,
+        fold_x,
+        alpha=alpha,
+        min_gain=state.min_gain,
+        only=None if replay is None else replay.maps,
+        tests=None if replay is None else replay.map_tests,
+    )
+    state.model, state.x, state.cv, state.fold_x = model, x, current_cv, fold_x
+    replaced_why = "replaced by {label} (the same joint's error in finer detail; held-out gain of the map in its place)"
+    map_test = (
+        "extra-sum-of-squares F test of the unpenalised map columns, Bonferroni over the maps tried; "
+        "held-out gain of the penalised map required on every fold scheme"
+    )
+    for m in accepted_maps:
+        significance = {"test": map_test, "p_value": m["p_value"], "p_adjusted": min(1.0, m["p_value"] * m["tests"]), "screening_gain_mm": m["gains_mm"]}
+        _take_map(state, m, replaced_why, significance)
+    for m in rejected_maps:
+        c = m["candidate"]
+        state.rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
+    if accepted_maps and any(c.kind != "joint_map" for c in model.causes):
+        # a map may explain what a cause found before it took (a time term along a path
+        # that sweeps the mapped joint): every earlier free shape must earn its place again
+        # (a gravity compliance keeps its place before a map, as in the forward selection)
+        backward(state, lambda c: c.kind != "joint_map" and not_physical(c))
+    return accepted_maps, rejected_maps
+
+
+def _take_map(state: Pass, m: dict, why_replaced: str, significance: dict) -> None:
     """A map the map stage accepted (or merged in) into the report: the causes it takes the place
     of retracted (``why_replaced`` with ``{label}`` the map's), its entry with ``significance``
     and its held-out figures."""
     c = m["candidate"]
     for o in m["replaces"]:
-        rejected.append({**_retract(o, effects, plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
+        state.rejected.append({**_retract(o, state.effects, state.plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
     before, after = m["rmse_heldout_before"], m["rmse_heldout_after"]
-    effects.append(
+    state.effects.append(
         {
             "kind": c.kind,
             "joint": c.joint + 1,
@@ -917,19 +1028,32 @@ def _take_map(m: dict, effects: list, rejected: list, plots: dict, why_replaced:
     )
 
 
-def _rotation_entries(data: Dataset, cv: dict) -> dict:
-    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis'
-    held-out errors ``cv``; nothing for other measurements."""
-    if data.measurement != "pose":
-        return {}
-    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": rotation_rmse_deg(cv[name], data) for name in ("random", "blocked")}
-
-
-def _explained(before: float, after: float, floor: float) -> Optional[float]:
-    """``(before² − after²) / (before² − floor²)``: the share of the mean square error above the
-    floor that a model removes (None if the baseline is at the floor)."""
-    room = before**2 - floor**2
-    return None if room <= 0 else float((before**2 - after**2) / room)
+def recheck_compliances(state: Pass) -> None:
+    """Stage 6: the compliances whose size, fitted with every cause found after them, is
+    implausible or undetermined dropped from the model (:func:`physics_first` lets a compliance
+    go before a free shape it resembles; when that shape is the real cause — a scale error of
+    the same joint, say — the compliance is left with nothing to explain), its held-out errors
+    measured again, and each one dropped retracted from the report."""
+    model, x, schemes, fold_x = state.model, state.x, state.schemes, state.fold_x
+    compliances = [c for c in model.causes if c.kind in PHYSICAL_KINDS]
+    if not compliances:
+        return
+    fit = fit_problem(model, x0=x)
+    dropped = []
+    for c in compliances:
+        values, std = model.coefficients(fit.x, c), coefficient_std(model, fit, c)
+        physical, why = c.physical(values, std, model.robot, model.robot.params)
+        why = f"implausible: {why}" if why else undetermined(values - coefficient_reference(c, model.robot), std)
+        if why is not None:
+            dropped.append((c, physical, why))
+    if not dropped:
+        return
+    kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
+    x = fit_problem(kept, x0=kept.start_from(fit.x, model)).x
+    refits = {name: nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
+    state.model, state.x, state.cv, state.fold_x = kept, x, {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
+    for c, physical, why in dropped:
+        state.retract(c, physical, f"dropped once the causes found after it were in: {why}")
 
 
 #: The tolerance prior may cost at most this fraction of held-out error: beyond it the data
@@ -966,8 +1090,8 @@ def judge_tolerance_prior(checks, measurement: str) -> dict:
     return entry
 
 
-def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
-    """The final model made physical where the data leave the geometry undetermined.
+def physical_model(state: Pass) -> tuple[CalibrationResult, Optional[dict]]:
+    """Stage 7: the final model made physical where the data leave the geometry undetermined.
 
     A fit whose kinematic parameters lie beyond the plausibility limits, or whose parameter
     combinations are wider than them (:meth:`CalibrationResult.undetermined`), is fitted again
@@ -978,12 +1102,14 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
     :data:`PRIOR_COST` of the unconstrained model's; otherwise the data contradict a physical
     geometry, and the unconstrained model stays with its implausible parameters listed.
 
-    Returns the model, its fit, its held-out errors and fold fits (``fold_x``: those of
-    ``model``) and the report entry of the prior (``None`` if the fit was physical already).
+    Returns the final fit (the pass's model re-fitted, with the prior if it was kept) and the
+    report entry of the prior (``None`` if the fit was physical already).
     """
-    fit = fit_problem(model, x0=x)
+    model, schemes, current_cv, fold_x = state.model, state.schemes, state.cv, state.fold_x
+    fit = fit_problem(model, x0=state.x)
+    state.x = fit.x
     if not fit.implausible() and not fit.undetermined():
-        return model, fit, current_cv, fold_x, None
+        return fit, None
     robot = model.robot
     prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
     physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
@@ -997,8 +1123,155 @@ def _physical(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: 
 
     entry = judge_tolerance_prior(checks(), model.data.measurement)
     if not entry["accepted"]:
-        return model, fit, current_cv, fold_x, entry
-    return physical, fit_problem(physical, x0=x0), cv, fits, entry
+        return fit, entry
+    fit = fit_problem(physical, x0=x0)
+    state.model, state.x, state.cv, state.fold_x = physical, fit.x, cv, fits
+    return fit, entry
+
+
+def describe_causes(state: Pass) -> None:
+    """Stage 8, the report: each cause's entry completed with its uncertainty
+    (:func:`~.uncertainty.uncertainty_entries`) and its share of what the causes explain
+    (:func:`explained_shares`)."""
+    described = uncertainty_entries(state.model, state.x, state.model.causes)
+    for effect in state.effects:
+        effect.update(described.get(effect["label"], {}))
+    explained_shares(state.effects, reported_rmse(state.baseline.cv["random"]), reported_rmse(state.cv["random"]))
+
+
+def explained_shares(effects: list, baseline: float, final: float) -> None:
+    """Each found cause's ``share_of_explained``: the held-out mean square error its own step
+    removed (``before² − after²``, in the order the causes were found) as a share of all that
+    the causes removed from the geometric baseline (``baseline² − final²``). Reading conventions
+    act before the baseline and outliers are left out of it: None for them."""
+    total = baseline**2 - final**2
+    for e in effects:
+        inside = e["kind"] not in structure.KINDS and e["kind"] != "outliers" and total > 0
+        e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
+
+
+def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
+    """What the final model leaves: the error budget (:func:`~.budget.floor`, with the
+    repeatability at the revisits), the verdict on its residuals
+    (:func:`~.leftover.residual_verdict`), and every sample's residual, the outliers' too, in
+    robust sigmas of the kept samples' residuals."""
+    model, x, dataset, keep = state.model, state.x, state.dataset, state.keep
+    budget = error_floor(state.robot, dataset.subset(keep), model.full(x))
+    r = _all_residuals(model, x)
+    budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
+    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget)
+    return budget, leftover, r / robust_sigma(r[keep])
+
+
+def name_outliers(state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
+    robust sigmas, :func:`final_residuals`), and their report entry put first among the effects
+    (``revealed``: those an earlier pass's final model named). Returns the outliers, and the kept
+    samples the final model puts beyond the bound on their own (:func:`_isolated`)."""
+    dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
+    beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
+    if len(outliers) and state.model.causes:
+        # Re-decided with the extended model: a sample flagged only because an unmodelled cause
+        # bent the residuals is not an outlier.
+        outliers = outliers[beyond[outliers]]
+    if len(outliers):
+        everyone = ExtendedProblem(state.base, [], dataset, np.arange(len(dataset)))
+        before, _ = nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
+        outliers_entry = {
+            "kind": "outliers",
+            "joint": None,
+            "label": "outliers",
+            "params": {
+                "rows": [int(v) for v in dataset.rows[outliers]],
+                "samples": [int(v) for v in outliers],
+                "threshold_sigma": z_bound,
+                # rows beyond the bound only under the final model (hidden by the baseline's residuals)
+                "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]],
+            },
+            "rmse_heldout_before": reported_rmse(before),
+            "rmse_heldout_after": reported_rmse(state.baseline.cv["random"]),
+            "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
+            "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
+        }
+        state.effects.insert(0, outliers_entry)
+    return outliers, _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
+
+
+def baseline_entry(state: Pass, *, hayati: bool, folds: int) -> dict:
+    """The report's ``baseline``: the geometric fit's held-out and training errors, its
+    parameters, the test of its residuals and its implausible parameters."""
+    baseline, dataset = state.baseline, state.dataset
+    return {
+        "rmse_heldout": reported_rmse(baseline.cv["random"]),
+        "rmse_heldout_blocked": reported_rmse(baseline.cv["blocked"]),
+        "rmse_train": baseline.fit.metrics["train"]["rmse"],
+        **_rotation_entries(dataset, baseline.cv),
+        "n_params": int(len(state.base.free)),
+        "hayati": hayati,
+        "folds": folds,
+        # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
+        "residual_correlation": baseline.residual_test,
+        # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
+        # geometry fits the data only with parameters no robot has.
+        "implausible": baseline.fit.implausible(),
+    }
+
+
+def final_entry(
+    state: Pass,
+    final_fit: CalibrationResult,
+    prior: Optional[dict],
+    unconstrained: float,
+    budget: dict,
+    leftover: dict,
+    found: list,
+    unexplained_structure: int,
+) -> dict:
+    """The report's ``final``: the final model's held-out errors (``unconstrained``: without a
+    tolerance prior, whose entry is ``prior``) and parameters, the error ``budget``, the share of
+    the baseline's error it explains, what its residuals are (``leftover``), and what it leaves
+    unexplained: the refused candidates ``found`` to explain much, and a geometry still far
+    from any robot (``unexplained_structure`` kinematic parameters far beyond their limits)."""
+    structure_unexplained = None
+    if unexplained_structure:
+        far = f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits)"
+        untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
+        structure_unexplained = {"implausible": unexplained_structure, "note": f"{far} and no reading convention makes it plausible: {untried}"}
+    baseline_rmse, rmse = reported_rmse(state.baseline.cv["random"]), reported_rmse(state.cv["random"])
+    return {
+        "rmse_heldout": rmse,
+        "rmse_heldout_blocked": reported_rmse(state.cv["blocked"]),
+        "n_params": int(state.model.n),
+        **_rotation_entries(state.dataset, state.cv),
+        "floor_mm": budget["floor_mm"],
+        "floor": budget,
+        # Share of the baseline's held-out mean square error above the floor that the causes explain.
+        "explained": _explained(baseline_rmse, rmse, budget["floor_mm"]),
+        # The physical model: a tolerance prior where the geometry is undetermined
+        # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
+        "tolerance_prior": prior,
+        "rmse_heldout_unconstrained": unconstrained,
+        "implausible": final_fit.implausible(),
+        # Noise or not (tested), and what the selection refused although it would have explained much.
+        "structure_unexplained": structure_unexplained,
+        "residuals": leftover,
+        "unexplained": found,
+    }
+
+
+def _rotation_entries(data: Dataset, cv: dict) -> dict:
+    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis'
+    held-out errors ``cv``; nothing for other measurements."""
+    if data.measurement != "pose":
+        return {}
+    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": rotation_rmse_deg(cv[name], data) for name in ("random", "blocked")}
+
+
+def _explained(before: float, after: float, floor: float) -> Optional[float]:
+    """``(before² − after²) / (before² − floor²)``: the share of the mean square error above the
+    floor that a model removes (None if the baseline is at the floor)."""
+    room = before**2 - floor**2
+    return None if room <= 0 else float((before**2 - after**2) / room)
 
 
 def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
@@ -1077,169 +1350,8 @@ def not_physical(c: Candidate) -> bool:
     joint's other free shapes take a compliance's shape within one session and would win by a
     little, but only the compliance carries to other poses: :func:`physics_first`; UR10 series A
     lost joint 3's compliance to harmonics before its maps were in). A compliance is dropped
-    only when its size is implausible or undetermined (:func:`_recheck_compliance`)."""
+    only when its size is implausible or undetermined (:func:`recheck_compliances`)."""
     return c.kind not in PHYSICAL_KINDS
-
-
-def _curved_drift(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float):
-    """A drift that is not linear (a warm-up, a stand settling): the model's linear drift, if it
-    has one, replaced by the best of a natural spline of time
-    (:data:`~.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
-    (:data:`~.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
-    ``min_gain`` of it and does no harm on the others. Its leftovers would otherwise be taken by
-    steps, harmonics and couplings that the backward check then no longer needs (a drift fast
-    at first left a step in its first dozen samples). Returns the causes, fit, held-out errors,
-    fold fits, the report entry of the curved drift (None if it was not taken) and the steps it
-    made unnecessary."""
-    linear = [c for c in model.causes if c.kind == "drift"]
-    if not linear:
-        return list(model.causes), x, current_cv, fold_x, None, []
-    before = judged_rmse(current_cv["random"])
-    best = None
-    shapes = [drift_candidate(model.full_data, CURVED_DRIFT_DEGREE)] + [drift_candidate(model.full_data, settling=tau) for tau in SETTLING_TIMES]
-    steps = [c for c in model.causes if c.kind == "step"]
-    for curved in shapes:
-        # with the steps, and without them: a drift fast at first has bred a step in its first
-        # samples before the curved shape was tried; the model without them is simpler, and
-        # taken when it is as good
-        for leave_out in [[], steps] if steps else [[]]:
-            trial = ExtendedProblem(
-                model.base, [curved if c is linear[0] else c for c in model.causes if not any(c is o for o in leave_out)], model.full_data, model.idx
-            )
-            fit = fit_problem(trial, x0=trial.start_from(x, model))
-            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-            cv = {name: err for name, (err, _) in refits.items()}
-            after = judged_rmse(cv["random"])
-            physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
-            gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
-            on = judgeable(curved, model.idx, schemes)
-            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
-                key = (len(trial.causes), after)
-                if best is None or key < best[0]:
-                    best = (key, curved, trial, fit, refits, cv, physical, leave_out)
-    if best is None:
-        return list(model.causes), x, current_cv, fold_x, None, []
-    _, curved, trial, fit, refits, cv, physical, left_out = best
-    shape = (
-        f"a line and an exponential settling of time constant {curved.detail['settling']:g} of the session"
-        if "settling" in curved.detail
-        else f"a natural spline of time of {CURVED_DRIFT_DEGREE} coefficients"
-    )
-    polynomial = f"{shape} in the place of the linear drift (the best held-out of {len(shapes)} shapes)"
-    entry = {
-        "kind": "drift",
-        "joint": None,
-        "label": curved.label,
-        "params": physical,
-        "rmse_heldout_before": reported_rmse(current_cv["random"]),
-        "rmse_heldout_after": reported_rmse(cv["random"]),
-        "significance": {
-            "test": f"{polynomial}: held-out gain of at least {min_gain:.1%} on the random folds, no harm on the others",
-            "p_value": None,
-            "p_adjusted": None,
-            "screening_gain_mm": None,
-            "rmse_heldout_blocked_before": reported_rmse(current_cv["blocked"]),
-            "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
-        },
-    }
-    return list(trial.causes), fit.x, cv, {name: xs for name, (_, xs) in refits.items()}, entry, left_out
-
-
-def backward(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict, min_gain: float, droppable=lambda c: True):
-    """Every cause of ``model`` must still earn its place once the causes found after it are in.
-
-    The forward selection judges a cause against the model before it; leftovers of a cause
-    whose model is slightly off (a compliance on masses that are not the mass model's, a drift
-    that is not linear), or of a cause found later, are taken by small causes that the later
-    model no longer needs. Each cause is left out in turn and the model re-fitted (nonlinear,
-    on every fold scheme, from the fold fits of the full model); a cause whose removal costs
-    less than the forward test asks of a new one (a held-out gain on every scheme, at least
-    ``min_gain`` of the RMSE on the random folds) is dropped, the cheapest first, until every
-    cause earns its place (only the ``droppable`` ones are judged). Returns the causes kept,
-    their fit, held-out errors and fold fits, and ``(cause, reason)`` of each one dropped."""
-    causes, dropped = list(model.causes), []
-    while len(causes) >= 2:
-        full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
-        weakest, linear = None, _linearised(full, x)
-        for c in filter(droppable, causes):
-            if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
-                continue
-            rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
-            refits = {name: nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-            cv = {name: err for name, (err, _) in refits.items()}
-            without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
-            on = judgeable(c, model.idx, schemes)
-            earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]]) for name in schemes)
-            earns = earns and without - with_it >= min_gain * without
-            if not earns and (weakest is None or without < weakest[1]):
-                weakest = (c, without, rest, refits, with_it)
-        if weakest is None:
-            break
-        c, without, rest, refits, with_it = weakest
-        dropped.append((c, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without"))
-        x = fit_problem(rest, x0=rest.start_from(x, full)).x
-        current_cv, fold_x = {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
-        causes = list(rest.causes)
-    return causes, x, current_cv, fold_x, dropped
-
-
-#: A cause whose linearised held-out gain over the model without it is this many times what
-#: the forward test asks earns its place without the nonlinear re-fits.
-CLEAR_MARGIN = 3.0
-
-
-def _linearised(full: ExtendedProblem, x: np.ndarray) -> Optional[tuple]:
-    """The data rows of ``full``'s Jacobian and residuals at ``x``, once per backward round, or
-    None for a sparse Jacobian (joint maps), which the linear pre-check does not take."""
-    J = full.jacobian(x)
-    if is_sparse(J):
-        return None
-    rows = len(full.idx) * full.k
-    return J[:rows, : full.n], full.residuals(x)[:rows]
-
-
-def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candidate, schemes: dict, min_gain: float) -> bool:
-    """Whether ``c`` earns its place in ``full`` by a wide margin already in the model
-    linearised at ``x`` (``linear``: :func:`_linearised`; the screening's cross-validation of its
-    columns against the rest, its coefficients set to zero in the residual): the backward check
-    then needs no nonlinear re-fits for it. Only for a cause with columns of its own."""
-    if c.stage == "parameters":
-        return False
-    J, r = linear
-    at = full.slices[full.causes.index(c)]
-    C = J[:, at]
-    rest = np.delete(J, np.arange(at.start, at.stop), axis=1)
-    screen = _Screen(rest, r + C @ np.asarray(x)[at], schemes, full.k)  # the residual with the cause taken out
-    base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C, c.penalty)
-    on = judgeable(c, full.idx, schemes)
-    gains = {name: rmse_of_squares(base[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
-    return gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
-
-
-def _recheck_compliance(model: ExtendedProblem, x: np.ndarray, schemes: dict, current_cv: dict, fold_x: dict):
-    """The final model without the compliances whose size, fitted with every cause found after
-    them, is implausible or undetermined (:func:`physics_first` lets a compliance go before a
-    free shape it resembles; when that shape is the real cause — a scale error of the same
-    joint, say — the compliance is left with nothing to explain). Returns the model, its ``x``,
-    held-out errors (measured again if anything was dropped) and the ``(cause, physical,
-    reason)`` of each compliance dropped."""
-    compliances = [c for c in model.causes if c.kind in PHYSICAL_KINDS]
-    if not compliances:
-        return model, x, current_cv, fold_x, []
-    fit = fit_problem(model, x0=x)
-    dropped = []
-    for c in compliances:
-        values, std = model.coefficients(fit.x, c), coefficient_std(model, fit, c)
-        physical, why = c.physical(values, std, model.robot, model.robot.params)
-        why = f"implausible: {why}" if why else undetermined(values - coefficient_reference(c, model.robot), std)
-        if why is not None:
-            dropped.append((c, physical, why))
-    if not dropped:
-        return model, x, current_cv, fold_x, []
-    kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
-    x = fit_problem(kept, x0=kept.start_from(fit.x, model)).x
-    refits = {name: nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
-    return kept, x, {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}, dropped
 
 
 def coefficient_reference(cause: Candidate, robot: Robot) -> np.ndarray:
