@@ -1,7 +1,7 @@
 """Choosing causes by held-out gain: ``robocal.diagnose``.
 
 :func:`diagnose` first applies the reading conventions that make an implausible geometry
-plausible (:func:`_structure`, :mod:`.structure`), then runs one pass of the selection
+plausible (:func:`_structure`, :mod:`robocal.causes.structure`), then runs one pass of the selection
 (:func:`_select`), and a second pass, which only confirms what the first decided, when the first
 pass's final model shows gross outliers that the geometric baseline's residuals hid. A pass is a
 sequence of stages, each a function that takes the pass's state (:class:`Pass`: the kept samples
@@ -26,7 +26,7 @@ report as far as it is written) and leaves it updated:
    ``min_gain`` of the held-out RMSE. :func:`confirm` then fits the significant ones in order
    (largest gain first, with the exceptions of :func:`confirmation_order`; nonlinear, all
    parameters re-fitted) and takes the first whose physical parameters are plausible
-   (:data:`~robocal.diagnosis.candidates.LIMITS`) and whose held-out gain survives nonlinear
+   (:data:`~robocal.causes.candidates.LIMITS`) and whose held-out gain survives nonlinear
    re-fits per fold. The rounds end when one takes nothing.
 3. :func:`try_curved_drift`: a linear drift replaced by a curved one where that gains.
 4. :func:`backward`: every cause must still earn its place once those found after it are in.
@@ -187,7 +187,7 @@ SENSOR_TERM_SHARE = 0.5
 
 #: Knot spacings of the wander candidates, in correlation lengths of the residuals.
 WANDER_SPACINGS = (0.5, 1.0, 2.0)
-#: ... and roughness penalties, in multiples of :data:`~.wander.ROUGHNESS`.
+#: ... and roughness penalties, in multiples of :data:`~robocal.causes.wander.ROUGHNESS`.
 WANDER_STIFFER = (1.0, 10.0)
 
 
@@ -727,7 +727,7 @@ def confirmation_order(scored: list, significant, inflation: float, established:
 def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
     """The nonlinear checks of a round's significant candidates, in the round's order: each is
     fitted (all parameters re-fitted); the first whose physical parameters are plausible
-    (:data:`~robocal.diagnosis.candidates.LIMITS`) and determined and whose held-out gain
+    (:data:`~robocal.causes.candidates.LIMITS`) and determined and whose held-out gain
     survives the nonlinear re-fits on every fold scheme is taken into the model and the report
     (:func:`_take_cause`) and returned; None if none is. Each one that fails is refused with its
     reason (as is a step that is not significant); after :data:`MAX_TRIALS` joint candidates,
@@ -819,8 +819,8 @@ def _refuse_best(state: Pass, screening: Round) -> None:
 def try_curved_drift(state: Pass) -> None:
     """Stage 3: a drift that is not linear (a warm-up, a stand settling). The model's linear
     drift, if it has one, is replaced by the best of a natural spline of time
-    (:data:`~.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
-    (:data:`~.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
+    (:data:`~robocal.causes.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
+    (:data:`~robocal.causes.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
     ``min_gain`` of it and does no harm on the others. Its leftovers would otherwise be taken by
     steps, harmonics and couplings that the backward check then no longer needs (a drift fast
     at first left a step in its first dozen samples). In the report, the curved drift's entry
@@ -1068,12 +1068,12 @@ TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(T
 def judge_tolerance_prior(checks, measurement: str) -> dict:
     """The report entry of a tolerance prior on the kinematics, judged by its held-out errors:
     :data:`TOLERANCE_SIGMAS`, ``accepted`` and, per check, the held-out RMSE with the prior
-    (:func:`~.model.reported_rmse`); if it is not accepted, the ``reason``.
+    (:func:`~robocal.causes.problem.reported_rmse`); if it is not accepted, the ``reason``.
 
     ``checks`` yields, in order, ``(key, what, without, with_prior)``: the entry's key, the
     held-out error's name (``"random-fold held-out"``) and the squared errors
-    (:func:`~.model.squared_errors`) of ``measurement`` data without and with the prior. The prior
-    is accepted if on every check its :func:`~.model.judged_rmse` is within :data:`PRIOR_COST` of
+    (:func:`~robocal.causes.problem.squared_errors`) of ``measurement`` data without and with the prior. The prior
+    is accepted if on every check its :func:`~robocal.causes.problem.judged_rmse` is within :data:`PRIOR_COST` of
     the model's without it; the first check where it is not ends the judging (a lazy ``checks``
     computes no more). Used by the single-session selection (every fold scheme) and the
     multi-session one (leave-one-session-out).
@@ -1275,7 +1275,7 @@ def _explained(before: float, after: float, floor: float) -> Optional[float]:
 
 
 def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
-    """The joint-reading conventions (:mod:`.structure`) that make an implausible geometric fit
+    """The joint-reading conventions (:mod:`robocal.causes.structure`) that make an implausible geometric fit
     plausible: the data with them applied, their report entries and the alternatives rejected.
     Searched only when the geometric fit of the data as read is implausible."""
 
