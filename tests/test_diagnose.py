@@ -333,7 +333,7 @@ def test_hidden_reading_convention_is_named(robot, measurement, kind):
     assert first["rmse_heldout_after"] <= 1.01 * first["rmse_heldout_before"]
     assert first["significance"]["implausible_before"] > 0 or first["rmse_heldout_after"] < 0.5 * first["rmse_heldout_before"]
     # ... except perhaps the last joint's zero, which the free tool point absorbs: the data leave
-    # it undetermined and no convention of it is named (structure.absorbed_by_setup)
+    # it undetermined and no convention of it is named (conventions.absorbed_by_setup)
     assert [f["name"] for f in report["baseline"]["implausible"]] in ([], [f"theta{data.q.shape[1]}"])
 
 
@@ -404,13 +404,13 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     """A convention that lowers the number of implausible parameters but leaves the geometry
     implausible without a 10 % held-out gain is rejected with its numbers, in the same record
     shape as every other rejected cause (the command-line summary prints them)."""
-    from robocal.causes import structure
     from robocal.cli.diagnose import summary
+    from robocal.diagnosis import conventions
 
     data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
     fit = lambda d, max_nfev=None: (1.0, 5) if np.array_equal(d.q[:, :2], data.q[: len(d), :2]) else (0.85, 3)  # noqa: E731
     cross_validate = lambda d: {"random": 1.0, "blocked": 1.2} if np.array_equal(d.q, data.q) else {"random": 0.97, "blocked": 1.19}  # noqa: E731
-    accepted, effects, rejected = structure.search(data, fit, cross_validate, structure.Trial([], 1.0, 5))
+    accepted, effects, rejected = conventions.search(data, fit, cross_validate, conventions.Trial([], 1.0, 5))
     assert accepted == [] and effects == [] and rejected
     assert {"kind", "joint", "label", "gain_mm", "gains_mm", "p_value", "p_adjusted", "params", "reason"} <= set(rejected[0])
     report = {

@@ -7,29 +7,21 @@ the model needs:
 
 ``joint_zero``
     ``q_j + offset``: the DH θ offset already included in the reading, or not (a multiple of
-    90°), or a joint re-mastered after a crash or a motor change (any offset: proposed where a
-    geometric fit moves ``theta_j`` beyond the limits, :func:`zero_errors`).
+    90°), or a joint re-mastered after a crash or a motor change (any offset).
 ``joint_sign``
     ``−q_j``: the joint counts the other way.
 ``joint_reference``
     ``q_j + c·q_s`` with ``c = ±1``: joint ``j`` read relative to joint ``s`` (the J2/J3
-    "interaction" of parallelogram arms and many controllers; tried for neighbouring joints and
-    within the wrist, :func:`coupled`).
+    "interaction" of parallelogram arms and many controllers).
 
-They are not small, so each hypothesis is judged by full nonlinear re-fits, never by a
-linearisation: a screening fit of every hypothesis on a subsample (capped), then the most
-promising on all samples, then cross-validation. A hypothesis is accepted when it makes the
-geometric fit plausible (no parameter beyond the limits) at an equal or better held-out error,
-or lowers the held-out error by :data:`REAL_GAIN` with fewer implausible parameters; hypotheses
-the data cannot tell apart are reported together, as undetermined. Two conventions wrong at
-once, neither of which helps alone, are found by :func:`screen_combinations`: every quarter-turn
-offset and sign on one or two joints, judged by the nominal geometry with only the set-up fitted.
+This module says what a convention is and how it applies; the search for the conventions a data
+set was read in is the diagnosis': :mod:`robocal.diagnosis.conventions`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Callable, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -39,18 +31,6 @@ from ..exceptions import InvalidParameterError
 
 #: The kinds of reading convention.
 KINDS = ("joint_zero", "joint_sign", "joint_reference")
-#: Zero offsets tried on every moving joint (deg).
-ZERO_OFFSETS = (90.0, 180.0, 270.0)
-#: Samples of the screening fits, their evaluation budget and how many hypotheses go on to
-#: full fits.
-SCREEN_SAMPLES, SCREEN_NFEV, SHORTLIST = 400, 60, 4
-#: Held-out errors within this fraction count as equal.
-EQUAL = 0.01
-#: A hypothesis that leaves the geometry implausible must lower the held-out error by this much.
-REAL_GAIN = 0.10
-#: Joints that move less than this (deg) are no source of a reference: reading relative to a
-#: constant is a zero offset.
-MOVING_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -164,241 +144,3 @@ def to_model(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
 def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
     """``data`` with its joint readings transformed by ``structures`` in order."""
     return replace(data, q=to_model(data.q, structures))
-
-
-def coupled(j: int, s: int, n_joints: int) -> bool:
-    """Joints whose readings a controller may report relative to each other: neighbours (the
-    J2/J3 interaction of parallelogram arms) and any two of the wrist's last three (wrist axis
-    coupling). Reading joint 4 relative to joint 1 is no convention in use."""
-    wrist = n_joints - 3
-    return abs(j - s) == 1 or (j >= wrist and s >= wrist and j != s)
-
-
-def hypotheses(data: Dataset) -> list[Structure]:
-    """Every single-joint hypothesis on the joints that move in ``data``."""
-    moving = [j for j in range(data.n_joints) if np.ptp(data.q[:, j]) > MOVING_DEG * DEG]
-    out = [Structure("joint_zero", j, z * DEG) for j in moving for z in ZERO_OFFSETS]
-    out += [Structure("joint_sign", j) for j in moving]
-    out += [Structure("joint_reference", j, c, s) for j in moving for s in moving if coupled(j, s, data.n_joints) for c in (1.0, -1.0)]
-    return out
-
-
-@dataclass
-class Trial:
-    """A hypothesis (or none) fitted: training RMSE, implausible parameters, held-out RMSE."""
-
-    structures: list
-    rmse: float
-    implausible: int
-    heldout: Optional[dict] = None
-
-
-def zero_errors(implausible: list[dict]) -> list[Structure]:
-    """Continuous zero errors (a joint re-mastered after a crash or a motor change): one
-    ``joint_zero`` per ``theta`` offset a geometric fit moved beyond the plausibility limits
-    (``implausible`` as :meth:`CalibrationResult.implausible` lists them), at the offset it
-    found (rounded to 0.001°)."""
-    zeros = [f for f in implausible if f["name"].startswith("theta")]
-    return [Structure("joint_zero", int(f["name"][len("theta") :]) - 1, round(f["deviation"] / DEG, 3) * DEG) for f in zeros]
-
-
-def combinations(data: Dataset) -> list[tuple]:
-    """Every controller convention on one or two of the joints that move in ``data``: per joint
-    a quarter-turn zero offset (0, 90, 180, 270°), read with its sign or reversed — the
-    conventions a DH table's offsets and a controller's counting directions differ by. Two joints
-    wrong at once is common (a DH table whose θ offsets the controller already includes on
-    joints 2 and 3), and neither helps alone."""
-    moving = [j for j in range(data.n_joints) if np.ptp(data.q[:, j]) > MOVING_DEG * DEG]
-
-    def options(j: int) -> list[tuple]:
-        out = []
-        for sign in (False, True):
-            for zero in (0.0,) + ZERO_OFFSETS:
-                parts = ((Structure("joint_sign", j),) if sign else ()) + ((Structure("joint_zero", j, zero * DEG),) if zero else ())
-                if parts:
-                    out.append(parts)
-        return out
-
-    singles = {j: options(j) for j in moving}
-    pairs = [a + b for i, j in enumerate(moving) for k in moving[i + 1 :] for a in singles[j] for b in singles[k]]
-    return [h for j in moving for h in singles[j]] + pairs
-
-
-#: Conventions on one or two joints kept from the set-up-only screening for the full checks.
-COMBINED_SHORTLIST = 3
-#: ... if their set-up-only fit is at most this fraction of the readings as read.
-COMBINED_GAIN = 0.5
-
-
-def screen_combinations(data: Dataset, setup_rmse: Callable, seed: int = 0) -> list[tuple]:
-    """The :func:`combinations` under which the *nominal* geometry, with only the set-up fitted
-    (``setup_rmse(dataset) -> RMSE``), explains the data far better than as read (at most
-    :data:`COMBINED_GAIN` of its RMSE), best first, at most :data:`COMBINED_SHORTLIST`. A
-    controller's convention leaves the robot's geometry nominal, so the right one shows before
-    any kinematic parameter is fitted; set-up-only fits on a subsample are cheap enough to try
-    all of them (about a thousand on six joints)."""
-    rng = np.random.default_rng(seed)
-    sub = data.subset(np.sort(rng.choice(len(data), min(COMBINED_SAMPLES, len(data)), replace=False)))
-    as_read = setup_rmse(sub)
-    scored = sorted(((setup_rmse(apply_all(sub, list(h))), sum(s.size() for s in h), h) for h in combinations(data)), key=lambda t: t[:2])
-    return [h for rmse, _, h in scored[:COMBINED_SHORTLIST] if rmse <= COMBINED_GAIN * as_read]
-
-
-#: Samples of the set-up-only screening fits.
-COMBINED_SAMPLES = 120
-
-
-def _labels(parts) -> str:
-    return " + ".join(s.label for s in parts)
-
-
-#: A convention the set-up-only fit explains no better than this fraction of its RMSE without
-#: it is one the set-up absorbs.
-ABSORBED = 0.01
-
-
-def absorbed_by_setup(sample: Dataset, accepted: list[Structure], h: tuple, setup_rmse: Callable) -> tuple[tuple, list[Structure]]:
-    """``h`` without the conventions the set-up absorbs — the nominal geometry with only the
-    set-up fitted (``setup_rmse``) explains ``sample`` as well without them — and those. A zero
-    offset of the last joint is a rotation of a free tool, one of the first a rotation of a free
-    base: the data cannot show it, and a geometric fit that "gains" from it has only been
-    restarted elsewhere (simulated cable files: a −2.0° zero of joint 6 named on a clean file)."""
-    kept, absorbed = list(h), []
-    with_all = setup_rmse(apply_all(sample, accepted + kept))
-    for s in h:
-        rest = [o for o in kept if o is not s]
-        without = setup_rmse(apply_all(sample, accepted + rest))
-        if abs(without - with_all) <= ABSORBED * max(without, with_all):
-            kept, with_all = rest, without
-            absorbed.append(s)
-    return tuple(kept), absorbed
-
-
-def search(
-    data: Dataset,
-    fit: Callable,
-    cross_validate: Callable,
-    baseline: Trial,
-    seed: int = 0,
-    extra: tuple = (),
-    setup_rmse: Optional[Callable] = None,
-) -> tuple[list[Structure], list[dict], list[dict]]:
-    """Greedy search for the reading conventions that make the geometry plausible.
-
-    ``fit(dataset, max_nfev) -> (rmse, n_implausible)`` fits the geometric model;
-    ``cross_validate(dataset) -> {scheme: held-out RMSE}``. ``baseline`` is the fit of the data
-    as read (its held-out RMSE is cross-validated when a hypothesis needs the comparison);
-    ``extra`` hypotheses (:func:`zero_errors` of that fit) join the first round;
-    ``setup_rmse(dataset) -> RMSE``, the nominal geometry with only the set-up fitted, refuses a
-    convention the set-up absorbs (:func:`absorbed_by_setup`). Returns the accepted structures,
-    their report entries and the rejected or undetermined alternatives.
-    """
-    accepted, effects, rejected = [], [], []
-    current = baseline
-    rng = np.random.default_rng(seed)
-    screen = np.sort(rng.choice(len(data), min(SCREEN_SAMPLES, len(data)), replace=False))
-    for _ in range(2):  # at most two changes of convention
-        if current.implausible == 0:
-            break
-        now = apply_all(data, accepted)
-        scored = []
-        # a hypothesis is one or more conventions applied together (two joints wrong at once)
-        for h in [(s,) for s in hypotheses(now)] + ([] if accepted else [tuple(e) if isinstance(e, (list, tuple)) else (e,) for e in extra]):
-            rmse, bad = fit(apply_all(now.subset(screen), list(h)), SCREEN_NFEV)
-            scored.append((bad, rmse, h))
-        scored.sort(key=lambda s: (s[0], s[1], sum(p.size() for p in s[2])))
-        trials = []
-        tried = set()
-        for _, _, h in scored[:SHORTLIST]:
-            if setup_rmse is not None:
-                h, absorbed = absorbed_by_setup(now.subset(screen), accepted, h, setup_rmse)
-                for a in absorbed:
-                    rejected.append(
-                        {
-                            "kind": a.kind,
-                            "joint": a.joint + 1,
-                            "label": a.label,
-                            "gain_mm": None,
-                            "gains_mm": None,
-                            "p_value": None,
-                            "p_adjusted": None,
-                            "params": a.params,
-                            "reason": "not identifiable: the set-up absorbs it (the nominal geometry with only the set-up fitted explains the data as well without it)",
-                        }
-                    )
-            if not h or h in tried:
-                continue
-            tried.add(h)
-            rmse, bad = fit(apply_all(now, list(h)), None)
-            # Cross-validation (the expensive part) only for what could pass: a plausible fit as
-            # good as now, or a training error already lower by the gain asked of the held-out one.
-            if (bad == 0 and rmse <= (1.0 + EQUAL) * current.rmse) or (bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse):
-                trials.append(Trial(accepted + list(h), rmse, bad))
-        if trials and current.heldout is None:
-            current.heldout = cross_validate(apply_all(data, accepted))
-        for t in trials:
-            t.heldout = cross_validate(apply_all(data, t.structures))
-        good = [
-            t
-            for t in trials
-            if (t.implausible == 0 and all(t.heldout[k] <= (1.0 + EQUAL) * current.heldout[k] for k in current.heldout))
-            or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
-        ]
-        if not good:
-            for t in trials:
-                first = t.structures[len(accepted)]
-                implausible = f"{t.implausible} implausible parameters instead of {current.implausible}"
-                heldout = f"held-out RMSE {t.heldout['random']:.4g} mm instead of {current.heldout['random']:.4g} mm"
-                rejected.append(
-                    {
-                        "kind": first.kind,
-                        "joint": first.joint + 1,
-                        "label": _labels(t.structures[len(accepted) :]),
-                        "gain_mm": current.heldout["random"] - t.heldout["random"],
-                        "gains_mm": {k: current.heldout[k] - t.heldout[k] for k in current.heldout},
-                        "p_value": None,
-                        "p_adjusted": None,
-                        "params": first.params,
-                        "reason": f"{implausible} at {heldout}: neither plausible nor {REAL_GAIN:.0%} better",
-                    }
-                )
-            break
-        good.sort(key=lambda t: (t.implausible, t.heldout["random"], sum(p.size() for p in t.structures[len(accepted) :])))
-        # Among hypotheses the data cannot tell apart, the fewest conventions: a zero offset of a
-        # joint the set-up absorbs (the last one, before a free tool point) explains nothing.
-        level = [t for t in good if t.implausible == good[0].implausible and t.heldout["random"] <= (1.0 + EQUAL) * good[0].heldout["random"]]
-        best = min(
-            level,
-            key=lambda t: (
-                len(t.structures),
-                sum(not p.quarter_turn for p in t.structures),
-                sum(p.size() for p in t.structures[len(accepted) :]),
-                t.heldout["random"],
-            ),
-        )
-        good = [best] + [t for t in good if t is not best]
-        alike = [t for t in good[1:] if t.implausible == best.implausible and t.heldout["random"] <= (1.0 + EQUAL) * best.heldout["random"]]
-        plausible_or_better = "a plausible geometry at an equal or better held-out error"
-        for s in best.structures[len(accepted) :]:
-            effects.append(
-                {
-                    "kind": s.kind,
-                    "joint": s.joint + 1,
-                    "label": s.label,
-                    "params": s.params,
-                    "rmse_heldout_before": current.heldout["random"],
-                    "rmse_heldout_after": best.heldout["random"],
-                    "significance": {
-                        "test": f"nonlinear re-fits: {plausible_or_better}, or a held-out gain of {REAL_GAIN:.0%} (random and blocked folds)",
-                        "implausible_before": current.implausible,
-                        "implausible_after": best.implausible,
-                        "rmse_heldout_blocked_before": current.heldout["blocked"],
-                        "rmse_heldout_blocked_after": best.heldout["blocked"],
-                        "undetermined_between": [_labels(t.structures[len(accepted) :]) for t in alike],
-                        "together_with": [o.label for o in best.structures[len(accepted) :] if o is not s],
-                    },
-                }
-            )
-        accepted = list(best.structures)
-        current = best
-    return accepted, effects, rejected

@@ -30,7 +30,7 @@ from ..stats import rmse_of_squares
 from ..threads import thread_map
 from ..causes.candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
-from ..causes.structure import EQUAL
+from .conventions import EQUAL
 from .validation import fit_problem, nonlinear_cv
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
@@ -314,7 +314,7 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
     not there. Where the model holds two or more harmonics of a joint, first the single harmonic
     (1 to :data:`~robocal.causes.candidates.MAX_HARMONIC`), then the joint's map, each the best screened
     against the model without them, is fitted in their place and kept if its held-out error is
-    within :data:`~robocal.causes.structure.EQUAL` of theirs on every scheme: the same error, one honest claim
+    within :data:`~.conventions.EQUAL` of theirs on every scheme: the same error, one honest claim
     — "harmonic h of this joint" or "a periodic error of this joint", with its curve — instead of
     several. Returns the model, its ``x``, held-out errors, fold fits and the report entries of
     the causes merged in (``candidate``, ``replaces``, ``params``, held-out RMSE before and after)."""

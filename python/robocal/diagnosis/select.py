@@ -64,6 +64,7 @@ from ..progress import progress
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from ..causes import structure
+from . import conventions
 from .budget import floor as error_floor
 from .budget import repeatability
 from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library, step_candidates
@@ -970,10 +971,10 @@ def joint_maps(state: Pass, alpha: float, replay: Optional[Decided]) -> tuple[li
     model, x, current_cv, fold_x, merged = merge_harmonics(state.model, state.x, state.schemes, state.cv, state.fold_x)
     state.model, state.x, state.cv, state.fold_x = model, x, current_cv, fold_x
     # ``{label}`` is filled in by _take_map with the merged map's label.
-    within = f"the same held-out error within {structure.EQUAL:.0%}"
+    within = f"the same held-out error within {conventions.EQUAL:.0%}"
     merged_why = f"merged with the joint's other harmonics into {{label}} ({within}: one periodic error of the joint, not several gear harmonics)"
     for m in merged:
-        test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {structure.EQUAL:.0%} of theirs on every fold scheme"
+        test = f"in the place of {len(m['replaces'])} harmonics of its joint, held-out error within {conventions.EQUAL:.0%} of theirs on every fold scheme"
         significance = {"test": test, "p_value": None, "p_adjusted": None, "screening_gain_mm": None}
         _take_map(state, m, merged_why, significance)
     model, x, current_cv, fold_x, accepted_maps, rejected_maps = map_stage(
@@ -1297,15 +1298,15 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
     bad = as_read.implausible()
     if not bad:
         return data, [], []
-    baseline = structure.Trial([], as_read.metrics["train"]["rmse"], len(bad))
+    baseline = conventions.Trial([], as_read.metrics["train"]["rmse"], len(bad))
     setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
 
     def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
-        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=structure.SCREEN_NFEV // 2).metrics["train"]["rmse"]
+        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=conventions.SCREEN_NFEV // 2).metrics["train"]["rmse"]
 
-    combined = structure.screen_combinations(data, setup_rmse, seed)
-    accepted, effects, rejected = structure.search(
-        data, fit, cross_validate, baseline, seed, extra=structure.zero_errors(bad) + combined, setup_rmse=setup_rmse
+    combined = conventions.screen_combinations(data, setup_rmse, seed)
+    accepted, effects, rejected = conventions.search(
+        data, fit, cross_validate, baseline, seed, extra=conventions.zero_errors(bad) + combined, setup_rmse=setup_rmse
     )
     return structure.apply_all(data, accepted), effects, rejected
 

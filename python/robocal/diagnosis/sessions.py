@@ -28,6 +28,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
 from ..causes import structure
+from . import conventions
 from ..causes.candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors, stack
 from ..causes.wander import TIME_TERMS
@@ -391,7 +392,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 reasons[label] = why  # implausible or undetermined, as within one session
             elif (
                 isinstance(candidate, structure.Structure)
-                and rmse > (1.0 - structure.REAL_GAIN) * _rmse(current, judged_rmse)
+                and rmse > (1.0 - conventions.REAL_GAIN) * _rmse(current, judged_rmse)
                 and evaluator.implausible(model.plus(candidate))
             ):
                 # A convention is no small correction: as within one session, it must make the
@@ -399,7 +400,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
                 gain = 1.0 - rmse / _rmse(current, judged_rmse)
                 left = len(evaluator.implausible(model.plus(candidate)))
                 reasons[label] = (
-                    f"a reading convention must make the geometry plausible or lower the held-out RMSE by {structure.REAL_GAIN:.0%}; "
+                    f"a reading convention must make the geometry plausible or lower the held-out RMSE by {conventions.REAL_GAIN:.0%}; "
                     f"it gains {gain:.1%} and leaves {left} parameters implausible"
                 )
             else:
