@@ -562,10 +562,6 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     return out
 
 
-#: Change points proposed per diagnosis: ruptures' binary segmentation asked for this many.
-STEPS_PROPOSED = 3
-
-
 def step_candidate(data: Dataset, sample: int) -> Candidate:
     """A step of the sensor's zero (cable) or of the tracker's position (its translation) at
     ``sample`` (0-based index of the first sample after it): every sample acquired from then on
@@ -587,51 +583,6 @@ def step_candidate(data: Dataset, sample: int) -> Candidate:
 def acquisition_order(data: Dataset) -> np.ndarray:
     """Sample indices in acquisition order: by ``t`` if the data carry it, else row order."""
     return np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
-
-
-def _summed_l2_cost():
-    """ruptures' l2 cost (a segment's squared deviations from its mean) from running sums: each
-    segment's cost in O(1) instead of a variance over its samples — binary segmentation asks for
-    every split of every segment, which made ruptures' own l2 cost O(m²) per split (two minutes of
-    a 12 000-sample diagnosis)."""
-    from ruptures.base import BaseCost
-
-    class SummedL2(BaseCost):
-        model = "l2 (running sums)"
-        min_size = 1
-
-        def fit(self, signal):
-            self.signal = x = signal.reshape(len(signal), -1)
-            self.s1 = np.vstack([np.zeros(x.shape[1]), np.cumsum(x, axis=0)])
-            self.s2 = np.concatenate([[0.0], np.cumsum(np.sum(x * x, axis=1))])
-            return self
-
-        def error(self, start, end):
-            s = self.s1[end] - self.s1[start]
-            return float(self.s2[end] - self.s2[start] - s @ s / (end - start))
-
-    return SummedL2()
-
-
-def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> list[Candidate]:
-    """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
-    samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
-    residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
-    the samples (and 5). Each becomes a candidate that the selection tests like any other."""
-    import ruptures  # imported on use: only a diagnosis needs it
-
-    order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
-    # Only the components a step moves: a pose's rotation rows would add their noise to the
-    # change-point cost and misplace the step (7-14 samples on simulated pose files).
-    signal = residuals[order][:, :3]
-    scale = np.std(signal, axis=0)
-    signal = signal / np.where(scale > 0, scale, 1.0)
-    m = len(signal)
-    min_size = max(5, m // 100)
-    if m < 2 * min_size + 1:
-        return []
-    breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
-    return [step_candidate(data, int(idx[order[b]])) for b in breaks if b < m]
 
 
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the

@@ -65,9 +65,10 @@ from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from ..causes import structure
 from . import conventions
+from .change_points import step_candidates
 from .budget import floor as error_floor
 from .budget import repeatability
-from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library, step_candidates
+from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
