@@ -35,6 +35,9 @@ from .validation import fit_problem, nonlinear_cv
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
+#: A fold's system solved by its Schur complement is solved whole when its scaled residual is
+#: beyond this fraction of the right-hand side's and the solution's norms.
+SCHUR_TOLERANCE = 1e-8
 
 
 def _dense(A) -> np.ndarray:
@@ -118,17 +121,18 @@ class _NormalScreen:
     def _geometry(self, name: str, i: int) -> tuple:
         """Fold ``i`` of scheme ``name``: its training rows' normal equations ``A·δ = b`` of ``J``,
         their unit-diagonal scaling ``d``, the scaled and ridged ``A``'s Cholesky factor and the
-        solution ``y0`` without a candidate (scaled) — or None for both if the factor fails.
-        Computed once per fold, for every candidate."""
+        solution ``y0`` without a candidate (scaled) — or None for both if the factor fails — and
+        the factor's triangle ``U`` (scaled ``A = UᵀU``). Computed once per fold, for every
+        candidate."""
         if (name, i) not in self._factors:
             _, _, _, _, JteJte, Jter = self.folds[name][i]
             A, b = self.JtJ - JteJte, self.Jtr - Jter
             d = _diagonal_scale(A)
             try:
                 factor = cho_factor(A / np.outer(d, d) + RIDGE * np.eye(len(A)))
-                self._factors[name, i] = (b, d, factor, cho_solve(factor, b / d))
+                self._factors[name, i] = (b, d, factor, cho_solve(factor, b / d), np.tril(factor[0]).T if factor[1] else np.triu(factor[0]))
             except LinAlgError:
-                self._factors[name, i] = (b, d, None, None)
+                self._factors[name, i] = (b, d, None, None, None)
         return self._factors[name, i]
 
     def errors(self, C=None, P=None, joint_map=None) -> dict:
@@ -147,7 +151,7 @@ class _NormalScreen:
 
         def fold_solution(at: tuple) -> np.ndarray:
             name, i = at
-            b, d, factor, y0 = self._geometry(name, i)
+            b, d, factor, y0, U = self._geometry(name, i)
             if C is None:
                 return y0 / d if factor is not None else _solve(self.JtJ - self.folds[name][i][4], b)
             _, CteJ, Cter, CteCte = held_out[name]
@@ -162,7 +166,17 @@ class _NormalScreen:
             dC = _diagonal_scale(D)
             S = (D - M) / np.outer(dC, dC) + RIDGE * np.eye(len(D))
             yC = np.linalg.solve(S, (bC - g) / dC)
-            return np.concatenate([(y0 - W @ (yC / dC)) / d, yC / dC])
+            yJ = y0 - W @ (yC / dC)
+            # A candidate nearly in the span of the geometry's barely determined directions
+            # cancels in D − M: checked by the scaled system's residual, solved whole if it fails.
+            Bs = (B / d) / dC[:, None]
+            r_J = U.T @ (U @ yJ) + Bs.T @ yC - b / d
+            r_C = Bs @ yJ + (D / np.outer(dC, dC) + RIDGE * np.eye(len(D))) @ yC - bC / dC
+            y = np.concatenate([yJ, yC])
+            scale = np.linalg.norm(np.concatenate([b / d, bC / dC])) + np.linalg.norm(y)
+            if not np.all(np.isfinite(y)) or np.linalg.norm(np.concatenate([r_J, r_C])) > SCHUR_TOLERANCE * scale:
+                return _solve(np.block([[self.JtJ - self.folds[name][i][4], B.T], [B, D]]), np.concatenate([b, bC]))
+            return np.concatenate([yJ / d, yC / dC])
 
         at = [(name, i) for name, folds in self.folds.items() for i in range(len(folds))]
         solutions = dict(zip(at, thread_map(fold_solution, at, rows=self.n_data)))
