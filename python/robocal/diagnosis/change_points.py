@@ -56,3 +56,21 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
         return []
     breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
     return [step_candidate(data, int(idx[order[b]])) for b in breaks if b < m]
+
+
+def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
+    """The gradual alternatives to ``step``: the level changing linearly from its sample on, and
+    linearly up to its sample (a drift that sets in, or ends; one arc of a wandering reading),
+    each on the step's axes. Screened beside the step, never named: a step is a claim that the
+    level jumped, which a ramp from the same sample must not explain as well."""
+    m = len(data)
+    position = np.empty(m)
+    position[acquisition_order(data)] = np.arange(m)
+    at = position[step.detail["sample"]]
+    out = []
+    for side, shape in (("after", np.maximum(position - at, 0.0)), ("before", np.maximum(at - position, 0.0))):
+        basis = np.zeros_like(step.basis)
+        for a in range(step.basis.shape[2]):
+            basis[:, a, a] = shape / max(float(shape.max()), 1.0)
+        out.append(Candidate("ramp", None, "observations", basis, detail={"sample": step.detail["sample"], "side": side}))
+    return out

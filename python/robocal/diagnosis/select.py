@@ -65,7 +65,7 @@ from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from ..stats import rmse_of_squares, robust_sigma
 from ..causes import structure
 from . import conventions
-from .change_points import step_candidates
+from .change_points import ramps, step_candidates
 from .budget import floor as error_floor
 from .budget import repeatability
 from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library
@@ -600,6 +600,8 @@ class Round:
     alpha: float
     min_gain: float
     max_effects: int
+    #: Per step (label): the larger random-fold gain of its ramps (:func:`~.change_points.ramps`).
+    gradual: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
         """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
@@ -661,6 +663,10 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         scored.append((gains["random"], c, p_value, gains))
     candidates = len(scored) if replay is None else replay.tests
     screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects)
+    for c in (c for _, c, _, _ in scored if c.kind == "step"):  # judged on the samples the step is
+        on = judgeable(c, keep, schemes)["random"]
+        ramp_errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"][on] for ramp in ramps(state.dataset, c)]
+        screening.gradual[c.label] = max(rmse_of_squares(model_err["random"][on]) - rmse_of_squares(e) for e in ramp_errs)
     screening.ranked = confirmation_order(scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes))
     return screening
 
@@ -744,6 +750,12 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
                 rejected.append(screening.refusal(item, None, "not significant over every possible step position"))
             continue
         if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
+            continue
+        if c.kind == "step" and screening.gradual.get(c.label, -np.inf) >= item[0]:
+            # A drift that sets in or ends, or an arc of a wandering reading, changes the level
+            # gradually: a ramp from the step's sample gains as much, and the jump is not shown.
+            why = f"a gradual change from the same sample gains as much on the random folds ({screening.gradual[c.label]:.3g} mm against the step's {item[0]:.3g} mm): no jump shown"
+            rejected.append(screening.refusal(item, None, why))
             continue
         if c.stage == "joints":
             if joint_trials >= MAX_TRIALS:
