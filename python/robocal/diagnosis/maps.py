@@ -165,16 +165,18 @@ class _NormalScreen:
             W, M, g = shared[at]
             dC = _diagonal_scale(D)
             S = (D - M) / np.outer(dC, dC) + RIDGE * np.eye(len(D))
-            yC = np.linalg.solve(S, (bC - g) / dC)
-            yJ = y0 - W @ (yC / dC)
             # A candidate nearly in the span of the geometry's barely determined directions
             # cancels in D − M: checked by the scaled system's residual, solved whole if it fails.
-            Bs = (B / d) / dC[:, None]
-            r_J = U.T @ (U @ yJ) + Bs.T @ yC - b / d
-            r_C = Bs @ yJ + (D / np.outer(dC, dC) + RIDGE * np.eye(len(D))) @ yC - bC / dC
-            y = np.concatenate([yJ, yC])
-            scale = np.linalg.norm(np.concatenate([b / d, bC / dC])) + np.linalg.norm(y)
-            if not np.all(np.isfinite(y)) or np.linalg.norm(np.concatenate([r_J, r_C])) > SCHUR_TOLERANCE * scale:
+            with np.errstate(over="ignore", invalid="ignore"):
+                yC = np.linalg.solve(S, (bC - g) / dC)
+                yJ = y0 - W @ (yC / dC)
+                Bs = (B / d) / dC[:, None]
+                r_J = U.T @ (U @ yJ) + Bs.T @ yC - b / d
+                r_C = Bs @ yJ + (D / np.outer(dC, dC) + RIDGE * np.eye(len(D))) @ yC - bC / dC
+                y = np.concatenate([yJ, yC])
+                scale = np.linalg.norm(np.concatenate([b / d, bC / dC])) + np.linalg.norm(y)
+                solved = np.all(np.isfinite(y)) and np.linalg.norm(np.concatenate([r_J, r_C])) <= SCHUR_TOLERANCE * scale
+            if not solved:
                 return _solve(np.block([[self.JtJ - self.folds[name][i][4], B.T], [B, D]]), np.concatenate([b, bC]))
             return np.concatenate([yJ / d, yC / dC])
 
