@@ -168,7 +168,10 @@ class _NormalScreen:
             # A candidate nearly in the span of the geometry's barely determined directions
             # cancels in D − M: checked by the scaled system's residual, solved whole if it fails.
             with np.errstate(over="ignore", invalid="ignore"):
-                yC = np.linalg.solve(S, (bC - g) / dC)
+                try:
+                    yC = np.linalg.solve(S, (bC - g) / dC)
+                except LinAlgError:  # exactly singular: the same cancellation
+                    yC = np.full(len(D), np.nan)
                 yJ = y0 - W @ (yC / dC)
                 Bs = (B / d) / dC[:, None]
                 r_J = U.T @ (U @ yJ) + Bs.T @ yC - b / d
