@@ -68,7 +68,7 @@ from . import conventions
 from .change_points import ramps, step_candidates
 from .budget import floor as error_floor
 from .budget import repeatability
-from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, drift_candidate, library
+from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, curved_drift, drift_candidate, library
 from .leftover import residual_verdict, unexplained
 from .maps import map_stage, merge_harmonics
 from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
@@ -600,7 +600,8 @@ class Round:
     alpha: float
     min_gain: float
     max_effects: int
-    #: Per step (label): the larger random-fold gain of its ramps (:func:`~.change_points.ramps`).
+    #: Per step (label): the largest random-fold gain of a gradual change: its ramps
+    #: (:func:`~.change_points.ramps`) and the curves of the model's linear drift.
     gradual: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
@@ -663,10 +664,16 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         scored.append((gains["random"], c, p_value, gains))
     candidates = len(scored) if replay is None else replay.tests
     screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects)
+    # What a gradual change gains, for each step: a ramp from its sample, and the curves of a
+    # linear drift the model has (a drift that is not linear leaves bends a step would take).
+    curves = []
+    if any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
+        curves = [drift_candidate(state.dataset, CURVED_DRIFT_DEGREE)] + [drift_candidate(state.dataset, settling=tau) for tau in SETTLING_TIMES]
+    curve_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]
     for c in (c for _, c, _, _ in scored if c.kind == "step"):  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
-        ramp_errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"][on] for ramp in ramps(state.dataset, c)]
-        screening.gradual[c.label] = max(rmse_of_squares(model_err["random"][on]) - rmse_of_squares(e) for e in ramp_errs)
+        errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + curve_errs
+        screening.gradual[c.label] = max(rmse_of_squares(model_err["random"][on]) - rmse_of_squares(e[on]) for e in errs)
     screening.ranked = confirmation_order(scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes))
     return screening
 
@@ -752,9 +759,10 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
         if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
             continue
         if c.kind == "step" and screening.gradual.get(c.label, -np.inf) >= item[0]:
-            # A drift that sets in or ends, or an arc of a wandering reading, changes the level
-            # gradually: a ramp from the step's sample gains as much, and the jump is not shown.
-            why = f"a gradual change from the same sample gains as much on the random folds ({screening.gradual[c.label]:.3g} mm against the step's {item[0]:.3g} mm): no jump shown"
+            # A drift that sets in, ends or bends, or an arc of a wandering reading, changes the
+            # level gradually: a ramp or a curve gains as much, and the jump is not shown.
+            gradual = f"a gradual change (a ramp from the same sample, or a curve of the model's drift) gains as much on the random folds"
+            why = f"{gradual} ({screening.gradual[c.label]:.3g} mm against the step's {item[0]:.3g} mm): no jump shown"
             rejected.append(screening.refusal(item, None, why))
             continue
         if c.stage == "joints":
