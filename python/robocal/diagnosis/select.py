@@ -748,7 +748,7 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
     reason (as is a step that is not significant); after :data:`MAX_TRIALS` joint candidates,
     the rest are not fitted."""
     rob, ext, x, keep, schemes, rejected = state.robot, state.model, state.x, state.keep, state.schemes, state.rejected
-    joint_trials = 0
+    joint_trials, gradual_level = 0, None
     for item in screening.ranked:
         _, c, p_value, gains = item
         significant = screening.significant(*item)
@@ -758,11 +758,16 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
             continue
         if not significant:  # a larger gain of more coefficients may miss the level a smaller one passes
             continue
-        if c.kind == "step" and screening.gradual.get(c.label, -np.inf) >= item[0]:
+        if c.kind == "step" and (gradual_level or screening.gradual.get(c.label, -np.inf) >= item[0]):
             # A drift that sets in, ends or bends, or an arc of a wandering reading, changes the
-            # level gradually: a ramp or a curve gains as much, and the jump is not shown.
-            gradual = f"a gradual change (a ramp from the same sample, or a curve of the model's drift) gains as much on the random folds"
-            why = f"{gradual} ({screening.gradual[c.label]:.3g} mm against the step's {item[0]:.3g} mm): no jump shown"
+            # level gradually: a ramp or a curve gains as much, and the jump is not shown. The
+            # round's other steps are pieces of the same change (one refused let the next one in).
+            if gradual_level:
+                why = f"the round's largest level change ({gradual_level}) is gradual: no jump shown"
+            else:
+                gradual = "a gradual change (a ramp from the same sample, or a curve of the model's drift) gains as much on the random folds"
+                why = f"{gradual} ({screening.gradual[c.label]:.3g} mm against the step's {item[0]:.3g} mm): no jump shown"
+                gradual_level = c.label
             rejected.append(screening.refusal(item, None, why))
             continue
         if c.stage == "joints":
