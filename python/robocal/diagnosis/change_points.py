@@ -1,6 +1,7 @@
 """Where the sensor may have stepped: change points of a fit's residuals in acquisition order,
 each proposed as a step candidate (:func:`robocal.causes.candidates.step_candidate`) that the
-selection tests like any other cause."""
+selection tests like any other cause — and the gradual changes a step must beat to be named
+(:func:`ramps`)."""
 
 from __future__ import annotations
 

@@ -666,11 +666,12 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects)
     # What a gradual change gains, for each step: a ramp from its sample, and the curves of a
     # linear drift the model has (a drift that is not linear leaves bends a step would take).
+    steps = [c for _, c, _, _ in scored if c.kind == "step"]
     curves = []
-    if any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
+    if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
         curves = [drift_candidate(state.dataset, CURVED_DRIFT_DEGREE)] + [drift_candidate(state.dataset, settling=tau) for tau in SETTLING_TIMES]
     curve_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]
-    for c in (c for _, c, _, _ in scored if c.kind == "step"):  # judged on the samples the step is
+    for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + curve_errs
         screening.gradual[c.label] = max(rmse_of_squares(model_err["random"][on]) - rmse_of_squares(e[on]) for e in errs)
