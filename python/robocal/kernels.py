@@ -152,7 +152,8 @@ def stack_csr(dense: np.ndarray, dense_cols: np.ndarray, thin: list, weights: np
     (``thin``: pairs of a scipy.sparse block (m, ·) and its column offset), all times the row's
     ``weights``; then the rows of ``extra`` (scipy.sparse, the Jacobian's column count).
     ``pattern=False``: the values only (``indptr`` and ``indices`` None), for a pattern known."""
-    blocks = [(b.indptr, b.indices, as_float_array(b.data, "thin"), int(offset)) for b, offset in ((b.tocsr(), o) for b, o in thin)]
+    thin = [(block.tocsr(), int(offset)) for block, offset in thin]
+    blocks = [(b.indptr, b.indices, as_float_array(b.data, "thin"), offset) for b, offset in thin]
     extra = extra.tocsr()
     return _robocal.stack_csr(
         as_float_array(dense, "dense"),

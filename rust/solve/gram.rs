@@ -245,9 +245,8 @@ pub struct FoldProducts {
 /// The products of `C` (n × nc) with `J` (n × p), `r` (n) and itself over the rows of each fold:
 /// for each labelling (`labels[s]`, a fold below `folds[s]` per row), fold `f`'s
 /// `C_fᵀJ_f, C_fᵀr_f, C_fᵀC_f`. A screening's held-out folds need these for every candidate;
-/// one pass over the rows gives them all (per row, every pair of a `C` entry with a `J` entry),
-/// where scipy built a sparse product per fold or one of `C` spread over the folds' columns at
-/// several times the cost. Labellings run in parallel, each summing its rows in order, so the
+/// one pass over the rows gives them all (per row, every pair of a `C` entry with a `J` entry)
+/// instead of a sparse product per fold. Labellings run in parallel, each summing its rows in order, so the
 /// result does not depend on the number of threads.
 ///
 /// Errors: `InvalidParameter` (a malformed CSR, `J`, `r` or a labelling of another row count, a

@@ -569,8 +569,7 @@ def step_candidate(data: Dataset, sample: int) -> Candidate:
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     if not 0 < sample < m:
         raise InvalidParameterError(f"a step needs its first sample within 1..{m - 1}; got {sample}")
-    position = np.empty(m, dtype=int)
-    position[acquisition_order(data)] = np.arange(m)
+    position = acquisition_position(data)
     after = (position >= position[sample]).astype(np.float64)
     axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
     basis = np.zeros((m, k, len(axes)))
@@ -583,6 +582,13 @@ def step_candidate(data: Dataset, sample: int) -> Candidate:
 def acquisition_order(data: Dataset) -> np.ndarray:
     """Sample indices in acquisition order: by ``t`` if the data carry it, else row order."""
     return np.argsort(data.t, kind="stable") if data.t is not None else np.arange(len(data))
+
+
+def acquisition_position(data: Dataset) -> np.ndarray:
+    """Each sample's place (0 .. m-1) in :func:`acquisition_order`."""
+    position = np.empty(len(data), dtype=int)
+    position[acquisition_order(data)] = np.arange(len(data))
+    return position
 
 
 #: Joint causes a compensation can apply from the joint angles alone (backlash needs the

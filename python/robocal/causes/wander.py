@@ -20,7 +20,7 @@ from scipy.linalg import null_space
 
 from ..data.dataset import Dataset
 from ..robot import RESIDUAL_WIDTH
-from .candidates import Candidate, acquisition_order, curved_drift
+from .candidates import Candidate, acquisition_order, acquisition_position, curved_drift
 
 #: Kinds that are smooth functions of time within one session (this module's term).
 TIME_TERMS = ("wander",)
@@ -48,8 +48,7 @@ def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS
     :data:`MAX_KNOTS` per axis), one per sensor axis, and its ``roughness`` penalty."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     spacing = max(float(spacing), (m - 1) / (MAX_KNOTS - 3), 2.0)
-    rank = np.empty(m)
-    rank[acquisition_order(data)] = np.arange(m)
+    rank = acquisition_position(data)
     inner = np.arange(0.0, m - 1 + spacing, spacing)
     knots = np.concatenate([[inner[0]] * 3, inner, [inner[-1]] * 3])
     B = BSpline.design_matrix(np.clip(rank, inner[0], inner[-1]), knots, 3).toarray()

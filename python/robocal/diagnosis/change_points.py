@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..causes.candidates import Candidate, acquisition_order, step_candidate
+from ..causes.candidates import Candidate, acquisition_order, acquisition_position, step_candidate
 from ..data.dataset import Dataset
 
 #: Change points proposed per diagnosis: ruptures' binary segmentation asked for this many.
@@ -64,9 +64,7 @@ def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
     linearly up to its sample (a drift that sets in, or ends; one arc of a wandering reading),
     each on the step's axes. Screened beside the step, never named: a step is a claim that the
     level jumped, which a ramp from the same sample must not explain as well."""
-    m = len(data)
-    position = np.empty(m)
-    position[acquisition_order(data)] = np.arange(m)
+    position = acquisition_position(data)
     at = position[step.detail["sample"]]
     out = []
     for side, shape in (("after", np.maximum(position - at, 0.0)), ("before", np.maximum(at - position, 0.0))):

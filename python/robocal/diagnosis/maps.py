@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
-from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.linalg import LinAlgError, cho_solve, cholesky
 from scipy.stats import f as f_dist
 
 from ..kernels import fold_products, is_sparse, sparse_gram
@@ -120,19 +120,18 @@ class _NormalScreen:
 
     def _geometry(self, name: str, i: int) -> tuple:
         """Fold ``i`` of scheme ``name``: its training rows' normal equations ``A·δ = b`` of ``J``,
-        their unit-diagonal scaling ``d``, the scaled and ridged ``A``'s Cholesky factor and the
-        solution ``y0`` without a candidate (scaled) — or None for both if the factor fails — and
-        the factor's triangle ``U`` (scaled ``A = UᵀU``). Computed once per fold, for every
-        candidate."""
+        their unit-diagonal scaling ``d``, the upper Cholesky factor ``U`` of the scaled and ridged
+        ``A`` (``UᵀU``) and the solution ``y0`` without a candidate (scaled) — or None for both if
+        the factor fails. Computed once per fold, for every candidate."""
         if (name, i) not in self._factors:
             _, _, _, _, JteJte, Jter = self.folds[name][i]
             A, b = self.JtJ - JteJte, self.Jtr - Jter
             d = _diagonal_scale(A)
             try:
-                factor = cho_factor(A / np.outer(d, d) + RIDGE * np.eye(len(A)))
-                self._factors[name, i] = (b, d, factor, cho_solve(factor, b / d), np.tril(factor[0]).T if factor[1] else np.triu(factor[0]))
+                U = cholesky(A / np.outer(d, d) + RIDGE * np.eye(len(A)))
+                self._factors[name, i] = (b, d, U, cho_solve((U, False), b / d))
             except LinAlgError:
-                self._factors[name, i] = (b, d, None, None, None)
+                self._factors[name, i] = (b, d, None, None)
         return self._factors[name, i]
 
     def errors(self, C=None, P=None, joint_map=None) -> dict:
@@ -151,16 +150,16 @@ class _NormalScreen:
 
         def fold_solution(at: tuple) -> np.ndarray:
             name, i = at
-            b, d, factor, y0, U = self._geometry(name, i)
+            b, d, U, y0 = self._geometry(name, i)
             if C is None:
-                return y0 / d if factor is not None else _solve(self.JtJ - self.folds[name][i][4], b)
+                return y0 / d if U is not None else _solve(self.JtJ - self.folds[name][i][4], b)
             _, CteJ, Cter, CteCte = held_out[name]
             B, D, bC = CtJ - CteJ[i], CtC - CteCte[i], Ctr - Cter[i]
-            if factor is None:
+            if U is None:
                 return _solve(np.block([[self.JtJ - self.folds[name][i][4], B.T], [B, D]]), np.concatenate([b, bC]))
             if at not in shared:
                 Bj = B / d
-                W = cho_solve(factor, Bj.T)
+                W = cho_solve((U, False), Bj.T)
                 shared[at] = (W, Bj @ W, Bj @ y0)
             W, M, g = shared[at]
             dC = _diagonal_scale(D)

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import norm
 
-from ..causes.candidates import acquisition_order
+from ..causes.candidates import acquisition_position
 from ..data.dataset import Dataset
 from .budget import REVISIT_TOLERANCE
 
@@ -50,9 +50,7 @@ MIN_CORRELATION = 0.2
 
 def acquisition_rank(data: Dataset, idx: np.ndarray) -> np.ndarray:
     """Rank of each of the samples ``idx`` in acquisition order (0 .. len(idx)-1)."""
-    rank = np.empty(len(data), dtype=int)
-    rank[acquisition_order(data)] = np.arange(len(data))
-    return np.argsort(np.argsort(rank[idx], kind="stable"), kind="stable")
+    return np.argsort(np.argsort(acquisition_position(data)[idx], kind="stable"), kind="stable")
 
 
 def _sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
