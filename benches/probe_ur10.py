@@ -32,7 +32,7 @@ from robocal.diagnosis.budget import REVISIT_TOLERANCE
 from robocal.causes.candidates import Candidate, acquisition_order, covered_when_fitted_on, map_candidates, map_noise
 from robocal.causes.problem import ExtendedProblem, reported_rmse
 from robocal.diagnosis.select import diagnose
-from robocal.diagnosis.validation import coefficient_std, fit_problem, fold_problem, fold_schemes, held_out_errors, nonlinear_cv
+from robocal.diagnosis.validation import coefficient_std, fit_problem, fold_problem, fold_schemes, held_out_errors, cross_validate
 from robocal.diagnosis.settling import LONG_MOVE_DEG, preceding_move_deg
 from robocal.physics import gravity_torques
 from robocal.stats import rmse_of_squares
@@ -78,17 +78,17 @@ def bending(series: str, measurement) -> None:
     model, x, schemes = _diagnosed(series, measurement)
     data, keep = model.full_data, model.idx
     tau = gravity_torques(model.robot, data.q)
-    base = {n: nonlinear_cv(model, f) for n, f in schemes.items()}
-    print("diagnosis: " + ", ".join(f"{n} {reported_rmse(e):.4f}" for n, (e, _) in base.items()) + " mm")
+    base_cv, base_fits = cross_validate(model, schemes)
+    print("diagnosis: " + ", ".join(f"{n} {reported_rmse(e):.4f}" for n, e in base_cv.items()) + " mm")
     for joint, source in ((3, 2), (2, 3), (4, 3), (3, 4)):  # 1-based: joint turned, torque that turns it
         c = Candidate("joint_compliance", joint - 1, "joints", tau[:, source - 1 : source].copy(), detail={"source": source})
         trial = ExtendedProblem(model.base, model.causes + [c], data, keep)
         fit = fit_problem(trial, x0=trial.start_from(x, model))
         std = coefficient_std(trial, fit, c)
-        cv = {n: nonlinear_cv(trial, f, [(s, trial.start_from(xf, model)) for s, xf in base[n][1]])[0] for n, f in schemes.items()}
+        cv, _ = cross_validate(trial, schemes, base_fits, model)
         print(
             f"dq{joint} = c·tau{source}: c {trial.coefficients(fit.x, c)[0]:.3g} ± {np.nan if std is None else std[0]:.2g} rad/(N·m); "
-            + ", ".join(f"{n} {reported_rmse(base[n][0]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes)
+            + ", ".join(f"{n} {reported_rmse(base_cv[n]):.4f} -> {reported_rmse(cv[n]):.4f}" for n in schemes)
             + " mm",
             flush=True,
         )

@@ -31,7 +31,7 @@ from ..threads import thread_map
 from ..causes.candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
 from .conventions import EQUAL
-from .validation import fit_problem, nonlinear_cv
+from .validation import cross_validate, fit_problem
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -290,16 +290,13 @@ def map_stage(
                 if why is not None:
                     reason = f"implausible: {why}"
                     continue
-                refits = {
-                    name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()
-                }
-                new_cv = {name: err for name, (err, _) in refits.items()}
+                new_cv, new_fold_x = cross_validate(trial, schemes, fold_x, model)
                 lost = [name for name in schemes if judged_rmse(new_cv[name]) > (1.0 - min_gain) * judged_rmse(current_cv[name])]
                 if lost:
                     reason = f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"
                     continue
                 replaced = [o for o in model.causes if o not in causes]
-                chosen = (c, trial, trial_fit, new_cv, {name: xs for name, (_, xs) in refits.items()}, {**entry, "replaces": replaced}, physical)
+                chosen = (c, trial, trial_fit, new_cv, new_fold_x, {**entry, "replaces": replaced}, physical)
                 break
             if chosen is not None:
                 break
@@ -361,11 +358,10 @@ def merge_harmonics(model: ExtendedProblem, x: np.ndarray, schemes: dict, curren
             trial_fit = fit_problem(trial, x0=trial.start_from(x, model))
             if best.physical(trial.coefficients(trial_fit.x, best), None, robot, robot.params)[1] is not None:
                 continue
-            refits = {name: nonlinear_cv(trial, folds, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
-            new_cv = {name: err for name, (err, _) in refits.items()}
+            new_cv, new_fold_x = cross_validate(trial, schemes, fold_x, model)
             if all(judged_rmse(new_cv[name]) <= (1.0 + EQUAL) * judged_rmse(current_cv[name]) for name in schemes):
                 before = {name: reported_rmse(current_cv[name]) for name in schemes}
-                model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
+                model, x, current_cv, fold_x = trial, trial_fit.x, new_cv, new_fold_x
                 physical = best.physical(trial.coefficients(x, best), None, robot, robot.params)[0]
                 after = {name: reported_rmse(current_cv[name]) for name in schemes}
                 merged.append({"candidate": best, "replaces": harmonics, "params": physical, "rmse_heldout_before": before, "rmse_heldout_after": after})

@@ -75,7 +75,7 @@ from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported
 from .settling import after_long_moves
 from .screening import Screen
 from .uncertainty import uncertainty_entries
-from .validation import coefficient_std, fit_problem, fold_schemes, judgeable, nonlinear_cv
+from .validation import coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, same_folds
 from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
 from .wander import residual_correlation, time_inflation
 
@@ -362,7 +362,7 @@ def diagnose(
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
     mask = baseline_mask(rob, dataset.measurement, hayati)
-    dataset, effects, rejected = _structure(rob, dataset, mask, folds, seed, groups)
+    dataset, effects, rejected, geometric_cv = _structure(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
     settings = {
         "folds": folds,
@@ -373,6 +373,7 @@ def diagnose(
         "min_gain": min_gain,
         "hayati": hayati,
         "maps": maps,
+        "geometric_cv": geometric_cv,
     }
     diagnosis, revealed, decided = _select(rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), **settings)
     if len(revealed):
@@ -417,6 +418,7 @@ def _select(
     min_gain: float,
     hayati: bool,
     maps: bool,
+    geometric_cv: Optional[tuple] = None,
     revealed: Optional[np.ndarray] = None,
     replay: Optional[Decided] = None,
 ) -> tuple[Diagnosis, np.ndarray, Decided]:
@@ -448,7 +450,7 @@ def _select(
     final_fit, prior = physical_model(state)
     describe_causes(state)
     budget, leftover, z = final_residuals(state)
-    outliers, beyond_bound = name_outliers(state, z, revealed, folds=folds, seed=seed)
+    outliers, beyond_bound = name_outliers(state, z, revealed, folds=folds, seed=seed, geometric_cv=geometric_cv)
     if replay is not None:  # the earlier pass's other refusals, as that pass measured them
         decided_now = {e["label"] for e in state.rejected} | {e["label"] for e in state.effects}
         state.rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
@@ -543,9 +545,7 @@ def geometric_baseline(
     schemes = fold_schemes(dataset.q[keep], folds, seed, kept_order, None if groups is None else np.asarray(groups)[keep])
     ext = ExtendedProblem(base, [], dataset, keep)
     fit = fit_problem(ext, x0=x_outliers)
-    refits = {name: nonlinear_cv(ext, f) for name, f in schemes.items()}
-    cv = {name: err for name, (err, _) in refits.items()}
-    fold_x = {name: xs for name, (_, xs) in refits.items()}
+    cv, fold_x = cross_validate(ext, schemes)
     residual_test = residual_correlation(dataset, keep, ext.residuals(fit.x).reshape(len(keep), ext.k))
     baseline = Baseline(fit, cv, outliers, z_bound, residual_test)
     return Pass(rob, dataset, base, keep, schemes, min_gain, baseline, ext, fit.x, cv, fold_x, effects, rejected)
@@ -785,26 +785,33 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
             rejected.append(screening.refusal(item, physical, why))
             continue
         # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
-        refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, ext)) for setup, xf in state.fold_x[name]]) for name, f in schemes.items()}
-        new_cv = {name: err for name, (err, _) in refits.items()}
+        new_cv, new_fold_x = cross_validate(trial, schemes, state.fold_x, ext)
         on = judgeable(c, keep, schemes)
         lost = [name for name in schemes if not improves(c, name, state.cv[name][on[name]], new_cv[name][on[name]])]
         if lost:
             worse = ", ".join(f"{name} folds {judged_rmse(state.cv[name][on[name]]):.4g} -> {judged_rmse(new_cv[name][on[name]]):.4g} mm" for name in lost)
             rejected.append(screening.refusal(item, physical, f"no held-out gain after the nonlinear re-fit: {worse}"))
             continue
-        _take_cause(state, screening, c, p_value, gains, physical, trial, fit, refits)
+        _take_cause(state, screening, c, p_value, gains, physical, trial, fit, new_cv, new_fold_x)
         return c
     return None
 
 
 def _take_cause(
-    state: Pass, screening: Round, c: Candidate, p_value: float, gains: dict, physical, trial: ExtendedProblem, fit: CalibrationResult, refits: dict
+    state: Pass,
+    screening: Round,
+    c: Candidate,
+    p_value: float,
+    gains: dict,
+    physical,
+    trial: ExtendedProblem,
+    fit: CalibrationResult,
+    new_cv: dict,
+    new_fold_x: dict,
 ) -> None:
-    """The confirmed cause ``c`` taken: ``trial`` (the model with it, fitted by ``fit``, its fold
-    re-fits ``refits``) becomes the current model; its report entry and its plot (the residual
+    """The confirmed cause ``c`` taken: ``trial`` (the model with it, fitted by ``fit``, its held-out
+    errors ``new_cv`` and fold fits ``new_fold_x``) becomes the current model; its report entry and its plot (the residual
     it was found in, against its fitted signature) are written."""
-    new_cv = {name: err for name, (err, _) in refits.items()}
     signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - coefficient_reference(c, state.robot))
     state.plots[c.label] = {"residual": screening.residual, "signature": signature, "k": state.k}
     state.effects.append(
@@ -826,7 +833,7 @@ def _take_cause(
             },
         }
     )
-    state.model, state.x, state.cv, state.fold_x = trial, fit.x, new_cv, {name: xs for name, (_, xs) in refits.items()}
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, new_cv, new_fold_x
 
 
 def _refuse_best(state: Pass, screening: Round) -> None:
@@ -870,8 +877,7 @@ def try_curved_drift(state: Pass) -> None:
                 model.base, [curved if c is linear[0] else c for c in model.causes if not any(c is o for o in leave_out)], model.full_data, model.idx
             )
             fit = fit_problem(trial, x0=trial.start_from(x, model))
-            refits = {name: nonlinear_cv(trial, f, [(setup, trial.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-            cv = {name: err for name, (err, _) in refits.items()}
+            cv, trial_fold_x = cross_validate(trial, schemes, fold_x, model)
             after = judged_rmse(cv["random"])
             physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
             gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
@@ -879,10 +885,10 @@ def try_curved_drift(state: Pass) -> None:
             if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
                 key = (len(trial.causes), after)
                 if best is None or key < best[0]:
-                    best = (key, curved, trial, fit, refits, cv, physical, leave_out)
+                    best = (key, curved, trial, fit, trial_fold_x, cv, physical, leave_out)
     if best is None:
         return
-    _, curved, trial, fit, refits, cv, physical, left_out = best
+    _, curved, trial, fit, trial_fold_x, cv, physical, left_out = best
     shape = (
         f"a line and an exponential settling of time constant {curved.detail['settling']:g} of the session"
         if "settling" in curved.detail
@@ -905,7 +911,7 @@ def try_curved_drift(state: Pass) -> None:
             "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
         },
     }
-    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, {name: xs for name, (_, xs) in refits.items()}
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, trial_fold_x
     for c in left_out:
         state.retract(c, None, f"a curve of the drift ({curved.label}) explains it as well")
     replaced = next(e for e in state.effects if e["kind"] == "drift")  # in the linear drift's place, in the report too
@@ -936,20 +942,19 @@ def backward(state: Pass, droppable=lambda c: True) -> None:
             if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
                 continue
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
-            refits = {name: nonlinear_cv(rest, f, [(setup, rest.start_from(xf, full)) for setup, xf in fold_x[name]]) for name, f in schemes.items()}
-            cv = {name: err for name, (err, _) in refits.items()}
+            cv, rest_fold_x = cross_validate(rest, schemes, fold_x, full)
             without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
             on = judgeable(c, model.idx, schemes)
             earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]]) for name in schemes)
             earns = earns and without - with_it >= min_gain * without
             if not earns and (weakest is None or without < weakest[1]):
-                weakest = (c, without, rest, refits, with_it)
+                weakest = (c, without, rest, cv, rest_fold_x, with_it)
         if weakest is None:
             break
-        c, without, rest, refits, with_it = weakest
+        c, without, rest, rest_cv, rest_fold_x, with_it = weakest
         state.retract(c, None, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without")
         x = fit_problem(rest, x0=rest.start_from(x, full)).x
-        current_cv, fold_x = {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
+        current_cv, fold_x = rest_cv, rest_fold_x
         causes = list(rest.causes)
     state.model, state.x, state.cv, state.fold_x = state.problem(causes), x, current_cv, fold_x
 
@@ -1078,8 +1083,8 @@ def recheck_compliances(state: Pass) -> None:
         return
     kept = ExtendedProblem(model.base, [c for c in model.causes if all(c is not d for d, _, _ in dropped)], model.full_data, model.idx)
     x = fit_problem(kept, x0=kept.start_from(fit.x, model)).x
-    refits = {name: nonlinear_cv(kept, folds, [(setup, kept.start_from(xf, model)) for setup, xf in fold_x[name]]) for name, folds in schemes.items()}
-    state.model, state.x, state.cv, state.fold_x = kept, x, {name: err for name, (err, _) in refits.items()}, {name: xs for name, (_, xs) in refits.items()}
+    state.model, state.x = kept, x
+    state.cv, state.fold_x = cross_validate(kept, schemes, fold_x, model)
     for c, physical, why in dropped:
         state.retract(c, physical, f"dropped once the causes found after it were in: {why}")
 
@@ -1146,7 +1151,8 @@ def physical_model(state: Pass) -> tuple[CalibrationResult, Optional[dict]]:
 
     def checks():
         for name, folds in schemes.items():  # random, blocked, then groups
-            cv[name], fits[name] = nonlinear_cv(physical, folds, fold_x[name])  # each fold from its own unconstrained fit
+            errors, fold_fits = cross_validate(physical, {name: folds}, fold_x, model)  # each fold from its own unconstrained fit
+            cv[name], fits[name] = errors[name], fold_fits[name]
             yield f"rmse_heldout_{name}", f"{name}-fold held-out", current_cv[name], cv[name]
 
     entry = judge_tolerance_prior(checks(), model.data.measurement)
@@ -1191,11 +1197,15 @@ def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
     return budget, leftover, r / robust_sigma(r[keep])
 
 
-def name_outliers(state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def name_outliers(
+    state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int, geometric_cv: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
     robust sigmas, :func:`final_residuals`), and their report entry put first among the effects
-    (``revealed``: those an earlier pass's final model named). Returns the outliers, and the kept
-    samples the final model puts beyond the bound on their own (:func:`_isolated`)."""
+    (``revealed``: those an earlier pass's final model named). The geometric model's held-out
+    error with them is ``geometric_cv``'s (:func:`_structure`'s) where its folds are the same.
+    Returns the outliers, and the kept samples the final model puts beyond the bound on their
+    own (:func:`_isolated`)."""
     dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and state.model.causes:
@@ -1203,8 +1213,12 @@ def name_outliers(state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: in
         # bent the residuals is not an outlier.
         outliers = outliers[beyond[outliers]]
     if len(outliers):
-        everyone = ExtendedProblem(state.base, [], dataset, np.arange(len(dataset)))
-        before, _ = nonlinear_cv(everyone, kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q)))
+        random = kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q))
+        if geometric_cv is not None and same_folds(geometric_cv[0]["random"], random):
+            before = geometric_cv[1]["random"]
+        else:
+            everyone = ExtendedProblem(state.base, [], dataset, np.arange(len(dataset)))
+            before = cross_validate(everyone, {"random": random})[0]["random"]
         outliers_entry = {
             "kind": "outliers",
             "joint": None,
@@ -1302,10 +1316,12 @@ def _explained(before: float, after: float, floor: float) -> Optional[float]:
     return None if room <= 0 else float((before**2 - after**2) / room)
 
 
-def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list]:
+def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list, Optional[tuple]]:
     """The joint-reading conventions (:mod:`robocal.causes.structure`) that make an implausible geometric fit
-    plausible: the data with them applied, their report entries and the alternatives rejected.
-    Searched only when the geometric fit of the data as read is implausible."""
+    plausible: the data with them applied, their report entries, the alternatives rejected and,
+    if the search cross-validated it, the geometric model of the data returned as ``(fold
+    schemes, held-out errors)`` over all its samples. Searched only when the geometric fit of the
+    data as read is implausible."""
 
     def geometric(d: Dataset, max_nfev=None):
         return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
@@ -1317,14 +1333,17 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
     order = acquisition_order(data)
     schemes = fold_schemes(data.q, folds, seed, order, groups)
 
-    def cross_validate(d: Dataset) -> dict:
+    errors_of = {}  # each data set cross-validated (by its joint readings): its held-out errors
+
+    def heldout(d: Dataset) -> dict:
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
-        return {name: reported_rmse(nonlinear_cv(ext, f)[0]) for name, f in schemes.items()}
+        errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
+        return {name: reported_rmse(err) for name, err in errors_of[d.q.tobytes()].items()}
 
     as_read = geometric(data)
     bad = as_read.implausible()
     if not bad:
-        return data, [], []
+        return data, [], [], None
     baseline = conventions.Trial([], as_read.metrics["train"]["rmse"], len(bad))
     setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
 
@@ -1332,10 +1351,10 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
         return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=conventions.SCREEN_NFEV // 2).metrics["train"]["rmse"]
 
     combined = conventions.screen_combinations(data, setup_rmse, seed)
-    accepted, effects, rejected = conventions.search(
-        data, fit, cross_validate, baseline, seed, extra=conventions.zero_errors(bad) + combined, setup_rmse=setup_rmse
-    )
-    return structure.apply_all(data, accepted), effects, rejected
+    accepted, effects, rejected = conventions.search(data, fit, heldout, baseline, seed, extra=conventions.zero_errors(bad) + combined, setup_rmse=setup_rmse)
+    final = structure.apply_all(data, accepted)
+    errors = errors_of.get(final.q.tobytes())
+    return final, effects, rejected, None if errors is None else (schemes, errors)
 
 
 #: A cause with a physical model of how it carries is tried before the best free joint shape

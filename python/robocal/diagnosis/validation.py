@@ -39,6 +39,11 @@ def fold_schemes(q: np.ndarray, k: int, seed: int, order: np.ndarray, groups) ->
     return schemes
 
 
+def same_folds(a: list, b: list) -> bool:
+    """Whether two fold lists (``(train, test)`` pairs) hold the same samples in the same folds."""
+    return len(a) == len(b) and all(np.array_equal(ta, tb) and np.array_equal(sa, sb) for (ta, sa), (tb, sb) in zip(a, b))
+
+
 #: Starting damping of a fit from a warm start (another model's or fold's fit): Gauss-Newton.
 #: A model with joint maps has directions the data barely determine (scaled curvature 1e-7 and
 #: less): a damping above that moves along them a fraction of the way a step, and λ falls by 3
@@ -88,26 +93,34 @@ def _pinned(step: Candidate) -> Candidate:
     return replace(step, penalty=PINNED * np.eye(step.basis.shape[2]))
 
 
-def nonlinear_cv(ext: ExtendedProblem, folds: list, starts: Optional[list] = None) -> tuple[np.ndarray, list]:
-    """Held-out :func:`~robocal.causes.problem.squared_errors` per sample of ``ext`` re-fitted (nonlinear) on
-    each fold, (m, 2), and per fold its ``(set-up start, fit)``. ``starts[i]`` is such a pair
-    for the same fold of a smaller model (its fit laid out for ``ext``): the set-up is reused
-    and the fit is the start. Without it each fold starts from its own training samples'
-    set-up: never from a fit that saw its held-out samples. The folds are fitted in parallel
-    (:func:`~robocal.threads.thread_map`)."""
+def cross_validate(ext: ExtendedProblem, schemes: dict, fold_x: Optional[dict] = None, fitted: Optional[ExtendedProblem] = None) -> tuple[dict, dict]:
+    """Held-out :func:`~robocal.causes.problem.squared_errors` per sample of ``ext`` re-fitted
+    (nonlinear) on each fold of each fold scheme, ``{scheme: (m, 2)}``, and per scheme its
+    folds' ``(set-up start, fit)``. ``fold_x`` holds such pairs of the same folds for the model
+    ``fitted`` (default ``ext``; its fits laid out for ``ext``: :meth:`ExtendedProblem.start_from`):
+    each fold reuses its set-up and starts from its fit. Without them each fold starts from its
+    own training samples' set-up: never from a fit that saw its held-out samples. Every fold of
+    every scheme is one job for :func:`~robocal.threads.thread_map` (a whole nonlinear fit a
+    fold: worth a thread at any size), so that short folds fill the time of long ones."""
+    fitted = ext if fitted is None else fitted
+    jobs = [(name, i) for name, folds in schemes.items() for i in range(len(folds))]
 
-    def fit_fold(i: int) -> tuple:
-        train, test = folds[i]
-        setup, x0 = (None, None) if starts is None else starts[i]
+    def fit_fold(job: tuple) -> tuple:
+        name, i = job
+        train, test = schemes[name][i]
+        setup, x0 = (None, None) if fold_x is None else (fold_x[name][i][0], ext.start_from(fold_x[name][i][1], fitted))
         fold = fold_problem(ext, train, setup)
         fit = fit_problem(fold, x0=x0, with_std=False)
         return held_out_errors(ext, fold, train, test, fit.x), (fold.base.start, fit.x)
 
-    err = np.zeros((len(ext.idx), 2))
-    fitted = thread_map(fit_fold, range(len(folds)))  # a whole nonlinear fit a fold: worth a thread at any size
-    for (_, test), (held_out, _) in zip(folds, fitted):
-        err[test] = held_out
-    return err, [fit for _, fit in fitted]
+    fitted_folds = dict(zip(jobs, thread_map(fit_fold, jobs)))
+    cv, fits = {}, {}
+    for name, folds in schemes.items():
+        cv[name] = np.zeros((len(ext.idx), 2))
+        for i, (_, test) in enumerate(folds):
+            cv[name][test] = fitted_folds[name, i][0]
+        fits[name] = [fitted_folds[name, i][1] for i in range(len(folds))]
+    return cv, fits
 
 
 def held_out_errors(ext: ExtendedProblem, fold: ExtendedProblem, train: np.ndarray, test: np.ndarray, x: np.ndarray) -> np.ndarray:
