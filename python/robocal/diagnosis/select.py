@@ -373,16 +373,17 @@ def diagnose(
         "min_gain": min_gain,
         "hayati": hayati,
         "maps": maps,
-        "geometric_cv": geometric_cv,
     }
-    diagnosis, revealed, decided = _select(rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), **settings)
+    diagnosis, revealed, decided = _select(
+        rob, dataset, base, [dict(e) for e in effects], list(rejected), np.zeros(0, dtype=int), geometric_cv=geometric_cv, **settings
+    )
     if len(revealed):
         # Gross errors the geometric baseline's large residuals hid, beyond the bound only once
         # the causes are in: named, and the causes found confirmed again without them (the
         # search is not repeated), so that every held-out figure (baseline included) is over
         # the same samples.
         known = np.union1d(diagnosis.outliers, revealed)
-        diagnosis, _, _ = _select(rob, dataset, base, effects, rejected, known, revealed=revealed, replay=decided, **settings)
+        diagnosis, _, _ = _select(rob, dataset, base, effects, rejected, known, geometric_cv=geometric_cv, revealed=revealed, replay=decided, **settings)
     diagnosis.time_s = time.perf_counter() - t0
     return diagnosis
 
@@ -1337,8 +1338,8 @@ def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: 
 
     def heldout(d: Dataset) -> dict:
         ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
-        errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
-        return {name: reported_rmse(err) for name, err in errors_of[d.q.tobytes()].items()}
+        errors = errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
+        return {name: reported_rmse(err) for name, err in errors.items()}
 
     as_read = geometric(data)
     bad = as_read.implausible()
