@@ -75,6 +75,53 @@ def test_a_drift_that_bends_is_one_drift_and_no_steps():
     assert refused
 
 
+@pytest.mark.parametrize(
+    "robot, measurement, spec, seed",
+    [
+        ("hsr-jr680", "position", "drift:exponent=1,axis=z,rate=0.430508", 101062),
+        ("hsr-jr680", "pose", "wander:length=9.3,axis=x,rms=0.0187147", 101095),
+    ],
+)
+def test_a_step_must_beat_a_ramp_from_its_sample(robot, measurement, spec, seed):
+    """A linear drift and a wander, each below twice its detection limit (discovery benchmark,
+    seed 101, files 312 and 142): each left a significant level change that was named a step,
+    although a ramp from the same sample predicted the held-out samples as well (within 0.5
+    standard errors). A jump is shown only when the step beats the ramp, sample by sample."""
+    report = named(robot, measurement, [spec], seed=seed)
+    assert ("step", None) not in kinds(report)
+    refused = [r for r in report["rejected"] if r["kind"] == "step" and "no jump shown" in r["reason"] and "standard errors" in r["reason"]]
+    assert refused
+
+
+def test_a_drift_is_judged_before_a_wander_that_gains_not_twice_as_much():
+    """A drift that bends (∝ t^0.64) and a 0.1 mm step of the cable zero, each about twice its
+    detection limit (discovery benchmark, seed 27, file 48): the residual test does not say the
+    residuals wander, and a wander — gaining most in the screening — was named alone. The drift
+    gains more than half of what the wander does: tried first, it is named, and the step with it."""
+    report = named("hsr-jr680", "cable", ["drift:exponent=0.636,rate=1.65136", "step:sample=115,size=0.0958032"], seed=27048)
+    assert kinds(report) == [("drift", None), ("step", None)]
+    (step,) = [e for e in report["effects"] if e["kind"] == "step"]
+    assert abs(step["params"]["sample"]["value"] - 115) <= 2
+
+
+@pytest.mark.parametrize(
+    "robot, measurement, specs, seed, expected",
+    [
+        ("ur10", "pose", ["backlash:joint=5,width=-0.00606357", "wander:length=7.8,axis=z,rms=0.0109979"], 101363, {("backlash", 5), ("wander", None)}),
+        ("hsr-jr680", "cable", ["backlash:joint=1,width=-0.0182408", "joint_scale:joint=3,scale=0.00033882"], 101036, {("backlash", 1), ("joint_scale", 3)}),
+        ("hsr-jr680", "position", ["step:sample=108,axis=z,size=0.0622541", "wander:length=5.2,rms=0.0144802"], 102072, {("step", None), ("wander", None)}),
+    ],
+)
+def test_a_cause_whose_held_out_gain_is_not_significant_is_not_named(robot, measurement, specs, seed, expected):
+    """Beside a true cause, a coupling or a harmonic that is significant in the fit gains held
+    out 1-2 standard errors of the per-sample errors (discovery benchmark, seeds 101 and 102):
+    refused, with its numbers, instead of named. What is named is real."""
+    report = named(robot, measurement, specs, seed=seed)
+    assert kinds(report) and set(kinds(report)) <= expected
+    weak = [r for r in report["rejected"] if r["reason"].startswith("held-out gain not significant")]
+    assert weak and "standard errors" in weak[0]["reason"]
+
+
 @pytest.mark.parametrize("seed", [3, 7])
 @pytest.mark.parametrize("robot, measurement, joint, harmonic", [("ur10", "position", 3, 5), ("hsr-jr680", "cable", 2, 6)])
 def test_a_harmonic_beyond_the_library_is_one_cause_of_its_joint(robot, measurement, joint, harmonic, seed):

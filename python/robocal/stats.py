@@ -42,3 +42,13 @@ def rmse_of_squares(squared_errors) -> float:
     """RMSE of eq. (28) from per-sample squared errors (the per-sample error is the cable
     residual, or the Euclidean norm of the position and rotation residual)."""
     return float(np.sqrt(np.mean(squared_errors)))
+
+
+def paired_z(alternative: np.ndarray, candidate: np.ndarray) -> float:
+    """By how many standard errors ``candidate``'s squared errors per sample are below
+    ``alternative``'s (a paired z score of the per-sample differences); 0 with fewer than two
+    samples."""
+    d = np.asarray(alternative, dtype=float) - np.asarray(candidate, dtype=float)
+    if len(d) < 2:
+        return 0.0
+    return float(np.mean(d) / max(float(np.std(d)) / np.sqrt(len(d)), 1e-300))

@@ -31,7 +31,7 @@ from ..threads import thread_map
 from ..causes.candidates import MAX_HARMONIC, covered_when_fitted_on, map_candidates, map_noise, periodic_candidate
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
 from .conventions import EQUAL
-from .validation import cross_validate, fit_problem
+from .validation import cross_validate, fit_problem, weak_gain
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -295,7 +295,13 @@ def map_stage(
                 if lost:
                     reason = f"no held-out gain after the nonlinear re-fit ({', '.join(lost)} folds)"
                     continue
+                # A map in place of its joint's harmonics is judged against them (they earned
+                # their significance when they were taken); one beside the model's causes must
+                # gain significantly.
                 replaced = [o for o in model.causes if o not in causes]
+                reason = None if replaced else weak_gain(current_cv["random"], new_cv["random"])
+                if reason:
+                    continue
                 chosen = (c, trial, trial_fit, new_cv, new_fold_x, {**entry, "replaces": replaced}, physical)
                 break
             if chosen is not None:
