@@ -13,7 +13,6 @@ from dataclasses import replace
 from typing import Optional
 
 import numpy as np
-
 from scipy.stats import norm
 
 from ..calibration.lm import levenberg_marquardt
@@ -186,15 +185,16 @@ def judgeable(c: Candidate, idx: np.ndarray, schemes: dict) -> dict:
 #: benches/discovery.py, 681 named causes) 33 of the 69 causes named where none was hidden
 #: gained less, and 32 of 612 true ones, one of them at three times its detection limit.
 GAIN_LEVEL = 0.01
+GAIN_Z = float(norm.isf(GAIN_LEVEL))
 
 
 def weak_gain(before: np.ndarray, after: np.ndarray) -> Optional[str]:
     """Why the held-out squared errors (n, 2) ``after`` adding a cause are no significant gain
     over ``before`` (:data:`GAIN_LEVEL`), or None if they are."""
-    z, bound = paired_z(before.sum(axis=1), after.sum(axis=1)), float(norm.isf(GAIN_LEVEL))
-    if z >= bound:
+    z = paired_z(before.sum(axis=1), after.sum(axis=1))
+    if z >= GAIN_Z:
         return None
     return (
         f"held-out gain not significant: the random folds' errors per sample fall by {z:.2f} standard errors "
-        f"({judged_rmse(before):.4g} -> {judged_rmse(after):.4g} mm), below {bound:.2f} (one-sided {GAIN_LEVEL:g})"
+        f"({judged_rmse(before):.4g} -> {judged_rmse(after):.4g} mm), below {GAIN_Z:.2f} (one-sided {GAIN_LEVEL:g})"
     )
