@@ -75,7 +75,7 @@ from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported
 from .settling import after_long_moves
 from .screening import Screen
 from .uncertainty import uncertainty_entries
-from .validation import coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, same_folds, weak_gain
+from .validation import GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, same_folds, weak_gain
 from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
 from .wander import residual_correlation, time_inflation
 
@@ -211,6 +211,21 @@ def improves(c: Candidate, scheme: str, before: np.ndarray, after: np.ndarray) -
     if within_session(c) and scheme != "random":
         return a <= (1.0 + SESSION_TERM_COST) * b
     return a < b
+
+
+def held_out_refusal(c: Candidate, schemes: dict, idx: np.ndarray, before: dict, after: dict) -> Optional[str]:
+    """Why ``c`` is no held-out gain of the model with it over the model without it (``after``,
+    ``before``: held-out squared errors per fold scheme, nonlinear re-fits), or None if it is:
+    a gain on every scheme (:func:`improves`) that is significant on the random folds
+    (:func:`~.validation.weak_gain`), on the samples that can judge it (:func:`judgeable`). The
+    one test a cause passes to enter the model (:func:`confirm`) and to stay in it
+    (:func:`backward`)."""
+    on = judgeable(c, idx, schemes)
+    lost = [name for name in schemes if not improves(c, name, before[name][on[name]], after[name][on[name]])]
+    if lost:
+        worse = ", ".join(f"{name} folds {judged_rmse(before[name][on[name]]):.4g} -> {judged_rmse(after[name][on[name]]):.4g} mm" for name in lost)
+        return f"no held-out gain after the nonlinear re-fit: {worse}"
+    return weak_gain(before["random"][on["random"]], after["random"][on["random"]])
 
 
 #: Significant joint candidates given a nonlinear fit per round, in order of screening gain. On
@@ -819,15 +834,9 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
             continue
         # The screening is linear; the gain must survive the nonlinear re-fit on every scheme.
         new_cv, new_fold_x = cross_validate(trial, schemes, state.fold_x, ext)
-        on = judgeable(c, keep, schemes)
-        lost = [name for name in schemes if not improves(c, name, state.cv[name][on[name]], new_cv[name][on[name]])]
-        if lost:
-            worse = ", ".join(f"{name} folds {judged_rmse(state.cv[name][on[name]]):.4g} -> {judged_rmse(new_cv[name][on[name]]):.4g} mm" for name in lost)
-            rejected.append(screening.refusal(item, physical, f"no held-out gain after the nonlinear re-fit: {worse}"))
-            continue
-        weak = weak_gain(state.cv["random"][on["random"]], new_cv["random"][on["random"]])
-        if weak:
-            rejected.append(screening.refusal(item, physical, weak))
+        refusal = held_out_refusal(c, schemes, keep, state.cv, new_cv)
+        if refusal:
+            rejected.append(screening.refusal(item, physical, refusal))
             continue
         _take_cause(state, screening, c, p_value, gains, physical, trial, fit, new_cv, new_fold_x)
         return c
@@ -965,11 +974,12 @@ def backward(state: Pass, droppable=lambda c: True) -> None:
     whose model is slightly off (a compliance on masses that are not the mass model's, a drift
     that is not linear), or of a cause found later, are taken by small causes that the later
     model no longer needs. Each cause is left out in turn and the model re-fitted (nonlinear,
-    on every fold scheme, from the fold fits of the full model); a cause whose removal costs
-    less than the forward test asks of a new one (a held-out gain on every scheme, at least
-    ``min_gain`` of the RMSE on the random folds) is dropped, the cheapest first, until every
-    cause earns its place (only the ``droppable`` ones are judged). The causes dropped are
-    retracted from the report. Run again after the maps (:func:`joint_maps`)."""
+    on every fold scheme, from the fold fits of the full model); a cause that fails the test of
+    a new one against the model without it (:func:`held_out_refusal`: a significant held-out
+    gain on every scheme; and at least ``min_gain`` of the RMSE on the random folds) is
+    dropped, the cheapest first, until every cause earns its place (only the ``droppable``
+    ones are judged). The causes dropped are retracted from the report. Run again after the
+    maps (:func:`joint_maps`)."""
     model, x, schemes, current_cv, fold_x, min_gain = state.model, state.x, state.schemes, state.cv, state.fold_x, state.min_gain
     causes = list(model.causes)
     while len(causes) >= 2:
@@ -981,15 +991,17 @@ def backward(state: Pass, droppable=lambda c: True) -> None:
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
             cv, rest_fold_x = cross_validate(rest, schemes, fold_x, full)
             without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
-            on = judgeable(c, model.idx, schemes)
-            earns = all(improves(c, name, cv[name][on[name]], current_cv[name][on[name]]) for name in schemes)
-            earns = earns and without - with_it >= min_gain * without
-            if not earns and (weakest is None or without < weakest[1]):
-                weakest = (c, without, rest, cv, rest_fold_x, with_it)
+            refusal = held_out_refusal(c, schemes, model.idx, cv, current_cv)
+            if refusal is None and without - with_it < min_gain * without:
+                refusal = f"held-out gain below {min_gain:.1%} of the RMSE"
+            if refusal and (weakest is None or without < weakest[1]):
+                weakest = (c, without, rest, cv, rest_fold_x, with_it, refusal)
         if weakest is None:
             break
-        c, without, rest, rest_cv, rest_fold_x, with_it = weakest
-        state.retract(c, None, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without")
+        c, without, rest, rest_cv, rest_fold_x, with_it, refusal = weakest
+        state.retract(
+            c, None, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without ({refusal})"
+        )
         x = fit_problem(rest, x0=rest.start_from(x, full)).x
         current_cv, fold_x = rest_cv, rest_fold_x
         causes = list(rest.causes)
@@ -1014,8 +1026,10 @@ def _linearised(full: ExtendedProblem, x: np.ndarray) -> Optional[tuple]:
 def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candidate, schemes: dict, min_gain: float) -> bool:
     """Whether ``c`` earns its place in ``full`` by a wide margin already in the model
     linearised at ``x`` (``linear``: :func:`_linearised`; the screening's cross-validation of its
-    columns against the rest, its coefficients set to zero in the residual): the backward check
-    then needs no nonlinear re-fits for it. Only for a cause with columns of its own."""
+    columns against the rest, its coefficients set to zero in the residual): a gain on every
+    scheme of :data:`CLEAR_MARGIN` times what the forward test asks, significant as that asks
+    (:data:`~.validation.GAIN_Z`). The backward check then needs no nonlinear re-fits for it.
+    Only for a cause with columns of its own."""
     if c.stage == "parameters":
         return False
     J, r = linear
@@ -1026,7 +1040,8 @@ def _clearly_earns(full: ExtendedProblem, linear: tuple, x: np.ndarray, c: Candi
     base, errs = screen.errors(np.zeros((len(r), 0))), screen.errors(C, c.penalty)
     on = judgeable(c, full.idx, schemes)
     gains = {name: rmse_of_squares(base[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
-    return gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
+    clear = gains_everywhere(c, gains) and gains["random"] >= CLEAR_MARGIN * min_gain * rmse_of_squares(base["random"])
+    return clear and paired_z(base["random"][on["random"]], errs["random"][on["random"]]) >= GAIN_Z
 
 
 def joint_maps(state: Pass, alpha: float, replay: Optional[Decided]) -> tuple[list, list]:
