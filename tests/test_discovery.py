@@ -122,6 +122,18 @@ def test_a_cause_whose_held_out_gain_is_not_significant_is_not_named(robot, meas
     assert weak and "standard errors" in weak[0]["reason"]
 
 
+def test_a_drift_waits_for_a_wander_only_not_for_a_temperature_that_gains_more():
+    """A drift gaining half a wander's screening gain is tried before the wander — and only
+    before it: a temperature of the links gaining 40 % more than the drift keeps its place.
+    Tried after the drift, it was taken by the drift and a wander, and the step beside it was
+    missed (discovery benchmark, seed 30, file 33)."""
+    effects = ["step:sample=103,axis=z,size=0.150872", "temperature:target=links,tau=828,alpha=23,rise=28.7306"]
+    report = named("hsr-jr680", "position", effects, seed=30071)
+    assert kinds(report) == [("step", None), ("temperature", None)]
+    (step,) = [e for e in report["effects"] if e["kind"] == "step"]
+    assert abs(step["params"]["sample"]["value"] - 103) <= 3
+
+
 def test_a_cause_the_later_ones_make_insignificant_is_retracted_with_its_z_score():
     """The backward check asks of a cause in the model what the forward test asked of it: a
     significant held-out gain over the model without it. A drift taken early, beside a
