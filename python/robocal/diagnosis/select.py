@@ -783,10 +783,9 @@ def confirmation_order(scored: list, significant, inflation: float, established:
     # Only the wanders wait for the simpler sensor terms: a candidate that gains more than a
     # drift keeps its place before it (a temperature that gained 40 % more than a drift was tried
     # after it, and the drift took its place: seed 30 of benches/discovery.py, file 33).
-    promoted = [s for s in scored if simpler_than_wander(s)]
-    if not promoted:
+    last = max((i for i, s in enumerate(scored) if simpler_than_wander(s)), default=None)
+    if last is None:
         return scored
-    last = max(scored.index(s) for s in promoted)
     deferred = [s for s in scored[:last] if s[1].kind in TIME_TERMS]
     ahead = [s for s in scored[:last] if s[1].kind not in TIME_TERMS] + [scored[last]]
     return ahead + deferred + scored[last + 1 :]
