@@ -991,21 +991,21 @@ def backward(state: Pass, droppable=lambda c: True) -> None:
     causes = list(model.causes)
     while len(causes) >= 2:
         full = ExtendedProblem(model.base, causes, model.full_data, model.idx)
-        weakest, linear = None, _linearised(full, x)
+        weakest, linear, with_it = None, _linearised(full, x), judged_rmse(current_cv["random"])
         for c in filter(droppable, causes):
             if linear is not None and _clearly_earns(full, linear, x, c, schemes, min_gain):
                 continue
             rest = ExtendedProblem(model.base, [o for o in causes if o is not c], model.full_data, model.idx)
             cv, rest_fold_x = cross_validate(rest, schemes, fold_x, full)
-            without, with_it = judged_rmse(cv["random"]), judged_rmse(current_cv["random"])
+            without = judged_rmse(cv["random"])
             refusal = held_out_refusal(c, schemes, model.idx, cv, current_cv)
             if refusal is None and without - with_it < min_gain * without:
                 refusal = f"held-out gain below {min_gain:.1%} of the RMSE"
             if refusal and (weakest is None or without < weakest[1]):
-                weakest = (c, without, rest, cv, rest_fold_x, with_it, refusal)
+                weakest = (c, without, rest, cv, rest_fold_x, refusal)
         if weakest is None:
             break
-        c, without, rest, rest_cv, rest_fold_x, with_it, refusal = weakest
+        c, without, rest, rest_cv, rest_fold_x, refusal = weakest
         state.retract(
             c, None, f"no longer earns its place once the causes found after it are in: held-out RMSE {with_it:.4g} with it, {without:.4g} without ({refusal})"
         )
