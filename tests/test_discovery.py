@@ -93,6 +93,18 @@ def test_a_step_must_beat_a_ramp_from_its_sample(robot, measurement, spec, seed)
     assert refused
 
 
+def test_a_step_must_beat_the_arcs_of_a_wandering_reading_the_residual_test_did_not_measure():
+    """A cable zero that wanders slowly (correlation length 19 samples, 1.6 times its detection
+    limit) without a correlation the residual test measures: no wander is offered, and the
+    change-point search cut one of its arcs into a step that beat its ramps (discovery
+    benchmark, seed 30, file 23). A smooth wander of the acquisition order predicts the held-out
+    samples as well: no jump shown, and nothing named."""
+    report = named("abb-irb120", "cable", ["wander:length=19.2,rms=0.048378"], seed=30137)
+    assert kinds(report) == []
+    steps = [r for r in report["rejected"] if r["kind"] == "step" and "wandering reading" in r["reason"]]
+    assert steps and "no jump shown" in steps[0]["reason"]
+
+
 def test_a_drift_is_judged_before_a_wander_that_gains_not_twice_as_much():
     """A drift that bends (∝ t^0.64) and a 0.1 mm step of the cable zero, each about twice its
     detection limit (discovery benchmark, seed 27, file 48): the residual test does not say the

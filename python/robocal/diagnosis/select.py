@@ -196,6 +196,11 @@ SENSOR_TERM_SHARE = 0.5
 JUMP_Z = float(norm.isf(0.025))
 
 
+#: Knot spacings (samples) of the wanders a step must also beat where the round offers none (the
+#: residual test measured no correlation length): a sensor's zero that wanders over 5-20
+#: samples leaves arcs that a change-point search cuts into steps.
+ARC_SPACINGS = (4.0, 8.0, 16.0)
+
 #: Knot spacings of the wander candidates, in correlation lengths of the residuals.
 WANDER_SPACINGS = (0.5, 1.0, 2.0)
 #: ... and roughness penalties, in multiples of :data:`~robocal.causes.wander.ROUGHNESS`.
@@ -701,6 +706,13 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
         curves = [drift_candidate(state.dataset, CURVED_DRIFT_DEGREE)] + [drift_candidate(state.dataset, settling=tau) for tau in SETTLING_TIMES]
     curve_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]
+    if steps and not any(c.kind == "wander" for c in pool + ext.causes):
+        # No wander offered (the residual test measured no correlation length): where no wander can
+        # be named, the arcs of a wandering reading must not be taken for a jump. (Where wanders
+        # are offered they compete as candidates: as arcs here, a 5x step lost to the wander that
+        # follows it over the random folds, seed 30 of benches/discovery.py, file 48.)
+        arcs = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
+        curve_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + curve_errs
@@ -818,7 +830,7 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
             if gradual_level:
                 why = f"the round's largest level change ({gradual_level}) is gradual: no jump shown"
             else:
-                gradual = "a gradual change (a ramp from the same sample, or a curve of the model's drift)"
+                gradual = "a gradual change (a ramp from the same sample, a curve of the model's drift, or a wandering reading)"
                 why = (
                     f"{gradual} gains {screening.gradual[c.label]:.3g} mm on the random folds against the step's {item[0]:.3g} mm; "
                     f"the step's held-out errors beat it by {screening.jump_z[c.label]:.2f} standard errors, below {JUMP_Z:.2f}: no jump shown"
