@@ -631,7 +631,8 @@ class Round:
     min_gain: float
     max_effects: int
     #: Per step (label): the largest random-fold gain of a gradual change: its ramps
-    #: (:func:`~.change_points.ramps`) and the curves of the model's linear drift.
+    #: (:func:`~.change_points.ramps`), the curves of the model's linear drift and, where no
+    #: wander is offered, the arcs of a wandering reading (:data:`ARC_SPACINGS`).
     gradual: dict = field(default_factory=dict)
     #: Per step (label): by how many standard errors the step's held-out errors on the random
     #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
@@ -705,17 +706,19 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     curves = []
     if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
         curves = [drift_candidate(state.dataset, CURVED_DRIFT_DEGREE)] + [drift_candidate(state.dataset, settling=tau) for tau in SETTLING_TIMES]
-    curve_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]
+    shared_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]  # every step's alternatives
     if steps and not any(c.kind == "wander" for c in pool + ext.causes):
         # No wander offered (the residual test measured no correlation length): where no wander can
         # be named, the arcs of a wandering reading must not be taken for a jump. (Where wanders
         # are offered they compete as candidates: as arcs here, a 5x step lost to the wander that
         # follows it over the random folds, seed 30 of benches/discovery.py, file 48.)
-        arcs = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
-        curve_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
+        arcs = {
+            arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)
+        }.values()  # a long session widens them alike
+        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
-        errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + curve_errs
+        errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs
         best = min(errs, key=lambda e: float(np.mean(e[on])))  # the gradual change that gains most
         screening.gradual[c.label] = rmse_of_squares(model_err["random"][on]) - rmse_of_squares(best[on])
         # Not scaled for residuals alike in time: the differences gather where the two models
