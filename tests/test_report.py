@@ -257,3 +257,15 @@ def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
     }
     report(path, tmp_path / "out", diagnosis=diagnosis)
     assert outside == []
+
+
+def test_the_shapes_a_joint_error_could_not_be_told_from_are_words_and_hand_edits_are_left_out():
+    """A cause's ``undetermined_between`` is shown beside it, on the command line and the page;
+    what a hand-edited file puts there other than a list of labels is not echoed."""
+    from robocal.report.text import alike_words
+
+    assert alike_words({"undetermined_between": ["joint_scale joint 6", "joint_periodic joint 6 harmonic=2"]}) == (
+        "; the data cannot tell it from joint_scale joint 6, joint_periodic joint 6 harmonic=2"
+    )
+    for edited in (None, {}, {"undetermined_between": []}, {"undetermined_between": "joint_scale"}, {"undetermined_between": [1, 2]}, "x"):
+        assert alike_words(edited) == ""

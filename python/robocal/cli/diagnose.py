@@ -15,7 +15,7 @@ from ..diagnosis.leftover import leftover_words
 from ..diagnosis_file import Effect, Figures, Quantity, load_diagnosis
 from ..outputs import make_folder, printable, save_figure, write_text
 from ..report.figures import diagnosis_figure, map_figure
-from ..report.text import correlation_words, map_tables, settling_words
+from ..report.text import alike_words, correlation_words, map_tables, settling_words
 from .arguments import add_data_arguments
 
 
@@ -49,7 +49,7 @@ def summary(report) -> str:
     for e in report.effects:
         where = f" joint {e.joint}" if e.joint is not None else ""
         lines.append(
-            f"  + {e.kind}{where}: {_quantities(e.params)}{correlation_words(e.correlation)}{settling_words(e.after_long_moves)}; "
+            f"  + {e.kind}{where}: {_quantities(e.params)}{correlation_words(e.correlation)}{alike_words(e.significance)}{settling_words(e.after_long_moves)}; "
             f"held-out RMSE {e.rmse_heldout_before:.4f} -> {e.rmse_heldout_after:.4f} mm"
             + (f" ({e.share_of_explained:.0%} of what the causes explain)" if e.share_of_explained is not None else "")
         )

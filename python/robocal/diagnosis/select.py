@@ -430,6 +430,9 @@ class Decided:
     map_tests: int
     rejected: list
     unexplained: list
+    #: Per cause taken (label): the shapes of its joint's reading error the data could not tell
+    #: from it (:func:`alike_shapes`), which a replay does not screen again.
+    alike: dict = field(default_factory=dict)
 
 
 def _select(
@@ -481,7 +484,10 @@ def _select(
     describe_causes(state)
     budget, leftover, z = final_residuals(state)
     outliers, beyond_bound = name_outliers(state, z, revealed, folds=folds, seed=seed, geometric_cv=geometric_cv)
-    if replay is not None:  # the earlier pass's other refusals, as that pass measured them
+    if replay is not None:  # the earlier pass's other refusals and alike shapes, as that pass measured them
+        for e in state.effects:
+            if e["label"] in replay.alike and e.get("significance") is not None:
+                e["significance"]["undetermined_between"] = replay.alike[e["label"]]
         decided_now = {e["label"] for e in state.rejected} | {e["label"] for e in state.effects}
         state.rejected += [{**e, "decided_with_outliers": True} for e in replay.rejected if e["label"] not in decided_now]
     decided = Decided(
@@ -491,6 +497,7 @@ def _select(
         max((m["tests"] for m in accepted_maps + rejected_maps), default=0),
         list(state.rejected),
         found,
+        {e["label"]: e["significance"]["undetermined_between"] for e in state.effects if (e.get("significance") or {}).get("undetermined_between")},
     )
     diagnosis = Diagnosis(
         robot=rob,
@@ -637,6 +644,8 @@ class Round:
     #: Per step (label): by how many standard errors the step's held-out errors on the random
     #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
     jump_z: dict = field(default_factory=dict)
+    #: Per joint candidate (label): its held-out squared errors on the random folds.
+    joint_errs: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
         """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
@@ -682,7 +691,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     _, p, parts = ext._jacobian_columns(x, [state.robot.index(n) for n in params])
     screen = Screen(J, r, schemes, k)
     model_err = screen.errors(np.zeros((len(r), 0)))
-    scored, step_errs = [], {}
+    scored, step_errs, joint_errs = [], {}, {}
     for c in progress(pool, desc=f"diagnose: screening round {len(ext.causes) + 1}", unit="candidate"):
         if in_joints and c.kind in TIME_TERMS:
             continue
@@ -697,9 +706,11 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
         if c.kind == "step":
             step_errs[c.label] = errs["random"]
+        elif c.kind in READING_SHAPES:
+            joint_errs[c.label] = errs["random"]
         scored.append((gains["random"], c, p_value, gains))
     candidates = len(scored) if replay is None else replay.tests
-    screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects)
+    screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects, joint_errs=joint_errs)
     # What a gradual change gains, for each step: a ramp from its sample, and the curves of a
     # linear drift the model has (a drift that is not linear leaves bends a step would take).
     steps = [c for _, c, _, _ in scored if c.kind == "step"]
@@ -898,10 +909,39 @@ def _take_cause(
                 "screening_gain_mm": gains,
                 "rmse_heldout_blocked_before": reported_rmse(state.cv["blocked"]),
                 "rmse_heldout_blocked_after": reported_rmse(new_cv["blocked"]),
+                "undetermined_between": alike_shapes(screening, c, judgeable(c, state.keep, state.schemes)["random"]),
             },
         }
     )
     state.model, state.x, state.cv, state.fold_x = trial, fit.x, new_cv, new_fold_x
+
+
+#: Kinds of a joint's reading error whose shapes a joint's range may not tell apart: over a few
+#: tens of degrees a scale error, a first harmonic and a coupling to a joint that moves with it
+#: bend the readings alike.
+READING_SHAPES = ("joint_scale", "joint_periodic", "joint_coupling")
+#: The named shape must beat another significant one of its joint by this many standard errors
+#: (paired z of the screening's held-out errors, one-sided 2.5 %), or the report names both.
+SHAPE_Z = float(norm.isf(0.025))
+
+
+def alike_shapes(screening: Round, c: Candidate, on: np.ndarray) -> list:
+    """The labels of the other significant shapes of ``c``'s joint's reading error
+    (:data:`READING_SHAPES`) whose held-out errors in the round's screening ``c``'s do not beat
+    by :data:`SHAPE_Z` standard errors on the samples ``on``: alternatives the data cannot tell
+    from ``c``. The claim is then "one of these", as a convention's is."""
+    if c.kind not in READING_SHAPES:
+        return []
+    mine = screening.joint_errs[c.label][on]
+    return [
+        o.label
+        for item in screening.ranked
+        if (o := item[1]).kind in READING_SHAPES
+        and o.joint == c.joint
+        and o.label != c.label
+        and screening.significant(*item)
+        and paired_z(screening.joint_errs[o.label][on], mine) < SHAPE_Z
+    ]
 
 
 def _refuse_best(state: Pass, screening: Round) -> None:

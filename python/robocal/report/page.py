@@ -63,7 +63,7 @@ from .figures import (
     residual_figures,
     rms,
 )
-from .text import SHOWN, correlation_words, settling_words
+from .text import SHOWN, alike_words, correlation_words, settling_words
 
 logger = logging.getLogger(__name__)
 
@@ -423,7 +423,7 @@ def _causes(doc: dict) -> str:
 def _diagnosis_table(report: DiagnosisReport) -> str:
     rows = []
     for e in report.effects:
-        quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + settling_words(e.after_long_moves))
+        quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + alike_words(e.significance) + settling_words(e.after_long_moves))
         rows.append([_esc(e.label), quantities, _fixed(e.rmse_before, 4), _fixed(e.rmse_after, 4)])
     several, b, f = report.several, report.baseline, report.final
     final = None if f is None else f.held_out(several)

@@ -1,6 +1,7 @@
 """The words a diagnose report and a result are shown in, shared by the command line
 (:mod:`robocal.cli.diagnose`) and the HTML page (:mod:`robocal.report.page`): a compliance's
-correlations and an outlier entry's settling as plain text, the joint maps as CSV tables, the
+correlations, the shapes a joint's error could not be told from and an outlier entry's settling
+as plain text, the joint maps as CSV tables, the
 units deviations are displayed in."""
 
 from __future__ import annotations
@@ -21,6 +22,16 @@ def correlation_words(others) -> str:
     if not isinstance(others, dict):
         return ""
     return "".join(f"; correlation with {label} {r:+.2f}" for label, r in others.items() if isinstance(r, (int, float)))
+
+
+def alike_words(significance) -> str:
+    """The shapes of a joint's reading error the data could not tell from the one named (an
+    effect's ``significance.undetermined_between``), as plain text; "" for none or a hand-edited
+    entry. The claim is "one of these"."""
+    alike = significance.get("undetermined_between") if isinstance(significance, dict) else None
+    if not isinstance(alike, list) or not alike or not all(isinstance(a, str) for a in alike):
+        return ""
+    return f"; the data cannot tell it from {', '.join(alike)}"
 
 
 def settling_words(moves) -> str:
