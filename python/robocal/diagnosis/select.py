@@ -674,8 +674,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     :func:`confirm` tries them (:func:`confirmation_order`). The screening's per-fold bases, the
     largest arrays of a diagnosis (a sixth of its peak memory at 3000 samples), are locals here:
     freed when the round ends, not carried through the later stages."""
-    ext, x, k, keep = state.model, state.x, state.k, state.keep
-    schemes = {name: folds for name, folds in state.schemes.items() if name not in unjudged_schemes(ext)}
+    ext, x, k, keep, schemes = state.model, state.x, state.k, state.keep, state.schemes
     rows = len(keep) * k  # the data rows: a penalised cause (a wander) appends its roughness rows
     J = ext.jacobian(x)[:rows]
     r = ext.residuals(x)[:rows]
@@ -739,16 +738,6 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         screening.jump_z[c.label] = paired_z(best[on], step_errs[c.label][on])
     screening.ranked = confirmation_order(scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes))
     return screening
-
-
-def unjudged_schemes(model: ExtendedProblem) -> tuple:
-    """The fold schemes a linear screening of ``model`` cannot judge: with a wander in the model,
-    the blocks of acquisition order. Linearised at the fit on every sample, a block held out keeps
-    the wander's fit there, and its knots in the block, which no training sample holds, move
-    freely with the candidate (a step beside them: held-out errors of 10^13 mm). The nonlinear
-    re-fits judge those schemes, with the wander only where its fold saw samples
-    (:func:`~robocal.causes.wander.wander_within`)."""
-    return ("blocked",) if any(c.kind in TIME_TERMS for c in model.causes) else ()
 
 
 def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_test: Optional[dict], wander_offered: bool, replay: Optional[Decided]) -> list:
