@@ -214,10 +214,15 @@ def _diagonal_scale(N: np.ndarray) -> np.ndarray:
 
 
 def _solve(N: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``N⁻¹·b`` on unit-diagonal scaling with a relative ridge."""
-    d = _diagonal_scale(N)
-    Ns = N / np.outer(d, d) + RIDGE * np.eye(len(N))
-    return np.linalg.solve(Ns, b / d) / d
+    """``N⁻¹·b`` on unit-diagonal scaling with a relative ridge. A column no training row touches
+    (a map's knot beyond the fold's angles: a zero diagonal, its other entries the rounding of
+    the products' differences, 10¹³³ once scaled) gets coefficient zero."""
+    present = np.diag(N) > 0.0
+    d = _diagonal_scale(N[np.ix_(present, present)])
+    Ns = N[np.ix_(present, present)] / np.outer(d, d) + RIDGE * np.eye(len(d))
+    x = np.zeros(len(N))
+    x[present] = np.linalg.solve(Ns, b[present] / d) / d
+    return x
 
 
 def _rss(N: np.ndarray, b: np.ndarray, rr: float) -> tuple[float, int]:
