@@ -566,7 +566,7 @@ def test_a_region_of_large_residuals_is_not_named_as_outliers():
     """Of the samples beyond the bound under the final model, only one whose residual also stands
     out from its neighbours' in joint space is a gross error; a run of them in one region of the
     workspace (as along UR10 series A's grid) is error the model still makes there."""
-    from robocal.diagnosis.select import NEIGHBOURS, _isolated
+    from robocal.diagnosis.outliers import NEIGHBOURS, isolated
 
     rng = np.random.default_rng(4)
     q = rng.uniform(-2.0, 2.0, (300, 6))
@@ -577,11 +577,11 @@ def test_a_region_of_large_residuals_is_not_named_as_outliers():
     z[lone, 2] += 12.0
     z[region, 2] += 12.0
     suspects = np.sort(np.concatenate([[lone], region]))
-    assert _isolated(q, z, suspects, np.arange(300), 8.0).tolist() == [lone]
+    assert isolated(q, z, suspects, np.arange(300), 8.0).tolist() == [lone]
 
 
 def test_tolerance_prior_is_judged_on_each_held_out_check_until_one_rejects_it():
-    from robocal.diagnosis.select import PRIOR_COST, judge_tolerance_prior
+    from robocal.diagnosis.physical import PRIOR_COST, judge_tolerance_prior
 
     without = np.column_stack([np.ones(10), np.zeros(10)])  # squared errors (position, rotation): 1 mm RMS
     cheap, costly = without * (1.0 + PRIOR_COST) ** 2 * 0.99, without * (1.0 + PRIOR_COST) ** 2 * 1.01

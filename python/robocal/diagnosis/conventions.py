@@ -11,6 +11,8 @@ every quarter-turn zero offset and sign of a moving joint and the references of 
 ``theta_j`` beyond the limits (:func:`zero_errors`). Two conventions wrong at once, neither of
 which helps alone, are found by :func:`screen_combinations`: every quarter-turn offset and sign
 on one or two joints, judged by the nominal geometry with only the set-up fitted.
+:func:`reading_conventions` is the diagnosis' structural stage: the search run where the geometric
+fit of the data as read is implausible.
 """
 
 from __future__ import annotations
@@ -20,9 +22,15 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..calibration.lm import levenberg_marquardt
+from ..calibration.problem import Problem
+from ..causes.candidates import acquisition_order
+from ..causes.problem import ExtendedProblem, reported_rmse
 from ..causes.structure import Structure, apply_all
 from ..data.dataset import Dataset
 from ..physics import DEG
+from ..robot import Robot, setup_names
+from .validation import cross_validate, fold_schemes
 
 #: Zero offsets tried on every moving joint (deg).
 ZERO_OFFSETS = (90.0, 180.0, 270.0)
@@ -274,3 +282,44 @@ def search(
         accepted = list(best.structures)
         current = best
     return accepted, effects, rejected
+
+
+def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list, Optional[tuple]]:
+    """The joint-reading conventions (:mod:`robocal.causes.structure`) that make an implausible geometric fit
+    plausible: the data with them applied, their report entries, the alternatives rejected and,
+    if the search cross-validated it, the geometric model of the data returned as ``(fold
+    schemes, held-out errors)`` over all its samples. Searched only when the geometric fit of the
+    data as read is implausible."""
+
+    def geometric(d: Dataset, max_nfev=None):
+        return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
+
+    def fit(d: Dataset, max_nfev=None):
+        result = geometric(d, max_nfev)
+        return result.metrics["train"]["rmse"], len(result.implausible())
+
+    order = acquisition_order(data)
+    schemes = fold_schemes(data.q, folds, seed, order, groups)
+
+    errors_of = {}  # each data set cross-validated (by its joint readings): its held-out errors
+
+    def heldout(d: Dataset) -> dict:
+        ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
+        errors = errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
+        return {name: reported_rmse(err) for name, err in errors.items()}
+
+    as_read = geometric(data)
+    bad = as_read.implausible()
+    if not bad:
+        return data, [], [], None
+    baseline = Trial([], as_read.metrics["train"]["rmse"], len(bad))
+    setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
+
+    def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
+        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
+
+    combined = screen_combinations(data, setup_rmse, seed)
+    accepted, effects, rejected = search(data, fit, heldout, baseline, seed, extra=zero_errors(bad) + combined, setup_rmse=setup_rmse)
+    final = apply_all(data, accepted)
+    errors = errors_of.get(final.q.tobytes())
+    return final, effects, rejected, None if errors is None else (schemes, errors)

@@ -1,17 +1,17 @@
 """Choosing causes by held-out gain: ``robocal.diagnose``.
 
 :func:`diagnose` first applies the reading conventions that make an implausible geometry
-plausible (:func:`_structure`, :mod:`robocal.causes.structure`), then runs one pass of the selection
+plausible (:func:`~.conventions.reading_conventions`, :mod:`robocal.causes.structure`), then runs one pass of the selection
 (:func:`_select`), and a second pass, which only confirms what the first decided, when the first
 pass's final model shows gross outliers that the geometric baseline's residuals hid. A pass is a
-sequence of stages, each a function that takes the pass's state (:class:`Pass`: the kept samples
+sequence of stages, each a function that takes the pass's state (:class:`~.state.Pass`: the kept samples
 and their fold schemes, the current model with its fit, held-out errors and fold fits, and the
 report as far as it is written) and leaves it updated:
 
 1. :func:`geometric_baseline`: the geometric baseline (the identifiable subset; Hayati ``beta``
    on nominally parallel axes unless ``hayati=False``), fitted and cross-validated. Gross
    outliers are named first: samples whose residual lies beyond the Bonferroni bound of a robust
-   (MAD) noise scale and beyond :data:`GROSS_SIGMAS`, re-decided after refitting without them
+   (MAD) noise scale and beyond :data:`~.outliers.GROSS_SIGMAS`, re-decided after refitting without them
    until the set is stable (and checked again under the final model, stage 8).
 2. :func:`forward_selection`: causes added one at a time, in rounds of two steps.
    :func:`screen_round` screens every candidate by cross-validation of the model linearised at
@@ -33,50 +33,48 @@ report as far as it is written) and leaves it updated:
 5. :func:`joint_maps`: a joint error map per joint (:mod:`.maps`), then the backward check again.
 6. :func:`recheck_compliances`: a gravity compliance whose size became implausible or
    undetermined is dropped.
-7. :func:`physical_model`: a tolerance prior on the kinematics where the data leave the geometry
-   undetermined, kept if it costs at most :data:`PRIOR_COST` of held-out error.
-8. The report: :func:`describe_causes` (uncertainties, shares of what is explained),
-   :func:`final_residuals` (error floor, what the residuals are), :func:`name_outliers` (the
-   outliers re-decided under the final model), :func:`baseline_entry` and :func:`final_entry`.
+7. :func:`~.physical.physical_model`: a tolerance prior on the kinematics where the data leave the geometry
+   undetermined, kept if it costs at most :data:`~.physical.PRIOR_COST` of held-out error.
+8. The report (:mod:`.entries`): :func:`~.entries.describe_causes` (uncertainties, shares of what is
+   explained), :func:`~.entries.final_residuals` (error floor, what the residuals are),
+   :func:`~.outliers.name_outliers` (the outliers re-decided under the final model),
+   :func:`~.entries.baseline_entry` and :func:`~.entries.final_entry`.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
 
 import numpy as np
-from scipy.spatial import cKDTree
-from scipy.stats import chi2, norm
+from scipy.stats import norm
 from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
-from ..calibration.lm import levenberg_marquardt
-from ..calibration.problem import TOLERANCE, Problem, kinematic_prior_pairs
+from ..calibration.problem import Problem
 from ..calibration.result import GROSS_FACTOR, CalibrationResult
-from ..kernels import as_count, as_float, as_tolerance, is_sparse
-from ..data.dataset import Dataset
-from ..data.splits import configuration_groups, kfold
-from ..exceptions import InvalidParameterError
-from ..progress import progress
-from ..robot import RESIDUAL_WIDTH, Robot, setup_names
-from ..stats import paired_z, rmse_of_squares, robust_sigma
 from ..causes import structure
+from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, curved_drift, drift_candidate, library
+from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
+from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
+from ..data.dataset import Dataset
+from ..exceptions import InvalidParameterError
+from ..kernels import as_count, as_float, as_tolerance, is_sparse
+from ..progress import progress
+from ..robot import Robot
+from ..stats import paired_z, rmse_of_squares
 from . import conventions
 from .change_points import ramps, step_candidates
-from .budget import floor as error_floor
-from .budget import repeatability
-from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, curved_drift, drift_candidate, library
-from .leftover import residual_verdict, unexplained
+from .entries import baseline_entry, describe_causes, final_entry, final_residuals
+from .leftover import unexplained
 from .maps import map_stage, merge_harmonics
-from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_rmse_deg
-from .settling import after_long_moves
+from .outliers import gross_outliers, name_outliers
+from .physical import physical_model
 from .screening import Screen
-from .uncertainty import uncertainty_entries
-from .validation import GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, same_folds, weak_gain
-from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
+from .state import Baseline, Decided, Pass, refusal_record, retract
+from .validation import GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
 from .wander import residual_correlation, time_inflation
 
 
@@ -173,6 +171,16 @@ def is_flexible(c: Candidate) -> bool:
     return c.kind == "joint_periodic" and c.detail.get("harmonic", 1) > MAX_HARMONIC_UNEXPLAINED
 
 
+def structure_note(implausible: int) -> Optional[dict]:
+    """The report's ``structure_unexplained``: the number of kinematic parameters still far beyond
+    their limits (:func:`grossly_implausible`) and why no flexible term was tried; None if none."""
+    if not implausible:
+        return None
+    far = f"the geometric fit stays far from any robot ({implausible} parameters beyond {GROSS_FACTOR:g} times the limits)"
+    untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
+    return {"implausible": implausible, "note": f"{far} and no reading convention makes it plausible: {untried}"}
+
+
 def gains_everywhere(c: Candidate, gains: dict) -> bool:
     """A screening gain on every fold scheme (a time term: on the random folds; the linear
     screening extrapolates it into a held-out block, so the nonlinear check, which does not,
@@ -238,80 +246,6 @@ def held_out_refusal(c: Candidate, schemes: dict, idx: np.ndarray, before: dict,
 #: fail the plausibility check, each after a full fit; the rest are reported as not fitted.
 #: Sensor (observation) and parameter candidates are always fitted.
 MAX_TRIALS = 8
-
-
-#: Gross errors lie beyond at least this many robust sigmas: a slipped cable or a broken beam
-#: is off by many sigmas, while a cause the geometric model misses bends many residuals a little.
-GROSS_SIGMAS = 8.0
-
-
-def _outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.01) -> tuple[np.ndarray, float, np.ndarray]:
-    """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale, and
-    beyond :data:`GROSS_SIGMAS`, with the ``known`` outliers always among them; and the last
-    fit without them (each refit starts from the previous one)."""
-    m = len(data)
-    k = RESIDUAL_WIDTH[data.measurement]
-    bound = max(float(chi2.ppf(1.0 - level / m, k)), GROSS_SIGMAS**2)
-    always = np.isin(np.arange(m), known)
-    flagged, x = always.copy(), None
-    for _ in range(5):
-        ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
-        fit = fit_problem(ext, x0=x)
-        x = fit.x
-        r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
-        sigma = robust_sigma(r[~flagged])
-        now = _isolated_in_time((np.sum((r / sigma) ** 2, axis=1) > bound), acquisition_order(data)) | always
-        if np.array_equal(now, flagged):
-            break
-        flagged = now
-    return np.flatnonzero(flagged), float(np.sqrt(bound)), x
-
-
-#: Samples beyond the bound this many in a row in acquisition order are an event in time (a step
-#: the geometry half absorbed, a sensor that jumped), not independent gross errors: the step and
-#: wander candidates judge them.
-RUN = 3
-
-
-def _isolated_in_time(beyond: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """``beyond`` (m,) without the samples that lie in runs of :data:`RUN` or more consecutive
-    flagged samples in acquisition ``order``."""
-    flagged = beyond[order].astype(np.int64)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged, [0]])))
-    starts, ends = edges[::2], edges[1::2]
-    in_run = np.zeros(len(order), dtype=bool)
-    for a, b in zip(starts, ends):
-        if b - a >= RUN:
-            in_run[a:b] = True
-    out = beyond.copy()
-    out[order[in_run]] = False
-    return out
-
-
-def _all_residuals(model: ExtendedProblem, x: np.ndarray) -> np.ndarray:
-    """Residuals (m, k) of every sample of the dataset, the left-out ones too, under the fitted
-    extended ``model``."""
-    m = len(model.full_data)
-    return model.with_samples(np.arange(m)).data_residuals(x).reshape(m, model.k)
-
-
-#: A revealed outlier's residual is compared with those of this many samples nearest to it in
-#: joint space.
-NEIGHBOURS = 5
-
-
-def _isolated(q: np.ndarray, z: np.ndarray, suspects: np.ndarray, keep: np.ndarray, z_bound: float) -> np.ndarray:
-    """The ``suspects`` (kept samples beyond the bound) whose scaled residual ``z`` also lies
-    beyond ``z_bound`` from the median residual of their :data:`NEIGHBOURS` nearest kept samples
-    in joint space ``q``. Large residuals that a region of the workspace shares are error the
-    model still makes there, not gross errors."""
-    if len(suspects) == 0 or len(keep) <= NEIGHBOURS:
-        return suspects[:0]
-    _, near = cKDTree(q[keep]).query(q[suspects], NEIGHBOURS + 1)
-    near = keep[near]
-    others = np.array([row[row != s][:NEIGHBOURS] for row, s in zip(near, suspects)])
-    contrast = np.sqrt(np.sum((z[suspects] - np.median(z[others], axis=1)) ** 2, axis=1))
-    return suspects[contrast > z_bound]
 
 
 def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
@@ -391,7 +325,7 @@ def diagnose(
     if len(dataset) < 4 * folds:
         raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
     mask = baseline_mask(rob, dataset.measurement, hayati)
-    dataset, effects, rejected, geometric_cv = _structure(rob, dataset, mask, folds, seed, groups)
+    dataset, effects, rejected, geometric_cv = conventions.reading_conventions(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
     settings = {
         "folds": folds,
@@ -415,24 +349,6 @@ def diagnose(
         diagnosis, _, _ = _select(rob, dataset, base, effects, rejected, known, geometric_cv=geometric_cv, revealed=revealed, replay=decided, **settings)
     diagnosis.time_s = time.perf_counter() - t0
     return diagnosis
-
-
-@dataclass
-class Decided:
-    """What a pass of :func:`_select` decided, for a second pass that only confirms it: the causes
-    its forward selection accepted (in order) and the maps its map stage accepted (labels), the
-    number of candidates and of maps its tests were corrected for (Bonferroni), and its refusals
-    and unexplained findings (reported as they were: decided over the samples it had)."""
-
-    causes: list
-    maps: set
-    tests: int
-    map_tests: int
-    rejected: list
-    unexplained: list
-    #: Per cause taken (label): the shapes of its joint's reading error the data could not tell
-    #: from it (:func:`alike_shapes`), which a replay does not screen again.
-    alike: dict = field(default_factory=dict)
 
 
 def _select(
@@ -461,7 +377,7 @@ def _select(
     decisions) only the causes and maps that pass accepted are offered, with its Bonferroni
     counts, and its other refusals are reported as they were.
 
-    The stages of the module notes, in order, on the pass's :class:`Pass`."""
+    The stages of the module notes, in order, on the pass's :class:`~.state.Pass`."""
     revealed = np.zeros(0, dtype=int) if revealed is None else revealed
     state = geometric_baseline(rob, dataset, base, known, effects, rejected, folds=folds, seed=seed, groups=groups, min_gain=min_gain)
     pool = library(rob, dataset, list(base.names) + list(base.fixed), hayati=hayati) if replay is None else list(replay.causes)
@@ -505,7 +421,7 @@ def _select(
         baseline=baseline_entry(state, hayati=hayati, folds=folds),
         effects=state.effects,
         rejected=state.rejected,
-        final=final_entry(state, final_fit, prior, unconstrained, budget, leftover, found, unexplained_structure),
+        final=final_entry(state, final_fit, prior, unconstrained, budget, leftover, found, structure_note(unexplained_structure)),
         model=state.model,
         x=state.x,
         outliers=[int(v) for v in outliers],
@@ -514,68 +430,14 @@ def _select(
     return diagnosis, beyond_bound, decided
 
 
-@dataclass
-class Baseline:
-    """The geometric baseline of a pass (:func:`geometric_baseline`): its fit on the kept samples
-    and held-out squared errors per fold scheme, the outliers named before any cause is in (and
-    their bound, in robust sigmas), and the test of its residuals for correlation in acquisition
-    order and in joint space (:func:`~.wander.residual_correlation`)."""
-
-    fit: CalibrationResult
-    cv: dict
-    outliers: np.ndarray
-    bound: float
-    residual_test: Optional[dict]
-
-
-@dataclass
-class Pass:
-    """One pass of the selection (:func:`_select`) as its stages hand it on.
-
-    The data, the samples kept (the baseline's outliers left out) and their fold ``schemes``,
-    the geometric ``baseline``; the current ``model``, its fit ``x``, its held-out squared
-    errors per fold scheme (``cv``) and fold fits (``fold_x``: where the next nonlinear re-fits
-    start); and the report as far as it is written: the causes' ``effects``, the ``rejected``
-    candidates and the causes' ``plots``. Each stage reads it and leaves it updated."""
-
-    robot: Robot
-    dataset: Dataset
-    base: Problem
-    keep: np.ndarray
-    schemes: dict
-    min_gain: float
-    baseline: Baseline
-    model: ExtendedProblem
-    x: np.ndarray
-    cv: dict
-    fold_x: dict
-    effects: list
-    rejected: list
-    plots: dict = field(default_factory=dict)
-
-    @property
-    def k(self) -> int:
-        """Residual rows per sample."""
-        return self.model.k
-
-    def problem(self, causes: list) -> ExtendedProblem:
-        """The model of ``causes`` on the kept samples."""
-        return ExtendedProblem(self.base, causes, self.dataset, self.keep)
-
-    def retract(self, c: Candidate, physical, reason: str) -> None:
-        """The accepted cause ``c`` out of the report, into the rejected with ``reason``
-        (:func:`_retract`)."""
-        self.rejected.append(_retract(c, self.effects, self.plots, physical, reason))
-
-
 def geometric_baseline(
     rob: Robot, dataset: Dataset, base: Problem, known: np.ndarray, effects: list, rejected: list, *, folds: int, seed: int, groups, min_gain: float
 ) -> Pass:
-    """Stage 1: the gross outliers named (the ``known`` ones among them: :func:`_outliers`), the
+    """Stage 1: the gross outliers named (the ``known`` ones among them: :func:`~.outliers.gross_outliers`), the
     fold schemes drawn over the samples kept, and the geometric baseline fitted and
     cross-validated there. The pass starts from the baseline, with the report so far (``effects``
     and ``rejected``: the reading conventions')."""
-    outliers, z_bound, x_outliers = _outliers(base, dataset, known)
+    outliers, z_bound, x_outliers = gross_outliers(base, dataset, known)
     keep = np.setdiff1d(np.arange(len(dataset)), outliers)
     order = acquisition_order(dataset)
     kept_order = np.searchsorted(keep, order[np.isin(order, keep)])
@@ -664,7 +526,7 @@ class Round:
     def refusal(self, item: tuple, physical, reason: str) -> dict:
         """The report's record of the screened ``item`` refused for ``reason``."""
         gain, c, p_value, gains = item
-        return _record(c, gain, gains, p_value, self.tests(c), physical, reason)
+        return refusal_record(c, gain, gains, p_value, self.tests(c), physical, reason)
 
 
 def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float, max_effects: int, replay: Optional[Decided]) -> Round:
@@ -1145,7 +1007,7 @@ def joint_maps(state: Pass, alpha: float, replay: Optional[Decided]) -> tuple[li
         _take_map(state, m, replaced_why, significance)
     for m in rejected_maps:
         c = m["candidate"]
-        state.rejected.append(_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
+        state.rejected.append(refusal_record(c, m["gains_mm"]["random"], m["gains_mm"], m["p_value"], m["tests"], m.get("params"), m["reason"]))
     if accepted_maps and any(c.kind != "joint_map" for c in model.causes):
         # a map may explain what a cause found before it took (a time term along a path
         # that sweeps the mapped joint): every earlier free shape must earn its place again
@@ -1160,7 +1022,7 @@ def _take_map(state: Pass, m: dict, why_replaced: str, significance: dict) -> No
     and its held-out figures."""
     c = m["candidate"]
     for o in m["replaces"]:
-        state.rejected.append({**_retract(o, state.effects, state.plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
+        state.rejected.append({**retract(o, state.effects, state.plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
     before, after = m["rmse_heldout_before"], m["rmse_heldout_after"]
     state.effects.append(
         {
@@ -1201,274 +1063,6 @@ def recheck_compliances(state: Pass) -> None:
     state.cv, state.fold_x = cross_validate(kept, schemes, fold_x, model)
     for c, physical, why in dropped:
         state.retract(c, physical, f"dropped once the causes found after it were in: {why}")
-
-
-#: The tolerance prior may cost at most this fraction of held-out error: beyond it the data
-#: contradict a physical geometry rather than leave it undetermined.
-PRIOR_COST = 0.05
-
-
-#: The tolerance prior's sigmas as the report states them.
-TOLERANCE_SIGMAS = {"sigma_mm": TOLERANCE["mm"], "sigma_deg": float(np.degrees(TOLERANCE["rad"]))}
-
-
-def judge_tolerance_prior(checks, measurement: str) -> dict:
-    """The report entry of a tolerance prior on the kinematics, judged by its held-out errors:
-    :data:`TOLERANCE_SIGMAS`, ``accepted`` and, per check, the held-out RMSE with the prior
-    (:func:`~robocal.causes.problem.reported_rmse`); if it is not accepted, the ``reason``.
-
-    ``checks`` yields, in order, ``(key, what, without, with_prior)``: the entry's key, the
-    held-out error's name (``"random-fold held-out"``) and the squared errors
-    (:func:`~robocal.causes.problem.squared_errors`) of ``measurement`` data without and with the prior. The prior
-    is accepted if on every check its :func:`~robocal.causes.problem.judged_rmse` is within :data:`PRIOR_COST` of
-    the model's without it; the first check where it is not ends the judging (a lazy ``checks``
-    computes no more). Used by the single-session selection (every fold scheme) and the
-    multi-session one (leave-one-session-out).
-    """
-    entry = {**TOLERANCE_SIGMAS, "accepted": False}
-    for key, what, without, with_prior in checks:
-        entry[key] = reported_rmse(with_prior)
-        before, after = judged_rmse(without), judged_rmse(with_prior)
-        if not after <= (1.0 + PRIOR_COST) * before:
-            raised = f"the prior raises the {what} RMSE from {before:.4g} to {after:.4g} {judged_unit(measurement)}"
-            entry["reason"] = f"{raised}: the data contradict a geometry within the tolerances; the unconstrained model is kept"
-            return entry
-    entry["accepted"] = True
-    return entry
-
-
-def physical_model(state: Pass) -> tuple[CalibrationResult, Optional[dict]]:
-    """Stage 7: the final model made physical where the data leave the geometry undetermined.
-
-    A fit whose kinematic parameters lie beyond the plausibility limits, or whose parameter
-    combinations are wider than them (:meth:`CalibrationResult.undetermined`), is fitted again
-    with a manufacturing-tolerance prior at nominal on every kinematic parameter
-    (:data:`TOLERANCE`, weighted against the sensor's nominal noise): well-determined directions
-    keep what the data say, the others stay near the drawing instead of running to metres. The
-    prior is kept if its held-out error (on every fold scheme) is within
-    :data:`PRIOR_COST` of the unconstrained model's; otherwise the data contradict a physical
-    geometry, and the unconstrained model stays with its implausible parameters listed.
-
-    Returns the final fit (the pass's model re-fitted, with the prior if it was kept) and the
-    report entry of the prior (``None`` if the fit was physical already).
-    """
-    model, schemes, current_cv, fold_x = state.model, state.schemes, state.cv, state.fold_x
-    fit = fit_problem(model, x0=state.x)
-    state.x = fit.x
-    if not fit.implausible() and not fit.undetermined():
-        return fit, None
-    robot = model.robot
-    prior = kinematic_prior_pairs(robot, [robot.param_names[k] for k in model.free], dict(zip(robot.param_names, model.base.start)), TOLERANCE)
-    physical = ExtendedProblem(replace(model.base, prior=prior), model.causes, model.full_data, model.idx)
-    x0 = np.array([prior[n][0] if n in prior else v for n, v in zip(model.names, fit.x)])  # the kinematics from the drawing
-    cv, fits = {}, {}
-
-    def checks():
-        for name, folds in schemes.items():  # random, blocked, then groups
-            errors, fold_fits = cross_validate(physical, {name: folds}, fold_x, model)  # each fold from its own unconstrained fit
-            cv[name], fits[name] = errors[name], fold_fits[name]
-            yield f"rmse_heldout_{name}", f"{name}-fold held-out", current_cv[name], cv[name]
-
-    entry = judge_tolerance_prior(checks(), model.data.measurement)
-    if not entry["accepted"]:
-        return fit, entry
-    fit = fit_problem(physical, x0=x0)
-    state.model, state.x, state.cv, state.fold_x = physical, fit.x, cv, fits
-    return fit, entry
-
-
-def describe_causes(state: Pass) -> None:
-    """Stage 8, the report: each cause's entry completed with its uncertainty
-    (:func:`~.uncertainty.uncertainty_entries`) and its share of what the causes explain
-    (:func:`explained_shares`)."""
-    described = uncertainty_entries(state.model, state.x, state.model.causes)
-    for effect in state.effects:
-        effect.update(described.get(effect["label"], {}))
-    explained_shares(state.effects, reported_rmse(state.baseline.cv["random"]), reported_rmse(state.cv["random"]))
-
-
-def explained_shares(effects: list, baseline: float, final: float) -> None:
-    """Each found cause's ``share_of_explained``: the held-out mean square error its own step
-    removed (``before² − after²``, in the order the causes were found) as a share of all that
-    the causes removed from the geometric baseline (``baseline² − final²``). Reading conventions
-    act before the baseline and outliers are left out of it: None for them."""
-    total = baseline**2 - final**2
-    for e in effects:
-        inside = e["kind"] not in structure.KINDS and e["kind"] != "outliers" and total > 0
-        e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
-
-
-def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
-    """What the final model leaves: the error budget (:func:`~.budget.floor`, with the
-    repeatability at the revisits), the verdict on its residuals
-    (:func:`~.leftover.residual_verdict`), and every sample's residual, the outliers' too, in
-    robust sigmas of the kept samples' residuals."""
-    model, x, dataset, keep = state.model, state.x, state.dataset, state.keep
-    budget = error_floor(state.robot, dataset.subset(keep), model.full(x))
-    r = _all_residuals(model, x)
-    budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
-    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget)
-    return budget, leftover, r / robust_sigma(r[keep])
-
-
-def name_outliers(
-    state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int, geometric_cv: Optional[tuple] = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
-    robust sigmas, :func:`final_residuals`), and their report entry put first among the effects
-    (``revealed``: those an earlier pass's final model named). The geometric model's held-out
-    error with them is ``geometric_cv``'s (:func:`_structure`'s) where its folds are the same.
-    Returns the outliers, and the kept samples the final model puts beyond the bound on their
-    own (:func:`_isolated`)."""
-    dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
-    beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
-    if len(outliers) and state.model.causes:
-        # Re-decided with the extended model: a sample flagged only because an unmodelled cause
-        # bent the residuals is not an outlier.
-        outliers = outliers[beyond[outliers]]
-    if len(outliers):
-        random = kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q))
-        if geometric_cv is not None and same_folds(geometric_cv[0]["random"], random):
-            before = geometric_cv[1]["random"]
-        else:
-            everyone = ExtendedProblem(state.base, [], dataset, np.arange(len(dataset)))
-            before = cross_validate(everyone, {"random": random})[0]["random"]
-        outliers_entry = {
-            "kind": "outliers",
-            "joint": None,
-            "label": "outliers",
-            "params": {
-                "rows": [int(v) for v in dataset.rows[outliers]],
-                "samples": [int(v) for v in outliers],
-                "threshold_sigma": z_bound,
-                # rows beyond the bound only under the final model (hidden by the baseline's residuals)
-                "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]],
-            },
-            "rmse_heldout_before": reported_rmse(before),
-            "rmse_heldout_after": reported_rmse(state.baseline.cv["random"]),
-            "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
-            "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
-        }
-        state.effects.insert(0, outliers_entry)
-    return outliers, _isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
-
-
-def baseline_entry(state: Pass, *, hayati: bool, folds: int) -> dict:
-    """The report's ``baseline``: the geometric fit's held-out and training errors, its
-    parameters, the test of its residuals and its implausible parameters."""
-    baseline, dataset = state.baseline, state.dataset
-    return {
-        "rmse_heldout": reported_rmse(baseline.cv["random"]),
-        "rmse_heldout_blocked": reported_rmse(baseline.cv["blocked"]),
-        "rmse_train": baseline.fit.metrics["train"]["rmse"],
-        **_rotation_entries(dataset, baseline.cv),
-        "n_params": int(len(state.base.free)),
-        "hayati": hayati,
-        "folds": folds,
-        # where the geometric fit's residuals are alike: in acquisition order (a wandering sensor) or in joint space
-        "residual_correlation": baseline.residual_test,
-        # Kinematic parameters the geometric fit moved beyond 10 mm / 2 deg: the
-        # geometry fits the data only with parameters no robot has.
-        "implausible": baseline.fit.implausible(),
-    }
-
-
-def final_entry(
-    state: Pass,
-    final_fit: CalibrationResult,
-    prior: Optional[dict],
-    unconstrained: float,
-    budget: dict,
-    leftover: dict,
-    found: list,
-    unexplained_structure: int,
-) -> dict:
-    """The report's ``final``: the final model's held-out errors (``unconstrained``: without a
-    tolerance prior, whose entry is ``prior``) and parameters, the error ``budget``, the share of
-    the baseline's error it explains, what its residuals are (``leftover``), and what it leaves
-    unexplained: the refused candidates ``found`` to explain much, and a geometry still far
-    from any robot (``unexplained_structure`` kinematic parameters far beyond their limits)."""
-    structure_unexplained = None
-    if unexplained_structure:
-        far = f"the geometric fit stays far from any robot ({unexplained_structure} parameters beyond {GROSS_FACTOR:g} times the limits)"
-        untried = f"joint maps and harmonics above order {MAX_HARMONIC_UNEXPLAINED} were not tried, as they would fit around a wrong geometry"
-        structure_unexplained = {"implausible": unexplained_structure, "note": f"{far} and no reading convention makes it plausible: {untried}"}
-    baseline_rmse, rmse = reported_rmse(state.baseline.cv["random"]), reported_rmse(state.cv["random"])
-    return {
-        "rmse_heldout": rmse,
-        "rmse_heldout_blocked": reported_rmse(state.cv["blocked"]),
-        "n_params": int(state.model.n),
-        **_rotation_entries(state.dataset, state.cv),
-        "floor_mm": budget["floor_mm"],
-        "floor": budget,
-        # Share of the baseline's held-out mean square error above the floor that the causes explain.
-        "explained": _explained(baseline_rmse, rmse, budget["floor_mm"]),
-        # The physical model: a tolerance prior where the geometry is undetermined
-        # (``tolerance_prior``: its sigmas, or None), and what still lies beyond the limits.
-        "tolerance_prior": prior,
-        "rmse_heldout_unconstrained": unconstrained,
-        "implausible": final_fit.implausible(),
-        # Noise or not (tested), and what the selection refused although it would have explained much.
-        "structure_unexplained": structure_unexplained,
-        "residuals": leftover,
-        "unexplained": found,
-    }
-
-
-def _rotation_entries(data: Dataset, cv: dict) -> dict:
-    """``rotation_rmse_heldout_deg`` (random folds) and ``..._blocked_deg`` of a pose diagnosis'
-    held-out errors ``cv``; nothing for other measurements."""
-    if data.measurement != "pose":
-        return {}
-    return {f"rotation_rmse_heldout{'' if name == 'random' else '_' + name}_deg": rotation_rmse_deg(cv[name], data) for name in ("random", "blocked")}
-
-
-def _explained(before: float, after: float, floor: float) -> Optional[float]:
-    """``(before² − after²) / (before² − floor²)``: the share of the mean square error above the
-    floor that a model removes (None if the baseline is at the floor)."""
-    room = before**2 - floor**2
-    return None if room <= 0 else float((before**2 - after**2) / room)
-
-
-def _structure(robot: Robot, data: Dataset, mask: np.ndarray, folds: int, seed: int, groups) -> tuple[Dataset, list, list, Optional[tuple]]:
-    """The joint-reading conventions (:mod:`robocal.causes.structure`) that make an implausible geometric fit
-    plausible: the data with them applied, their report entries, the alternatives rejected and,
-    if the search cross-validated it, the geometric model of the data returned as ``(fold
-    schemes, held-out errors)`` over all its samples. Searched only when the geometric fit of the
-    data as read is implausible."""
-
-    def geometric(d: Dataset, max_nfev=None):
-        return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
-
-    def fit(d: Dataset, max_nfev=None):
-        result = geometric(d, max_nfev)
-        return result.metrics["train"]["rmse"], len(result.implausible())
-
-    order = acquisition_order(data)
-    schemes = fold_schemes(data.q, folds, seed, order, groups)
-
-    errors_of = {}  # each data set cross-validated (by its joint readings): its held-out errors
-
-    def heldout(d: Dataset) -> dict:
-        ext = ExtendedProblem(Problem.build(robot, d, mask=mask), [], d, np.arange(len(d)))
-        errors = errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
-        return {name: reported_rmse(err) for name, err in errors.items()}
-
-    as_read = geometric(data)
-    bad = as_read.implausible()
-    if not bad:
-        return data, [], [], None
-    baseline = conventions.Trial([], as_read.metrics["train"]["rmse"], len(bad))
-    setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
-
-    def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
-        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=conventions.SCREEN_NFEV // 2).metrics["train"]["rmse"]
-
-    combined = conventions.screen_combinations(data, setup_rmse, seed)
-    accepted, effects, rejected = conventions.search(data, fit, heldout, baseline, seed, extra=conventions.zero_errors(bad) + combined, setup_rmse=setup_rmse)
-    final = structure.apply_all(data, accepted)
-    errors = errors_of.get(final.q.tobytes())
-    return final, effects, rejected, None if errors is None else (schemes, errors)
 
 
 #: A cause with a physical model of how it carries is tried before the best free joint shape
@@ -1530,30 +1124,3 @@ def undetermined(values: np.ndarray, std: Optional[np.ndarray]) -> Optional[str]
     if np.all(np.abs(values) < 2.0 * std):
         return f"undetermined: {values[0]:.3g} ± {std[0]:.2g} (less than 2 standard deviations)"
     return None
-
-
-def _retract(c: Candidate, effects: list, plots: dict, physical, reason: str) -> dict:
-    """Takes the accepted cause ``c`` out of the report's ``effects`` (and its plot) and returns
-    its rejection record: its screening figures, ``physical`` (default: those it was accepted
-    with) and ``reason``."""
-    found = next(e for e in effects if e["label"] == c.label)
-    effects.remove(found)
-    plots.pop(c.label, None)
-    sig = found["significance"]
-    screening = sig.get("screening_gain_mm") or {}  # none for a cause merged in or put in another's place
-    params = found["params"] if physical is None else physical
-    return _record(c, screening.get("random"), screening or None, sig.get("p_value"), sig.get("candidates") or 1, params, reason)
-
-
-def _record(c: Candidate, gain: float, gains: dict, p_value: float, n_tests: int, physical, reason: str) -> dict:
-    return {
-        "kind": c.kind,
-        "joint": None if c.joint is None else c.joint + 1,
-        "label": c.label,
-        "gain_mm": gain,
-        "gains_mm": gains,
-        "p_value": p_value,
-        "p_adjusted": None if p_value is None else min(1.0, p_value * n_tests),
-        "params": physical,
-        "reason": reason,
-    }

@@ -40,12 +40,12 @@ from ..physics import DEG
 from ..progress import progress
 from ..threads import thread_map
 from ..serial_robot import Robot
+from .physical import judge_tolerance_prior
 from .select import (
     Diagnosis,
     baseline_mask,
     coefficient_reference,
     diagnose,
-    judge_tolerance_prior,
     physics_first,
     undetermined,
 )
@@ -468,8 +468,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
 def _physical(evaluator: _Evaluator, model: _Model, current: list):
     """The selected model with a manufacturing-tolerance prior on the kinematics where its fit on
     every session is implausible, kept if its pooled leave-one-session-out RMSE is within
-    :data:`~robocal.diagnosis.select.PRIOR_COST` of the model's without it
-    (:func:`~robocal.diagnosis.select.judge_tolerance_prior`, as
+    :data:`~robocal.diagnosis.physical.PRIOR_COST` of the model's without it
+    (:func:`~robocal.diagnosis.physical.judge_tolerance_prior`, as
     :func:`~robocal.diagnosis.select.diagnose` judges it within one session).
     Returns the model, its held-out errors and the prior's report entry (None if not tried)."""
     stacked, _ = evaluator.fit(model)

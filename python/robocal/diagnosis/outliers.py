@@ -1,0 +1,137 @@
+"""Gross outliers: samples a slipped cable or a broken beam put many sigmas off.
+
+Named before any cause is in, beyond the Bonferroni bound of a robust (MAD) noise scale and
+beyond :data:`GROSS_SIGMAS` (:func:`gross_outliers`, re-decided after refitting without them
+until the set is stable); runs of them in acquisition order are an event in time, left to the
+step and wander candidates. Under the final model they are re-decided, and samples that model
+alone puts beyond the bound — hidden by the geometric baseline's large residuals — are revealed
+(:func:`name_outliers`, :func:`isolated`).
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.stats import chi2
+
+from ..calibration.problem import Problem
+from ..causes.candidates import acquisition_order
+from ..causes.problem import ExtendedProblem, reported_rmse
+from ..data.dataset import Dataset
+from ..data.splits import configuration_groups, kfold
+from ..robot import RESIDUAL_WIDTH
+from ..stats import robust_sigma
+from .settling import after_long_moves
+from .state import Pass
+from .validation import cross_validate, fit_problem, same_folds
+
+
+#: Gross errors lie beyond at least this many robust sigmas: a slipped cable or a broken beam
+#: is off by many sigmas, while a cause the geometric model misses bends many residuals a little.
+GROSS_SIGMAS = 8.0
+
+
+def gross_outliers(base: Problem, data: Dataset, known: np.ndarray, level: float = 0.01) -> tuple[np.ndarray, float, np.ndarray]:
+    """Samples beyond the Bonferroni bound (family-wise ``level``) of a robust noise scale, and
+    beyond :data:`GROSS_SIGMAS`, with the ``known`` outliers always among them; and the last
+    fit without them (each refit starts from the previous one)."""
+    m = len(data)
+    k = RESIDUAL_WIDTH[data.measurement]
+    bound = max(float(chi2.ppf(1.0 - level / m, k)), GROSS_SIGMAS**2)
+    always = np.isin(np.arange(m), known)
+    flagged, x = always.copy(), None
+    for _ in range(5):
+        ext = ExtendedProblem(base, [], data, np.flatnonzero(~flagged))
+        fit = fit_problem(ext, x0=x)
+        x = fit.x
+        r = ExtendedProblem(base, [], data, np.arange(m)).residuals(fit.x).reshape(m, k)
+        sigma = robust_sigma(r[~flagged])
+        now = isolated_in_time((np.sum((r / sigma) ** 2, axis=1) > bound), acquisition_order(data)) | always
+        if np.array_equal(now, flagged):
+            break
+        flagged = now
+    return np.flatnonzero(flagged), float(np.sqrt(bound)), x
+
+
+#: Samples beyond the bound this many in a row in acquisition order are an event in time (a step
+#: the geometry half absorbed, a sensor that jumped), not independent gross errors: the step and
+#: wander candidates judge them.
+RUN = 3
+
+
+def isolated_in_time(beyond: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """``beyond`` (m,) without the samples that lie in runs of :data:`RUN` or more consecutive
+    flagged samples in acquisition ``order``."""
+    flagged = beyond[order].astype(np.int64)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged, [0]])))
+    starts, ends = edges[::2], edges[1::2]
+    in_run = np.zeros(len(order), dtype=bool)
+    for a, b in zip(starts, ends):
+        if b - a >= RUN:
+            in_run[a:b] = True
+    out = beyond.copy()
+    out[order[in_run]] = False
+    return out
+
+
+#: A revealed outlier's residual is compared with those of this many samples nearest to it in
+#: joint space.
+NEIGHBOURS = 5
+
+
+def isolated(q: np.ndarray, z: np.ndarray, suspects: np.ndarray, keep: np.ndarray, z_bound: float) -> np.ndarray:
+    """The ``suspects`` (kept samples beyond the bound) whose scaled residual ``z`` also lies
+    beyond ``z_bound`` from the median residual of their :data:`NEIGHBOURS` nearest kept samples
+    in joint space ``q``. Large residuals that a region of the workspace shares are error the
+    model still makes there, not gross errors."""
+    if len(suspects) == 0 or len(keep) <= NEIGHBOURS:
+        return suspects[:0]
+    _, near = cKDTree(q[keep]).query(q[suspects], NEIGHBOURS + 1)
+    near = keep[near]
+    others = np.array([row[row != s][:NEIGHBOURS] for row, s in zip(near, suspects)])
+    contrast = np.sqrt(np.sum((z[suspects] - np.median(z[others], axis=1)) ** 2, axis=1))
+    return suspects[contrast > z_bound]
+
+
+def name_outliers(
+    state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int, geometric_cv: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
+    robust sigmas, :func:`~.entries.final_residuals`), and their report entry put first among the effects
+    (``revealed``: those an earlier pass's final model named). The geometric model's held-out
+    error with them is ``geometric_cv``'s (:func:`~.conventions.reading_conventions`'s) where its folds are the same.
+    Returns the outliers, and the kept samples the final model puts beyond the bound on their
+    own (:func:`isolated`)."""
+    dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
+    beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
+    if len(outliers) and state.model.causes:
+        # Re-decided with the extended model: a sample flagged only because an unmodelled cause
+        # bent the residuals is not an outlier.
+        outliers = outliers[beyond[outliers]]
+    if len(outliers):
+        random = kfold(len(dataset), folds, seed, groups=configuration_groups(dataset.q))
+        if geometric_cv is not None and same_folds(geometric_cv[0]["random"], random):
+            before = geometric_cv[1]["random"]
+        else:
+            everyone = ExtendedProblem(state.base, [], dataset, np.arange(len(dataset)))
+            before = cross_validate(everyone, {"random": random})[0]["random"]
+        outliers_entry = {
+            "kind": "outliers",
+            "joint": None,
+            "label": "outliers",
+            "params": {
+                "rows": [int(v) for v in dataset.rows[outliers]],
+                "samples": [int(v) for v in outliers],
+                "threshold_sigma": z_bound,
+                # rows beyond the bound only under the final model (hidden by the baseline's residuals)
+                "revealed_by_causes": [int(v) for v in dataset.rows[np.intersect1d(outliers, revealed)]],
+            },
+            "rmse_heldout_before": reported_rmse(before),
+            "rmse_heldout_after": reported_rmse(state.baseline.cv["random"]),
+            "significance": {"test": f"residual beyond max(Bonferroni bound at family-wise 0.01, {GROSS_SIGMAS:g}) MAD sigmas", "bound_sigma": z_bound},
+            "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
+        }
+        state.effects.insert(0, outliers_entry)
+    return outliers, isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
