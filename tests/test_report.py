@@ -245,16 +245,7 @@ def test_every_figure_keeps_its_text_inside(calibrated, tmp_path, monkeypatch):
 
     monkeypatch.setattr(report_figures, "_save", checked)
     long = "joint_map joint 3 spacing=5 roughness=0.01 beside joint_coupling joint 3 source=2"
-    diagnosis = {
-        "robot": "abb-irb120",
-        "measurement": "position",
-        "samples": 200,
-        "source": None,
-        "baseline": {"rmse_heldout": 0.05, "folds": 5},
-        "rejected": [],
-        "final": {"rmse_heldout": 0.03},
-        "effects": [{"kind": "joint_map", "joint": 3, "label": long, "params": {}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03}],
-    }
+    diagnosis = _diagnosis({"kind": "joint_map", "joint": 3, "label": long, "params": {}, "rmse_heldout_before": 0.05, "rmse_heldout_after": 0.03})
     report(path, tmp_path / "out", diagnosis=diagnosis)
     assert outside == []
 
@@ -269,3 +260,33 @@ def test_the_shapes_a_joint_error_could_not_be_told_from_are_words_and_hand_edit
     )
     for edited in (None, {}, {"undetermined_between": []}, {"undetermined_between": "joint_scale"}, {"undetermined_between": [1, 2]}, "x"):
         assert alike_words(edited) == ""
+
+
+def test_a_conventions_alternatives_are_shown_once_on_the_page(calibrated, tmp_path):
+    """The alternatives the data cannot tell from a reading convention stand in the structure
+    section's column, not a second time beside it in the table of effects; a joint shape's stand
+    beside it (it has no other place)."""
+    path, _, _ = calibrated
+    convention = {"kind": "joint_zero", "joint": 2, "label": "joint_zero joint 2 offset=90", "params": {}, "rmse_heldout_before": 0.05}
+    scale = {"kind": "joint_scale", "joint": 6, "label": "joint_scale joint 6", "params": {}, "rmse_heldout_before": 0.04}
+    diagnosis = _diagnosis(
+        {**convention, "rmse_heldout_after": 0.04, "significance": {"undetermined_between": ["joint_zero joint 2 offset=270 and joint_sign joint 2"]}},
+        {**scale, "rmse_heldout_after": 0.03, "significance": {"undetermined_between": ["joint_periodic joint 6 harmonic=1"]}},
+    )
+    page = report(path, tmp_path / "out", diagnosis=diagnosis).read_text()
+    assert page.count("joint_zero joint 2 offset=270 and joint_sign joint 2") == 1
+    assert page.count("joint_periodic joint 6 harmonic=1") == 1
+
+
+def _diagnosis(*effects) -> dict:
+    """A diagnosis report of a simulated IRB 120 position file naming ``effects``."""
+    return {
+        "robot": "abb-irb120",
+        "measurement": "position",
+        "samples": 200,
+        "source": None,
+        "baseline": {"rmse_heldout": 0.05, "folds": 5},
+        "rejected": [],
+        "final": {"rmse_heldout": 0.03},
+        "effects": list(effects),
+    }

@@ -423,7 +423,9 @@ def _causes(doc: dict) -> str:
 def _diagnosis_table(report: DiagnosisReport) -> str:
     rows = []
     for e in report.effects:
-        quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + alike_words(e.significance) + settling_words(e.after_long_moves))
+        # A structural cause's alternatives have their own column in the structure section.
+        alike = "" if e.kind in STRUCTURAL else alike_words(e.significance)
+        quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + alike + settling_words(e.after_long_moves))
         rows.append([_esc(e.label), quantities, _fixed(e.rmse_before, 4), _fixed(e.rmse_after, 4)])
     several, b, f = report.several, report.baseline, report.final
     final = None if f is None else f.held_out(several)
