@@ -52,6 +52,12 @@ def configuration_groups(q, tol: float = CONFIGURATION_TOLERANCE) -> np.ndarray:
     return configuration_labels(np.ascontiguousarray(q), float(tol))  # a sort-and-sweep in the core
 
 
+def residual_rows(samples: np.ndarray, k: int) -> np.ndarray:
+    """The rows of a residual vector that hold ``samples`` (positions), ``k`` consecutive rows a
+    sample (a cable's 1, a position's 3, a pose's 6)."""
+    return (np.asarray(samples)[:, None] * k + np.arange(k)).ravel()
+
+
 def _labels(m: int, groups) -> tuple[np.ndarray, int]:
     """Dense group labels (first appearance order) of ``m`` samples and their count."""
     if groups is None:

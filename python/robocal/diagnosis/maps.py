@@ -24,6 +24,7 @@ from scipy import sparse
 from scipy.linalg import LinAlgError, cho_solve, cholesky
 from scipy.stats import f as f_dist
 
+from ..data.splits import residual_rows
 from ..kernels import fold_products, is_sparse, sparse_gram
 from ..progress import progress
 from ..stats import rmse_of_squares
@@ -77,7 +78,7 @@ class _NormalScreen:
             self.fold_of_row[name] = label
 
     def _rows(self, train: np.ndarray, test: np.ndarray) -> tuple:
-        rows = (test[:, None] * self.k + np.arange(self.k)).ravel()
+        rows = residual_rows(test, self.k)
         Jte = self.J[rows]
         return train, test, rows, Jte, _gram(Jte), np.asarray(Jte.T @ self.r[rows])
 

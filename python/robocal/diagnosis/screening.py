@@ -10,6 +10,7 @@ from typing import Optional
 import numpy as np
 from scipy.stats import f as f_dist
 
+from ..data.splits import residual_rows
 from ..kernels import SVD_RCOND, truncated_svd, unit_columns
 from ..stats import robust_sigma
 
@@ -56,7 +57,7 @@ def scheme_folds(J: np.ndarray, r: np.ndarray, folds: list, k: int) -> list[Fold
     """The :class:`Fold` of each ``(train, test)`` pair of samples. Where the held-out samples
     partition the data and each fold trains on the rest, the training rows' triangular factors
     come from the held-out blocks' (a tall-skinny QR: each row factored once a scheme)."""
-    rows = lambda samples: (samples[:, None] * k + np.arange(k)).ravel()
+    rows = lambda samples: residual_rows(samples, k)
     Jr = np.column_stack([J, r])
     factor = lambda A: np.linalg.qr(A, mode="r")
     m = len(r) // k
