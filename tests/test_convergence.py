@@ -52,3 +52,30 @@ def test_lm_converges_with_the_causes_diagnose_finds(datasets, name, causes):
     result = robocal.calibrate(robocal.load(datasets / path, measurement=measurement), causes=causes)
     assert result.success, result.message
     assert result.nfev <= 300
+
+
+@pytest.mark.parametrize("measurement, seed", [("position", 1), ("pose", 2), ("cable", 3)])
+def test_a_warm_fit_checks_its_stop_with_the_steps_own_jacobian(measurement, seed):
+    """A fold's fit from a nearby fit (cross-validation's warm start) whose x alone is wanted
+    tests the noise-level stop with the Jacobian its step was taken with: the same x as the
+    test with a Jacobian evaluated at the new point, one Jacobian (and its normal matrix) fewer,
+    and a stop that Jacobian agrees with."""
+    import numpy as np
+
+    from robocal.calibration.lm import NOISE_DISTANCE
+    from robocal.simulation import simulate
+
+    data, _ = simulate("hsr-jr680", measurement, samples=400, seed=seed)
+    robot = robocal.robot(data.robot)
+    everything = levenberg_marquardt(Problem.build(robot, data))
+    train, _ = random_split(len(data), 0.2, seed=seed)
+    fold = Problem.build(robot, data.subset(train))
+    fresh = levenberg_marquardt(fold, x0=everything.x, lam0=1e-9, with_std=False)
+    frozen = levenberg_marquardt(fold, x0=everything.x, lam0=1e-9, with_std=False, frozen_check=True)
+    assert fresh.success and frozen.success, (fresh.message, frozen.message)
+    assert np.array_equal(frozen.x, fresh.x)
+    assert frozen.njev == fresh.njev - 1
+    r, J = fold.residuals(frozen.x), fold.jacobian(frozen.x)
+    step = np.linalg.lstsq(J, r, rcond=None)[0]
+    noise = np.sqrt(np.sum(r**2) / (len(r) - len(frozen.x)))
+    assert np.linalg.norm(J @ step) / noise < NOISE_DISTANCE

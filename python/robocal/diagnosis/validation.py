@@ -60,7 +60,8 @@ def fit_problem(problem: ExtendedProblem, x0=None, with_std: bool = True):
     fit needs only its ``x``)."""
     if x0 is None:
         return levenberg_marquardt(problem, method="diagnose", with_std=with_std)
-    return levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std)
+    # A warm fit whose x alone is wanted (a fold's) checks its stop with the step's own Jacobian first.
+    return levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std, frozen_check=not with_std)
 
 
 def fold_problem(ext: ExtendedProblem, train: np.ndarray, setup: Optional[np.ndarray] = None) -> ExtendedProblem:
