@@ -116,8 +116,8 @@ def levenberg_marquardt(
     ``success``/``message``, not raised; ``statistical_stop=False`` runs to scipy's
     tolerances instead of stopping at the noise level (see the module notes); ``with_std=False``
     leaves the result's ``std`` None (a fit whose ``x`` alone is wanted); ``frozen_check=True``
-    first tests the noise-level stop after a step with the Jacobian the step was taken with
-    (:data:`NOISE_DISTANCE`; see the module notes), for a warm start's fit whose ``x`` alone is
+    first tests the noise-level stop after a linear step (:data:`LINEAR_STEP`) with the Jacobian
+    the step was taken with (see the module notes), for a warm start's fit whose ``x`` alone is
     wanted. With a robust ``loss`` the result's ``robust`` holds
     the loss, the scale and the rows of the samples beyond :data:`OUTLYING` scales. Without
     ``f_scale`` the scale is estimated from a plain fit, then once more from the robust fit.
@@ -185,7 +185,7 @@ def _minimise(
     method: str,
     statistical_stop: bool,
     with_std: bool,
-    frozen_check: bool = False,
+    frozen_check: bool,
 ) -> CalibrationResult:
     """The damped iteration on ``objective`` (see the module notes)."""
     start = time.perf_counter()

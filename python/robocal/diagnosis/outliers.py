@@ -99,11 +99,11 @@ def name_outliers(
     state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int, geometric_cv: Optional[tuple] = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
-    robust sigmas, :func:`~.entries.final_residuals`), and their report entry put first among the effects
-    (``revealed``: those an earlier pass's final model named). The geometric model's held-out
-    error with them is ``geometric_cv``'s (:func:`~.conventions.reading_conventions`'s) where its folds are the same.
-    Returns the outliers, and the kept samples the final model puts beyond the bound on their
-    own (:func:`isolated`)."""
+    robust sigmas, :func:`~.entries.final_residuals`), and their report entry put first among the
+    effects (``revealed``: those an earlier pass's final model named). The geometric model's
+    held-out error with them is ``geometric_cv``'s (:func:`~.conventions.reading_conventions`'s)
+    where its folds are the same. Returns the outliers, and the kept samples the final model puts
+    beyond the bound on their own (:func:`isolated`)."""
     dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and state.model.causes:

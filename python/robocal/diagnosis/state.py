@@ -24,10 +24,11 @@ from ..robot import Robot
 
 @dataclass
 class Decided:
-    """What a pass of :func:`~.select._select` decided, for a second pass that only confirms it: the causes
-    its forward selection accepted (in order) and the maps its map stage accepted (labels), the
-    number of candidates and of maps its tests were corrected for (Bonferroni), and its refusals
-    and unexplained findings (reported as they were: decided over the samples it had)."""
+    """What a pass of :func:`~.select._select` decided, for a second pass that only confirms it:
+    the causes its forward selection accepted (in order) and the maps its map stage accepted
+    (labels), the number of candidates and of maps its tests were corrected for (Bonferroni), and
+    its refusals and unexplained findings (reported as they were: decided over the samples it
+    had)."""
 
     causes: list
     maps: set
@@ -42,10 +43,10 @@ class Decided:
 
 @dataclass
 class Baseline:
-    """The geometric baseline of a pass (:func:`~.select.geometric_baseline`): its fit on the kept samples
-    and held-out squared errors per fold scheme, the outliers named before any cause is in (and
-    their bound, in robust sigmas), and the test of its residuals for correlation in acquisition
-    order and in joint space (:func:`~.wander.residual_correlation`)."""
+    """The geometric baseline of a pass (:func:`~.select.geometric_baseline`): its fit on the kept
+    samples and held-out squared errors per fold scheme, the outliers named before any cause is in
+    (and their bound, in robust sigmas), and the test of its residuals for correlation in
+    acquisition order and in joint space (:func:`~.wander.residual_correlation`)."""
 
     fit: CalibrationResult
     cv: dict
