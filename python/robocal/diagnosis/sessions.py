@@ -229,13 +229,15 @@ class _Evaluator:
     def _fitted(self, problem, key, with_std: bool = False):
         """``problem`` fitted from ``problem.x0`` with the entries the previous fit of the same
         ``key`` (the same readings and sessions; a smaller model's) found, kept for the next.
-        From such a warm start the fit begins as Gauss-Newton (:data:`~.validation.WARM_DAMPING`)."""
+        From such a warm start the fit begins as Gauss-Newton (:data:`~.validation.WARM_DAMPING`)
+        and, when its ``x`` alone is wanted, checks its stop with its step's Jacobian as a fold's
+        fit does (:func:`~.validation.fit_problem`)."""
         previous = self._starts.get(key)
         if previous is None:
             fit = levenberg_marquardt(problem, method="diagnose", with_std=with_std)
         else:
             x0 = np.array([previous.get(n, v) for n, v in zip(problem.names, problem.x0)])
-            fit = levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std)
+            fit = levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std, frozen_check=not with_std)
         self._starts[key] = dict(zip(problem.names, fit.x))
         return fit
 
