@@ -24,7 +24,6 @@ from typing import Optional
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import TOLERANCE, implausible_parameters, kinematic_prior_pairs, start_parameters
 from ..calibration.sessions import SESSION_KINDS, Partial, Sessions, is_private, load_sessions, session_problems
 from ..causes import structure
@@ -50,7 +49,7 @@ from .select import (
     undetermined,
 )
 from .uncertainty import uncertainty_entries
-from .validation import WARM_DAMPING
+from .validation import fit_problem
 
 logger = logging.getLogger(__name__)
 
@@ -229,15 +228,10 @@ class _Evaluator:
     def _fitted(self, problem, key, with_std: bool = False):
         """``problem`` fitted from ``problem.x0`` with the entries the previous fit of the same
         ``key`` (the same readings and sessions; a smaller model's) found, kept for the next.
-        From such a warm start the fit begins as Gauss-Newton (:data:`~.validation.WARM_DAMPING`)
-        and, when its ``x`` alone is wanted, checks its stop with its step's Jacobian as a fold's
-        fit does (:func:`~.validation.fit_problem`)."""
+        From such a warm start it is fitted as a fold's fit is (:func:`~.validation.fit_problem`)."""
         previous = self._starts.get(key)
-        if previous is None:
-            fit = levenberg_marquardt(problem, method="diagnose", with_std=with_std)
-        else:
-            x0 = np.array([previous.get(n, v) for n, v in zip(problem.names, problem.x0)])
-            fit = levenberg_marquardt(problem, x0=x0, method="diagnose", lam0=WARM_DAMPING, with_std=with_std, frozen_check=not with_std)
+        x0 = None if previous is None else np.array([previous.get(n, v) for n, v in zip(problem.names, problem.x0)])
+        fit = fit_problem(problem, x0=x0, with_std=with_std)
         self._starts[key] = dict(zip(problem.names, fit.x))
         return fit
 

@@ -54,10 +54,11 @@ def same_folds(a: list, b: list) -> bool:
 WARM_DAMPING = 1e-9
 
 
-def fit_problem(problem: ExtendedProblem, x0=None, with_std: bool = True):
-    """``problem`` fitted (nonlinear, stopping at the noise level) from ``x0``, a warm start, or
-    its own start; ``with_std=False``: without the parameters' standard deviations (a fold's
-    fit needs only its ``x``)."""
+def fit_problem(problem, x0=None, with_std: bool = True):
+    """``problem`` (an :class:`ExtendedProblem`, or several sessions' stacked one) fitted
+    (nonlinear, stopping at the noise level) from ``x0``, a warm start, or its own start;
+    ``with_std=False``: without the parameters' standard deviations (a fold's fit needs only its
+    ``x``)."""
     if x0 is None:
         return levenberg_marquardt(problem, method="diagnose", with_std=with_std)
     # A warm fit whose x alone is wanted (a fold's) checks its stop with the step's own Jacobian first.
