@@ -188,15 +188,16 @@ pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64,
     Ok((y.iter().zip(&scale).map(|(v, s)| v / s).collect(), how))
 }
 
-/// `J` (m, n) factored as `J·P = Q·R` (column-pivoted Householder QR, thin `Q`) for the damped
-/// steps `min ‖J·δ − b‖² + λ‖δ‖²` of several `λ` and `b`.
+/// `J` (m, n) factored as `J = Q·R` (Householder QR, thin `Q`) for the damped steps
+/// `min ‖J·δ − b‖² + λ‖δ‖²` of several `λ` and `b`. No column pivoting here: each step's small
+/// system `[R; √λ·I]` is factored with it ([`Self::solve`]), which is where a rank deficiency
+/// shows, and Householder QR is backward stable without it (unpivoted: 0.40 instead of 0.71 ms
+/// for a 2017×24 `J`).
 #[derive(Debug, Clone)]
 pub struct DampedQr {
-    qr: faer::linalg::solvers::ColPivQr<f64>,
+    qr: faer::linalg::solvers::Qr<f64>,
     r: Mat<f64>,
     m: usize,
-    /// `forward[k]`: the column of `J` that is column `k` of `J·P`.
-    forward: Vec<usize>,
 }
 
 impl DampedQr {
@@ -204,12 +205,13 @@ impl DampedQr {
     /// change no least-squares problem). Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn new(j: &[f64], m: usize, n: usize) -> CoreResult<Self> {
         let jm = row_major("J", j, m, n)?;
-        let rows = m.max(n);
-        let padded = Mat::from_fn(rows, n, |row, col| if row < m { jm[(row, col)] } else { 0.0 });
-        let qr = padded.col_piv_qr();
-        let forward = qr.P().arrays().0.to_vec();
+        let qr = if m >= n {
+            jm.qr()
+        } else {
+            Mat::from_fn(n, n, |row, col| if row < m { jm[(row, col)] } else { 0.0 }).qr()
+        };
         let r = qr.thin_R().to_owned();
-        Ok(Self { qr, r, m, forward })
+        Ok(Self { qr, r, m })
     }
 
     /// Number of columns of `J`.
@@ -241,7 +243,7 @@ impl DampedQr {
     }
 
     /// The step `δ` minimising `‖J·δ − b‖² + λ‖δ‖²` from `c = Qᵀb` ([`Self::project`]): the
-    /// least squares of `[R; √λ·I] z ≈ [c; 0]`, un-permuted; its minimum-norm solution through
+    /// least squares of `[R; √λ·I] δ ≈ [c; 0]`; its minimum-norm solution through
     /// the SVD when that is rank-deficient (λ = 0 and `J` singular).
     /// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter` (λ < 0 or not finite).
     pub fn solve(&self, c: &[f64], lambda: f64) -> CoreResult<Vec<f64>> {
@@ -256,17 +258,12 @@ impl DampedQr {
         let diag = qr.thin_R().diagonal().column_vector();
         let rmax = (0..n).fold(0.0f64, |hi, k| hi.max(diag[k].abs()));
         let full_rank = rmax > 0.0 && (0..n).all(|k| diag[k].abs() > rcond * rmax);
-        let z: Vec<f64> = if full_rank {
+        if full_rank {
             let y = qr.solve_lstsq(&rhs);
-            (0..n).map(|k| y[(k, 0)]).collect()
+            Ok((0..n).map(|k| y[(k, 0)]).collect())
         } else {
-            min_norm_lstsq(aug.as_ref(), rhs.as_ref(), rcond)?
-        };
-        let mut step = vec![0.0; n];
-        for (k, &col) in self.forward.iter().enumerate() {
-            step[col] = z[k];
+            min_norm_lstsq(aug.as_ref(), rhs.as_ref(), rcond)
         }
-        Ok(step)
     }
 }
 
