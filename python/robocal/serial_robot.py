@@ -203,6 +203,8 @@ class Robot:
         p = as_float_array(params, arg)
         if p.shape != (self.n_params,):
             raise ShapeError(f"`{arg}` must have shape ({self.n_params},); got {p.shape}")
+        if (np.abs(p) <= MAX_ABS).all():  # the common case in one pass (NaN fails the test too)
+            return p
         bad = np.flatnonzero(~np.isfinite(p))
         if bad.size:
             raise NonFiniteError(f"`{arg}` must be finite; got {p[bad[0]]} at index {bad[0]} ({self.param_names[bad[0]]})")
