@@ -215,12 +215,10 @@ def _minimise(
             factored = _factor(Jw, d, gram)
             c = factored.project(rw)
             if statistical_stop:
-                noise = np.sqrt(2.0 * cost / dof)
-                if noise == 0.0:
+                if cost == 0.0:
                     success, message = True, "the residuals are zero"
                     break
-                # ‖Qᵀr‖ = ‖J·δ_GN‖: how far the Gauss–Newton step of the linearised problem moves the fit.
-                distance = float(np.linalg.norm(c)) / noise
+                distance = _gauss_newton_distance(c, cost, dof)
                 if distance < NOISE_DISTANCE:
                     success, message = True, f"converged to within the noise: a Gauss-Newton step would move the fit by {distance:.2g} standard deviations"
                     break
@@ -290,13 +288,20 @@ def _minimise(
     return result
 
 
+def _gauss_newton_distance(c: np.ndarray, cost: float, dof: int) -> float:
+    """How far the Gauss–Newton step of the linearised problem moves the fit, in standard
+    deviations of the residuals: ``‖c‖ = ‖Qᵀr‖ = ‖J·δ_GN‖`` over ``σ̂ = √(2·cost/dof)`` (infinite
+    for zero residuals)."""
+    noise = np.sqrt(2.0 * cost / dof)
+    return float(np.linalg.norm(c)) / noise if noise > 0.0 else np.inf
+
+
 def _within_noise(factored, r: np.ndarray, cost: float, dof: int) -> bool:
     """Whether the Gauss–Newton step from residuals ``r`` (cost ``cost``) would move the fit by less
     than :data:`NOISE_DISTANCE` standard deviations, measured with ``factored`` — the Jacobian
     the last step was taken with, not one evaluated at the new point: the check that saves a
     Jacobian and its normal matrix where the step ends within the noise."""
-    noise = np.sqrt(2.0 * cost / dof)
-    return noise > 0.0 and float(np.linalg.norm(factored.project(r))) / noise < NOISE_DISTANCE
+    return _gauss_newton_distance(factored.project(r), cost, dof) < NOISE_DISTANCE
 
 
 #: Ridge added to a sparse Jacobian's scaled normal matrix (unit diagonal): it keeps the

@@ -73,7 +73,7 @@ from .maps import map_stage, merge_harmonics
 from .outliers import gross_outliers, name_outliers
 from .physical import physical_model
 from .screening import Screen
-from .state import Baseline, Decided, Pass, refusal_record, retract
+from .state import Baseline, Decided, Pass, refusal_record, retraction
 from .validation import GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
 from .wander import residual_correlation, time_inflation
 
@@ -585,10 +585,11 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # be named, the arcs of a wandering reading must not be taken for a jump. (Where wanders
         # are offered they compete as candidates: as arcs here, a 5x step lost to the wander that
         # follows it over the random folds, seed 30 of benches/discovery.py, file 48.)
-        arcs = {
-            arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)
-        }.values()  # a long session widens them alike
-        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
+        if state.arcs is None:  # built once a pass: they depend on the samples' order alone
+            state.arcs = list(
+                {arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)}.values()
+            )  # a long session widens them alike
+        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in state.arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs
@@ -1022,7 +1023,7 @@ def _take_map(state: Pass, m: dict, why_replaced: str, significance: dict) -> No
     and its held-out figures."""
     c = m["candidate"]
     for o in m["replaces"]:
-        state.rejected.append({**retract(o, state.effects, state.plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
+        state.rejected.append({**retraction(o, state.effects, state.plots, None, why_replaced.format(label=c.label)), "replaced_by": c.label})
     before, after = m["rmse_heldout_before"], m["rmse_heldout_after"]
     state.effects.append(
         {

@@ -4,7 +4,7 @@ pass that confirms it (:class:`Decided`), and the report's records of refused ca
 The stages of :mod:`.select` (and :mod:`.outliers`, :mod:`.physical`, :mod:`.entries`) each take
 the pass's state and leave it updated; the records here are how a cause enters the report's
 ``rejected``: refused when screened (:func:`refusal_record`) or taken back after it was accepted
-(:func:`retract`).
+(:func:`retraction`).
 """
 
 from __future__ import annotations
@@ -79,6 +79,8 @@ class Pass:
     effects: list
     rejected: list
     plots: dict = field(default_factory=dict)
+    #: The arcs of a wandering reading a step must beat (:func:`~.select.screen_round`), once built.
+    arcs: Optional[list] = None
 
     @property
     def k(self) -> int:
@@ -91,11 +93,11 @@ class Pass:
 
     def retract(self, c: Candidate, physical, reason: str) -> None:
         """The accepted cause ``c`` out of the report, into the rejected with ``reason``
-        (:func:`retract`)."""
-        self.rejected.append(retract(c, self.effects, self.plots, physical, reason))
+        (:func:`retraction`)."""
+        self.rejected.append(retraction(c, self.effects, self.plots, physical, reason))
 
 
-def retract(c: Candidate, effects: list, plots: dict, physical, reason: str) -> dict:
+def retraction(c: Candidate, effects: list, plots: dict, physical, reason: str) -> dict:
     """Takes the accepted cause ``c`` out of the report's ``effects`` (and its plot) and returns
     its rejection record: its screening figures, ``physical`` (default: those it was accepted
     with) and ``reason``."""
