@@ -102,7 +102,7 @@ def solve_damped(J, r, lam: float, damping: str = "marquardt", factor: str = "no
 
 
 def factor_damped(J):
-    """A dense ``J`` (m, n) factored once as ``J·P = Q·R`` (column-pivoted QR, in Rust) for many
+    """A dense ``J`` (m, n) factored once as ``J = Q·R`` (Householder QR, in Rust) for many
     damped steps ``min ‖J·δ − b‖² + λ‖δ‖²`` (a sparse ``J``, a model with joint maps, goes
     through its normal equations in the LM: :func:`robocal.calibration.lm.levenberg_marquardt`).
 

@@ -265,7 +265,7 @@ fn solve_damped<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAn
     Ok((PyArray1::from_vec(py, x), how.name()))
 }
 
-/// `J` (m, n) factored once (`J·P = Q·R`) for many damped steps `min ‖J·δ − b‖² + λ‖δ‖²`.
+/// `J` (m, n) factored once (`J = Q·R`) for many damped steps `min ‖J·δ − b‖² + λ‖δ‖²`.
 #[pyclass(name = "DampedQr", module = "robocal._robocal", frozen)]
 struct PyDampedQr {
     inner: solve::DampedQr,
@@ -462,7 +462,7 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(configuration_groups, m)?)?;
     m.add_function(wrap_pyfunction!(normal_equations, m)?)?;
     // The core parallelises over samples (rayon); faer's own threads only add hand-over cost to
-    // its small dense factorisations (a pivoted QR of 1600×24: 0.41 → 0.33 ms).
+    // its small dense factorisations (a pivoted QR of 1600×24 had gone 0.41 → 0.33 ms without them).
     faer::set_global_parallelism(faer::Par::Seq);
     m.add_function(wrap_pyfunction!(identifiability, m)?)?;
     m.add_function(wrap_pyfunction!(covariance, m)?)?;

@@ -13,8 +13,8 @@
 //!   production LM uses it, because on ill-conditioned real data the normal equations stall it
 //!   in a flat valley.
 //! - [`DampedQr`], the same least-squares step with `D = I` for many `λ` and right-hand sides
-//!   from one factorisation of `J` (MINPACK's `lmpar`/`qrsolv` idea): `J·P = Q·R` once per
-//!   Jacobian, then each step is the small problem `[R; √λ·I] z ≈ [Qᵀb; 0]`, `O(n³)` instead
+//!   from one factorisation of `J` (MINPACK's `lmpar`/`qrsolv` idea): `J = Q·R` once per
+//!   Jacobian, then each step is the small problem `[R; √λ·I] δ ≈ [Qᵀb; 0]`, `O(n³)` instead
 //!   of `O(m·n²)`. The caller scales the columns (`J·D^-½`) to get Marquardt's damping.
 
 mod gram;
@@ -191,8 +191,7 @@ pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64,
 /// `J` (m, n) factored as `J = Q·R` (Householder QR, thin `Q`) for the damped steps
 /// `min ‖J·δ − b‖² + λ‖δ‖²` of several `λ` and `b`. No column pivoting here: each step's small
 /// system `[R; √λ·I]` is factored with it ([`Self::solve`]), which is where a rank deficiency
-/// shows, and Householder QR is backward stable without it (unpivoted: 0.40 instead of 0.71 ms
-/// for a 2017×24 `J`).
+/// shows, and Householder QR is backward stable without it (and faster: docs/benchmarks.md).
 #[derive(Debug, Clone)]
 pub struct DampedQr {
     qr: faer::linalg::solvers::Qr<f64>,
@@ -354,7 +353,7 @@ mod tests {
 
     #[test]
     fn damped_qr_equals_the_augmented_least_squares_for_any_lambda() {
-        // Ill-conditioned columns, so the pivoting reorders them; J·δ ≈ r with (J, r) fixed.
+        // Ill-conditioned columns; J·δ ≈ r with (J, r) fixed.
         let j = [1.0, 2.0, 0.0, 1.0, 2.0 + 1e-6, 1.0, 0.0, 1.0, 3.0, 2.0, 4.0, 0.5];
         let r = [1.0, -2.0, 0.5, 3.0];
         let f = DampedQr::new(&j, 4, 3).unwrap();

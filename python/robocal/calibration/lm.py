@@ -9,7 +9,7 @@ in thousands of tiny steps without converging (D1: docs/findings.md). Three chan
 - **Scaled damping with a memory, one factorisation per Jacobian.** Each step solves
   ``(JᵀJ + λ·D) v = Jᵀr`` with ``D`` the running maximum of ``diag(JᵀJ)`` (MINPACK's scaling)
   as the least squares of ``[J·D^-½; √λ·I] z ≈ [r; 0]`` (the normal equations would square the
-  condition number): ``J·D^-½`` is factored once by column-pivoted QR in the Rust core
+  condition number): ``J·D^-½`` is factored once by Householder QR in the Rust core
   (:func:`robocal.kernels.factor_damped`), and every λ tried and the acceleration below reuse it.
 - **Geodesic acceleration.** A second-order correction ``a`` from the residuals' directional
   second derivative along ``v`` (one extra residual evaluation at ``x + h·v``) bends the step
@@ -317,7 +317,7 @@ NORMAL_CONDITION = 1e10
 def _factor(Jw, d: np.ndarray, gram):
     """The damped steps of ``Jw·D^-½`` (``d = √diag(D)``) from the normal equations ``gram``
     (``JwᵀJw``). A dense ``Jw``'s when they are well conditioned (:data:`NORMAL_CONDITION`),
-    else a column-pivoted QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`); a
+    else a QR of the scaled ``Jw`` (:func:`robocal.kernels.factor_damped`); a
     sparse one's always (a model with joint maps: a QR would fill it in), with :data:`SPARSE_RIDGE`."""
     normal = gram / np.outer(d, d)
     if is_sparse(Jw):
