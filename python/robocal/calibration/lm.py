@@ -37,8 +37,7 @@ the previous model's fold fit: ``frozen_check=True``) first tests the Gauss–Ne
 a step with the Jacobian the step was taken with, whose factorisation it has, where the step
 was linear (its cost fell as predicted, to :data:`LINEAR_STEP`): where that says the step ended
 within the noise, the fit stops without evaluating the Jacobian and its normal matrix at the
-new point (UR10 series A's diagnosis reports the same held-out figures with it,
-to the last digit: docs/benchmarks.md).
+new point (what it saves and what it changes: docs/diagnose.md, Performance).
 Bounds (if the problem has any) project each step.
 
 Robust losses (``loss="huber"`` or ``"cauchy"``): the cost is ``½ s² Σ_i ρ(‖r_i‖² / s²)`` over the
@@ -213,7 +212,8 @@ def _minimise(
             scale = squares if scale is None else np.maximum(scale, squares)
             d = np.sqrt(np.where(scale > 0, scale, 1.0))
             factored = _factor(Jw, d, gram)
-            c = factored.project(rw)
+            # Qᵀr; a sparse J's factorisation takes it from Jᵀr = g, which it would compute again
+            c = factored.project_products(g / d) if is_sparse(Jw) else factored.project(rw)
             if statistical_stop:
                 if cost == 0.0:
                     success, message = True, "the residuals are zero"
@@ -342,9 +342,13 @@ class _DampedGram:
         self.L = cholesky(normal, lower=True)
 
     def project(self, b: np.ndarray) -> np.ndarray:
+        return self.project_products(self.transpose_times(b))
+
+    def project_products(self, Atb: np.ndarray) -> np.ndarray:
+        """``c = L⁻¹·Aᵀb`` from ``Aᵀb`` itself."""
         from scipy.linalg import solve_triangular
 
-        return solve_triangular(self.L, self.transpose_times(b), lower=True)
+        return solve_triangular(self.L, Atb, lower=True)
 
     def solve(self, c: np.ndarray, lam: float) -> np.ndarray:
         from scipy.linalg import cho_factor, cho_solve
