@@ -319,6 +319,24 @@ def test_a_drift_fast_at_first_is_one_curved_drift_and_no_step_at_its_start():
     assert drift["label"] != "drift"  # a curved one
 
 
+def test_a_drift_whose_line_misses_the_held_out_blocks_is_a_curved_drift_not_a_coupling():
+    """A cable zero drifting ∝ t^2.5: its line gains on the random folds and loses on the blocked
+    ones, and a coupling whose source joint moves with time took the bend (discovery benchmark,
+    seed 33, file 223). The drift's curves compete in the same round and one is named, alone."""
+    report = named("abb-irb120", "cable", ["drift:exponent=2.483,rate=3.63278"], seed=33147)
+    assert kinds(report) == [("drift", None)]
+    assert report["effects"][0]["label"] != "drift"  # a curved one
+
+
+def test_a_curve_of_time_is_no_simpler_than_a_wander():
+    """A wandering cable zero (length 17 samples) beside a small step: a settling drift gains less
+    than the wander on the random folds and must not be judged before it as a linear drift would
+    be (discovery benchmark, seed 33, file 341: a settling drift took the wander's place)."""
+    report = named("abb-irb120", "cable", ["step:sample=269,size=0.219182", "wander:length=17,rms=0.0934442"], seed=33156)
+    assert ("wander", None) in kinds(report)
+    assert ("drift", None) not in kinds(report)
+
+
 def test_a_fold_that_cannot_see_a_step_holds_it_at_zero():
     """A blocked fold whose training samples all follow a step cannot estimate it (it is a
     constant the set-up takes): the step is held at zero there, so the fold's held-out error
