@@ -337,6 +337,14 @@ def test_a_curve_of_time_is_no_simpler_than_a_wander():
     assert ("drift", None) not in kinds(report)
 
 
+def test_a_sample_at_the_lonely_end_of_a_mapped_joint_is_not_an_outlier():
+    """A fifth-turn harmonic of joint 6 the map takes: the sample at the end of joint 6's range,
+    where only the map's roughness prior sets it, keeps a large residual that is the map's, not a
+    gross reading (discovery benchmark, seed 36, file 270: named outliers beside the map)."""
+    report = named("abb-irb120", "pose", ["joint_periodic:joint=6,harmonic=5,phase=341.6,amplitude=0.137839"], seed=36227)
+    assert kinds(report) == [("joint_map", 6)]
+
+
 def test_a_fold_that_cannot_see_a_step_holds_it_at_zero():
     """A blocked fold whose training samples all follow a step cannot estimate it (it is a
     constant the set-up takes): the step is held at zero there, so the fold's held-out error

@@ -134,4 +134,17 @@ def name_outliers(
             "after_long_moves": after_long_moves(dataset, outliers),  # readings taken before the arm settled?
         }
         state.effects.insert(0, outliers_entry)
-    return outliers, isolated(dataset.q, z, keep[beyond[keep]], keep, z_bound)
+    suspects = np.setdiff1d(keep[beyond[keep]], map_ends(state.model.causes, dataset.q, keep))
+    return outliers, isolated(dataset.q, z, suspects, keep, z_bound)
+
+
+def map_ends(causes: list, q: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The kept samples among the :data:`NEIGHBOURS` lowest and highest angles of each joint a
+    joint map of ``causes`` corrects. Fewest samples and the roughness prior set a map's ends, so a
+    large residual there is the map's (a harmonic bending within a lonely end stretch), not a
+    gross reading: on simulated joint-6 harmonics of 5 and 6 turns an end sample was revealed as an
+    outlier."""
+    ends = [
+        keep[np.argsort(q[keep, c.joint])[[*range(NEIGHBOURS), *range(-NEIGHBOURS, 0)]]] for c in causes if c.kind == "joint_map" and len(keep) > 2 * NEIGHBOURS
+    ]
+    return np.unique(np.concatenate(ends)) if ends else keep[:0]
