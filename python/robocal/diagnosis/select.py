@@ -76,7 +76,7 @@ from .outliers import gross_outliers, name_outliers
 from .physical import physical_model
 from .screening import Screen
 from .state import Baseline, Decided, Pass, refusal_record, retraction
-from .validation import GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
+from .validation import GAIN_LEVEL, GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
 from .wander import residual_correlation, time_inflation
 
 
@@ -530,6 +530,14 @@ class Round:
         relevant = gain >= self.min_gain * self.rmse
         return p_value * self.tests(c) < self.alpha and relevant and gains_everywhere(c, gains)
 
+    def told_apart(self, better: Candidate, worse: Candidate, on=slice(None)) -> bool:
+        """Whether the data tell the joint candidate ``better`` from ``worse``: its held-out
+        errors on the random folds beat ``worse``'s by :data:`SHAPE_Z` standard errors, sample by
+        sample (on the samples ``on``; False where either was not screened as a joint shape)."""
+        if better.label not in self.joint_errs or worse.label not in self.joint_errs:
+            return False
+        return paired_z(self.joint_errs[worse.label][on], self.joint_errs[better.label][on]) >= SHAPE_Z
+
     def refusal(self, item: tuple, physical, reason: str) -> dict:
         """The report's record of the screened ``item`` refused for ``reason``."""
         gain, c, p_value, gains = item
@@ -574,7 +582,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
         if c.kind == "step":
             step_errs[c.label] = errs["random"]
-        elif c.kind in READING_SHAPES:
+        elif c.kind in READING_SHAPES or c.kind in PHYSICAL_KINDS:
             joint_errs[c.label] = errs["random"]
         scored.append((gains["random"], c, p_value, gains))
 
@@ -617,7 +625,9 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # differ (around the step); the public D2 file's 2.9 mm jump of the cable zero, 1.6
         # standard errors so scaled, beats its ramp by 8.3.
         screening.jump_z[c.label] = paired_z(best[on], step_errs[c.label][on])
-    screening.ranked = confirmation_order(scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes))
+    screening.ranked = confirmation_order(
+        scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes), told_apart=screening.told_apart
+    )
     return screening
 
 
@@ -668,7 +678,7 @@ def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_tes
     return pool
 
 
-def confirmation_order(scored: list, significant, inflation: float, established: bool) -> list:
+def confirmation_order(scored: list, significant, inflation: float, established: bool, told_apart=lambda better, worse: False) -> list:
     """A round's ``scored`` candidates (``(gain, candidate, p_value, gains)``; ``significant``
     judges one: :meth:`Round.significant`) in the order :func:`confirm` tries them: largest gain
     first, the simpler of two alike first (:func:`simplest_first`), a gravity compliance before
@@ -679,7 +689,7 @@ def confirmation_order(scored: list, significant, inflation: float, established:
     rest."""
     scored = sorted(scored, key=lambda s: -s[0])
     scored = simplest_first(scored)
-    scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: significant(*s), established=established)
+    scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: significant(*s), established=established, told_apart=told_apart)
     # A drift or a step that gains at least SENSOR_TERM_SHARE of what a significant wander gains
     # is judged before it: one coefficient per axis against dozens, and a wander fine enough
     # follows a drift, or smooths a jump, as well (a simulated drift well beyond its detection
@@ -833,7 +843,6 @@ def alike_shapes(screening: Round, c: Candidate, on: np.ndarray) -> list:
     claim is then "one of these", as a convention's is."""
     if c.kind not in READING_SHAPES:
         return []
-    mine = screening.joint_errs[c.label][on]
     return [
         o.label
         for item in screening.ranked
@@ -841,7 +850,7 @@ def alike_shapes(screening: Round, c: Candidate, on: np.ndarray) -> list:
         and (o.joint == c.joint or driving_joint(o) == driving_joint(c))
         and o.label != c.label
         and screening.significant(*item)
-        and paired_z(screening.joint_errs[o.label][on], mine) < SHAPE_Z
+        and not screening.told_apart(c, o, on)
     ]
 
 
@@ -873,7 +882,8 @@ def try_curved_drift(state: Pass) -> None:
     drift, if it has one, is replaced by the best of a natural spline of time
     (:data:`~robocal.causes.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
     (:data:`~robocal.causes.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
-    ``min_gain`` of it and does no harm on the others. Its leftovers would otherwise be taken by
+    ``min_gain`` of it, significantly as any cause must (:func:`~.validation.weak_gain`: a settling
+    fitted to a linear drift gained 1 % by chance), and does no harm on the others. Its leftovers would otherwise be taken by
     steps, harmonics and couplings that the backward check then no longer needs (a drift fast
     at first left a step in its first dozen samples). In the report, the curved drift's entry
     (and plot) takes the linear one's place, and the steps it made unnecessary are retracted."""
@@ -897,8 +907,11 @@ def try_curved_drift(state: Pass) -> None:
             cv, trial_fold_x = cross_validate(trial, schemes, fold_x, model)
             after = judged_rmse(cv["random"])
             physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
-            gains = before - after >= min_gain * before if not leave_out else after <= (1.0 + SAME_GAIN) * before
             on = judgeable(curved, model.idx, schemes)
+            if leave_out:
+                gains = after <= (1.0 + SAME_GAIN) * before
+            else:  # a claim of a shape: its gain over the line significant as any cause's (a settling fitted to a linear drift)
+                gains = before - after >= min_gain * before and weak_gain(current_cv["random"][on["random"]], cv["random"][on["random"]]) is None
             if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
                 key = (len(trial.causes), after)
                 if best is None or key < best[0]:
@@ -920,7 +933,7 @@ def try_curved_drift(state: Pass) -> None:
         "rmse_heldout_before": reported_rmse(current_cv["random"]),
         "rmse_heldout_after": reported_rmse(cv["random"]),
         "significance": {
-            "test": f"{polynomial}: held-out gain of at least {min_gain:.1%} on the random folds, no harm on the others",
+            "test": f"{polynomial}: held-out gain of at least {min_gain:.1%} on the random folds, significant at one-sided {GAIN_LEVEL:g} (paired z), no harm on the others",
             "p_value": None,
             "p_adjusted": None,
             "screening_gain_mm": None,
@@ -1119,14 +1132,19 @@ def recheck_compliances(state: Pass) -> None:
 PHYSICS_SHARE = 0.5
 
 
-def physics_first(ranked: list, gain, cause, eligible=lambda item: True, established: bool = False) -> list:
+def physics_first(ranked: list, gain, cause, eligible=lambda item: True, established: bool = False, told_apart=lambda better, worse: False) -> list:
     """``ranked`` (best first; ``gain(item)`` the item's held-out gain, ``cause(item)`` its
     candidate) with each ``eligible`` cause that has a physical model of how it carries
     (:data:`PHYSICAL_KINDS`: gravity compliance) moved before the first eligible free joint
     shape (harmonic, scale, coupling, backlash, map) if it gains at least :data:`PHYSICS_SHARE`
     of that shape's gain, or any share if one is ``established`` (the model already has a
     compliance: the data have shown the robot bends under gravity, and the other loaded joints
-    bend too). Within one session a harmonic — and then a joint map — can take a compliance's
+    bend too). Until one is, the free shapes of its own joint ranked ahead of it that the data
+    tell from it (``told_apart(better, worse)``: :meth:`Round.told_apart`) move with it, just
+    before it: a scale error of joint 2 that beat joint 2's compliance by 2-5 standard errors
+    was named a compliance (seeds 36 and 37 of benches/discovery.py), while on the public D1 file
+    the harmonics of joint 3 that beat its compliance are implausible, and the compliance is
+    named after them. Within one session a harmonic — and then a joint map — can take a compliance's
     shape and raise the error on other sessions, while a compliance, driven by the gravity torque
     of the pose, carries to any session; across sessions, maps of other joints taken first can
     leave a compliance nothing to gain (both seen on the UR10 series: docs/findings.md, D3).
@@ -1142,7 +1160,15 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     if at is None:
         return ranked
     bar = 0.0 if established else PHYSICS_SHARE * gain(ranked[at])
-    moved = [item for item in ranked[at + 1 :] if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar]
+
+    moved = []
+    for i, item in enumerate(ranked):
+        if i > at and cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar:
+            # the free shapes of its own joint ranked ahead that the data tell from it go first
+            rivals = (
+                [] if established else [f for f in ranked[:i] if free_shape(f) and cause(f).joint == cause(item).joint and told_apart(cause(f), cause(item))]
+            )
+            moved += [f for f in rivals if all(f is not m for m in moved)] + [item]
     rest = [item for item in ranked if all(item is not m for m in moved)]
     return rest[:at] + moved + rest[at:]
 
