@@ -1139,12 +1139,10 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     shape (harmonic, scale, coupling, backlash, map) if it gains at least :data:`PHYSICS_SHARE`
     of that shape's gain, or any share if one is ``established`` (the model already has a
     compliance: the data have shown the robot bends under gravity, and the other loaded joints
-    bend too). Until one is, the free shapes of its own joint ranked ahead of it that the data
-    tell from it (``told_apart(better, worse)``: :meth:`Round.told_apart`) move with it, just
-    before it: a scale error of joint 2 that beat joint 2's compliance by 2-5 standard errors
-    was named a compliance (seeds 36 and 37 of benches/discovery.py), while on the public D1 file
-    the harmonics of joint 3 that beat its compliance are implausible, and the compliance is
-    named after them. Within one session a harmonic — and then a joint map — can take a compliance's
+    bend too). Until one is, it stays behind the free shapes of its own joint ranked ahead of it
+    that the data tell from it (``told_apart(better, worse)``: :meth:`Round.told_apart`): a scale
+    error of joint 2 that beat joint 2's compliance by 2-5 standard errors was named a compliance
+    (seeds 36 and 37 of benches/discovery.py). Within one session a harmonic — and then a joint map — can take a compliance's
     shape and raise the error on other sessions, while a compliance, driven by the gravity torque
     of the pose, carries to any session; across sessions, maps of other joints taken first can
     leave a compliance nothing to gain (both seen on the UR10 series: docs/findings.md, D3).
@@ -1161,16 +1159,14 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
         return ranked
     bar = 0.0 if established else PHYSICS_SHARE * gain(ranked[at])
 
-    moved = []
-    for i, item in enumerate(ranked):
-        if i > at and cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar:
-            # the free shapes of its own joint ranked ahead that the data tell from it go first
-            rivals = (
-                [] if established else [f for f in ranked[:i] if free_shape(f) and cause(f).joint == cause(item).joint and told_apart(cause(f), cause(item))]
-            )
-            moved += [f for f in rivals if all(f is not m for m in moved)] + [item]
-    rest = [item for item in ranked if all(item is not m for m in moved)]
-    return rest[:at] + moved + rest[at:]
+    order = list(ranked)
+    for item in ranked[at + 1 :]:
+        if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar:
+            # ahead of the first free shape, but behind those of its own joint the data tell from it
+            i = next(n for n, o in enumerate(order) if o is item)
+            own = [] if established else [n for n, f in enumerate(order[:i]) if free_shape(f) and cause(f).joint == cause(item).joint]
+            order.insert(max([at] + [n + 1 for n in own if told_apart(cause(order[n]), cause(item))]), order.pop(i))
+    return order
 
 
 def not_physical(c: Candidate) -> bool:
