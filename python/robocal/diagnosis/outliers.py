@@ -139,12 +139,24 @@ def name_outliers(
 
 
 def map_ends(causes: list, q: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """The kept samples among the :data:`NEIGHBOURS` lowest and highest angles of each joint a
-    joint map of ``causes`` corrects. Fewest samples and the roughness prior set a map's ends, so a
-    large residual there is the map's (a harmonic bending within a lonely end stretch), not a
-    gross reading: on simulated joint-6 harmonics of 5 and 6 turns an end sample was revealed as an
-    outlier."""
-    ends = [
-        keep[np.argsort(q[keep, c.joint])[[*range(NEIGHBOURS), *range(-NEIGHBOURS, 0)]]] for c in causes if c.kind == "joint_map" and len(keep) > 2 * NEIGHBOURS
-    ]
-    return np.unique(np.concatenate(ends)) if ends else keep[:0]
+    """The kept samples alone at an end of the range of a joint a joint map of ``causes``
+    corrects: the lowest (or highest) angle, where a gap of more than :data:`LONELY` mean sample
+    spacings of that joint separates it from the next. The map's roughness prior alone sets the
+    map there, so a large residual there is the map's (a harmonic bending within the lonely end
+    stretch), not a gross reading: on simulated joint-6 harmonics of 5 and 6 turns such an end
+    sample was revealed as an outlier. (Where the ends are as dense as the rest — the UR10
+    series — a revealed outlier there keeps its name.)"""
+    ends = []
+    for c in causes:
+        if c.kind != "joint_map" or len(keep) < 3:
+            continue
+        order = keep[np.argsort(q[keep, c.joint])]
+        angles = q[order, c.joint]
+        lonely = LONELY * (angles[-1] - angles[0]) / (len(angles) - 1)
+        ends += [order[i] for i, gap in ((0, angles[1] - angles[0]), (-1, angles[-1] - angles[-2])) if gap > lonely]
+    return np.unique(np.array(ends, dtype=keep.dtype))
+
+
+#: A map's end sample is alone when a gap of more than this many mean sample spacings of its
+#: joint separates it from the next (simulated files where it was revealed: 21 and 36).
+LONELY = 10.0
