@@ -451,6 +451,13 @@ def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
     assert order([drift, close]) == [drift, close]  # no free shape to go before
     # once the model has a compliance, the other loaded joints' go first whatever their share
     assert [s[1].joint for s in order(scored, established=True)[1:3]] == [1, 2]
+    # until then, behind a free shape of its own joint that the data tell from it (the free
+    # shapes of other joints keep their rank)
+    coupling, own_scale = entry("joint_coupling", 2, 0.022), entry("joint_scale", 1, 0.021)
+    ranked = [drift, coupling, own_scale, close]
+    told = lambda better, worse: better is own_scale[1] and worse is close[1]
+    assert physics_first(ranked, lambda s: s[0], lambda s: s[1], told_apart=told) == ranked
+    assert physics_first(ranked, lambda s: s[0], lambda s: s[1]) == [drift, close, coupling, own_scale]
     # across sessions: trials (held-out RMSE, label, candidate), gains below the current RMSE
     current = 0.5
     trials = [(current - g, s[1].label, s[1]) for g, s in ((s[0], s) for s in (harmonic, scale, close, weak))]

@@ -1158,14 +1158,16 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
     if at is None:
         return ranked
     bar = 0.0 if established else PHYSICS_SHARE * gain(ranked[at])
-
-    order = list(ranked)
+    order, front = list(ranked), at
     for item in ranked[at + 1 :]:
         if cause(item).kind in PHYSICAL_KINDS and eligible(item) and gain(item) >= bar:
-            # ahead of the first free shape, but behind those of its own joint the data tell from it
+            # ahead of the first free shape (behind those moved before it), but behind the shapes
+            # of its own joint that the data tell from it
             i = next(n for n, o in enumerate(order) if o is item)
             own = [] if established else [n for n, f in enumerate(order[:i]) if free_shape(f) and cause(f).joint == cause(item).joint]
-            order.insert(max([at] + [n + 1 for n in own if told_apart(cause(order[n]), cause(item))]), order.pop(i))
+            place = max([front] + [n + 1 for n in own if told_apart(cause(order[n]), cause(item))])
+            order.insert(place, order.pop(i))
+            front += place == front
     return order
 
 
