@@ -882,7 +882,7 @@ def try_curved_drift(state: Pass) -> None:
     drift, if it has one, is replaced by the best of a natural spline of time
     (:data:`~robocal.causes.candidates.CURVED_DRIFT_DEGREE`) and a line with an exponential settling
     (:data:`~robocal.causes.candidates.SETTLING_TIMES`) when that lowers the random folds' held-out RMSE by
-    ``min_gain`` of it, significantly as any cause must (:func:`~.validation.weak_gain`: a settling
+    ``min_gain`` of it, significantly as any cause must (:func:`held_out_refusal`: a settling
     fitted to a linear drift gained 1 % by chance), and does no harm on the others. Its leftovers would otherwise be taken by
     steps, harmonics and couplings that the backward check then no longer needs (a drift fast
     at first left a step in its first dozen samples). In the report, the curved drift's entry
@@ -907,12 +907,12 @@ def try_curved_drift(state: Pass) -> None:
             cv, trial_fold_x = cross_validate(trial, schemes, fold_x, model)
             after = judged_rmse(cv["random"])
             physical, why = curved.physical(trial.coefficients(fit.x, curved), coefficient_std(trial, fit, curved), model.robot, model.robot.params)
-            on = judgeable(curved, model.idx, schemes)
             if leave_out:
-                gains = after <= (1.0 + SAME_GAIN) * before
-            else:  # a claim of a shape: its gain over the line significant as any cause's (a settling fitted to a linear drift)
-                gains = before - after >= min_gain * before and weak_gain(current_cv["random"][on["random"]], cv["random"][on["random"]]) is None
-            if why is None and gains and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes):
+                on = judgeable(curved, model.idx, schemes)
+                passes = after <= (1.0 + SAME_GAIN) * before and all(improves(curved, name, current_cv[name][on[name]], cv[name][on[name]]) for name in schemes)
+            else:  # a claim of a shape: the held-out test any cause passes (a settling fitted to a linear drift)
+                passes = before - after >= min_gain * before and held_out_refusal(curved, schemes, model.idx, current_cv, cv) is None
+            if why is None and passes:
                 key = (len(trial.causes), after)
                 if best is None or key < best[0]:
                     best = (key, curved, trial, fit, trial_fold_x, cv, physical, leave_out)
