@@ -181,8 +181,11 @@ class ExtendedProblem:
         """A joint map's basis at the problem's samples, CSR; cached (:func:`_rows_of`)."""
         return _rows_of(self._sample_rows, cause.basis, self.idx)
 
-    def _jacobian_columns(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
-        """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``."""
+    def jacobian_parts(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``:
+        the free columns, the full parameters and the parts ``theta``, ``lengths`` and ``extra``
+        that :meth:`columns` builds a cause's columns from. Computed once for many candidates at
+        the same ``x``: one Jacobian of the whole chain serves them all."""
         p, q = self.full(x), self.joints(x)
         cols = list(self.free) + self._theta + self._lengths + list(extra)
         J = self.robot.jacobian(self.data.measurement, q, y=self.data.y, params=p, cols=cols)
@@ -196,7 +199,7 @@ class ExtendedProblem:
         """``∂h/∂c`` of ``cause`` at ``x``, shape (m·k, n_c)."""
         if parts is None:
             extra = [self.robot.index(n) for n in cause.params]
-            _, p, parts = self._jacobian_columns(x, extra)
+            _, p, parts = self.jacobian_parts(x, extra)
             if cause.stage == "parameters":
                 return parts["extra"]
         if cause.stage == "joints":
@@ -254,13 +257,13 @@ class ExtendedProblem:
         r = self.robot.residuals(self.data.measurement, q, self.data.y, params=p).ravel()
         observed = [(c, s) for c, s in zip(self.causes, self.slices) if c.stage == "observations"]
         if observed:
-            parts = self._jacobian_columns(x, [])[2] if any(c.basis is None for c, _ in observed) else {}
+            parts = self.jacobian_parts(x, [])[2] if any(c.basis is None for c, _ in observed) else {}
             for c, s in observed:
                 r = r - self.columns(x, c, parts, p) @ x[s]
         return r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        J, p, parts = self._jacobian_columns(x, [])
+        J, p, parts = self.jacobian_parts(x, [])
         blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             return self._sparse_jacobian(blocks)

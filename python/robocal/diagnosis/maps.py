@@ -268,9 +268,10 @@ def map_stage(
         n_data = len(model.idx) * model.k
         screen = _NormalScreen(J, r, schemes, model.k, n_data, data.q[model.idx])
         base_err = screen.errors()
+        _, p, parts = model.jacobian_parts(x, [])  # ∂h/∂q of every joint: what each map's columns scale
         best: dict = {}
         for c in progress(pool, desc=f"diagnose: joint maps round {len(accepted) + 1}", unit="map"):
-            C = model.weighted_columns(x, c)  # weighted as J and r are
+            C = model.weighted_columns(x, c, parts, p)  # weighted as J and r are
             errs = screen.errors(C, c.penalty, c)
             score = sum(np.mean(errs[name]) for name in schemes)
             if c.joint not in best or score < best[c.joint][0]:

@@ -565,7 +565,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     in_joints = bool(round_test) and round_test.get("verdict") == "joints"
     pool = round_candidates(state, pool, r, round_test, wander_offered, replay)
     params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
-    _, p, parts = ext._jacobian_columns(x, [state.robot.index(n) for n in params])
+    _, p, parts = ext.jacobian_parts(x, [state.robot.index(n) for n in params])
     screen = Screen(J, r, schemes, k)
     model_err = screen.errors(np.zeros((len(r), 0)))
     scored, step_errs, joint_errs = [], {}, {}
