@@ -425,6 +425,27 @@ def test_rejected_reading_conventions_are_reported_like_other_causes():
     assert "neither plausible nor 10% better" in summary(report)
 
 
+def test_a_convention_the_set_up_absorbs_is_reported_once():
+    """A convention the set-up absorbs in several shortlisted hypotheses (alone and within a pair
+    on two joints) is one rejected entry, not one per hypothesis (D1 listed joint 1's 270° twice)."""
+    from robocal.causes.structure import Structure
+    from robocal.diagnosis import conventions
+
+    data, _ = simulate("abb-irb120", "cable", samples=100, seed=1)
+
+    def fit(d, max_nfev=None):  # conventions on joints 2 and 3 fit best, both together best of all
+        changed = ~np.all(np.isclose(d.q, data.q[: len(d)]), axis=0)
+        return 1.0 - 0.1 * changed[1] - 0.1 * changed[2], 3
+
+    pair = (Structure("joint_zero", 1, np.radians(90.0)), Structure("joint_zero", 2, np.radians(180.0)))
+    setup_rmse = lambda d: 1.0  # noqa: E731 - the set-up explains every convention away
+    cross_validate = lambda d: {"random": 1.0, "blocked": 1.0}  # noqa: E731
+    accepted, _, rejected = conventions.search(data, fit, cross_validate, conventions.Trial([], 1.0, 5), extra=[pair], setup_rmse=setup_rmse)
+    labels = [(r["kind"], r["joint"], r["label"]) for r in rejected]
+    assert accepted == [] and len(labels) >= 3
+    assert len(labels) == len(set(labels)), labels
+
+
 def test_compliance_is_tried_before_a_free_shape_it_nearly_matches():
     """The ordering of a selection round: a significant compliance with at least
     ``PHYSICS_SHARE`` of the best free joint shape's gain goes before it; a weaker one, an
