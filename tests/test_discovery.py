@@ -216,6 +216,46 @@ def test_clean_data_name_nothing_and_say_noise_after_testing_it(robot, measureme
     assert abs(verdict["correlation"]["lag1"]["z"]) < 5.0
 
 
+def test_an_error_of_many_cycles_a_turn_is_found_in_what_is_left():
+    """Joint 3's error of 128 cycles a turn (7.2 arcsec: a gear's tooth mesh or an encoder's cycle,
+    finer than the library's harmonics and the joint maps' knots follow): nothing is named for
+    it, and what is left is not called noise but that error, at its joint, harmonic and size."""
+    data, _ = simulate("ur10", "position", samples=1500, seed=4, effects=["joint_periodic:joint=3,amplitude=0.002,harmonic=128"])
+    report = diagnose(data).to_dict()
+    verdict = report["final"]["residuals"]
+    assert verdict["noise"] is False
+    found = verdict["periodic"]
+    assert (found["joint"], found["harmonic"]) == (3, 128)
+    assert found["amplitude_arcsec"] == pytest.approx(7.2, rel=0.15)
+    assert any("128 cycles a turn" in f for f in verdict["findings"])
+
+
+def test_the_periodic_scan_tells_a_line_from_a_broad_leftover():
+    """The scan's two tests on residuals made to order: white residuals pass neither; an error
+    spread over every harmonic of joint 2 (a broad leftover) passes the F test but not the test
+    against its joint's median harmonic; one line passes both."""
+    from robocal.diagnosis.leftover import SCAN_HARMONICS, SCAN_LEVEL, periodic_leftover
+
+    rng = np.random.default_rng(5)
+    m, k = 3000, 3
+    q = rng.uniform(-np.pi, np.pi, (m, 6))
+    dh_dq = rng.normal(0.0, 1.0, (m * k, 6))
+    noise = rng.normal(0.0, 1.0, (m, k))
+    along = dh_dq[:, 1].reshape(m, k)  # what an error of joint 2's angle does to each reading
+    phases = rng.uniform(0.0, 2.0 * np.pi, len(SCAN_HARMONICS))
+    broad = np.sin(np.outer(q[:, 1], SCAN_HARMONICS) + phases).sum(axis=1) * 0.1
+    line = 0.3 * np.sin(128 * q[:, 1] + 0.3)
+
+    white = periodic_leftover(q, noise, dh_dq)
+    assert min(white["p_adjusted"], white["p_line"]) > SCAN_LEVEL
+    spread = periodic_leftover(q, noise + broad[:, None] * along, dh_dq)
+    assert spread["p_adjusted"] < SCAN_LEVEL < spread["p_line"]
+    found = periodic_leftover(q, noise + line[:, None] * along, dh_dq)
+    assert max(found["p_adjusted"], found["p_line"]) < SCAN_LEVEL
+    assert (found["joint"], found["harmonic"]) == (2, 128)
+    assert found["amplitude_arcsec"] == pytest.approx(np.degrees(0.3) * 3600.0, rel=0.1)
+
+
 def test_residuals_correlated_in_time_are_not_called_noise():
     """With the wander term refused (no maps, a single cause allowed but none of its kind), what is
     left is said to be correlated in acquisition order — never 'noise'."""

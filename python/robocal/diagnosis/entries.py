@@ -48,13 +48,18 @@ def explained_shares(effects: list, baseline: float, final: float) -> None:
 def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
     """What the final model leaves: the error budget (:func:`~.budget.floor`, with the
     repeatability at the revisits), the verdict on its residuals
-    (:func:`~.leftover.residual_verdict`), and every sample's residual, the outliers' too, in
+    (:func:`~.leftover.residual_verdict`, with its scan for a periodic error of one joint's
+    angle), and every sample's residual, the outliers' too, in
     robust sigmas of the kept samples' residuals."""
     model, x, dataset, keep = state.model, state.x, state.dataset, state.keep
     budget = error_floor(state.robot, dataset.subset(keep), model.full(x))
     r = all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
-    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget)
+    rows = len(keep) * model.k
+    _, _, parts = model.jacobian_parts(x, [])
+    dh_dq = parts["theta"][:rows] * model.row_weights[:rows, None]  # weighted as the fit weighs the residuals
+    weighted = model.residuals(x)[:rows]
+    leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget, weighted=weighted, dh_dq=dh_dq)
     return budget, leftover, r / robust_sigma(r[keep])
 
 
