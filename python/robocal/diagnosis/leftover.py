@@ -151,7 +151,9 @@ def residual_verdict(
             f"samples in similar configurations far apart in time are alike (correlation {joints['correlation']:.2f}, z {joints['z']:.1f}): "
             "systematic in joint space, a cause of the robot"
         )
-    if periodic is not None and max(periodic["p_adjusted"], periodic["p_line"]) < SCAN_LEVEL:
+    if periodic is not None:
+        periodic["reported"] = max(periodic["p_adjusted"], periodic["p_line"]) < SCAN_LEVEL
+    if periodic is not None and periodic["reported"]:
         findings.append(
             f"joint {periodic['joint']}'s angle carries an error of {periodic['harmonic']} cycles a turn ({periodic['amplitude_arcsec']:.3g} arcsec, "
             f"{periodic['share']:.1%} of the residual sum of squares, {periodic['peak_ratio']:.3g} times its joint's median harmonic; "
