@@ -252,6 +252,7 @@ def test_the_periodic_scan_tells_a_line_from_a_broad_leftover():
     assert spread["p_adjusted"] < SCAN_LEVEL < spread["p_line"]
     found = periodic_leftover(q, noise + line[:, None] * along, dh_dq)
     assert max(found["p_adjusted"], found["p_line"]) < SCAN_LEVEL
+    assert (white["reported"], spread["reported"], found["reported"]) == (False, False, True)
     assert (found["joint"], found["harmonic"]) == (2, 128)
     assert found["amplitude_arcsec"] == pytest.approx(np.degrees(0.3) * 3600.0, rel=0.1)
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 from typing import Optional
 
 import numpy as np
-
 from scipy.stats import f as f_dist
 
 from ..causes.candidates import MAX_HARMONIC
@@ -51,8 +50,8 @@ def noise_reference(budget: dict) -> tuple[Optional[float], str]:
 SCAN_HARMONICS = np.arange(MAX_HARMONIC + 1, 361)
 #: Harmonics scanned at once (memory: samples × this many values per array).
 SCAN_CHUNK = 32
-#: A periodic leftover is reported when its F test, corrected for every joint and harmonic
-#: scanned (Bonferroni), is below this level.
+#: A periodic leftover is reported when both its tests, each corrected for every joint and
+#: harmonic scanned (Bonferroni), are below this level.
 SCAN_LEVEL = 1e-3
 
 
@@ -66,9 +65,9 @@ def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, in
     :data:`SCAN_HARMONICS`, the error ``a·sin(h·q_j) + b·cos(h·q_j)`` of joint ``j`` is fitted to
     the residuals alone (its columns not projected off the model's: the gain found is at most
     what the full refit would give) and judged by the extra-sum-of-squares F test. Returns the
-    best one — joint (1-based), harmonic, amplitude (arcsec), share of the residual sum of squares
-    and two p-values corrected for every joint and harmonic tried — or None when nothing was
-    scanned.
+    best one — joint (1-based), harmonic, amplitude (arcsec), share of the residual sum of squares,
+    two p-values corrected for every joint and harmonic tried, and whether both are below
+    :data:`SCAN_LEVEL` (``reported``) — or None when nothing was scanned.
 
     The F test alone asks whether the gain stands out of white residuals; a leftover that is broad
     in a joint's angle (a cause outside the library, a geometry the data barely determine) raises
@@ -118,6 +117,7 @@ def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, in
         "p_adjusted": min(1.0, p * tried),
         "peak_ratio": ratio,
         "p_line": min(1.0, tried * 2.0**-ratio),
+        "reported": max(p * tried, tried * 2.0**-ratio) < SCAN_LEVEL,
         "tried": tried,
         "test": f"an error a·sin(h·q) + b·cos(h·q) of one joint's angle fitted to the final residuals, harmonics {SCAN_HARMONICS[0]}–{SCAN_HARMONICS[-1]} "
         f"of every moving joint; F test against the residuals, and the gain against its joint's median harmonic (a line, not a broad leftover), "
@@ -151,14 +151,12 @@ def residual_verdict(
             f"samples in similar configurations far apart in time are alike (correlation {joints['correlation']:.2f}, z {joints['z']:.1f}): "
             "systematic in joint space, a cause of the robot"
         )
-    if periodic is not None:
-        periodic["reported"] = max(periodic["p_adjusted"], periodic["p_line"]) < SCAN_LEVEL
     if periodic is not None and periodic["reported"]:
         findings.append(
             f"joint {periodic['joint']}'s angle carries an error of {periodic['harmonic']} cycles a turn ({periodic['amplitude_arcsec']:.3g} arcsec, "
             f"{periodic['share']:.1%} of the residual sum of squares, {periodic['peak_ratio']:.3g} times its joint's median harmonic; "
             f"p {max(periodic['p_adjusted'], periodic['p_line']):.2g} over {periodic['tried']} tried): finer than the "
-            "library's harmonics and the joint maps' knots follow — a gear's tooth mesh or an encoder's cycle"
+            "library's harmonics and the joint maps' knots follow, as a gear's tooth mesh or an encoder's cycle would leave"
         )
     multiple = None if reference is None else float(rmse / reference)
     return {
