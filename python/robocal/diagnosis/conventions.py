@@ -193,7 +193,7 @@ def search(
             if setup_rmse is not None:
                 h, absorbed = absorbed_by_setup(now.subset(screen), accepted, h, setup_rmse)
                 for a in absorbed:
-                    if any(r["kind"] == a.kind and r["joint"] == a.joint + 1 and r["label"] == a.label for r in rejected):
+                    if any(r["label"] == a.label for r in rejected):
                         continue  # absorbed in another hypothesis too: said once
                     rejected.append(
                         {

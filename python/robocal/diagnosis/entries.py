@@ -55,10 +55,9 @@ def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
     budget = error_floor(state.robot, dataset.subset(keep), model.full(x))
     r = all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
-    rows = len(keep) * model.k
     _, _, parts = model.jacobian_parts(x, [])
-    dh_dq = parts["theta"][:rows] * model.row_weights[:rows, None]  # weighted as the fit weighs the residuals
-    weighted = model.residuals(x)[:rows]
+    dh_dq = parts["theta"] * model.row_weights[:, None]  # weighted as the fit weighs the residuals
+    weighted = r[keep].ravel() * model.row_weights
     leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget, weighted=weighted, dh_dq=dh_dq)
     return budget, leftover, r / robust_sigma(r[keep])
 

@@ -109,15 +109,16 @@ def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, in
     F = (gain / 2.0) / max((rss - gain) / dof, 1e-300) / inflation
     p = float(f_dist.sf(F, 2, max(dof / inflation, 1.0)))
     ratio = gain / max(background, 1e-300)
+    p_adjusted, p_line = min(1.0, p * tried), min(1.0, tried * 2.0**-ratio)
     return {
         "joint": j + 1,
         "harmonic": h,
         "amplitude_arcsec": float(np.degrees(np.hypot(*coef)) * 3600.0),
         "share": gain / rss,
-        "p_adjusted": min(1.0, p * tried),
+        "p_adjusted": p_adjusted,
         "peak_ratio": ratio,
-        "p_line": min(1.0, tried * 2.0**-ratio),
-        "reported": max(p * tried, tried * 2.0**-ratio) < SCAN_LEVEL,
+        "p_line": p_line,
+        "reported": max(p_adjusted, p_line) < SCAN_LEVEL,
         "tried": tried,
         "test": f"an error a·sin(h·q) + b·cos(h·q) of one joint's angle fitted to the final residuals, harmonics {SCAN_HARMONICS[0]}–{SCAN_HARMONICS[-1]} "
         f"of every moving joint; F test against the residuals, and the gain against its joint's median harmonic (a line, not a broad leftover), "
