@@ -469,12 +469,15 @@ def run_file(f: dict) -> dict:
     score(named, hidden)
     score_equivalent(data, q_true, named, hidden)
     score_alike(named, hidden)
-    line = (report["final"].get("residuals") or {}).get("periodic") or {}
+    leftover = report["final"].get("residuals") or {}
+    line = leftover.get("periodic") or {}
     record.update(
         hidden=hidden,
         named=named,
         # an error of 9-360 cycles a turn reported in what is left: none is hidden, so every one is false
         leftover_line={k: line[k] for k in ("joint", "harmonic", "amplitude_arcsec")} if line.get("reported") else None,
+        # what is left said to follow the sensor's reading: no such error is hidden, so every one is false
+        leftover_sensor=bool((leftover.get("sensor") or {}).get("verdict")),
         time_s=elapsed,
         rmse_heldout={"baseline": report["baseline"].get("rmse_heldout"), "final": report["final"].get("rmse_heldout")},
     )
@@ -534,6 +537,7 @@ def summarise(records: list[dict]) -> dict:
         "files": len(done),
         "skipped": len(records) - len(done),
         "leftover_lines": sum(r.get("leftover_line") is not None for r in done),
+        "leftover_sensor": sum(bool(r.get("leftover_sensor")) for r in done),
         "clean_files": clean,
         "clean_with_anything_named": clean_hit,
         "false_discovery_rate_clean": clean_hit / clean if clean else None,
@@ -573,6 +577,7 @@ def markdown(s: dict) -> str:
         f"| {fraction(s['true_as_stated'], s['named'])} | |",
         f"| precision on files whose effects are all at ≥ {LARGE:g}× the limit (or none) | {fraction(s['true_named_large'], s['named_large'])} | |",
         f"| files whose leftover is said to hold a line of 9-360 cycles a turn (none hidden: each is false) | {fraction(s['leftover_lines'], s['files'])} | |",
+        f"| files whose leftover is said to follow the sensor's reading (none hidden: each is false) | {fraction(s['leftover_sensor'], s['files'])} | |",
         f"| recall, effects at ≥ {LARGE:g}× the limit | {fraction(round((s['recall_large'] or 0) * s['hidden_large']), s['hidden_large'])} | ≥ 0.90 |",
         f"| recall, all (1-10× the limit) | {fraction(round((s['recall'] or 0) * s['hidden']), s['hidden'])} | |",
         f"| clean files with anything named | {fraction(s['clean_with_anything_named'], s['clean_files'])} | ≤ 0.05 |",

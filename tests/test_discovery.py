@@ -228,6 +228,29 @@ def test_an_error_of_many_cycles_a_turn_is_found_in_what_is_left():
     assert (found["joint"], found["harmonic"]) == (3, 128)
     assert found["amplitude_arcsec"] == pytest.approx(7.2, rel=0.15)
     assert any("128 cycles a turn" in f for f in verdict["findings"])
+    assert verdict["sensor"]["verdict"] is False  # an error of the robot's joint, not of the sensor
+
+
+@pytest.mark.parametrize("robot, measurement, period", [("hsr-jr680", "cable", 100.0), ("ur10", "position", 300.0)])
+def test_an_error_of_the_sensor_is_told_from_the_robots(robot, measurement, period):
+    """A sensor's own error, 0.1 mm periodic in what it reads (a drawstring's linearity along its
+    length; a tracker's, across its field): no cause of the robot explains it and none is named,
+    and what is left is said to follow the sensor's reading — pairs of samples alike in reading
+    in configurations far apart agree, neighbours in joint space do not."""
+    data, _ = simulate(robot, measurement, samples=1000, seed=5)
+    y = data.y.copy()
+    if measurement == "cable":
+        y[:, 0] += 0.1 * np.sin(2.0 * np.pi * y[:, 0] / period)
+    else:
+        p = y[:, :3].copy()
+        y[:, :3] += 0.1 * np.sin(2.0 * np.pi * p[:, [1, 2, 0]] / period)
+    report = diagnose(replace(data, y=y)).to_dict()
+    verdict = report["final"]["residuals"]
+    assert [e["label"] for e in report["effects"]] == []
+    assert verdict["noise"] is False
+    assert verdict["sensor"]["verdict"] is True
+    assert verdict["sensor"]["correlation"] > verdict["correlation"]["joints"]["correlation"] + 0.2
+    assert any("follows the sensor's reading" in f for f in verdict["findings"])
 
 
 def test_the_periodic_scan_tells_a_line_from_a_broad_leftover():

@@ -7,7 +7,10 @@ times that is not noise), for correlation between samples taken one after anothe
 wanders, settling, a cause that follows the path) and between samples taken in similar
 configurations far apart in time (a cause of the robot outside the library), and for an error
 periodic in one joint's angle at more cycles a turn than the library's harmonics and the joint
-maps' knots follow (a gear's tooth mesh, an encoder's cycle: :func:`periodic_leftover`). Candidates the
+maps' knots follow (a gear's tooth mesh, an encoder's cycle: :func:`periodic_leftover`), and
+between samples whose readings are alike although their configurations are not (an error of the
+sensor itself — a tracker's angle encoders or distance meter, a cable's linearity — follows the
+reading, whatever the joints: :func:`sensor_correlation`). Candidates the
 selection refused although they would have explained a large share of the error are reported
 beside it, with their values and why they were refused: a cause the data show but whose model
 robocal rejected is a finding, not noise.
@@ -20,10 +23,12 @@ from typing import Optional
 import numpy as np
 from scipy.stats import f as f_dist
 
+from scipy.spatial import cKDTree
+
 from ..causes.candidates import MAX_HARMONIC
 from ..causes.wander import TIME_TERMS
 from ..data.dataset import Dataset
-from .wander import Z_BOUND, residual_correlation, time_inflation
+from .wander import MIN_CORRELATION, Z_BOUND, acquisition_rank, residual_correlation, sensor_part, time_inflation, z_score
 
 #: A final RMSE beyond this multiple of the floor is more than the data's resolution.
 FLOOR_MULTIPLE = 3.0
@@ -126,6 +131,58 @@ def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, in
     }
 
 
+#: Candidates per sample among its nearest readings, of which the nearest far enough apart in
+#: joints and in time is kept (one: an error of the sensor may vary over a few millimetres).
+READING_CANDIDATES = 64
+
+
+def sensor_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray, correlation: Optional[dict]) -> Optional[dict]:
+    """Whether what is left follows the sensor's reading rather than the joints.
+
+    Each of the samples ``idx`` paired with the sample nearest in what the sensor read (the
+    measured point, or the cable's length) among those whose configuration lies farther away
+    than the typical joint-space neighbour distance of ``correlation``
+    (:func:`~.wander.residual_correlation` of the same ``residuals``) and which were taken farther
+    apart in time than the residuals' correlation length (if neighbours in time are alike): the
+    correlation of the pairs' residuals, against that of the joint-space neighbours. An error of
+    the sensor correlates the first pairs, and more than the second; a cause of the robot the
+    second more (its pairs are nearer in its own variable). None without the joint-space test or
+    with fewer than ten such pairs."""
+    if correlation is None or correlation.get("joints") is None:
+        return None
+    m = len(idx)
+    reading = data.y[idx, :1] if data.measurement == "cable" else data.y[idx, :3]
+    q, rank = data.q[idx], acquisition_rank(data, idx)
+    reach = np.radians(correlation["joint_distance_deg"]["joint_pairs"])
+    # apart in time by more than the residuals' correlation length, if they have one (a wander
+    # would correlate them)
+    lag = int(np.ceil(correlation.get("correlation_length_samples") or 0))
+    dist, near = cKDTree(reading).query(reading, min(m, READING_CANDIDATES))
+    apart = (np.abs(rank[near] - rank[:, None]) > lag) & (np.linalg.norm(q[near] - q[:, None, :], axis=2) > reach)
+    apart &= np.cumsum(apart, axis=1) <= 1
+    si, sj = np.nonzero(apart)[0], near[apart]
+    if len(si) < 10:
+        return None
+    e = sensor_part(data, residuals)
+    var = float(np.mean(np.sum(e * e, axis=1)))
+    if var <= 0:
+        return None
+    products = np.sum(e[si] * e[sj], axis=1) / var
+    entry = {
+        "test": f"residual correlation of each sample with the sample of the nearest reading among those farther apart in joints than the "
+        f"typical nearest neighbour ({np.degrees(reach):.3g} deg)"
+        + (f" and more than {lag} samples apart in time" if lag else "")
+        + ", against the joint-space neighbours'",
+        "pairs": int(len(si)),
+        "correlation": float(np.mean(products)),
+        "z": z_score(products),
+        "reading_distance_mm": float(np.median(dist[apart])),
+        "joint_distance_deg": float(np.degrees(np.median(np.linalg.norm(q[si] - q[sj], axis=1)))),
+    }
+    entry["verdict"] = bool(entry["z"] > Z_BOUND and entry["correlation"] >= MIN_CORRELATION and entry["correlation"] > correlation["joints"]["correlation"])
+    return entry
+
+
 def residual_verdict(
     data: Dataset, idx: np.ndarray, residuals: np.ndarray, rmse: float, budget: dict, weighted: Optional[np.ndarray] = None, dh_dq: Optional[np.ndarray] = None
 ) -> dict:
@@ -136,6 +193,7 @@ def residual_verdict(
     the fit weighs them (``weighted``) and the derivatives by the joint angles (``dh_dq``), the
     scan for a periodic error of one joint (:func:`periodic_leftover`) too."""
     correlation = residual_correlation(data, idx, residuals)
+    sensor = sensor_correlation(data, idx, residuals, correlation)
     periodic = None if weighted is None or dh_dq is None else periodic_leftover(data.q[idx], weighted, dh_dq, time_inflation(correlation))
     findings = []
     reference, what = noise_reference(budget)
@@ -152,6 +210,12 @@ def residual_verdict(
             f"samples in similar configurations far apart in time are alike (correlation {joints['correlation']:.2f}, z {joints['z']:.1f}): "
             "systematic in joint space, a cause of the robot"
         )
+    if sensor is not None and sensor["verdict"]:
+        findings.append(
+            f"samples whose readings are alike ({sensor['reading_distance_mm']:.3g} mm apart) in configurations {sensor['joint_distance_deg']:.3g} deg apart "
+            f"are alike (correlation {sensor['correlation']:.2f}, z {sensor['z']:.1f}), more than neighbours in joint space "
+            f"({correlation['joints']['correlation']:.2f}): it follows the sensor's reading, not the joints — an error of the sensor or of its frame"
+        )
     if periodic is not None and periodic["reported"]:
         findings.append(
             f"joint {periodic['joint']}'s angle carries an error of {periodic['harmonic']} cycles a turn ({periodic['amplitude_arcsec']:.3g} arcsec, "
@@ -165,6 +229,7 @@ def residual_verdict(
         "findings": findings,
         "periodic": periodic,
         "correlation": correlation,
+        "sensor": sensor,
         "noise_reference_mm": reference,
         "noise_reference": what,
         "noise_multiple": multiple,
@@ -200,5 +265,6 @@ def leftover_words(verdict: Optional[dict]) -> Optional[str]:
     if verdict.get("noise"):
         near = "near the measured noise, and " if verdict.get("noise_multiple") is not None else ""
         periodic = ", nor periodic in one joint's angle" if verdict.get("periodic") is not None else ""
-        return f"the residuals look like noise: {near}neither correlated in acquisition order nor in joint space{periodic}"
+        sensor = ", nor where the readings are alike" if verdict.get("sensor") is not None else ""
+        return f"the residuals look like noise: {near}neither correlated in acquisition order nor in joint space{sensor}{periodic}"
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])

@@ -53,12 +53,12 @@ def acquisition_rank(data: Dataset, idx: np.ndarray) -> np.ndarray:
     return np.argsort(np.argsort(acquisition_position(data)[idx], kind="stable"), kind="stable")
 
 
-def _sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
+def sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
     """The residual components a wandering sensor moves: the length, or the position."""
     return residuals[:, :1] if data.measurement == "cable" else residuals[:, :3]
 
 
-def _z(products: np.ndarray) -> float:
+def z_score(products: np.ndarray) -> float:
     return float(np.mean(products) / max(np.std(products) / np.sqrt(len(products)), 1e-300)) if len(products) > 1 else 0.0
 
 
@@ -142,7 +142,7 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
     if pairs is None:
         return None
     order, ji, jj, reach, ti, tj, td, apart, moved = pairs
-    e = _sensor_part(data, residuals)[order]
+    e = sensor_part(data, residuals)[order]
     var = float(np.mean(np.sum(e * e, axis=1)))
     if var <= 0:
         return None
@@ -156,13 +156,13 @@ def residual_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) 
         "joint_distance_deg": {"time_pairs": float(np.degrees(np.median(td[apart]))) if apart.any() else None, "joint_pairs": float(np.degrees(reach))},
     }
     p_joint = np.sum(e[ji] * e[jj], axis=1) / var
-    entry["joints"] = {"correlation": float(np.mean(p_joint)), "z": _z(p_joint), "pairs": int(len(p_joint))}
+    entry["joints"] = {"correlation": float(np.mean(p_joint)), "z": z_score(p_joint), "pairs": int(len(p_joint))}
     if apart.sum() < 10:
         entry["time"] = None
         entry["verdict"] = "confounded"
         return entry
     p_time = np.sum(e[ti[apart]] * e[tj[apart]], axis=1) / var
-    entry["time"] = {"correlation": float(np.mean(p_time)), "z": _z(p_time), "pairs": int(apart.sum())}
+    entry["time"] = {"correlation": float(np.mean(p_time)), "z": z_score(p_time), "pairs": int(apart.sum())}
     difference = float(np.mean(p_time) - np.mean(p_joint))
     se = np.sqrt(np.var(p_time) / len(p_time) + np.var(p_joint) / len(p_joint))
     entry["difference_z"] = float(difference / max(se, 1e-300))
