@@ -262,8 +262,10 @@ class ExtendedProblem:
                 r = r - self.columns(x, c, parts, p) @ x[s]
         return r
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        J, p, parts = self.jacobian_parts(x, [])
+    def jacobian(self, x: np.ndarray, evaluated: Optional[tuple] = None) -> np.ndarray:
+        """``∂r/∂x``: the data rows weighted, then the constant rows of the priors and penalties;
+        ``evaluated``: :meth:`jacobian_parts` ``(x, [])`` if the caller has it."""
+        J, p, parts = self.jacobian_parts(x, []) if evaluated is None else evaluated
         blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             return self._sparse_jacobian(blocks)

@@ -264,11 +264,12 @@ def map_stage(
     pool = pool if only is None else [c for c in pool if c.label in only]
     accepted, rejected = [], []
     while pool:
-        J, r = model.jacobian(x), model.residuals(x)
+        evaluated = model.jacobian_parts(x, [])  # with ∂h/∂q of every joint: what each map's columns scale
+        J, r = model.jacobian(x, evaluated), model.residuals(x)
         n_data = len(model.idx) * model.k
         screen = _NormalScreen(J, r, schemes, model.k, n_data, data.q[model.idx])
         base_err = screen.errors()
-        _, p, parts = model.jacobian_parts(x, [])  # ∂h/∂q of every joint: what each map's columns scale
+        _, p, parts = evaluated
         best: dict = {}
         for c in progress(pool, desc=f"diagnose: joint maps round {len(accepted) + 1}", unit="map"):
             C = model.weighted_columns(x, c, parts, p)  # weighted as J and r are
