@@ -21,9 +21,8 @@ from __future__ import annotations
 from typing import Optional
 
 import numpy as np
-from scipy.stats import f as f_dist
-
 from scipy.spatial import cKDTree
+from scipy.stats import f as f_dist
 
 from ..causes.candidates import MAX_HARMONIC
 from ..causes.wander import TIME_TERMS
@@ -151,14 +150,15 @@ def sensor_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray, co
     if correlation is None or correlation.get("joints") is None:
         return None
     m = len(idx)
-    reading = data.y[idx, :1] if data.measurement == "cable" else data.y[idx, :3]
+    reading = sensor_part(data, data.y[idx])
     q, rank = data.q[idx], acquisition_rank(data, idx)
     reach = np.radians(correlation["joint_distance_deg"]["joint_pairs"])
     # apart in time by more than the residuals' correlation length, if they have one (a wander
     # would correlate them)
     lag = int(np.ceil(correlation.get("correlation_length_samples") or 0))
     dist, near = cKDTree(reading).query(reading, min(m, READING_CANDIDATES))
-    apart = (np.abs(rank[near] - rank[:, None]) > lag) & (np.linalg.norm(q[near] - q[:, None, :], axis=2) > reach)
+    joint_d2 = sum((q[near, j] - q[:, j, None]) ** 2 for j in range(q.shape[1]))  # (m, candidates): no (m, candidates, joints) array
+    apart = (np.abs(rank[near] - rank[:, None]) > lag) & (joint_d2 > reach**2)
     apart &= np.cumsum(apart, axis=1) <= 1
     si, sj = np.nonzero(apart)[0], near[apart]
     if len(si) < 10:
@@ -177,7 +177,7 @@ def sensor_correlation(data: Dataset, idx: np.ndarray, residuals: np.ndarray, co
         "correlation": float(np.mean(products)),
         "z": z_score(products),
         "reading_distance_mm": float(np.median(dist[apart])),
-        "joint_distance_deg": float(np.degrees(np.median(np.linalg.norm(q[si] - q[sj], axis=1)))),
+        "joint_distance_deg": float(np.degrees(np.median(np.sqrt(joint_d2[apart])))),
     }
     entry["verdict"] = bool(entry["z"] > Z_BOUND and entry["correlation"] >= MIN_CORRELATION and entry["correlation"] > correlation["joints"]["correlation"])
     return entry
@@ -265,6 +265,6 @@ def leftover_words(verdict: Optional[dict]) -> Optional[str]:
     if verdict.get("noise"):
         near = "near the measured noise, and " if verdict.get("noise_multiple") is not None else ""
         periodic = ", nor periodic in one joint's angle" if verdict.get("periodic") is not None else ""
-        sensor = ", nor where the readings are alike" if verdict.get("sensor") is not None else ""
+        sensor = ", nor in the sensor's reading" if verdict.get("sensor") is not None else ""
         return f"the residuals look like noise: {near}neither correlated in acquisition order nor in joint space{sensor}{periodic}"
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])

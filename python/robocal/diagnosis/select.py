@@ -513,8 +513,9 @@ class Round:
     #: Per step (label): by how many standard errors the step's held-out errors on the random
     #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
     jump_z: dict = field(default_factory=dict)
-    #: Per joint candidate (label): its held-out squared errors on the random folds.
-    joint_errs: dict = field(default_factory=dict)
+    #: Per shape of a joint or compliance screened (label): its held-out squared errors on the
+    #: random folds (what :meth:`told_apart` compares).
+    shape_errs: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
         """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
@@ -534,9 +535,9 @@ class Round:
         """Whether the data tell the joint candidate ``better`` from ``worse``: its held-out
         errors on the random folds beat ``worse``'s by :data:`SHAPE_Z` standard errors, sample by
         sample (on the samples ``on``; False where either was not screened as a joint shape)."""
-        if better.label not in self.joint_errs or worse.label not in self.joint_errs:
+        if better.label not in self.shape_errs or worse.label not in self.shape_errs:
             return False
-        return paired_z(self.joint_errs[worse.label][on], self.joint_errs[better.label][on]) >= SHAPE_Z
+        return paired_z(self.shape_errs[worse.label][on], self.shape_errs[better.label][on]) >= SHAPE_Z
 
     def refusal(self, item: tuple, physical, reason: str) -> dict:
         """The report's record of the screened ``item`` refused for ``reason``."""
@@ -568,7 +569,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     _, p, parts = ext.jacobian_parts(x, [state.robot.index(n) for n in params])
     screen = Screen(J, r, schemes, k)
     model_err = screen.errors(np.zeros((len(r), 0)))
-    scored, step_errs, joint_errs = [], {}, {}
+    scored, step_errs, shape_errs = [], {}, {}
 
     def score(c: Candidate) -> None:
         # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
@@ -583,14 +584,14 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         if c.kind == "step":
             step_errs[c.label] = errs["random"]
         elif c.kind in READING_SHAPES or c.kind in PHYSICAL_KINDS:
-            joint_errs[c.label] = errs["random"]
+            shape_errs[c.label] = errs["random"]
         scored.append((gains["random"], c, p_value, gains))
 
     for c in progress(pool, desc=f"diagnose: screening round {len(ext.causes) + 1}", unit="candidate"):
         if not (in_joints and c.kind in TIME_TERMS):
             score(c)
     candidates = len(scored) if replay is None else replay.tests
-    screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects, joint_errs=joint_errs)
+    screening = Round(pool, [], r, rmse_of_squares(model_err["random"]), candidates, k, alpha, state.min_gain, max_effects, shape_errs=shape_errs)
     if replay is None and bent_drift(screening, scored, ext.causes):
         # A drift the random folds show whose line misses the held-out blocks bends: its curves
         # compete in this round (judged within the session, as in try_curved_drift), else a
@@ -1167,7 +1168,8 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
             own = [] if established else [n for n, f in enumerate(order[:i]) if free_shape(f) and cause(f).joint == cause(item).joint]
             place = max([front] + [n + 1 for n in own if told_apart(cause(order[n]), cause(item))])
             order.insert(place, order.pop(i))
-            front += place == front
+            if place == front:  # the next compliance moved goes behind this one
+                front += 1
     return order
 
 

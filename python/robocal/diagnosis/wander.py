@@ -54,7 +54,8 @@ def acquisition_rank(data: Dataset, idx: np.ndarray) -> np.ndarray:
 
 
 def sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
-    """The residual components a wandering sensor moves: the length, or the position."""
+    """The components of a residual (or a reading) that the sensor itself moves: the length, or
+    the position."""
     return residuals[:, :1] if data.measurement == "cable" else residuals[:, :3]
 
 
