@@ -161,3 +161,17 @@ def three_joint_robot(conventions, kinds, beta: bool = True, name: str = "custom
     params[15:27] = [10.0, -5.0, 3.0, 0.01, -0.02, 0.3, 1.0, 2.0, 90.0, 0.1, 0.2, -0.3]
     params[-1] = 1.0
     return Robot(name, [Joint(c, k, False, limits[k]) for c, k in zip(conventions, kinds)], params)
+
+
+def with_sensor_error(data, amplitude: float, period: float):
+    """``data`` whose sensor errs by ``amplitude`` (mm), periodically in what it reads with
+    ``period`` (mm): a drawstring's error along its length, or a tracker's across its field (each
+    axis periodic in another one, so no rigid frame absorbs it)."""
+    from dataclasses import replace
+
+    y = data.y.copy()
+    if data.measurement == "cable":
+        y[:, 0] += amplitude * np.sin(2.0 * np.pi * y[:, 0] / period)
+    else:
+        y[:, :3] += amplitude * np.sin(2.0 * np.pi * data.y[:, [1, 2, 0]] / period)
+    return replace(data, y=y)

@@ -103,17 +103,12 @@ def test_bad_use_is_one_line_and_exit_2(workdir, args, fragment):
 def test_what_follows_the_sensor_is_said_on_the_command_line_and_in_the_report(workdir):
     """A drawstring's own error (0.1 mm, periodic in its length) reaches the user as a finding on
     the command line and in the HTML report: what is left follows the sensor's reading."""
-    from dataclasses import replace
-
-    import numpy as np
-
+    from helpers import with_sensor_error
     from robocal.simulation import simulate, write_simulation
 
     w = workdir
     data, truth = simulate("hsr-jr680", "cable", samples=1000, seed=5)
-    y = data.y.copy()
-    y[:, 0] += 0.1 * np.sin(2.0 * np.pi * y[:, 0] / 100.0)
-    write_simulation(replace(data, y=y), truth, w / "sensor.csv", w / "sensor_truth.json")
+    write_simulation(with_sensor_error(data, 0.1, 100.0), truth, w / "sensor.csv", w / "sensor_truth.json")
     out = ok(robocal("diagnose", w / "sensor.csv", "--robot", "hsr-jr680", "--json", w / "sensor_diag.json"))
     assert "follows the sensor's reading" in out
     ok(robocal("calibrate", w / "sensor.csv", "--robot", "hsr-jr680", "--out", w / "sensor_result.json"))

@@ -15,6 +15,8 @@ from robocal.diagnosis import diagnose
 from robocal.causes.structure import Structure, to_readings
 from robocal.simulation import simulate
 
+from helpers import with_sensor_error
+
 
 def named(robot: str, measurement: str, effects: list[str], seed: int = 3) -> dict:
     data, _ = simulate(robot, measurement, samples=300, seed=seed, effects=effects)
@@ -238,13 +240,7 @@ def test_an_error_of_the_sensor_is_told_from_the_robots(robot, measurement, peri
     and what is left is said to follow the sensor's reading — pairs of samples alike in reading
     in configurations far apart agree, neighbours in joint space do not."""
     data, _ = simulate(robot, measurement, samples=1000, seed=5)
-    y = data.y.copy()
-    if measurement == "cable":
-        y[:, 0] += 0.1 * np.sin(2.0 * np.pi * y[:, 0] / period)
-    else:
-        p = y[:, :3].copy()
-        y[:, :3] += 0.1 * np.sin(2.0 * np.pi * p[:, [1, 2, 0]] / period)
-    report = diagnose(replace(data, y=y)).to_dict()
+    report = diagnose(with_sensor_error(data, 0.1, period)).to_dict()
     verdict = report["final"]["residuals"]
     assert [e["label"] for e in report["effects"]] == []
     assert verdict["noise"] is False

@@ -60,6 +60,7 @@ def sensor_part(data: Dataset, residuals: np.ndarray) -> np.ndarray:
 
 
 def z_score(products: np.ndarray) -> float:
+    """How many standard errors the mean of ``products`` (one per pair) lies from zero."""
     return float(np.mean(products) / max(np.std(products) / np.sqrt(len(products)), 1e-300)) if len(products) > 1 else 0.0
 
 
