@@ -2,7 +2,8 @@
 
 Both run in this one process on the same inputs (the HSR JR680 of the paper, cable model, the
 paper's 31-parameter set); each figure is the best of several repeats. Prints a Markdown table
-with absolute times, throughput and the Rust/NumPy ratio, plus the machine.
+with absolute times, throughput and the Rust/NumPy ratio, plus the machine. The QR row's baseline is
+LAPACK through SciPy, what a competent user would call.
 
     python benches/bench_core.py                 # all cores (rayon default)
     python benches/bench_core.py --threads 1     # single-core figures
@@ -39,6 +40,7 @@ def main() -> None:
         os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
 
     import numpy as np
+    import scipy.linalg
 
     import robocal
     from robocal import kernels
@@ -90,6 +92,17 @@ def main() -> None:
         for n_par in (24, 31, 60):
             J = rng.standard_normal((m, n_par))
             res = rng.standard_normal(m)
+            if m >= n_par:
+                # The LM's factorisation of an ill-conditioned Jacobian: R and Qᵀr. Its baseline is
+                # LAPACK (geqrf + ormqr) through SciPy, not the NumPy twin.
+                row(
+                    f"QR and Qᵀr (n={n_par}; vs SciPy qr_multiply)",
+                    m,
+                    lambda: kernels.factor_damped(J).project(res),
+                    lambda: scipy.linalg.qr_multiply(J, res[None, :], mode="right"),
+                    1,
+                    "factorisations",
+                )
             row(
                 f"damped solve (n={n_par})",
                 m,

@@ -6,7 +6,7 @@ use _robocal::fixtures::hsr_jr680;
 use _robocal::kinematics::Chain;
 use _robocal::measurement::{sigma_residuals, Batch, Measurement};
 use _robocal::sigma::merwe_sigma_points;
-use _robocal::solve::{fold_products, solve_damped, sparse_gram, Csr, Damping};
+use _robocal::solve::{fold_products, solve_damped, sparse_gram, Csr, DampedQr, Damping};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
 
@@ -116,6 +116,21 @@ fn bench_solve(c: &mut Criterion) {
     group.finish();
 }
 
+/// The LM's factorisation of an ill-conditioned dense Jacobian (D1's: 24 columns): `J = Q·R`
+/// and `Qᵀr`.
+fn bench_damped_qr(c: &mut Criterion) {
+    let mut group = c.benchmark_group("damped_qr");
+    let n = 24usize;
+    for m in SIZES {
+        let j: Vec<f64> = (0..m * n).map(|k| ((k as f64) * 0.754_877_666).fract() - 0.5).collect();
+        let r: Vec<f64> = (0..m).map(|k| ((k as f64) * 0.569_840_29).fract()).collect();
+        group.bench_with_input(BenchmarkId::new(format!("n{n}"), m), &j, |b, j| {
+            b.iter(|| DampedQr::new(black_box(j), m, n).unwrap().project(&r).unwrap())
+        });
+    }
+    group.finish();
+}
+
 /// A diagnosis' sparse Jacobian as CSR `(indptr, indices, data, ncols)`: 3 rows a sample (a
 /// tracker's position), 28 dense columns (the geometry and the set-up) and five joint maps of
 /// 120 B-spline coefficients, four consecutive ones a row, at a coefficient that moves slowly
@@ -175,6 +190,6 @@ fn bench_fold_products(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(2));
-    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve, bench_sparse_gram, bench_fold_products
+    targets = bench_fk, bench_cable_residuals, bench_cable_jacobian, bench_sigma, bench_solve, bench_damped_qr, bench_sparse_gram, bench_fold_products
 }
 criterion_main!(benches);

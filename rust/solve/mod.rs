@@ -18,13 +18,13 @@
 //!   of `O(m·n²)`. The caller scales the columns (`J·D^-½`) to get Marquardt's damping.
 
 mod gram;
+mod tall_qr;
+pub use tall_qr::TallQr;
 pub use gram::{fold_products, normal_equations, sparse_gram, stack_csr, Csr, FoldProducts, MAX_FOLD_PRODUCTS, MAX_GRAM_COLUMNS};
 
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
 use faer::prelude::*;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::householder;
 use faer::{Mat, MatRef, Side};
 
 /// Damping matrix `D`.
@@ -188,13 +188,13 @@ pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64,
     Ok((y.iter().zip(&scale).map(|(v, s)| v / s).collect(), how))
 }
 
-/// `J` (m, n) factored as `J = Q·R` (Householder QR, thin `Q`) for the damped steps
+/// `J` (m, n) factored as `J = Q·R` (Householder QR: [`TallQr`]) for the damped steps
 /// `min ‖J·δ − b‖² + λ‖δ‖²` of several `λ` and `b`. No column pivoting here: each step's small
 /// system `[R; √λ·I]` is factored with it ([`Self::solve`]), which is where a rank deficiency
 /// shows, and Householder QR is backward stable without it (and faster: docs/benchmarks.md).
 #[derive(Debug, Clone)]
 pub struct DampedQr {
-    qr: faer::linalg::solvers::Qr<f64>,
+    qr: TallQr,
     r: Mat<f64>,
     m: usize,
 }
@@ -203,13 +203,15 @@ impl DampedQr {
     /// Factors `J` (m, n) row-major; fewer rows than columns are padded with zero rows (which
     /// change no least-squares problem). Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn new(j: &[f64], m: usize, n: usize) -> CoreResult<Self> {
-        let jm = row_major("J", j, m, n)?;
+        row_major("J", j, m, n)?;
         let qr = if m >= n {
-            jm.qr()
+            TallQr::new(j, m, n)
         } else {
-            Mat::from_fn(n, n, |row, col| if row < m { jm[(row, col)] } else { 0.0 }).qr()
+            let mut padded = j.to_vec();
+            padded.resize(n * n, 0.0);
+            TallQr::new(&padded, n, n)
         };
-        let r = qr.thin_R().to_owned();
+        let r = Mat::from_fn(n, n, |row, col| qr.r()[row * n + col]);
         Ok(Self { qr, r, m })
     }
 
@@ -221,24 +223,13 @@ impl DampedQr {
     /// `Qᵀb` (n) for `b` (m): `‖Qᵀr‖` is the norm of `r`'s projection on the columns of `J`.
     /// Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn project(&self, b: &[f64]) -> CoreResult<Vec<f64>> {
-        let bm = row_major("b", b, self.m, 1)?;
-        let m = self.m.max(self.ncols());
-        let mut c = Mat::from_fn(m, 1, |row, _| if row < self.m { bm[(row, 0)] } else { 0.0 });
-        // Qᵀb from the Householder reflectors, O(m·n): Q itself is never formed.
-        let (basis, factor) = (self.qr.Q_basis(), self.qr.Q_coeff());
-        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-            basis,
-            factor,
-            faer::Conj::No,
-            c.as_mut(),
-            faer::Par::Seq,
-            MemStack::new(&mut MemBuffer::new(householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(
-                m,
-                factor.nrows(),
-                1,
-            ))),
-        );
-        Ok((0..self.ncols()).map(|k| c[(k, 0)]).collect())
+        row_major("b", b, self.m, 1)?;
+        if self.m >= self.ncols() {
+            return Ok(self.qr.project(b));
+        }
+        let mut padded = b.to_vec();
+        padded.resize(self.ncols(), 0.0);
+        Ok(self.qr.project(&padded))
     }
 
     /// The step `δ` minimising `‖J·δ − b‖² + λ‖δ‖²` from `c = Qᵀb` ([`Self::project`]): the

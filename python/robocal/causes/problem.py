@@ -265,13 +265,22 @@ class ExtendedProblem:
     def jacobian(self, x: np.ndarray, evaluated: Optional[tuple] = None) -> np.ndarray:
         """``∂r/∂x``: the data rows weighted, then the constant rows of the priors and penalties;
         ``evaluated``: :meth:`jacobian_parts` ``(x, [])`` if the caller has it."""
-        J, p, parts = self.jacobian_parts(x, []) if evaluated is None else evaluated
-        blocks = [J] + [self.columns(x, c, parts, p) for c in self.causes if c.stage != "parameters"]
+        if evaluated is None and not self._columned:  # the chain's free columns are all of it
+            J = self.robot.jacobian(self.data.measurement, self.joints(x), y=self.data.y, params=self.full(x), cols=self.free)
+            blocks = [J]
+        else:
+            J, p, parts = self.jacobian_parts(x, []) if evaluated is None else evaluated
+            blocks = [J] + [self.columns(x, c, parts, p) for c in self._columned]
         if any(is_sparse(b) for b in blocks):  # joint maps: the sparse Jacobian their solver takes
             return self._sparse_jacobian(blocks)
-        J = np.hstack(blocks) * self.row_weights[:, None]
+        J = (np.hstack(blocks) if len(blocks) > 1 else blocks[0]) * self.row_weights[:, None]
         rows = self._constant_rows(J.shape[1])
         return np.vstack([J, rows]) if len(rows) else J
+
+    @cached_property
+    def _columned(self) -> list:
+        """The causes with columns of their own in the Jacobian (all but ``parameters`` causes)."""
+        return [c for c in self.causes if c.stage != "parameters"]
 
     def _constant_rows(self, n: int) -> np.ndarray:
         """The Jacobian's rows beyond the data, (rows, n): the base problem's priors and the

@@ -30,6 +30,7 @@ from ..causes.structure import Structure, apply_all
 from ..data.dataset import Dataset
 from ..physics import DEG
 from ..robot import Robot, setup_names
+from ..threads import thread_map
 from .validation import cross_validate, fold_schemes
 
 #: Zero offsets tried on every moving joint (deg).
@@ -181,17 +182,17 @@ def search(
         if current.implausible == 0:
             break
         now = apply_all(data, accepted)
-        scored = []
         # a hypothesis is one or more conventions applied together (two joints wrong at once)
-        for h in [(s,) for s in hypotheses(now)] + ([] if accepted else [tuple(e) if isinstance(e, (list, tuple)) else (e,) for e in extra]):
-            rmse, bad = fit(apply_all(now.subset(screen), list(h)), SCREEN_NFEV)
-            scored.append((bad, rmse, h))
+        candidates = [(s,) for s in hypotheses(now)] + ([] if accepted else [tuple(e) if isinstance(e, (list, tuple)) else (e,) for e in extra])
+        sample = now.subset(screen)
+        # each screening fit is a whole nonlinear fit: worth a thread
+        screened = thread_map(lambda h: fit(apply_all(sample, list(h)), SCREEN_NFEV), candidates)
+        scored = [(bad, rmse, h) for (rmse, bad), h in zip(screened, candidates)]
         scored.sort(key=lambda s: (s[0], s[1], sum(p.size() for p in s[2])))
-        trials = []
-        tried = set()
+        trials, tried = [], []  # the shortlist, each hypothesis once
         for _, _, h in scored[:SHORTLIST]:
             if setup_rmse is not None:
-                h, absorbed = absorbed_by_setup(now.subset(screen), accepted, h, setup_rmse)
+                h, absorbed = absorbed_by_setup(sample, accepted, h, setup_rmse)
                 for a in absorbed:
                     if any(r["label"] == a.label for r in rejected):
                         continue  # absorbed in another hypothesis too: said once
@@ -208,12 +209,11 @@ def search(
                             "reason": "not identifiable: the set-up absorbs it (the nominal geometry with only the set-up fitted explains the data as well without it)",
                         }
                     )
-            if not h or h in tried:
-                continue
-            tried.add(h)
-            rmse, bad = fit(apply_all(now, list(h)), None)
-            # Cross-validation (the expensive part) only for what could pass: a plausible fit as
-            # good as now, or a training error already lower by the gain asked of the held-out one.
+            if h and h not in tried:
+                tried.append(h)
+        # Cross-validation (the expensive part) only for what could pass: a plausible fit as
+        # good as now, or a training error already lower by the gain asked of the held-out one.
+        for h, (rmse, bad) in zip(tried, thread_map(lambda h: fit(apply_all(now, list(h)), None), tried)):
             if (bad == 0 and rmse <= (1.0 + EQUAL) * current.rmse) or (bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse):
                 trials.append(Trial(accepted + list(h), rmse, bad))
         if trials and current.heldout is None:
