@@ -127,6 +127,10 @@ fn bench_damped_qr(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::new(format!("n{n}"), m), &j, |b, j| {
             b.iter(|| DampedQr::new(black_box(j), m, n).unwrap().project(&r).unwrap())
         });
+        // The factorisation DampedQr used before: faer's blocked QR (R only, no Qᵀr).
+        group.bench_with_input(BenchmarkId::new(format!("faer_qr_n{n}"), m), &j, |b, j| {
+            b.iter(|| faer::MatRef::from_row_major_slice(black_box(j), m, n).qr())
+        });
     }
     group.finish();
 }

@@ -28,6 +28,7 @@ from ..causes.candidates import acquisition_order
 from ..causes.problem import ExtendedProblem, reported_rmse
 from ..causes.structure import Structure, apply_all
 from ..data.dataset import Dataset
+from ..exceptions import DataError
 from ..physics import DEG
 from ..robot import Robot, setup_names
 from ..threads import thread_map
@@ -166,7 +167,8 @@ def search(
 ) -> tuple[list[Structure], list[dict], list[dict]]:
     """Greedy search for the reading conventions that make the geometry plausible.
 
-    ``fit(dataset, max_nfev) -> (rmse, n_implausible)`` fits the geometric model;
+    ``fit(dataset, max_nfev) -> (rmse, n_implausible)`` fits the geometric model (infinite for
+    a hypothesis under which the readings cannot be the robot's);
     ``cross_validate(dataset) -> {scheme: held-out RMSE}``. ``baseline`` is the fit of the data
     as read (its held-out RMSE is cross-validated when a hypothesis needs the comparison);
     ``extra`` hypotheses (:func:`zero_errors` of that fit) join the first round;
@@ -297,7 +299,10 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
         return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
 
     def fit(d: Dataset, max_nfev=None):
-        result = geometric(d, max_nfev)
+        try:
+            result = geometric(d, max_nfev)
+        except DataError:  # no readings of this robot under the hypothesis (check_observations)
+            return np.inf, np.inf
         return result.metrics["train"]["rmse"], len(result.implausible())
 
     order = acquisition_order(data)
@@ -318,7 +323,10 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
     setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
 
     def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
-        return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
+        try:
+            return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
+        except DataError:  # as in fit
+            return np.inf
 
     combined = screen_combinations(data, setup_rmse, seed)
     accepted, effects, rejected = search(data, fit, heldout, baseline, seed, extra=zero_errors(bad) + combined, setup_rmse=setup_rmse)
