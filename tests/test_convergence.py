@@ -10,6 +10,7 @@ import robocal
 from robocal.calibration import Problem
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.data import random_split
+from robocal.exceptions import InvalidParameterError
 
 FILES = {
     "D1": ("hsr-robotcali/HSR-RobotCali.xlsx", None),
@@ -79,3 +80,26 @@ def test_a_warm_fit_checks_its_stop_with_the_steps_own_jacobian(measurement, see
     step = np.linalg.lstsq(J, r, rcond=None)[0]
     noise = np.sqrt(np.sum(r**2) / (len(r) - len(frozen.x)))
     assert np.linalg.norm(J @ step) / noise < NOISE_DISTANCE
+
+
+def test_a_trial_point_the_model_refuses_is_a_failed_step():
+    """A nearly singular system's step of little damping can reach parameters the core refuses
+    (beyond ±10¹² mm: a fold fit of discovery seed 40's file 41 stopped the whole diagnosis so).
+    The LM takes it as a failed step — more damping, nothing raised — and ends where the fit
+    that was never refused ends. Here the model refuses the first two trial points it is asked."""
+    data, _ = robocal.simulate("hsr-jr680", "cable", samples=200, seed=4)
+    problem = Problem.build(robocal.robot("hsr-jr680"), data)
+    free = levenberg_marquardt(problem)
+    evaluate, calls = problem.residuals, []
+
+    def refusing(x):
+        calls.append(1)
+        if 1 < len(calls) <= 3:  # the first call is the start point's
+            raise InvalidParameterError("a2 must lie within ±1e+12 mm; got 1.283e+12 (`params` index 6)")
+        return evaluate(x)
+
+    problem.residuals = refusing
+    fit = levenberg_marquardt(problem)
+    assert fit.success, fit.message
+    assert len(calls) > 3 and fit.nfev > free.nfev
+    assert abs(fit.metrics["train"]["rmse"] - free.metrics["train"]["rmse"]) <= 1e-3 * free.metrics["train"]["rmse"]

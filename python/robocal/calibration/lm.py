@@ -57,7 +57,7 @@ import numpy as np
 
 from ..kernels import as_count, as_positive, as_tolerance, factor_damped, is_sparse
 from ..kernels import normal_equations, sparse_gram
-from ..exceptions import InvalidParameterError
+from ..exceptions import InvalidParameterError, NonFiniteError
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
 from .problem import Problem, initial_x
@@ -231,9 +231,12 @@ def _minimise(
         v = factored.solve(c, lam) / d
         # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional
         # derivative of the model along v, and its damped solve the acceleration a.
-        r_probe = problem.residuals(x + GEODESIC_H * v)
-        r_probe = r_probe * w if weighted else r_probe
+        r_probe = _residuals_or_refused(problem, x + GEODESIC_H * v)
         nfev += 1
+        if r_probe is None:
+            lam, nu = lam * nu, 2.0 * nu
+            continue
+        r_probe = r_probe * w if weighted else r_probe
         Jv = Jw @ v if is_sparse(Jw) else _product(Jw, v)
         second = (2.0 / GEODESIC_H) * ((rw - r_probe) / GEODESIC_H - Jv)
         a = factored.solve(factored.project(-second), lam) / d
@@ -242,8 +245,11 @@ def _minimise(
             continue
         x_new = problem.clip(x + v + 0.5 * a)
         step = x_new - x
-        r_new = problem.residuals(x_new)
+        r_new = _residuals_or_refused(problem, x_new)
         nfev += 1
+        if r_new is None:
+            lam, nu = lam * nu, 2.0 * nu
+            continue
         cost_new, w_new = objective(r_new)
         downhill = cost_new < cost
         # An uphill step is taken when it continues the previous direction (cos β near 1).
@@ -286,6 +292,17 @@ def _minimise(
     )
     result.njev = njev
     return result
+
+
+def _residuals_or_refused(problem: Problem, x: np.ndarray):
+    """The residuals at a trial point ``x``, or None where the model refuses it — a parameter
+    beyond the range the core takes (±10¹² mm or rad), as a nearly singular system's step of
+    little damping can reach (a fold fit of discovery seed 40's file 41): a failed step, which
+    raises the damping, not an error."""
+    try:
+        return problem.residuals(x)
+    except (InvalidParameterError, NonFiniteError):
+        return None
 
 
 def _gauss_newton_distance(c: np.ndarray, cost: float, dof: int) -> float:
