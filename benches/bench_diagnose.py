@@ -8,7 +8,8 @@ Simulated (each run ``--repeats`` times, median reported): 2 000 HSR JR680 track
 periodic gear error on joint 2 and backlash on joint 3, and 2 000 cable lengths with the gear
 error alone. Scaling (one run each, ``--no-scaling`` skips them): UR10 tracker positions with a
 gear-mesh error (harmonic 6, which only a joint map follows) on joints 2 and 3, at 12 500 and
-50 000 samples. Public (one run each; ``--no-public`` skips them): D1, the HSR JR680 cable file,
+50 000 samples; ``--six-maps`` adds 50 000 samples with it on every joint (the peak memory of six
+joint maps). Public (one run each; ``--no-public`` skips them): D1, the HSR JR680 cable file,
 UR10 Series A (11 911 tracker positions) and the three UR10 series as sessions of one robot
 (``--no-sessions`` skips that). Every case runs in a process of its own, which reports its peak
 resident memory. Prints a Markdown table with the machine, the load, the thread settings, the
@@ -47,6 +48,8 @@ CASES = [
 ]
 SCALING = (12_500, 50_000)
 GEAR_MESH = ["joint_periodic:joint=2,amplitude=0.005,harmonic=6", "joint_periodic:joint=3,amplitude=0.005,harmonic=6"]
+#: ``--six-maps``: the gear mesh on every joint, so that the model ends with six joint maps.
+SIX_MAPS = (50_000, [f"joint_periodic:joint={j},amplitude=0.005,harmonic=6" for j in range(1, 7)])
 
 
 def case_data(case: str):
@@ -58,6 +61,8 @@ def case_data(case: str):
         return simulate("hsr-jr680", measurement, samples=int(samples), seed=7, effects=effects)[0]
     if kind == "scaling":
         return simulate("ur10", "position", samples=int(argument), seed=7, effects=GEAR_MESH)[0]
+    if kind == "six_maps":
+        return simulate("ur10", "position", samples=int(argument), seed=7, effects=SIX_MAPS[1])[0]
     if kind == "public":
         path, measurement = PUBLIC[argument]
         return robocal.load(DATASETS / path, measurement=measurement)
@@ -106,6 +111,7 @@ def main() -> None:
     parser.add_argument("--no-public", action="store_true", help="skip the public files")
     parser.add_argument("--no-sessions", action="store_true", help="skip the three UR10 series as sessions")
     parser.add_argument("--no-scaling", action="store_true", help="skip the simulated UR10 files of 12 500 and 50 000 samples")
+    parser.add_argument("--six-maps", action="store_true", help="also the 50 000-sample UR10 file with a gear mesh on every joint (six joint maps; long)")
     parser.add_argument("--figure", help="also draw time against samples into this PNG")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # a single case, in a process of its own
     args = parser.parse_args()
@@ -127,6 +133,8 @@ def main() -> None:
     if not args.no_scaling:
         for samples in SCALING:
             print(row("simulated UR10 position, gear mesh on joints 2 and 3", f"scaling:{samples}", 1, measured), flush=True)
+    if args.six_maps:
+        print(row("six maps: simulated UR10 position, gear mesh on every joint", f"six_maps:{SIX_MAPS[0]}", 1, measured), flush=True)
     if not args.no_public:
         for name in PUBLIC:
             print(row(name, f"public:{name}", 1, measured), flush=True)
