@@ -111,7 +111,11 @@ def main() -> None:
     parser.add_argument("--no-public", action="store_true", help="skip the public files")
     parser.add_argument("--no-sessions", action="store_true", help="skip the three UR10 series as sessions")
     parser.add_argument("--no-scaling", action="store_true", help="skip the simulated UR10 files of 12 500 and 50 000 samples")
-    parser.add_argument("--six-maps", action="store_true", help="also the 50 000-sample UR10 file with a gear mesh on every joint (six joint maps; long)")
+    parser.add_argument(
+        "--six-maps",
+        action="store_true",
+        help="also the 50 000-sample UR10 file with a gear mesh on every joint (a joint map for each joint whose error the data show; long)",
+    )
     parser.add_argument("--figure", help="also draw time against samples into this PNG")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # a single case, in a process of its own
     args = parser.parse_args()
