@@ -1,7 +1,7 @@
 """Side-by-side benchmark of the Rust core against its pure-NumPy twin (``robocal.reference``).
 
 Both run in this one process on the same inputs (the HSR JR680 of the paper, cable model, the
-paper's 31-parameter set); each figure is the best of several repeats. Prints a Markdown table
+paper's 31-parameter set); each figure is the median of repeated calls. Prints a Markdown table
 with absolute times, throughput and the Rust/NumPy ratio, plus the machine. The QR row's baseline is
 LAPACK through SciPy, what a competent user would call.
 
@@ -13,22 +13,22 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 
 from machine import cpu_model
 
 
-def best_time(fn, min_total: float = 1.0, max_repeats: int = 100) -> float:
-    """Best wall time of ``fn()`` over repeats lasting about ``min_total`` seconds."""
+def median_time(fn, min_total: float = 1.0, max_repeats: int = 100) -> float:
+    """Median wall time of ``fn()`` over repeats lasting about ``min_total`` seconds (at least 5)."""
     fn()
-    best, spent, n = float("inf"), 0.0, 0
-    while (spent < min_total or n < 3) and n < max_repeats:
+    times: list = []
+    while (sum(times) < min_total or len(times) < 5) and len(times) < max_repeats:
         start = time.perf_counter()
         fn()
-        elapsed = time.perf_counter() - start
-        best, spent, n = min(best, elapsed), spent + elapsed, n + 1
-    return best
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
 
 
 def main() -> None:
@@ -59,12 +59,12 @@ def main() -> None:
 
     print(f"machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {threads}")
     print(f"python {sys.version.split()[0]}, numpy {np.__version__}, robocal {robocal.__version__}")
-    print(f"cable model, HSR JR680 with calibrated-like parameters, {len(cols)} parameters; best of repeats\n")
+    print(f"cable model, HSR JR680 with calibrated-like parameters, {len(cols)} parameters; medians of repeats\n")
     print("| kernel | m | Rust | NumPy twin | NumPy / Rust | Rust throughput |")
     print("|---|---:|---:|---:|---:|---:|")
 
     def row(name, m, rust, numpy, unit_count, unit):
-        tr, tn = best_time(rust), best_time(numpy)
+        tr, tn = median_time(rust), median_time(numpy)
         print(f"| {name} | {m:,} | {tr * 1e3:.3f} ms | {tn * 1e3:.3f} ms | {tn / tr:.1f}x | {unit_count / tr:,.0f} {unit}/s |")
 
     for m in args.sizes:

@@ -195,7 +195,6 @@ pub fn solve_damped_lstsq(j: &[f64], r: &[f64], m: usize, n: usize, lambda: f64,
 #[derive(Debug, Clone)]
 pub struct DampedQr {
     qr: TallQr,
-    r: Mat<f64>,
     m: usize,
 }
 
@@ -211,13 +210,12 @@ impl DampedQr {
             padded.resize(n * n, 0.0);
             TallQr::new(&padded, n, n)
         };
-        let r = Mat::from_fn(n, n, |row, col| qr.r()[row * n + col]);
-        Ok(Self { qr, r, m })
+        Ok(Self { qr, m })
     }
 
     /// Number of columns of `J`.
     pub fn ncols(&self) -> usize {
-        self.r.ncols()
+        self.qr.ncols()
     }
 
     /// `Qᵀb` (n) for `b` (m): `‖Qᵀr‖` is the norm of `r`'s projection on the columns of `J`.
@@ -241,7 +239,8 @@ impl DampedQr {
         let cv = row_major("c", c, n, 1)?;
         check_lambda(lambda)?;
         let sqrt_lambda = lambda.sqrt();
-        let aug = Mat::from_fn(2 * n, n, |row, col| if row < n { self.r[(row, col)] } else if row - n == col { sqrt_lambda } else { 0.0 });
+        let r = self.qr.r();
+        let aug = Mat::from_fn(2 * n, n, |row, col| if row < n { r[row * n + col] } else if row - n == col { sqrt_lambda } else { 0.0 });
         let rhs = Mat::from_fn(2 * n, 1, |row, _| if row < n { cv[(row, 0)] } else { 0.0 });
         let rcond = f64::EPSILON * (self.m + n) as f64;
         let qr = aug.col_piv_qr();

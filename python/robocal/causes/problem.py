@@ -186,9 +186,8 @@ class ExtendedProblem:
         the free columns, the full parameters and the parts ``theta``, ``lengths`` and ``extra``
         that :meth:`columns` builds a cause's columns from. Computed once for many candidates at
         the same ``x``: one Jacobian of the whole chain serves them all."""
-        p, q = self.full(x), self.joints(x)
-        cols = list(self.free) + self._theta + self._lengths + list(extra)
-        J = self.robot.jacobian(self.data.measurement, q, y=self.data.y, params=p, cols=cols)
+        p = self.full(x)
+        J = self._chain_jacobian(x, p, list(self.free) + self._theta + self._lengths + list(extra))
         at = len(self.free)
         lengths_at = at + len(self._theta)
         extra_at = lengths_at + len(self._lengths)
@@ -266,8 +265,7 @@ class ExtendedProblem:
         """``∂r/∂x``: the data rows weighted, then the constant rows of the priors and penalties;
         ``evaluated``: :meth:`jacobian_parts` ``(x, [])`` if the caller has it."""
         if evaluated is None and not self._columned:  # the chain's free columns are all of it
-            J = self.robot.jacobian(self.data.measurement, self.joints(x), y=self.data.y, params=self.full(x), cols=self.free)
-            blocks = [J]
+            blocks = [self._chain_jacobian(x, self.full(x), self.free)]
         else:
             J, p, parts = self.jacobian_parts(x, []) if evaluated is None else evaluated
             blocks = [J] + [self.columns(x, c, parts, p) for c in self._columned]
@@ -276,6 +274,11 @@ class ExtendedProblem:
         J = (np.hstack(blocks) if len(blocks) > 1 else blocks[0]) * self.row_weights[:, None]
         rows = self._constant_rows(J.shape[1])
         return np.vstack([J, rows]) if len(rows) else J
+
+    def _chain_jacobian(self, x: np.ndarray, p: np.ndarray, cols) -> np.ndarray:
+        """The chain's Jacobian over the parameter columns ``cols`` at ``x`` (full parameters
+        ``p``), at the joint angles the links take."""
+        return self.robot.jacobian(self.data.measurement, self.joints(x), y=self.data.y, params=p, cols=cols)
 
     @cached_property
     def _columned(self) -> list:

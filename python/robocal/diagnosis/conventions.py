@@ -295,14 +295,19 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
     schemes, held-out errors)`` over all its samples. Searched only when the geometric fit of the
     data as read is implausible."""
 
-    def geometric(d: Dataset, max_nfev=None):
-        return levenberg_marquardt(Problem.build(robot, d, mask=mask), **({"max_nfev": max_nfev} if max_nfev else {}))
+    def hypothesis_problem(d: Dataset, free) -> Optional[Problem]:
+        """The problem of ``d`` (the data under a hypothesis), or None where its readings cannot
+        be the robot's (the input check's DataError): a wrong hypothesis, not a wrong file."""
+        try:
+            return Problem.build(robot, d, mask=free)
+        except DataError:
+            return None
 
     def fit(d: Dataset, max_nfev=None):
-        try:
-            result = geometric(d, max_nfev)
-        except DataError:  # no readings of this robot under the hypothesis (check_observations)
+        problem = hypothesis_problem(d, mask)
+        if problem is None:
             return np.inf, np.inf
+        result = levenberg_marquardt(problem, **({"max_nfev": max_nfev} if max_nfev else {}))
         return result.metrics["train"]["rmse"], len(result.implausible())
 
     order = acquisition_order(data)
@@ -315,7 +320,7 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
         errors = errors_of[d.q.tobytes()] = cross_validate(ext, schemes)[0]
         return {name: reported_rmse(err) for name, err in errors.items()}
 
-    as_read = geometric(data)
+    as_read = levenberg_marquardt(Problem.build(robot, data, mask=mask))  # the data as given: a DataError is the user's
     bad = as_read.implausible()
     if not bad:
         return data, [], [], None
@@ -323,10 +328,8 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
     setup = setup_names(robot, data.measurement) + (["tool_x", "tool_y", "tool_z"] if data.measurement == "cable" else [])
 
     def setup_rmse(d: Dataset) -> float:  # the nominal geometry, only the set-up fitted
-        try:
-            return levenberg_marquardt(Problem.build(robot, d, mask=setup), max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
-        except DataError:  # as in fit
-            return np.inf
+        problem = hypothesis_problem(d, setup)
+        return np.inf if problem is None else levenberg_marquardt(problem, max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
 
     combined = screen_combinations(data, setup_rmse, seed)
     accepted, effects, rejected = search(data, fit, heldout, baseline, seed, extra=zero_errors(bad) + combined, setup_rmse=setup_rmse)
