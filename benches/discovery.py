@@ -95,6 +95,8 @@ from robocal.exceptions import InvalidParameterError
 from robocal.simulation import DEFAULT_NOISE, setup, simulate
 from scipy.stats import norm
 
+import mismatch
+
 ROBOTS = ("hsr-jr680", "abb-irb120", "ur10")
 MEASUREMENTS = ("cable", "position", "pose")
 SAMPLES = 300
@@ -244,7 +246,12 @@ def plan(seed: int) -> list[dict]:
         r = np.random.default_rng([seed, 1, i])
         used: set = set()
         f["hidden"] = [e for s in f["scenarios"] for e in draw_effect(s, f["robot"], f["measurement"], f["n_joints"], r, used)]
-    # stratified order: item i of a group of n_g at (i + u)/n_g, groups shuffled within
+    return stratified(files, rng)
+
+
+def stratified(files: list[dict], rng: np.random.Generator) -> list[dict]:
+    """``files`` in a stratified order, indexed: item i of a group of n_g at (i + u)/n_g,
+    groups shuffled within — any prefix holds each group in about its overall proportion."""
     groups = defaultdict(list)
     for f in files:
         groups[f["group"]].append(f)
@@ -270,6 +277,25 @@ def spec(kind: str, keys: dict) -> str:
     return kind + (":" + ",".join(parts) if parts else "")
 
 
+def geometric_basis(nominal, measurement: str, q: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of what the geometry absorbs: the column space of the geometric
+    identification Jacobian (every DH parameter and the set-up) at the nominal geometry, in units
+    of the sensor noise; of a pose its position rows (see the module notes)."""
+    cols = np.flatnonzero(nominal.default_mask(measurement))
+    width = 1 if measurement == "cable" else 3
+    J = nominal.jacobian(measurement, q, y=y, cols=cols)
+    J = J.reshape(len(q), -1, len(cols))[:, :width].reshape(-1, len(cols)) / DEFAULT_NOISE[measurement].sigma
+    u, s, _ = np.linalg.svd(J, full_matrices=False)
+    return u[:, s > s[0] * 1e-9]
+
+
+def noncentrality(basis: np.ndarray, dy: np.ndarray, sigma: float) -> float:
+    """``λ₁ = ‖P⊥ Δy / σ‖²`` of an effect's signature ``dy`` (m, k)."""
+    d = (dy / sigma).ravel()
+    d -= basis @ (basis.T @ d)
+    return float(d @ d)
+
+
 class Limit:
     """The noncentrality of effects on one file: nominal geometry, weighted projector and the
     noiseless residuals without any effect."""
@@ -280,11 +306,7 @@ class Limit:
         clean, _ = simulate(robot, measurement, samples=SAMPLES, seed=seed, noise=0)
         self.q = clean.q
         self.r0 = self.residuals(clean)
-        cols = np.flatnonzero(self.nominal.default_mask(measurement))
-        J = self.nominal.jacobian(measurement, self.q, y=clean.y, cols=cols)
-        J = J.reshape(len(self.q), -1, len(cols))[:, : self.r0.shape[1]].reshape(-1, len(cols)) / DEFAULT_NOISE[measurement].sigma
-        u, s, _ = np.linalg.svd(J, full_matrices=False)
-        self.basis = u[:, s > s[0] * 1e-9]
+        self.basis = geometric_basis(self.nominal, measurement, self.q, clean.y)
 
     def residuals(self, data) -> np.ndarray:
         """Residuals at the nominal geometry; of a pose its position part (see the module notes)."""
@@ -293,9 +315,7 @@ class Limit:
     def noncentrality(self, effect_spec: str) -> tuple[float, dict]:
         """``λ₁`` of an effect (a spec) on this file, and its truth record."""
         data, truth = simulate(self.robot, self.measurement, samples=SAMPLES, seed=self.seed, effects=[effect_spec], noise=0)
-        d = ((self.residuals(data) - self.r0) / DEFAULT_NOISE[self.measurement].sigma).ravel()
-        d -= self.basis @ (self.basis.T @ d)
-        return float(d @ d), truth["effects"][0]
+        return noncentrality(self.basis, self.residuals(data) - self.r0, DEFAULT_NOISE[self.measurement].sigma), truth["effects"][0]
 
 
 def sized(limit: Limit, hidden: dict) -> dict:
@@ -344,9 +364,13 @@ def matches(named: dict, hidden: dict) -> bool:
     """Whether a named cause is the hidden effect (see the module notes)."""
     kind, target = ALIASES.get(named["kind"], named["kind"]), hidden["kind"]
     joint, params = named.get("joint"), named.get("params") or {}
-    if kind == "joint_map":
+    if hidden.get("accept") is not None:  # the mismatch section: the named kinds true for a family
+        if kind not in hidden["accept"] or (hidden["joint"] is not None and joint != hidden["joint"]):
+            return False
+        target = kind
+    elif kind == "joint_map":
         return target in MAP_TARGETS and joint == hidden["joint"]
-    if kind != target or (target in JOINT_KINDS and joint != hidden["joint"]):
+    elif kind != target or (target in JOINT_KINDS and joint != hidden["joint"]):
         return False
     if target == "backlash":
         width = value(params, "width")
@@ -478,8 +502,126 @@ def run_file(f: dict) -> dict:
         leftover_line={k: line[k] for k in ("joint", "harmonic", "amplitude_arcsec")} if line.get("reported") else None,
         # what is left said to follow the sensor's reading: no such error is hidden, so every one is false
         leftover_sensor=bool((leftover.get("sensor") or {}).get("verdict")),
+        said_noise=bool(leftover.get("noise")),
         time_s=elapsed,
         rmse_heldout={"baseline": report["baseline"].get("rmse_heldout"), "final": report["final"].get("rmse_heldout")},
+    )
+    return record
+
+
+# ---------------------------------------------------------------------------------------------
+# The mismatch section: effects made by a model robocal does not fit (benches/mismatch.py)
+# ---------------------------------------------------------------------------------------------
+#: Files per robot × measurement: clean ones (another geometry, Gaussian noise), each family
+#: this many times, and pairs of families (at most one of them a noise family).
+MISMATCH_CLEAN, MISMATCH_REPEATS, MISMATCH_PAIRS = 2, 2, 4
+
+
+def mismatch_plan(seed: int) -> list[dict]:
+    """Every file of the mismatch section, deterministically from ``seed``."""
+    rng = np.random.default_rng([seed, 51])
+    files = []
+    for robot in ROBOTS:
+        for measurement in MEASUREMENTS:
+            families = [name for name, fam in mismatch.FAMILIES.items() if measurement in fam.measurements]
+            causal = [name for name in families if not mismatch.FAMILIES[name].optional]
+            cases = [("clean", [])] * MISMATCH_CLEAN + [("single", [name]) for name in families for _ in range(MISMATCH_REPEATS)]
+            for _ in range(MISMATCH_PAIRS):
+                first = str(rng.choice(causal))
+                second = str(rng.choice([name for name in families if name != first]))
+                cases.append(("pair", sorted([first, second])))
+            files += [{"robot": robot, "measurement": measurement, "group": group, "families": fams} for group, fams in cases]
+    for i, f in enumerate(files):
+        f["seed"] = int(seed) * 1000 + i
+        f["k_drawn"] = [float(np.exp(rng.uniform(*np.log(K_RANGE)))) for _ in f["families"]]
+    return stratified(files, rng)
+
+
+def mismatch_effects(f: dict, acq) -> tuple[list[dict], list[dict]]:
+    """The file's effects for the generator (family, keys, size) and the hidden causes to score
+    (one per joint a gravity deflection bends), each sized at its ``k`` times the detection
+    limit as in the matched section, with the generator's own signature."""
+    rng = np.random.default_rng([f["seed"], 2])
+    nominal = setup(robocal.robot(f["robot"]), f["measurement"])
+    width = 1 if f["measurement"] == "cable" else 3
+    y0 = mismatch.readings(acq, [], noisy=False)
+    basis = geometric_basis(nominal, f["measurement"], acq.q, y0)
+    sigma = mismatch.NOISE[f["measurement"]][0]
+    effects, hidden = [], []
+    for name, k in zip(f["families"], f["k_drawn"]):
+        family = mismatch.FAMILIES[name]
+        keys = mismatch.draw(name, acq, rng)
+        effect = {"family": name, "keys": keys, "size": None}
+        record = {"kind": name, "row": family.row, "keys": keys, "joint": keys.get("joint"), "accept": list(family.accept), "optional": family.optional}
+        if family.unit is None:
+            record.update(fixed=True, k=None, k_drawn=None)
+        else:
+            unit = family.unit * (float(rng.choice([1.0, -1.0])) if family.sign else 1.0)
+            dy = mismatch.readings(acq, [{**effect, "size": unit}], noisy=False)[:, :width] - y0[:, :width]
+            lam = noncentrality(basis, dy, sigma)
+            if not lam > 1e-12:
+                raise InvalidParameterError(f"{name} leaves no trace the geometry cannot absorb (λ₁ = {lam:.3g})")
+            at_limit = abs(unit) * math.sqrt(LAMBDA_LIMIT / lam)
+            size = min(k * at_limit, family.cap)
+            if size / at_limit < 1.0:
+                raise InvalidParameterError(f"{name}: the detection limit needs size {at_limit:.3g}, beyond the cap {family.cap:g}")
+            effect["size"] = math.copysign(float(f"{size:.6g}"), unit)
+            record.update(k=size / at_limit, k_drawn=k, lambda_unit=lam, size_at_limit=at_limit, size=effect["size"])
+        effects.append(effect)
+        joints = keys.get("joints") or [keys.get("joint")]
+        hidden += [{**record, "joint": j} for j in joints]
+    return effects, hidden
+
+
+#: ``found_by`` of a hidden effect found by the leftover's tests rather than a named cause.
+FOUND_IN_LEFTOVER = -1
+
+
+def found_as(r: dict, h: dict) -> str:
+    """What found a hidden effect: the named cause's kind, or the leftover's verdict."""
+    return "leftover: sensor" if h["found_by"] == FOUND_IN_LEFTOVER else named_kind(r["named"][h["found_by"]])
+
+
+def run_mismatch_file(f: dict) -> dict:
+    """Generates, diagnoses and scores one file of the mismatch section."""
+    record = {k: f[k] for k in ("index", "robot", "measurement", "group", "families", "seed")}
+    record["scenarios"] = f["families"]
+    acq = mismatch.acquisition(f["robot"], f["measurement"], SAMPLES, f["seed"])
+    try:
+        effects, hidden = mismatch_effects(f, acq)
+    except InvalidParameterError as exc:
+        record["skipped"] = str(exc)
+        return record
+    y = mismatch.readings(acq, effects)
+    data = robocal.Dataset(q=acq.q, y=y, measurement=f["measurement"], robot=f["robot"], t=acq.t)
+    t0 = time.perf_counter()
+    report = robocal.diagnose(data).to_dict()
+    elapsed = time.perf_counter() - t0
+    named = [{k: e.get(k) for k in ("kind", "joint", "label", "params")} for e in report["effects"]]
+    for n, e in zip(named, report["effects"]):
+        n["undetermined_between"] = (e.get("significance") or {}).get("undetermined_between") or []
+    score(named, hidden)
+    score_alike(named, hidden)
+    leftover = report["final"].get("residuals") or {}
+    sensor_verdict = bool((leftover.get("sensor") or {}).get("verdict"))
+    for h in hidden:  # the sensor's own error is no cause of the robot: found as the leftover's verdict
+        if h["kind"] == "sensor_error" and sensor_verdict:
+            h["found_by"] = FOUND_IN_LEFTOVER
+    final = report["final"].get("rmse_heldout")
+    floor = mismatch.NOISE[f["measurement"]][0] * math.sqrt(1 if f["measurement"] == "cable" else 3)
+    missed = [h for h in hidden if h["found_by"] is None and not h.get("optional") and large(h)]
+    said_noise = bool(leftover.get("noise"))
+    record.update(
+        hidden=hidden,
+        named=named,
+        leftover_line=None,
+        leftover_sensor=sensor_verdict,
+        said_noise=said_noise,
+        # "looks like noise" while a large effect is missed or the final error is 20 % above the noise
+        false_noise=said_noise and (bool(missed) or (final is not None and final > 1.2 * floor)),
+        noise_rmse=floor,
+        time_s=elapsed,
+        rmse_heldout={"baseline": report["baseline"].get("rmse_heldout"), "final": final},
     )
     return record
 
@@ -515,6 +657,9 @@ def summarise(records: list[dict]) -> dict:
             confusion["none (clean)"].update(false_kinds or ["nothing"])
         for h in r["hidden"]:
             found = h["found_by"] is not None
+            if h.get("optional"):  # a noise family hides no cause: what was named for it, no recall
+                confusion[h["row"]].update(([found_as(r, h)] if found else []) + (false_kinds or ([] if found else ["nothing"])))
+                continue
             c = recall[h["row"]]
             c["hidden"] += 1
             c["found"] += found
@@ -522,7 +667,7 @@ def summarise(records: list[dict]) -> dict:
                 c["large"] += 1
                 c["large_found"] += found
             if found:
-                confusion[h["row"]][named_kind(r["named"][h["found_by"]])] += 1
+                confusion[h["row"]][found_as(r, h)] += 1
             confusion[h["row"]].update(false_kinds if false_kinds else ([] if found else ["nothing"]))
     clean = sum(1 for r in done if not r["hidden"])
     total = Counter()
@@ -538,6 +683,8 @@ def summarise(records: list[dict]) -> dict:
         "skipped": len(records) - len(done),
         "leftover_lines": sum(r.get("leftover_line") is not None for r in done),
         "leftover_sensor": sum(bool(r.get("leftover_sensor")) for r in done),
+        "said_noise": sum(bool(r.get("said_noise")) for r in done),
+        "false_noise": sum(bool(r.get("false_noise")) for r in done),
         "clean_files": clean,
         "clean_with_anything_named": clean_hit,
         "false_discovery_rate_clean": clean_hit / clean if clean else None,
@@ -577,7 +724,9 @@ def markdown(s: dict) -> str:
         f"| {fraction(s['true_as_stated'], s['named'])} | |",
         f"| precision on files whose effects are all at ≥ {LARGE:g}× the limit (or none) | {fraction(s['true_named_large'], s['named_large'])} | |",
         f"| files whose leftover is said to hold a line of 9-360 cycles a turn (none hidden: each is false) | {fraction(s['leftover_lines'], s['files'])} | |",
-        f"| files whose leftover is said to follow the sensor's reading (none hidden: each is false) | {fraction(s['leftover_sensor'], s['files'])} | |",
+        f"| files whose leftover is said to follow the sensor's reading | {fraction(s['leftover_sensor'], s['files'])} | |",
+        f"| files whose leftover is said to look like noise | {fraction(s['said_noise'], s['files'])} | |",
+        f"| ... of them falsely (a large effect missed, or the final error > 1.2× the noise) | {fraction(s['false_noise'], s['said_noise'])} | 0 |",
         f"| recall, effects at ≥ {LARGE:g}× the limit | {fraction(round((s['recall_large'] or 0) * s['hidden_large']), s['hidden_large'])} | ≥ 0.90 |",
         f"| recall, all (1-10× the limit) | {fraction(round((s['recall'] or 0) * s['hidden']), s['hidden'])} | |",
         f"| clean files with anything named | {fraction(s['clean_with_anything_named'], s['clean_files'])} | ≤ 0.05 |",
@@ -650,22 +799,32 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=25)
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument("--kinds", default=None, help="only files hiding one of these scenarios or kinds (comma-separated; 'clean' for clean files)")
-    parser.add_argument("--out", default="discovery.json", help="per-file records (JSON; default discovery.json)")
+    parser.add_argument(
+        "--section",
+        choices=("matched", "mismatch"),
+        default="matched",
+        help="matched: effects made by robocal's own simulator, in its candidates' shapes; mismatch: effects made by "
+        "benches/mismatch.py, a physically different model (default matched)",
+    )
+    parser.add_argument("--out", default=None, help="per-file records (JSON; default discovery.json, discovery-mismatch.json)")
     args = parser.parse_args()
     if args.jobs < 1 or (args.files is not None and args.files < 1):
         parser.error("--jobs and --files must be >= 1")
-    files = plan(args.seed)
+    matched = args.section == "matched"
+    files = plan(args.seed) if matched else mismatch_plan(args.seed)
+    runner = run_file if matched else run_mismatch_file
     if args.kinds:
         wanted = {k.strip() for k in args.kinds.split(",") if k.strip()}
-        known = set(SCENARIOS) | {h["kind"] for f in files for h in f["hidden"]} | {"clean"}
+        kinds_of = (lambda f: set(f["scenarios"]) | {h["kind"] for h in f["hidden"]}) if matched else (lambda f: set(f["families"]))
+        known = set().union(*(kinds_of(f) for f in files)) | {"clean"}
         if wanted - known:
             parser.error(f"--kinds: unknown {sorted(wanted - known)}; known: {sorted(known)}")
-        files = [f for f in files if ("clean" in wanted and not f["hidden"]) or wanted & (set(f["scenarios"]) | {h["kind"] for h in f["hidden"]})]
+        files = [f for f in files if ("clean" in wanted and f["group"] == "clean") or wanted & kinds_of(f)]
     if args.files is not None:
         files = files[: args.files]
-    out = Path(args.out)
+    out = Path(args.out or ("discovery.json" if matched else "discovery-mismatch.json"))
     print(
-        f"robocal {robocal.__version__}: {len(files)} files, seed {args.seed}, {args.jobs} job(s); detection limit λ = {LAMBDA_LIMIT:.2f}; records → {out}",
+        f"robocal {robocal.__version__}: {args.section} section, {len(files)} files, seed {args.seed}, {args.jobs} job(s); detection limit λ = {LAMBDA_LIMIT:.2f}; records → {out}",
         flush=True,
     )
     t0 = time.perf_counter()
@@ -673,13 +832,13 @@ def main() -> None:
     if args.jobs == 1:
         limit_threads()
         for i, f in enumerate(files, start=1):
-            records.append(run_file(f))
+            records.append(runner(f))
             print(f"{i}/{len(files)} {brief(records[-1])}", flush=True)
     else:
         os.environ["RAYON_NUM_THREADS"] = "1"  # the workers share the cores
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(args.jobs, mp_context=context, initializer=limit_threads) as pool:
-            futures = [pool.submit(run_file, f) for f in files]
+            futures = [pool.submit(runner, f) for f in files]
             for i, future in enumerate(as_completed(futures), start=1):
                 records.append(future.result())
                 print(f"{i}/{len(files)} {brief(records[-1])}", flush=True)
@@ -692,6 +851,7 @@ def main() -> None:
         "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]),
         "robocal": robocal.__version__,
         "seed": args.seed,
+        "section": args.section,
         "samples": SAMPLES,
         "lambda_limit": LAMBDA_LIMIT,
         "summary": summary,
