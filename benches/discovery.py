@@ -87,15 +87,15 @@ from collections import Counter, defaultdict
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+import mismatch
 import numpy as np
 import robocal
-from robocal.causes.structure import KINDS as CONVENTION_KINDS, Structure, parse_all, to_model
-from robocal.serial_robot import setup_names
+from robocal.causes.structure import KINDS as CONVENTION_KINDS
+from robocal.causes.structure import Structure, parse_all, to_model
 from robocal.exceptions import InvalidParameterError
+from robocal.serial_robot import setup_names
 from robocal.simulation import DEFAULT_NOISE, setup, simulate
 from scipy.stats import norm
-
-import mismatch
 
 ROBOTS = ("hsr-jr680", "abb-irb120", "ur10")
 MEASUREMENTS = ("cable", "position", "pose")

@@ -41,10 +41,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
-
 import robocal
 from robocal.simulation import acquisition_path, setup
+from scipy.spatial.transform import Rotation
 
 GRAVITY = 9.80665  # m/s²
 #: Link-frame errors of the true robot (per axis): translation mm, rotation deg.
@@ -167,9 +166,7 @@ def acquisition(robot: str, measurement: str, samples: int, seed: int) -> Acquis
     q = acquisition_path(nominal, measurement, samples, rng_path)
     check_against_robocal(nominal, chain, q[:20])
     n = nominal.n_joints
-    chain.link_errors = np.stack(
-        [rigid(np.radians(rng_robot.normal(0.0, LINK_ERROR_DEG, 3)), rng_robot.normal(0.0, LINK_ERROR_MM, 3)) for _ in range(n)]
-    )
+    chain.link_errors = np.stack([rigid(np.radians(rng_robot.normal(0.0, LINK_ERROR_DEG, 3)), rng_robot.normal(0.0, LINK_ERROR_MM, 3)) for _ in range(n)])
     chain.tool = chain.tool + rng_robot.normal(0.0, TOOL_ERROR_MM, 3)
     p = dict(zip(nominal.param_names, nominal.params))
     anchor = np.array([p["anchor_x"], p["anchor_y"], p["anchor_z"]]) + rng_robot.normal(0.0, ANCHOR_ERROR_MM, 3)
@@ -382,7 +379,13 @@ def draw(family: str, acq: Acquisition, rng: np.random.Generator) -> dict:
         places = [[float(rng.uniform(0.15, 0.85)), *rng.uniform(-lateral, lateral, 3).round(1).tolist()] for _ in masses]
         joints = [2, 3] if rng.random() < 0.4 else [int(rng.integers(2, 4))]
         share = {str(j): float(rng.uniform(0.5, 1.5)) if len(joints) > 1 else 1.0 for j in joints}
-        return {"masses": masses.round(2).tolist(), "places": places, "payload": round(float(rng.uniform(0.1, 0.5) * payload), 2), "joints": joints, "share": share}
+        return {
+            "masses": masses.round(2).tolist(),
+            "places": places,
+            "payload": round(float(rng.uniform(0.1, 0.5) * payload), 2),
+            "joints": joints,
+            "share": share,
+        }
     if family == "frame_knock":
         u = rng.normal(size=3)
         w = rng.normal(size=3)
@@ -399,7 +402,9 @@ def draw(family: str, acq: Acquisition, rng: np.random.Generator) -> dict:
         if family == "warmup":
             keys["tau"] = round(float(rng.uniform(0.1, 0.4)), 3)  # of the session's length
         else:
-            keys.update(wave=round(float(rng.uniform(0.15, 0.4)), 3), period=round(float(rng.uniform(0.3, 0.7)), 3), phase=round(float(rng.uniform(0, 6.28)), 2))
+            keys.update(
+                wave=round(float(rng.uniform(0.15, 0.4)), 3), period=round(float(rng.uniform(0.3, 0.7)), 3), phase=round(float(rng.uniform(0, 6.28)), 2)
+            )
         return keys
     if family == "lost_motion":
         return {"joint": int(rng.integers(1, n + 1)), "v0_deg": round(float(rng.uniform(0.5, 3.0)), 2)}
