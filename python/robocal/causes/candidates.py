@@ -28,8 +28,9 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..physics import DEG, approach_directions, gravity_torques, mass_model
-from ..kernels import as_float_array, is_sparse
+from ..kernels import as_float_array, cable_initial_guess, is_sparse
 from ..exceptions import InvalidParameterError
+from ..geometry import skew
 from ..serial_robot import RESIDUAL_WIDTH, Robot
 from ..stats import robust_sigma
 
@@ -172,7 +173,12 @@ class Candidate:
             rms = float(np.sqrt(np.mean(np.sum(path**2, axis=1))))
             return {"rms": q(rms, np.nan, "mm"), "spacing": q(self.detail["spacing"], np.nan, "samples")}, None
         if kind == "step":
-            out = {f"size_{a}" if len(self.detail["axes"]) > 1 else "size": q(v, sd, "mm") for a, v, sd in zip(self.detail["axes"], c, s)}
+            out = {}
+            for a, v, sd in zip(self.detail["axes"], c, s):
+                if a in TURN_AXES:  # mrad -> deg
+                    out[f"turn_{a[1]}"] = q(v / 1000.0 / DEG, sd / 1000.0 / DEG, "deg")
+                else:  # the zero ("size"), a translation at the readings' centroid, an anchor's move
+                    out["size" if a == "L" else a if a.startswith("anchor") else f"size_{a}"] = q(v, sd, "mm")
             out["sample"] = q(self.detail["sample"], np.nan, "")
             out["row"] = q(self.detail["row"], np.nan, "")
             return out, None
@@ -562,21 +568,62 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     return out
 
 
-def step_candidate(data: Dataset, sample: int) -> Candidate:
-    """A step of the sensor's zero (cable) or of the tracker's position (its translation) at
-    ``sample`` (0-based index of the first sample after it): every sample acquired from then on
-    reads ``h + c`` (``c`` per axis)."""
+#: The axes of a step that turn the sensor's frame (its coefficients in mrad).
+TURN_AXES = ("rx", "ry", "rz")
+#: The axes of a step that shift its readings alike at every sample after it (mm).
+SHIFT_AXES = ("L", "x", "y", "z")
+
+
+def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None) -> Candidate:
+    """A step of the sensor's set-up at ``sample`` (0-based index of the first sample after
+    it): every sample acquired from then on is read by a sensor placed otherwise.
+
+    A sensor is a rigid body, and a knock moves it as one: a tracker's frame moves *and turns*
+    (``x, y, z``: its translation at the centroid of the readings after the step, mm;
+    ``rx, ry, rz``: its rotation, mrad — a frame turned by ω reads ``ω × y`` more at a point
+    ``y``, and a pose's orientation ``ω`` more); a cable sensor's zero jumps (``L``) and its
+    anchor moves (``anchor_u``, ``anchor_v``: across the mean direction of the cable after the
+    step, mm; along it the anchor's move is the zero's). Only those directions the readings
+    determine are columns: the rotation where the points after the step spread, the anchor where
+    a robot (``robot``, the nominal tool points) gives the cable's directions."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     if not 0 < sample < m:
         raise InvalidParameterError(f"a step needs its first sample within 1..{m - 1}; got {sample}")
     position = acquisition_position(data)
-    after = (position >= position[sample]).astype(np.float64)
-    axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
-    basis = np.zeros((m, k, len(axes)))
-    for a in range(len(axes)):
-        basis[:, a, a] = after
+    after = position >= position[sample]
+    if data.measurement == "cable":
+        axes, columns = ["L"], [np.ones((m, 1, 1))]
+        u = cable_directions(data, robot)
+        if u is not None:
+            mean = u[after].mean(axis=0)
+            across = np.linalg.svd(np.eye(3) - np.outer(mean, mean) / (mean @ mean))[0][:, :2]  # two unit vectors ⟂ the mean direction
+            axes += ["anchor_u", "anchor_v"]
+            columns.append(-(u @ across)[:, None, :])  # L = |p − a| + c: moving a by δa reads −u·δa
+    else:
+        axes = ["x", "y", "z", "rx", "ry", "rz"]
+        points = data.y[:, :3] - data.y[after, :3].mean(axis=0)
+        turn = np.zeros((m, k, 3))
+        turn[:, :3] = -skew(points) / 1000.0  # ω × y = −[y]× ω, ω in mrad
+        if k == 6:
+            turn[:, 3:] = np.eye(3) / 1000.0
+        shift = np.zeros((m, k, 3))
+        shift[:, :3] = np.eye(3)
+        columns = [shift, turn]
+    basis = np.concatenate(columns, axis=2) * after[:, None, None]
     row = int(data.rows[sample]) if data.rows is not None else sample
     return Candidate("step", None, "observations", basis, detail={"sample": int(sample), "row": row, "axes": axes})
+
+
+def cable_directions(data: Dataset, robot: Optional[Robot]) -> Optional[np.ndarray]:
+    """Unit vectors (m, 3) from the cable's anchor to the tool point of each sample: the nominal
+    tool points of ``robot`` and the anchor placed on them in closed form; None without a robot
+    (the anchor's move is then not modelled)."""
+    if robot is None:
+        return None
+    points = robot.fkine(data.q, tool=True)[:, :3, 3]
+    anchor, _ = cable_initial_guess(points, data.y[:, 0])
+    d = points - anchor
+    return d / np.linalg.norm(d, axis=1)[:, None]
 
 
 def acquisition_order(data: Dataset) -> np.ndarray:

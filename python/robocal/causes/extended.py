@@ -279,7 +279,7 @@ def extended_problem(
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
         if step:
-            pool[label] = step_candidate(dataset, int(step.group(1)))
+            pool[label] = step_candidate(dataset, int(step.group(1)), problem.robot)
         wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
             pool[label] = wander_candidate(dataset, float(wander.group(1)), *([float(wander.group(2))] if wander.group(2) else []))

@@ -5,10 +5,13 @@ selection tests like any other cause — and the gradual changes a step must bea
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
-from ..causes.candidates import Candidate, acquisition_order, acquisition_position, step_candidate
+from ..causes.candidates import SHIFT_AXES, Candidate, acquisition_order, acquisition_position, step_candidate
 from ..data.dataset import Dataset
+from ..serial_robot import Robot
 
 #: Change points proposed per diagnosis: ruptures' binary segmentation asked for this many.
 STEPS_PROPOSED = 3
@@ -38,7 +41,7 @@ def _summed_l2_cost():
     return SummedL2()
 
 
-def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> list[Candidate]:
+def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot: Optional[Robot] = None) -> list[Candidate]:
     """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
     samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
     residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
@@ -56,7 +59,7 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> li
     if m < 2 * min_size + 1:
         return []
     breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
-    return [step_candidate(data, int(idx[order[b]])) for b in breaks if b < m]
+    return [step_candidate(data, int(idx[order[b]]), robot) for b in breaks if b < m]
 
 
 def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
@@ -66,10 +69,11 @@ def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
     level jumped, which a ramp from the same sample must not explain as well."""
     position = acquisition_position(data)
     at = position[step.detail["sample"]]
+    shifts = [a for a in step.detail["axes"] if a in SHIFT_AXES]  # a ramp shifts: the readings' level changes
     out = []
     for side, shape in (("after", np.maximum(position - at, 0.0)), ("before", np.maximum(at - position, 0.0))):
-        basis = np.zeros_like(step.basis)
-        for a in range(step.basis.shape[2]):
+        basis = np.zeros(step.basis.shape[:2] + (len(shifts),))
+        for a in range(len(shifts)):
             basis[:, a, a] = shape / max(float(shape.max()), 1.0)
         out.append(Candidate("ramp", None, "observations", basis, detail={"sample": step.detail["sample"], "side": side}))
     return out

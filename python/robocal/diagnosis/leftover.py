@@ -3,7 +3,9 @@
 "The residuals look like noise" is a claim, and it is tested before it is made: the final
 model's residuals against the noise the data show (the repeatability at revisited
 configurations, or the floor where it includes the sensor's recorded noise; a residual many
-times that is not noise), for correlation between samples taken one after another (a sensor that
+times that is not noise; where the data show no noise of their own, what is left is "not
+explained", never "noise": a cause outside the library twice the sensor's noise and uncorrelated
+on the path would look the same), for correlation between samples taken one after another (a sensor that
 wanders, settling, a cause that follows the path) and between samples taken in similar
 configurations far apart in time (a cause of the robot outside the library), and for an error
 periodic in one joint's angle at more cycles a turn than the library's harmonics and the joint
@@ -225,7 +227,10 @@ def residual_verdict(
         )
     multiple = None if reference is None else float(rmse / reference)
     return {
-        "noise": not findings,
+        # noise only where the data measure their noise: else what is left is "not explained"
+        "noise": not findings and reference is not None,
+        "unexplained": not findings and reference is None,
+        "rmse_mm": float(rmse),
         "findings": findings,
         "periodic": periodic,
         "correlation": correlation,
@@ -262,9 +267,15 @@ def leftover_words(verdict: Optional[dict]) -> Optional[str]:
     without the tests."""
     if not isinstance(verdict, dict) or not isinstance(verdict.get("findings"), list):
         return None
+    periodic = ", nor periodic in one joint's angle" if verdict.get("periodic") is not None else ""
+    sensor = ", nor in the sensor's reading" if verdict.get("sensor") is not None else ""
+    tried = f"neither correlated in acquisition order nor in joint space{sensor}{periodic}"
     if verdict.get("noise"):
-        near = "near the measured noise, and " if verdict.get("noise_multiple") is not None else ""
-        periodic = ", nor periodic in one joint's angle" if verdict.get("periodic") is not None else ""
-        sensor = ", nor in the sensor's reading" if verdict.get("sensor") is not None else ""
-        return f"the residuals look like noise: {near}neither correlated in acquisition order nor in joint space{sensor}{periodic}"
+        return f"the residuals look like noise: within {FLOOR_MULTIPLE:g} times {verdict.get('noise_reference')}, and {tried}"
+    if verdict.get("unexplained") or not verdict["findings"]:  # (a report from before "unexplained")
+        left = f"{verdict['rmse_mm']:.3g} mm held out is left" if isinstance(verdict.get("rmse_mm"), (int, float)) else "what is left"
+        return (
+            f"not explained: {left}, {tried}; but the data do not measure their noise ({verdict.get('noise_reference')}), "
+            "so it is not known to be noise — revisit configurations, or record the sensor's noise, to tell"
+        )
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])

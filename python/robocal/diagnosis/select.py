@@ -663,7 +663,7 @@ def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_tes
     # simulated files).
     taken = {c.detail["sample"] for c in causes if c.kind == "step"}
     pool = [c for c in pool if c.kind != "step"] + [
-        c for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k)) if c.detail["sample"] not in taken
+        c for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k), state.robot) if c.detail["sample"] not in taken
     ]
     # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
     # cause hid shows once that cause is in). Its knots at half the correlation length and
