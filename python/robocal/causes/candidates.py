@@ -42,7 +42,7 @@ LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h
 
 #: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
 #: only describe it).
-LABELLED = ("harmonic", "source", "target", "sample", "row", "spacing", "roughness", "degree", "settling")
+LABELLED = ("harmonic", "source", "target", "sample", "row", "frame", "spacing", "roughness", "degree", "settling")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -574,18 +574,21 @@ TURN_AXES = ("rx", "ry", "rz")
 SHIFT_AXES = ("L", "x", "y", "z")
 
 
-def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None) -> Candidate:
+def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None, rigid: bool = False) -> Candidate:
     """A step of the sensor's set-up at ``sample`` (0-based index of the first sample after
     it): every sample acquired from then on is read by a sensor placed otherwise.
 
-    A sensor is a rigid body, and a knock moves it as one: a tracker's frame moves *and turns*
-    (``x, y, z``: its translation at the centroid of the readings after the step, mm;
-    ``rx, ry, rz``: its rotation, mrad — a frame turned by ω reads ``ω × y`` more at a point
-    ``y``, and a pose's orientation ``ω`` more); a cable sensor's zero jumps (``L``) and its
-    anchor moves (``anchor_u``, ``anchor_v``: across the mean direction of the cable after the
-    step, mm; along it the anchor's move is the zero's). Only those directions the readings
-    determine are columns: the rotation where the points after the step spread, the anchor where
-    a robot (``robot``, the nominal tool points) gives the cable's directions."""
+    A shift (``rigid`` False): the readings jump alike — a cable sensor re-zeroed (``L``, mm), a
+    tracker's frame moved without turning (``x, y, z``, mm). A sensor is a rigid body, though,
+    and a knock moves it as one (``rigid``, labelled ``frame=rigid``): a tracker's frame moves
+    *and turns* (``x, y, z`` its translation at the centroid of the readings after the step, mm;
+    ``rx, ry, rz`` its rotation, mrad — a frame turned by ω reads ``ω × y`` more at a point
+    ``y``, and a pose's orientation ``ω`` more); a cable sensor's zero jumps and its anchor moves
+    (``anchor_u``, ``anchor_v``: across the mean direction of the cable after the step, mm; along
+    it the anchor's move is the zero's). Only those directions the readings determine are
+    columns: the rotation where the points after the step spread, the anchor where a robot
+    (``robot``, the nominal tool points) gives the cable's directions. Both are offered; the
+    selection takes the shift where the turn gains nothing (:func:`~robocal.diagnosis.select.simplest_first`)."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     if not 0 < sample < m:
         raise InvalidParameterError(f"a step needs its first sample within 1..{m - 1}; got {sample}")
@@ -593,25 +596,29 @@ def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None) ->
     after = position >= position[sample]
     if data.measurement == "cable":
         axes, columns = ["L"], [np.ones((m, 1, 1))]
-        u = cable_directions(data, robot)
+        u = cable_directions(data, robot) if rigid else None
         if u is not None:
             mean = u[after].mean(axis=0)
             across = np.linalg.svd(np.eye(3) - np.outer(mean, mean) / (mean @ mean))[0][:, :2]  # two unit vectors ⟂ the mean direction
             axes += ["anchor_u", "anchor_v"]
             columns.append(-(u @ across)[:, None, :])  # L = |p − a| + c: moving a by δa reads −u·δa
     else:
-        axes = ["x", "y", "z", "rx", "ry", "rz"]
-        points = data.y[:, :3] - data.y[after, :3].mean(axis=0)
-        turn = np.zeros((m, k, 3))
-        turn[:, :3] = -skew(points) / 1000.0  # ω × y = −[y]× ω, ω in mrad
-        if k == 6:
-            turn[:, 3:] = np.eye(3) / 1000.0
+        axes = ["x", "y", "z"]
         shift = np.zeros((m, k, 3))
         shift[:, :3] = np.eye(3)
-        columns = [shift, turn]
+        columns = [shift]
+        if rigid:
+            points = data.y[:, :3] - data.y[after, :3].mean(axis=0)
+            turn = np.zeros((m, k, 3))
+            turn[:, :3] = -skew(points) / 1000.0  # ω × y = −[y]× ω, ω in mrad
+            if k == 6:
+                turn[:, 3:] = np.eye(3) / 1000.0
+            axes += ["rx", "ry", "rz"]
+            columns.append(turn)
     basis = np.concatenate(columns, axis=2) * after[:, None, None]
     row = int(data.rows[sample]) if data.rows is not None else sample
-    return Candidate("step", None, "observations", basis, detail={"sample": int(sample), "row": row, "axes": axes})
+    detail = {"sample": int(sample), "row": row, "axes": axes} | ({"frame": "rigid"} if any(a not in SHIFT_AXES for a in axes) else {})
+    return Candidate("step", None, "observations", basis, detail=detail)
 
 
 def cable_directions(data: Dataset, robot: Optional[Robot]) -> Optional[np.ndarray]:

@@ -277,9 +277,9 @@ def extended_problem(
     out, not refused."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
-        step = re.fullmatch(r"step sample=(\d+) row=\d+", label)
+        step = re.fullmatch(r"step sample=(\d+) row=\d+( frame=rigid)?", label)
         if step:
-            pool[label] = step_candidate(dataset, int(step.group(1)), problem.robot)
+            pool[label] = step_candidate(dataset, int(step.group(1)), problem.robot, rigid=bool(step.group(2)))
         wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
             pool[label] = wander_candidate(dataset, float(wander.group(1)), *([float(wander.group(2))] if wander.group(2) else []))

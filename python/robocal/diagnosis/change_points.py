@@ -45,7 +45,8 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
     samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
     residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
-    the samples (and 5). Each becomes a candidate that the selection tests like any other."""
+    the samples (and 5). Each becomes two candidates that the selection tests like any other: the
+    readings shifted, and the sensor moved as a rigid body (:func:`step_candidate`)."""
     import ruptures  # imported on use: only a diagnosis needs it
 
     order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
@@ -59,7 +60,8 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     if m < 2 * min_size + 1:
         return []
     breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
-    return [step_candidate(data, int(idx[order[b]]), robot) for b in breaks if b < m]
+    # each as a shift of the readings and as the sensor's rigid move (the selection prefers the shift where it gains as much)
+    return [step_candidate(data, int(idx[order[b]]), robot, rigid) for b in breaks if b < m for rigid in (False, True)]
 
 
 def ramps(data: Dataset, step: Candidate) -> list[Candidate]:

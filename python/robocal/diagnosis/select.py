@@ -142,12 +142,22 @@ def simplest_first(ranked: list) -> list:
     :data:`SAME_GAIN` above it: over a joint's range a scale error and a first harmonic (or a
     harmonic and its neighbour) fit alike, and the data then speak for the simpler one. Likewise
     a drift before a step of no more gain (a linear drift and a step placed half-way along it
-    gain alike)."""
+    gain alike), and a step that shifts the readings before the sensor's rigid move at the same
+    sample (a re-zeroed cable before an anchor that moved)."""
     out = list(ranked)
     for i in range(len(out)):
         gain, c = out[i][0], out[i][1]
         if c.kind == "step" and gain > 0:  # a drift's shape is not chosen among every sample, as a step's place is
             simpler = [j for j in range(i + 1, len(out)) if out[j][1].kind == "drift" and out[j][0] >= (1.0 - SAME_GAIN) * gain]
+            # the readings shifted before the sensor's rigid move at the same sample, if it gains as much
+            simpler += [
+                j
+                for j in range(i + 1, len(out))
+                if out[j][1].kind == "step"
+                and out[j][1].detail["sample"] == c.detail["sample"]
+                and out[j][1].size < c.size
+                and out[j][0] >= (1.0 - SAME_GAIN) * gain
+            ]
             if simpler:
                 out.insert(i, out.pop(simpler[0]))
             continue
