@@ -29,7 +29,7 @@ def format_report(report: dict, limit: int = 20) -> str:
     lines.append(f"  angle unit: {report['angle_unit']['message']}")
     lines.append(f"  outside joint limits: {len(report['out_of_limits'])}")
     lines += [
-        f"    row {e['row']}, q{e['joint']} = {e['value_deg']:.3f} deg (limits {e['limits_deg'][0]:g}..{e['limits_deg'][1]:g})"
+        f"    row {e['row']}, q{e['joint']} = {e['value']:.3f} {e['unit']} (limits {e['limits'][0]:g}..{e['limits'][1]:g})"
         for e in _first(report["out_of_limits"], limit)
     ]
     fit = report["fit"]

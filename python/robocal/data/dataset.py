@@ -83,14 +83,18 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     return None
 
 
-def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
+def angle_unit_check(q: np.ndarray, unit: str, rows=None, prismatic: tuple = ()) -> dict:
     """Whether joint values ``q`` (m, N), read as ``unit`` and converted to rad, are plausible.
 
     In rad, a value beyond ``4 pi`` cannot be a joint angle; in deg, a file whose values all lie
-    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians. Returns
+    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians. The ``prismatic``
+    joints' columns (0-based) are mm: they say nothing of the angle unit and are left out. Returns
     ``{unit, plausible, message, likely}``; ``message`` names the columns and the likely unit.
     """
     q = np.abs(np.asarray(q, dtype=np.float64))  # rad
+    if prismatic and q.ndim == 2:
+        q = q.copy()
+        q[:, [j for j in prismatic if j < q.shape[1]]] = 0.0  # a zero column neither passes nor fails the check
     if q.size == 0:
         return {"unit": unit, "plausible": True, "likely": unit, "message": "no joint values"}
     if unit == "rad" and q.max() > MAX_PLAUSIBLE_RAD:

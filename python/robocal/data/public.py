@@ -444,28 +444,36 @@ def detect_format(path) -> str:
     raise DataError(f"unknown format: {seen}; {expected}", path, 1)
 
 
-def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Dataset:
-    """Records ``robot`` in ``dataset`` after checking it matches the file."""
+def _check_robot(dataset: Dataset, fmt: str, robot, path) -> Dataset:
+    """Records ``robot`` (a name or file) in ``dataset`` after checking it matches the file; a
+    :class:`~robocal.robot.Robot` is checked for its joint count only, and the robot the data
+    name is kept (:func:`robocal.calibration.api.load_inputs` compares the two)."""
     if robot is None:
         return dataset
     from ..catalog import BUILTIN
+    from ..robot import Robot
     from ..robot import robot as load_robot
 
     native = FORMAT_ROBOT.get(fmt)
     if native and isinstance(robot, str) and robot in BUILTIN and robot != native:
         raise DataError(f"this is {fmt} data of the {native}; got robot={robot!r}", path)
-    n = load_robot(robot).n_joints
-    if n != dataset.n_joints:
-        raise DataError(f"robot {robot!r} has {n} joints; the file has {dataset.n_joints} joint columns", path, 1)
-    dataset.robot = robot
+    model = robot if isinstance(robot, Robot) else load_robot(robot)
+    name = model.name if isinstance(robot, Robot) else robot
+    if model.n_joints != dataset.n_joints:
+        raise DataError(f"robot {name!r} has {model.n_joints} joints; the file has {dataset.n_joints} joint columns", path, 1)
+    if not isinstance(robot, Robot):
+        dataset.robot = robot
     return dataset
 
 
 def _prismatic(robot) -> tuple:
-    """The prismatic joints of ``robot`` (a name or file, or None: none known)."""
+    """The prismatic joints of ``robot`` (a name or file, a Robot, or None: none known)."""
+    from ..robot import Robot
     from ..robot import robot as load_robot
 
-    return () if robot is None else load_robot(robot).prismatic
+    if robot is None:
+        return ()
+    return (robot if isinstance(robot, Robot) else load_robot(robot)).prismatic
 
 
 def load(
@@ -474,7 +482,7 @@ def load(
     format: Optional[str] = None,
     measurement: Optional[str] = None,
     angle_unit: Optional[str] = None,
-    robot: Optional[str] = None,
+    robot=None,
     exclude_bad_rows: bool = False,
     sheet: Optional[str] = None,
     check_units: bool = True,
@@ -496,9 +504,11 @@ def load(
     angle_unit : {"deg", "rad"}, optional
         Unit of canonical ``q`` columns (``"deg"`` by default). The public formats have fixed
         units (D1, D2 deg; D3 rad): a contradicting value is an error.
-    robot : str, optional
+    robot : str or Robot, optional
         Built-in robot name or robot file, checked against the file (the public formats belong to
-        one robot each; the joint count must match).
+        one robot each; the joint count must match), or a :class:`~robocal.robot.Robot` (joint
+        count checked). Its prismatic joints' columns are read as mm: without a robot, every
+        joint column is an angle.
     exclude_bad_rows : bool
         Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
     sheet : str, optional
@@ -549,9 +559,7 @@ def load(
         dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
     if check_units and len(dataset.prismatic) < dataset.n_joints:
         unit = angle_unit or native_unit or "deg"
-        angles = dataset.q.copy()
-        angles[:, list(dataset.prismatic)] = 0.0  # mm say nothing of the angle unit: a zero column neither passes nor fails the check
-        check = angle_unit_check(angles, unit, dataset.rows)
+        check = angle_unit_check(dataset.q, unit, dataset.rows, dataset.prismatic)
         if not check["plausible"] and angle_unit is None:
             read_as = (
                 f"read them as {check['likely']} with angle_unit={check['likely']!r} (--angle-unit {check['likely']}), or "

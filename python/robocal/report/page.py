@@ -129,7 +129,7 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
             ],
         )
     try:
-        dataset = load(recorded, measurement=doc["measurement"])
+        dataset = load(recorded, measurement=doc["measurement"], robot=robot)  # the robot says which columns are mm
     except RobocalError:
         return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read: the figures that need the data are left out"])
     return _Data(dataset, recorded, [], same_file=True)
