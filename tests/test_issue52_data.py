@@ -6,13 +6,19 @@ samples are recognised from their content, whatever their order or encoding.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
+from pathlib import Path
 
+import numpy as np
 import pytest
 import robocal
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from robocal.cli import main
 from robocal.data import load
+from robocal.data.identity import require_distinct_sessions
 from robocal.inspection import inspect
 from robocal.report import report
 from robocal.simulation import simulate, write_simulation
@@ -81,3 +87,111 @@ def test_row1_out_of_limits_are_shown_in_the_joints_units(prismatic, tmp_path, c
     assert [(e["row"], e["joint"], e["value"], e["limits"], e["unit"]) for e in found["out_of_limits"]] == [(2, 2, 600.0, [0.0, 500.0], "mm")]
     code, out, _ = run(["inspect", path, "--robot", prismatic / "pr.json"], capsys)
     assert code == 0 and "row 2, q2 = 600.000 mm (limits 0..500)" in out
+
+
+# -- rows 3 and 4: the same samples are recognised from their content -----------------------------
+@pytest.fixture(scope="module")
+def cable(tmp_path_factory):
+    """A cable file of the HSR (the issue's a.csv, smaller), its calibration and a second session."""
+    w = tmp_path_factory.mktemp("cable")
+    data, truth = simulate("hsr-jr680", "cable", samples=100, seed=1)
+    write_simulation(data, truth, w / "a.csv")
+    write_simulation(simulate("hsr-jr680", "cable", samples=100, seed=1, session=1)[0], truth, w / "b.csv")
+    assert main(["calibrate", str(w / "a.csv"), "--robot", "hsr-jr680", "--out", str(w / "ra.json"), "--quiet"]) == 0
+    return w
+
+
+def reencoded(source: Path, target: Path, *, order=None, columns=None, crlf=False, bom=False, drop_t=False, digits=None, nudge=0.0) -> Path:
+    """``source``'s samples written otherwise: rows in ``order``, columns in ``columns`` order, CRLF
+    line ends, a BOM, without ``t``, cells with ``digits`` significant digits, readings moved by ``nudge`` mm."""
+    lines = source.read_text().splitlines()
+    header, rows = lines[0].split(","), [line.split(",") for line in lines[1:]]
+    rows = [rows[i] for i in (range(len(rows)) if order is None else order)]
+    names = [h for h in (columns or header) if not (drop_t and h == "t")]
+
+    def cell(name, text):
+        value = float(text) + (nudge if name == "L" else 0.0)
+        return repr(value) if digits is None else f"{value:.{digits}g}"
+
+    out = [",".join(names)] + [",".join(cell(n, r[header.index(n)]) for n in names) for r in rows]
+    end = "\r\n" if crlf else "\n"
+    target.write_bytes((("\ufeff" if bom else "") + end.join(out) + end).encode("utf-8"))
+    return target
+
+
+def test_row3_a_shuffled_or_nudged_copy_is_not_a_second_session(cable, tmp_path, capsys):
+    shuffled = reencoded(cable / "a.csv", tmp_path / "s.csv", order=np.random.default_rng(0).permutation(100))
+    nudged = reencoded(cable / "a.csv", tmp_path / "n.csv", nudge=1e-9)
+    for copy in (shuffled, nudged):
+        code, _, err = run(["calibrate", cable / "a.csv", copy, "--robot", "hsr-jr680", "--quiet"], capsys)
+        assert code == 2 and "are the same samples (100 of the 100 samples of session 2 are samples of session 1" in err
+    code, _, err = run(["diagnose", cable / "a.csv", shuffled, "--robot", "hsr-jr680", "--quiet", "--json", tmp_path / "d.json"], capsys)
+    assert code == 2 and "the same samples" in err
+    assert main(["calibrate", str(cable / "a.csv"), str(cable / "b.csv"), "--robot", "hsr-jr680", "--quiet"]) == 0  # a second measurement is a session
+
+
+def test_row3_a_partial_copy_is_said(cable, caplog):
+    a, b = load(cable / "a.csv"), load(cable / "b.csv")
+    mixed = dataclasses.replace(b, q=np.vstack([b.q[:80], a.q[:20]]), y=np.vstack([b.y[:80], a.y[:20]]), t=None, rows=np.arange(2, 102), source="mixed")
+    with caplog.at_level("WARNING", logger="robocal"):
+        require_distinct_sessions([a, mixed])
+    assert "session 2 (mixed) shares 20 of its 100 samples with session 1 (rows 82-101)" in caplog.text
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="60 of the 100 samples of session 2"):
+        require_distinct_sessions([a, dataclasses.replace(mixed, q=np.vstack([b.q[:40], a.q[:60]]), y=np.vstack([b.y[:40], a.y[:60]]))])
+
+
+@settings(max_examples=25)
+@given(order=st.permutations(range(100)), nudge=st.floats(-1e-9, 1e-9), keep=st.integers(50, 100))
+def test_row3_property_any_row_permutation_of_a_session_is_the_same_session(cable, order, nudge, keep):
+    a = load(cable / "a.csv")
+    copy = a.subset(np.asarray(order[:keep]))  # rows shuffled, up to half of them left out
+    copy = dataclasses.replace(copy, y=copy.y + nudge, source=None)
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="the same samples"):
+        require_distinct_sessions([a, copy])
+    with pytest.raises(robocal.exceptions.InvalidParameterError, match="the same samples"):
+        require_distinct_sessions([copy, a])
+
+
+def test_row4_verify_recognises_its_training_samples_in_any_encoding(cable, tmp_path):
+    crlf = reencoded(cable / "a.csv", tmp_path / "c.csv", crlf=True)
+    checked = verify(cable / "ra.json", crlf)
+    assert checked["held_out"] is False and "80 of the 100 samples are training samples" in checked["notes"][0]
+    assert verify(cable / "ra.json", cable / "b.csv")["held_out"] is True
+    doc = json.loads((cable / "ra.json").read_text())
+    held = load(cable / "a.csv")
+    held = held.subset(np.isin(held.rows, doc["dataset"]["rows_held_out"]))
+    assert verify(cable / "ra.json", held)["held_out"] is True and not verify(cable / "ra.json", held)["notes"]  # the calibration's own held-out rows are new
+
+
+def test_row4_a_result_without_a_fingerprint_falls_back_to_the_file_hash(cable, tmp_path):
+    doc = json.loads((cable / "ra.json").read_text())
+    del doc["dataset"]["fingerprint"]  # a result written before robocal recorded one
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    checked = verify(tmp_path / "old.json", cable / "a.csv")
+    assert checked["held_out"] is False and "same SHA-256" in checked["notes"][0]
+
+
+@settings(max_examples=20)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    shuffle=st.booleans(),
+    reorder=st.booleans(),
+    crlf=st.booleans(),
+    bom=st.booleans(),
+    drop_t=st.booleans(),
+    digits=st.sampled_from([None, 15, 12]),
+)
+def test_row4_property_any_reencoding_of_a_training_file_is_not_held_out(cable, tmp_path_factory, seed, shuffle, reorder, crlf, bom, drop_t, digits):
+    rng = np.random.default_rng(seed)
+    header = (cable / "a.csv").read_text().splitlines()[0].split(",")
+    path = reencoded(
+        cable / "a.csv",
+        tmp_path_factory.mktemp("enc") / "x.csv",
+        order=rng.permutation(100) if shuffle else None,
+        columns=list(rng.permutation(header)) if reorder else None,
+        crlf=crlf,
+        bom=bom,
+        drop_t=drop_t,
+        digits=digits,
+    )
+    assert verify(cable / "ra.json", path)["held_out"] is False

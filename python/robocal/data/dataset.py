@@ -45,8 +45,8 @@ MAX_PLAUSIBLE_RAD = 4 * math.pi
 PARTIAL_RADIANS_CONTRAST_DEG = 20.0
 
 
-def _ranges(rows) -> str:
-    """``[2, 3, 4, 9]`` as ``"2-4, 9"`` (the first 5 runs)."""
+def row_ranges(rows) -> str:
+    """``[2, 3, 4, 9]`` as ``"2-4, 9"`` (the first 5 runs; ``rows`` sorted)."""
     rows = [int(r) for r in rows]
     runs, start = [], rows[0]
     for a, b in zip(rows, rows[1:] + [None]):
@@ -67,7 +67,7 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     wide = row_max > PARTIAL_RADIANS_CONTRAST_DEG
     if small.sum() >= 2 and wide.sum() >= 2:
         return (
-            f"rows {_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
+            f"rows {row_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
             f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "
             "convert them to degrees"
         )

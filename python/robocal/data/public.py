@@ -32,7 +32,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
-from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
+from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check, row_ranges
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
 from .table import UncachedFormula, check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
@@ -108,7 +108,7 @@ def _read_xlsx(path: Path, sheet: Optional[str] = None):
                 other_header, other_body = _sheet_rows(book[name])
                 if other_body:
                     repeats = [where[tuple(cells)] for _, cells in other_body if tuple(cells) in where]
-                    same = f"; {len(repeats)} of its rows repeat rows {_ranges(repeats)} of this sheet" if repeats else ""
+                    same = f"; {len(repeats)} of its rows repeat rows {row_ranges(sorted(set(repeats)))} of this sheet" if repeats else ""
                     notes.append(f"sheet {name!r} ({len(other_body)} rows, columns {other_header}) not read{same}; pass sheet={name!r} to read it")
     finally:
         book.close()
@@ -135,17 +135,6 @@ def _mark_uncached_formulas(path: Path, sheet: str, body: list) -> list:
         formulas = [v if isinstance(v, str) and v.startswith("=") else None for v in row]
         marked.append((number, [UncachedFormula(formulas[k]) if c is None and k < len(formulas) and formulas[k] else c for k, c in enumerate(cells)]))
     return marked
-
-
-def _ranges(numbers) -> str:
-    """``[2, 3, 4, 9]`` as ``"2-4, 9"``."""
-    numbers, parts = sorted(numbers), []
-    for n in numbers:
-        if parts and n == parts[-1][1] + 1:
-            parts[-1][1] = n
-        else:
-            parts.append([n, n])
-    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in parts)
 
 
 def _read_table(path, sheet: Optional[str] = None, delimiter: str = ","):
