@@ -195,3 +195,25 @@ def test_row4_property_any_reencoding_of_a_training_file_is_not_held_out(cable, 
         digits=digits,
     )
     assert verify(cable / "ra.json", path)["held_out"] is False
+
+
+# -- row 9: a row of only empty cells is left out with a note ------------------------------------
+@pytest.mark.parametrize("columnar", [True, False])
+def test_row9_a_row_of_only_empty_cells_is_said(cable, tmp_path, monkeypatch, capsys, columnar):
+    import pyarrow  # noqa: F401  (loaded: the columnar reader takes any size)
+    from robocal.data import table
+
+    monkeypatch.setattr(table, "COLUMNAR", columnar)
+    lines = (cable / "a.csv").read_text().splitlines()
+    path = tmp_path / "e.csv"
+    path.write_text("\n".join(lines[:51] + [",,,,,,,", ""] + lines[51:]) + "\n")  # row 52; a blank line (row 53) holds no cells
+    data = load(path)
+    assert len(data) == 100 and data.excluded == [{"row": 52, "column": None, "reason": "every cell of the row is empty"}]
+    assert "left out 1 row(s) of only empty cells (rows 52; see `excluded`)" in data.notes
+    found = inspect(path)
+    assert [(e["row"], e["column"]) for e in found["bad_cells"]] == [(52, None)] and found["problems"] >= 1
+    code, out, _ = run(["inspect", path], capsys)
+    assert "row 52: every cell of the row is empty" in out
+    (tmp_path / "one.csv").write_text("\n".join(lines[:51] + [",,,,,,1,"] + lines[51:]) + "\n")
+    with pytest.raises(robocal.exceptions.DataError, match="row 52, column 'q1'.*empty"):  # a cell given: the row is data, its empty cells are errors
+        load(tmp_path / "one.csv")

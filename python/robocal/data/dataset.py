@@ -135,8 +135,8 @@ class Dataset:
     source : str, optional
         The file the samples came from.
     excluded : list of dict
-        Rows left out on request, each ``{"row": int, "reason": str}``. Nothing is ever left out
-        silently.
+        Rows left out, each ``{"row": int, "reason": str}``: rows with a bad cell on request, rows
+        of only empty cells always. Nothing is ever left out silently.
     notes : list of str
         What the reader noticed (ignored columns, degraded timestamps, ...).
     extra : dict of str to ndarray

@@ -35,7 +35,19 @@ from .canonical import ANGLE_UNITS, read_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check, row_ranges
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
-from .table import UncachedFormula, check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
+from .table import (
+    UncachedFormula,
+    check_header,
+    excluded_notes,
+    numeric_columns,
+    open_data,
+    read_data,
+    read_text,
+    require_columns,
+    shown,
+    split_delimited,
+    text_column,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -172,10 +184,6 @@ def _ignored_note(header, used) -> list[str]:
     return [f"ignored columns {ignored}"] if ignored else []
 
 
-def _excluded_note(excluded) -> list[str]:
-    return [f"excluded {len(excluded)} rows with bad cells (see `excluded`)"] if excluded else []
-
-
 # -- D1 and D2: cable ----------------------------------------------------------------------------
 def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
     """Reads D1, HSR-RobotCali (HSR JR680, cable): ``HSR-RobotCali.xlsx`` or its CSV copy.
@@ -206,7 +214,7 @@ def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, HSR_COLUMNS) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, HSR_COLUMNS) + excluded_notes(excluded),
     )
 
 
@@ -244,7 +252,7 @@ def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = F
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + excluded_notes(excluded),
         extra={"controller_xyz": values[:, :3]},
     )
 
@@ -373,7 +381,7 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, used) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, used) + excluded_notes(excluded),
         extra=extra,
     )
 
