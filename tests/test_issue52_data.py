@@ -217,3 +217,20 @@ def test_row9_a_row_of_only_empty_cells_is_said(cable, tmp_path, monkeypatch, ca
     (tmp_path / "one.csv").write_text("\n".join(lines[:51] + [",,,,,,1,"] + lines[51:]) + "\n")
     with pytest.raises(robocal.exceptions.DataError, match="row 52, column 'q1'.*empty"):  # a cell given: the row is data, its empty cells are errors
         load(tmp_path / "one.csv")
+
+
+# -- row 18: an over-long cell is named by row and column --------------------------------------------
+@pytest.mark.parametrize("position", [2, 7])
+def test_row18_a_cell_beyond_the_csv_limit_is_named(cable, tmp_path, capsys, position):
+    lines = (cable / "a.csv").read_text().splitlines()
+    cells = lines[10].split(",")
+    cells[position] += "1" * 200_000
+    lines[10] = ",".join(cells)
+    path = tmp_path / "long.csv"
+    path.write_text("\n".join(lines) + "\n")
+    name = lines[0].split(",")[position]
+    with pytest.raises(robocal.exceptions.DataError) as info:
+        load(path)
+    assert (info.value.row, info.value.column) == (11, name) and "characters, beyond the 131072" in info.value.message
+    code, _, err = run(["inspect", path], capsys)
+    assert code == 2 and f"long.csv, row 11, column '{name}': a cell of " in err and "Traceback" not in err

@@ -109,11 +109,22 @@ def _data_records(lines: list[list[str]]) -> list[tuple[int, list[str]]]:
 
 
 def _records(text: str, delimiter: str, path) -> list[list[str]]:
-    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path)."""
+    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path); an
+    error names the line (row) it stopped at, and the column of a cell beyond the reader's size limit."""
+    lines = text.splitlines()
+    reader = csv.reader(lines, delimiter=delimiter)
     try:
-        return list(csv.reader(text.splitlines(), delimiter=delimiter))
+        return list(reader)
     except csv.Error as exc:
-        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+        row = reader.line_num
+        limit = csv.field_size_limit()
+        cells = lines[row - 1].split(delimiter) if 0 < row <= len(lines) else []
+        long = next((k for k, cell in enumerate(cells) if len(cell) > limit), None)
+        if long is None:
+            raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path, row or None) from None
+        names = lines[0].split(delimiter) if row > 1 else []
+        column = names[long].strip()[:40] if long < len(names) else f"cell {long + 1}"
+        raise DataError(f"a cell of {len(cells[long])} characters, beyond the {limit} a cell of a delimited text may hold", path, row, column) from None
 
 
 #: Bytes a text may hold for the columnar reader to split it exactly as :func:`csv.reader`
