@@ -234,3 +234,23 @@ def test_row18_a_cell_beyond_the_csv_limit_is_named(cable, tmp_path, capsys, pos
     assert (info.value.row, info.value.column) == (11, name) and "characters, beyond the 131072" in info.value.message
     code, _, err = run(["inspect", path], capsys)
     assert code == 2 and f"long.csv, row 11, column '{name}': a cell of " in err and "Traceback" not in err
+
+
+# -- row 10: a `t` out of row order is said, with what robocal does ------------------------------
+def test_row10_a_time_column_out_of_row_order_is_said(cable, tmp_path, caplog, capsys):
+    assert not any("clock goes backwards" in n for n in load(cable / "a.csv").notes)  # in order: nothing to say
+    lines = (cable / "a.csv").read_text().splitlines()
+    header, rows = lines[0].split(","), [line.split(",") for line in lines[1:]]
+    k = header.index("t")
+    times = [r[k] for r in rows]
+    for r, t in zip(rows, np.random.default_rng(4).permutation(times)):
+        r[k] = t
+    path = tmp_path / "shuffled_t.csv"
+    path.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    with caplog.at_level("WARNING", logger="robocal"):
+        data = load(path)
+    note = next(n for n in data.notes if "clock goes backwards" in n)
+    assert "robocal orders the samples by `t`" in note and "correct `t` or drop the column" in note
+    assert "shuffled_t.csv: the clock goes backwards" in caplog.text  # logged by the reader: every command (diagnose too) shows it
+    code, _, err = run(["inspect", path], capsys)
+    assert code == 0 and "robocal: WARNING:" in err and "the clock goes backwards" in err

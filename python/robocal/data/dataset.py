@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field, replace
 from typing import Optional
@@ -10,6 +11,8 @@ import numpy as np
 
 from ..kernels import as_float_array
 from ..exceptions import InvalidParameterError, ShapeError
+
+logger = logging.getLogger(__name__)
 
 #: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).
 OBSERVATION_COLUMNS = {
@@ -83,6 +86,31 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     return None
 
 
+def time_order_notes(t, rows, source) -> list[str]:
+    """A note (and a logged warning naming ``source``) when the times ``t`` (m,) of samples in
+    file ``rows`` (m,) go back somewhere, else none.
+
+    robocal takes ``t`` as the acquisition order (drift, wander, settling and steps are fitted
+    along it; a chronological split and backlash follow it): rows out of time order are read in
+    time order. That is right for files merged or sorted by pose, and wrong when the rows are in
+    acquisition order and ``t`` is not (a shuffled or mis-pasted column): the note names the rows
+    so that a user can tell which, and correct or drop ``t``. Logged too, since not every command
+    prints a reader's notes (``diagnose``).
+    """
+    if t is None or len(t) < 2:
+        return []
+    back = np.flatnonzero(np.diff(t) < 0) + 1
+    if not back.size:
+        return []
+    listed = ", ".join(str(r) for r in np.asarray(rows)[back][:10]) + (", ..." if back.size > 10 else "")
+    note = (
+        f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; robocal orders the samples by `t` "
+        "(drift, settling, steps, backlash and chronological splits follow it); if the rows are in acquisition order, correct `t` or drop the column"
+    )
+    logger.warning("%s: %s", source, note)
+    return [note]
+
+
 def angle_unit_check(q: np.ndarray, unit: str, rows=None, prismatic: tuple = ()) -> dict:
     """Whether joint values ``q`` (m, N), read as ``unit`` and converted to rad, are plausible.
 
@@ -126,7 +154,8 @@ class Dataset:
     robot : str, optional
         Name of the robot the data belong to (a built-in name or a robot file).
     t : ndarray, shape (m,), optional
-        Acquisition time in s. Without it, row order is the acquisition order.
+        Acquisition time in s: the acquisition order (the readers note rows out of ``t`` order,
+        :func:`time_order_notes`). Without it, row order is the acquisition order.
     temp : ndarray, shape (m,), optional
         Temperature in deg C.
     rows : ndarray of int, shape (m,)

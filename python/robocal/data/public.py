@@ -32,7 +32,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
-from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check, row_ranges
+from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check, row_ranges, time_order_notes
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
 from .table import (
@@ -305,12 +305,7 @@ def _timestamps(stamps: list[str], rows: np.ndarray, path):
                 except ValueError:
                     raise DataError(f"expected a time yyyymmddHHMMSS; got {s!r}", path, int(row), "Timestamp") from None
         t = np.array(clock) - min(clock)
-        back = np.flatnonzero(np.diff(t) < 0) + 1
-        notes = []
-        if back.size:
-            listed = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
-            notes.append(f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; sort by `t`")
-        return t, notes
+        return t, time_order_notes(t, rows, path)
     if all(re.fullmatch(r"[-+]?\d+([.,]\d*)?[eE][-+]?\d+", s) for s in stamps):
         return None, [
             f"Timestamp is in a lossy scientific notation (e.g. {stamps[0]!r}; {len(set(stamps))} distinct value(s) over "
