@@ -254,3 +254,42 @@ def test_row10_a_time_column_out_of_row_order_is_said(cable, tmp_path, caplog, c
     assert "shuffled_t.csv: the clock goes backwards" in caplog.text  # logged by the reader: every command (diagnose too) shows it
     code, _, err = run(["inspect", path], capsys)
     assert code == 0 and "robocal: WARNING:" in err and "the clock goes backwards" in err
+
+
+# -- row 2: the report of a multi-session result checks and shows every session ----------------------
+@pytest.fixture(scope="module")
+def two_sessions(cable):
+    """A fit of the cable fixture's two sessions."""
+    path = cable / "rab.json"
+    assert main(["calibrate", str(cable / "a.csv"), str(cable / "b.csv"), "--robot", "hsr-jr680", "--out", str(path), "--quiet"]) == 0
+    return path
+
+
+def test_row2_report_of_sessions_checks_each_against_its_own_metrics(two_sessions, tmp_path):
+    page = report(two_sessions, tmp_path / "rep").read_text()
+    assert "edited or is corrupt" not in page
+    assert "recomputed from the parameter values on the data of every session, each at its own set-up: they match the result file" in page
+    assert "session 2, held out" in page and "1: " in page and "a.csv; 2: " in page  # both sessions listed and measured
+    assert "Per-sample error on all 200 samples of 2 sessions" in page
+    assert "session 1&#x27;s samples only" in page  # ISO 9283 distances never compare two set-ups
+
+
+def test_row2_an_edited_session_or_pooled_metric_is_still_found(two_sessions, tmp_path):
+    doc = json.loads(two_sessions.read_text())
+    doc["sessions"][1]["metrics"]["test"]["rmse"] *= 2
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    page = report(tmp_path / "s.json", tmp_path / "rep_s").read_text()
+    assert "edited or is corrupt" in page and "session 2 test RMSE" in page
+    doc = json.loads(two_sessions.read_text())
+    doc["metrics"]["train"]["rmse"] *= 2
+    (tmp_path / "p.json").write_text(json.dumps(doc))
+    page = report(tmp_path / "p.json", tmp_path / "rep_p").read_text()
+    assert "edited or is corrupt" in page and "all sessions train RMSE" in page
+
+
+def test_row2_a_session_whose_file_is_missing_is_said(two_sessions, tmp_path):
+    doc = json.loads(two_sessions.read_text())
+    doc["sessions"][1]["source"] = str(tmp_path / "gone.csv")
+    (tmp_path / "m.json").write_text(json.dumps(doc))
+    page = report(tmp_path / "m.json", tmp_path / "rep_m").read_text()
+    assert "gone.csv is not on this machine" in page and "the files of sessions 2 are not at hand" in page and "edited" not in page
