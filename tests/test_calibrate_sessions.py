@@ -105,7 +105,7 @@ def test_verify_on_a_session_the_robot_was_fitted_on_says_so(tmp_path):
     path = tmp_path / "robot.json"
     path.write_text(json.dumps(robocal.calibrate([str(f) for f in files], robot="ur10").to_dict()))
     seen = robocal.verify(path, str(files[1]), measurement="position")
-    assert seen["held_out"] is False and "a file the result was calibrated on" in seen["notes"][0]
+    assert seen["held_out"] is False and "training samples of session 2 of the calibration" in seen["notes"][0]
 
 
 def test_report_of_sessions_draws_the_first_session(tmp_path):

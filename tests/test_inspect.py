@@ -55,7 +55,7 @@ def test_planted_problems_are_found_with_their_rows(tmp_path):
     assert report["bad_cells"][1]["reason"] == "expected a number; got '12.5 mm'"
     assert report["duplicates"] == [[12, 13]]
     assert [(e["row"], e["joint"]) for e in report["out_of_limits"]] == [(20, 1)]
-    assert report["out_of_limits"][0]["value_deg"] == pytest.approx(170.0)
+    assert report["out_of_limits"][0]["value"] == pytest.approx(170.0) and report["out_of_limits"][0]["unit"] == "deg"
     fit = report["fit"]
     assert [e["row"] for e in fit["outliers"]] == [30]
     assert fit["outliers"][0]["residual_mm"] == pytest.approx(40.0, abs=0.5)

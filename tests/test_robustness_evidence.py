@@ -19,7 +19,8 @@ from robocal.cli import main
 from robocal.compensation import compensate, joint_limits
 from robocal.data import configuration_groups, kfold, random_split, write_canonical
 from robocal.data.dataset import angle_unit_check
-from robocal.data.splits import chronological, paper_split, require_distinct_sessions
+from robocal.data.identity import require_distinct_sessions
+from robocal.data.splits import chronological, paper_split
 from robocal.diagnosis.sessions import diagnose_sessions
 from robocal.exceptions import DataError, InvalidParameterError
 from robocal.inspection import inspect

@@ -59,7 +59,7 @@ def inspect(
     dict
         ``source``, ``format``, ``robot``, ``measurement``, ``rows`` (count), ``notes`` (reader's),
         ``bad_cells`` (list of ``{row, column, reason}``), ``duplicates`` (lists of rows with
-        identical values), ``out_of_limits`` (``{row, joint, value_deg, limits_deg}``),
+        identical values), ``out_of_limits`` (``{row, joint, value, limits, unit}``),
         ``angle_unit`` (``{unit, plausible, message}``), ``fit`` (the robust nominal-model fit
         and its ``outliers``, ``{"error": message}`` when the data cannot be fitted — counted as a problem — or
         None), ``cross_check`` (D2's controller x, y, z against the
@@ -88,7 +88,7 @@ def inspect(
         "notes": list(dataset.notes),
         "bad_cells": [{"row": int(e["row"]), "column": e.get("column"), "reason": e["reason"]} for e in dataset.excluded],
         "duplicates": duplicate_rows(dataset),
-        "angle_unit": angle_unit_check(dataset.q, unit, dataset.rows),
+        "angle_unit": angle_unit_check(dataset.q, unit, dataset.rows, dataset.prismatic),
         "out_of_limits": out_of_limits(dataset, model) if model else [],
         "fit": _fit_or_error(dataset, model, sigmas) if model else None,
         "cross_check": cross_check(dataset, model) if model and "controller_xyz" in dataset.extra else None,
@@ -123,19 +123,14 @@ def duplicate_rows(dataset: Dataset) -> list[list[int]]:
 
 
 def out_of_limits(dataset: Dataset, robot) -> list[dict]:
-    """``{row, joint, value_deg, limits_deg}`` for every joint value outside the robot's limits."""
+    """``{row, joint, value, limits, unit}`` for every joint value outside the robot's limits, in
+    the file's units: deg, mm for a prismatic joint."""
     found = []
     for j, joint in enumerate(robot.joints):
         lower, upper = joint.limits
+        unit, shown = ("mm", float) if joint.kind == "prismatic" else ("deg", lambda v: float(np.degrees(v)))
         for k in np.flatnonzero((dataset.q[:, j] < lower) | (dataset.q[:, j] > upper)):
-            found.append(
-                {
-                    "row": int(dataset.rows[k]),
-                    "joint": j + 1,
-                    "value_deg": float(np.degrees(dataset.q[k, j])),
-                    "limits_deg": [float(np.degrees(lower)), float(np.degrees(upper))],
-                }
-            )
+            found.append({"row": int(dataset.rows[k]), "joint": j + 1, "value": shown(dataset.q[k, j]), "limits": [shown(lower), shown(upper)], "unit": unit})
     return sorted(found, key=lambda f: (f["row"], f["joint"]))
 
 

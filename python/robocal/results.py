@@ -23,7 +23,8 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
     Eq. (28) metrics on training and held-out samples; the solver's record.
 ``dataset``
     Provenance: ``source`` file, its ``sha256``, ``rows_used`` (training), ``rows_held_out``
-    and ``rows_excluded`` (with reasons).
+    and ``rows_excluded`` (with reasons), and the ``fingerprint`` of the training samples' content
+    (:class:`~robocal.data.identity.Fingerprint`: ``verify`` recognises them in any order or encoding).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from pathlib import Path
 from typing import Optional
 
 from ._robocal import __version__
+from .data.identity import MAX_KEYS, Fingerprint
 from .outputs import write_json
 from .robot_file import RESULT_SCHEMA as SCHEMA
 from .robot_file import calibrated_robot, load_document, robot_document
@@ -49,6 +51,12 @@ def file_sha256(path) -> Optional[str]:
         return hashlib.sha256(Path(path).read_bytes()).hexdigest()
     except (OSError, TypeError):
         return None
+
+
+def training_fingerprint(train) -> Optional[dict]:
+    """What a result records to recognise its training samples in any file (``verify``):
+    :class:`~robocal.data.identity.Fingerprint` of ``train`` (a Dataset, or None)."""
+    return None if train is None else Fingerprint.of(train, limit=MAX_KEYS).to_dict()
 
 
 def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
@@ -70,6 +78,7 @@ def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
             "rows_used": [int(r) for r in train.rows] if train is not None else None,
             "rows_held_out": [int(r) for r in test.rows] if test is not None else [],
             "rows_excluded": list(train.excluded) if train is not None else [],
+            "fingerprint": training_fingerprint(train),
         },
     }
     return doc

@@ -29,6 +29,7 @@ from .calibration.metrics import metrics
 from .calibration.problem import Problem
 from .causes.result_model import result_model
 from .data.dataset import Dataset
+from .data.identity import Fingerprint
 from .results import file_sha256, load_result
 from .serial_robot import Robot, setup_names
 
@@ -50,20 +51,37 @@ def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[st
     return problem.data_residuals(fit.x).reshape(len(data), -1), dict(zip(problem.names, map(float, fit.x))), problem.names
 
 
-def _seen_by_fit(doc: dict, dataset: Dataset) -> list[str]:
-    """Notes when ``dataset`` is a file ``doc`` was calibrated on (its SHA-256 recorded in the
-    result, or in one of its ``sessions``): its figures are then no test on new samples."""
-    if not dataset.source:
-        return []
-    digest = file_sha256(dataset.source)
-    for fitted in [doc.get("dataset") or {}] + list(doc.get("sessions") or []):
-        if fitted.get("sha256") and fitted["sha256"] == digest:
+def _seen_by_fit(doc: dict, dataset: Dataset, read: Dataset) -> tuple[bool, list[str]]:
+    """Whether ``dataset`` is new samples, and notes when it is not or in part: samples a fit of
+    ``doc`` was trained on (in its ``dataset`` or one of its ``sessions``), recognised by their
+    content in any order or encoding (the recorded :class:`~robocal.data.identity.Fingerprint`,
+    compared with ``read``, the samples in the model's reading convention as the fit saw them);
+    for a result without a fingerprint, by the file's SHA-256."""
+    digest = file_sha256(dataset.source) if dataset.source else None
+    partly = []
+    for k, fitted in enumerate([doc.get("dataset") or {}] + list(doc.get("sessions") or [])):
+        fitted = fitted if isinstance(fitted, dict) else {}
+        which = f"session {k} of the calibration" if k else "the calibration's data"
+        recorded = Fingerprint.from_dict(fitted.get("fingerprint"))
+        if recorded is not None:
+            overlap = recorded.overlap(read)
+            if overlap.same:
+                return False, [
+                    f"these are not new samples: {overlap.count} of the {len(dataset)} samples are training samples of {which} "
+                    "(the same joint values and readings, in any order or file encoding), so these figures are no held-out error"
+                ]
+            if overlap.count:
+                partly.append(
+                    f"{overlap.count} of the {len(dataset)} samples are training samples of {which} (the same joint values and readings): "
+                    "these figures are in part a training error"
+                )
+        elif digest is not None and fitted.get("sha256") == digest:  # a result written before fingerprints: the file's bytes
             used = len(fitted.get("rows_used") or [])
-            return [
+            return False, [
                 f"these are not new samples: {dataset.source} is a file the result was calibrated on (same SHA-256); "
                 f"{used} of its rows trained the fit, so these figures are no held-out error"
             ]
-    return []
+    return True, partly
 
 
 def verify(
@@ -89,7 +107,8 @@ def verify(
     Returns
     -------
     dict
-        ``held_out`` (False when ``data`` is the calibration's own file) and ``notes`` (why, and what
+        ``held_out`` (False when half or more of ``data``'s samples trained the calibration, in any
+        order or file encoding; or, for a result without a fingerprint, it is its file) and ``notes`` (why, and what
         reading the data noticed: a robot named by the data other than the result's),
         ``metrics`` (``rmse, mae, max, n``, mm) of the calibrated model, ``metrics_covered``
         (the same over the samples every joint map covers; None if none is), ``refit`` (the set-up
@@ -108,8 +127,9 @@ def verify(
     logger.info("verify: %d samples, the session set-up re-fitted (%s)", len(dataset), ", ".join(refit) if isinstance(refit, list) else refit)
     nominal_residuals, _, _ = _refit_setup(model.nominal, model.read)
     covered = model.covered
+    held_out, seen = _seen_by_fit(doc, dataset, model.read)
     return {
-        "held_out": not (seen := _seen_by_fit(doc, dataset)),
+        "held_out": held_out,
         "notes": seen + list(dataset.notes),  # and what the reader and load_inputs noticed (data naming another robot)
         "schema": SCHEMA,
         "robot": calibrated.name,

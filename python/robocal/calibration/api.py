@@ -56,7 +56,8 @@ def load_inputs(
     robot : Robot
     """
     named = getattr(data, "attrs", {}).get("robot") if not isinstance(data, (str, Path, Dataset)) else None  # a DataFrame's own
-    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, angle_unit=angle_unit, robot=robot if isinstance(robot, str) else None)
+    # The robot goes to the reader in either form: its prismatic joints' columns are mm, not angles.
+    dataset = data if isinstance(data, Dataset) else load(data, measurement=measurement, angle_unit=angle_unit, robot=robot)
     if measurement is not None and dataset.measurement != measurement:
         raise InvalidParameterError(f"the data hold {dataset.measurement} measurements, not {measurement}")
     if robot is None:

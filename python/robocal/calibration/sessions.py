@@ -20,7 +20,7 @@ import numpy as np
 
 from ..kernels import is_sparse
 from ..data.dataset import Dataset
-from ..data.splits import require_distinct_sessions
+from ..data.identity import require_distinct_sessions
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
 from .api import load_inputs

@@ -27,7 +27,7 @@ from ..data.splits import configuration_groups, random_split
 from ..diagnosis_file import DiagnosisReport, load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
-from ..results import file_sha256
+from ..results import file_sha256, training_fingerprint
 from . import structure
 from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .problem import ExtendedProblem, stack
@@ -169,7 +169,7 @@ def _fit_sessions(
     holds out ``test_fraction`` of its samples (seeded, repeated configurations whole);
     ``metrics["test"]`` pools them. The result's ``to_dict()`` has the robot and the first
     session's set-up in ``parameters``, and ``sessions``: per session its ``source``, ``sha256``,
-    ``rows_used``, ``rows_held_out``, ``setup`` (name -> value, mm / rad), ``terms`` (labels) and
+    ``rows_used``, ``fingerprint`` (of its training samples), ``rows_held_out``, ``setup`` (name -> value, mm / rad), ``terms`` (labels) and
     ``metrics``.
     """
     shared = [label for label in shared if not _session_term(label)]
@@ -197,6 +197,7 @@ def _fit_sessions(
             "rows_used": [int(v) for v in d.rows[train]],
             "rows_held_out": [int(v) for v in d.rows[test]] if test is not None else [],
             "rows_excluded": list(d.excluded),
+            "fingerprint": training_fingerprint(d.subset(train)),
             "setup": {n: float(v) for n, v in zip(r.param_names, problem.full(x)) if is_private(n, d.measurement)},
             "terms": own,
             "metrics": {"train": metrics(problem.data_residuals(x), d.measurement), "test": None},

@@ -14,6 +14,11 @@ def _first(items: list, limit: int) -> list:
     return items[:limit] if limit else items
 
 
+def _column(cell: dict) -> str:
+    """``", column 'q3'"``, or nothing for a finding about a whole row (its cell count, or only empty cells)."""
+    return "" if cell["column"] is None else f", column {cell['column']!r}"
+
+
 def format_report(report: dict, limit: int = 20) -> str:
     """The report as text for humans, at most ``limit`` entries per list (0: all)."""
     lines = [
@@ -23,13 +28,13 @@ def format_report(report: dict, limit: int = 20) -> str:
     ]
     lines += [f"  note: {n}" for n in report["notes"]]
     lines.append(f"  bad cells: {len(report['bad_cells'])}")
-    lines += [f"    row {e['row']}, column {e['column']!r}: {e['reason']}" for e in _first(report["bad_cells"], limit)]
+    lines += [f"    row {e['row']}{_column(e)}: {e['reason']}" for e in _first(report["bad_cells"], limit)]
     lines.append(f"  duplicate rows: {len(report['duplicates'])} groups")
     lines += [f"    rows {g}" for g in _first(report["duplicates"], limit)]
     lines.append(f"  angle unit: {report['angle_unit']['message']}")
     lines.append(f"  outside joint limits: {len(report['out_of_limits'])}")
     lines += [
-        f"    row {e['row']}, q{e['joint']} = {e['value_deg']:.3f} deg (limits {e['limits_deg'][0]:g}..{e['limits_deg'][1]:g})"
+        f"    row {e['row']}, q{e['joint']} = {e['value']:.3f} {e['unit']} (limits {e['limits'][0]:g}..{e['limits'][1]:g})"
         for e in _first(report["out_of_limits"], limit)
     ]
     fit = report["fit"]

@@ -16,8 +16,8 @@ from typing import Optional
 import numpy as np
 
 from ..exceptions import DataError
-from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset
-from .table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
+from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset, time_order_notes
+from .table import check_unit_quaternions, excluded_notes, numeric_columns, read_text, require_columns, split_delimited
 
 NUMERIC_OPTIONAL = ("t", "temp")
 
@@ -90,9 +90,7 @@ def canonical_dataset(
         revolute = [j for j in range(n) if j not in prismatic]
         q[:, revolute] = np.radians(q[:, revolute])
     column = {name: values[:, i] for i, name in enumerate(wanted)}
-    notes = [f"ignored unknown columns {ignored}"] if ignored else []
-    if excluded:
-        notes.append(f"excluded {len(excluded)} rows with bad cells (see `excluded`)")
+    notes = ([f"ignored unknown columns {ignored}"] if ignored else []) + excluded_notes(excluded) + time_order_notes(column.get("t"), rows, path)
     return Dataset(
         q=q,
         y=values[:, n : n + len(obs)],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field, replace
 from typing import Optional
@@ -10,6 +11,8 @@ import numpy as np
 
 from ..kernels import as_float_array
 from ..exceptions import InvalidParameterError, ShapeError
+
+logger = logging.getLogger(__name__)
 
 #: Observation columns per measurement type, in order (mm; pose adds a unit quaternion).
 OBSERVATION_COLUMNS = {
@@ -45,8 +48,8 @@ MAX_PLAUSIBLE_RAD = 4 * math.pi
 PARTIAL_RADIANS_CONTRAST_DEG = 20.0
 
 
-def _ranges(rows) -> str:
-    """``[2, 3, 4, 9]`` as ``"2-4, 9"`` (the first 5 runs)."""
+def row_ranges(rows) -> str:
+    """``[2, 3, 4, 9]`` as ``"2-4, 9"`` (the first 5 runs; ``rows`` sorted)."""
     rows = [int(r) for r in rows]
     runs, start = [], rows[0]
     for a, b in zip(rows, rows[1:] + [None]):
@@ -67,7 +70,7 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     wide = row_max > PARTIAL_RADIANS_CONTRAST_DEG
     if small.sum() >= 2 and wide.sum() >= 2:
         return (
-            f"rows {_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
+            f"rows {row_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
             f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "
             "convert them to degrees"
         )
@@ -83,14 +86,43 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     return None
 
 
-def angle_unit_check(q: np.ndarray, unit: str, rows=None) -> dict:
+def time_order_notes(t, rows, source) -> list[str]:
+    """A note (and a logged warning naming ``source``) when the times ``t`` (m,) of samples in
+    file ``rows`` (m,) go back somewhere, else none.
+
+    robocal takes ``t`` as the acquisition order (drift, wander, settling and steps are fitted
+    along it; a chronological split and backlash follow it): rows out of time order are read in
+    time order. That is right for files merged or sorted by pose, and wrong when the rows are in
+    acquisition order and ``t`` is not (a shuffled or mis-pasted column): the note names the rows
+    so that a user can tell which, and correct or drop ``t``. Logged too, since not every command
+    prints a reader's notes (``diagnose``).
+    """
+    if t is None or len(t) < 2:
+        return []
+    back = np.flatnonzero(np.diff(t) < 0) + 1
+    if not back.size:
+        return []
+    listed = ", ".join(str(r) for r in np.asarray(rows)[back][:10]) + (", ..." if back.size > 10 else "")
+    note = (
+        f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; robocal orders the samples by `t` "
+        "(drift, settling, steps, backlash and chronological splits follow it); if the rows are in acquisition order, correct `t` or drop the column"
+    )
+    logger.warning("%s: %s", source, note)
+    return [note]
+
+
+def angle_unit_check(q: np.ndarray, unit: str, rows=None, prismatic: tuple = ()) -> dict:
     """Whether joint values ``q`` (m, N), read as ``unit`` and converted to rad, are plausible.
 
     In rad, a value beyond ``4 pi`` cannot be a joint angle; in deg, a file whose values all lie
-    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians. Returns
+    within ``±2 pi`` (i.e. within ±6.3 deg) almost certainly holds radians. The ``prismatic``
+    joints' columns (0-based) are mm: they say nothing of the angle unit and are left out. Returns
     ``{unit, plausible, message, likely}``; ``message`` names the columns and the likely unit.
     """
     q = np.abs(np.asarray(q, dtype=np.float64))  # rad
+    if prismatic and q.ndim == 2:
+        q = q.copy()
+        q[:, [j for j in prismatic if j < q.shape[1]]] = 0.0  # a zero column neither passes nor fails the check
     if q.size == 0:
         return {"unit": unit, "plausible": True, "likely": unit, "message": "no joint values"}
     if unit == "rad" and q.max() > MAX_PLAUSIBLE_RAD:
@@ -122,7 +154,8 @@ class Dataset:
     robot : str, optional
         Name of the robot the data belong to (a built-in name or a robot file).
     t : ndarray, shape (m,), optional
-        Acquisition time in s. Without it, row order is the acquisition order.
+        Acquisition time in s: the acquisition order (the readers note rows out of ``t`` order,
+        :func:`time_order_notes`). Without it, row order is the acquisition order.
     temp : ndarray, shape (m,), optional
         Temperature in deg C.
     rows : ndarray of int, shape (m,)
@@ -131,8 +164,8 @@ class Dataset:
     source : str, optional
         The file the samples came from.
     excluded : list of dict
-        Rows left out on request, each ``{"row": int, "reason": str}``. Nothing is ever left out
-        silently.
+        Rows left out, each ``{"row": int, "reason": str}``: rows with a bad cell on request, rows
+        of only empty cells always. Nothing is ever left out silently.
     notes : list of str
         What the reader noticed (ignored columns, degraded timestamps, ...).
     extra : dict of str to ndarray

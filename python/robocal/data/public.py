@@ -32,10 +32,22 @@ import numpy as np
 
 from ..exceptions import DataError
 from .canonical import ANGLE_UNITS, read_canonical
-from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check
+from .dataset import OBSERVATION_COLUMNS, Dataset, angle_unit_check, row_ranges, time_order_notes
 from .frame import SOURCE as FRAME
 from .frame import is_frame, read_frame
-from .table import UncachedFormula, check_header, numeric_columns, open_data, read_data, read_text, require_columns, shown, split_delimited, text_column
+from .table import (
+    UncachedFormula,
+    check_header,
+    excluded_notes,
+    numeric_columns,
+    open_data,
+    read_data,
+    read_text,
+    require_columns,
+    shown,
+    split_delimited,
+    text_column,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -108,7 +120,7 @@ def _read_xlsx(path: Path, sheet: Optional[str] = None):
                 other_header, other_body = _sheet_rows(book[name])
                 if other_body:
                     repeats = [where[tuple(cells)] for _, cells in other_body if tuple(cells) in where]
-                    same = f"; {len(repeats)} of its rows repeat rows {_ranges(repeats)} of this sheet" if repeats else ""
+                    same = f"; {len(repeats)} of its rows repeat rows {row_ranges(sorted(set(repeats)))} of this sheet" if repeats else ""
                     notes.append(f"sheet {name!r} ({len(other_body)} rows, columns {other_header}) not read{same}; pass sheet={name!r} to read it")
     finally:
         book.close()
@@ -135,17 +147,6 @@ def _mark_uncached_formulas(path: Path, sheet: str, body: list) -> list:
         formulas = [v if isinstance(v, str) and v.startswith("=") else None for v in row]
         marked.append((number, [UncachedFormula(formulas[k]) if c is None and k < len(formulas) and formulas[k] else c for k, c in enumerate(cells)]))
     return marked
-
-
-def _ranges(numbers) -> str:
-    """``[2, 3, 4, 9]`` as ``"2-4, 9"``."""
-    numbers, parts = sorted(numbers), []
-    for n in numbers:
-        if parts and n == parts[-1][1] + 1:
-            parts[-1][1] = n
-        else:
-            parts.append([n, n])
-    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in parts)
 
 
 def _read_table(path, sheet: Optional[str] = None, delimiter: str = ","):
@@ -183,10 +184,6 @@ def _ignored_note(header, used) -> list[str]:
     return [f"ignored columns {ignored}"] if ignored else []
 
 
-def _excluded_note(excluded) -> list[str]:
-    return [f"excluded {len(excluded)} rows with bad cells (see `excluded`)"] if excluded else []
-
-
 # -- D1 and D2: cable ----------------------------------------------------------------------------
 def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
     """Reads D1, HSR-RobotCali (HSR JR680, cable): ``HSR-RobotCali.xlsx`` or its CSV copy.
@@ -217,7 +214,7 @@ def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, HSR_COLUMNS) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, HSR_COLUMNS) + excluded_notes(excluded),
     )
 
 
@@ -255,7 +252,7 @@ def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = F
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, ROBOTCALI_COLUMNS) + excluded_notes(excluded),
         extra={"controller_xyz": values[:, :3]},
     )
 
@@ -308,12 +305,7 @@ def _timestamps(stamps: list[str], rows: np.ndarray, path):
                 except ValueError:
                     raise DataError(f"expected a time yyyymmddHHMMSS; got {s!r}", path, int(row), "Timestamp") from None
         t = np.array(clock) - min(clock)
-        back = np.flatnonzero(np.diff(t) < 0) + 1
-        notes = []
-        if back.size:
-            listed = ", ".join(str(r) for r in rows[back][:10]) + (", ..." if back.size > 10 else "")
-            notes.append(f"the clock goes backwards at {back.size} rows ({listed}): file order is not acquisition order; sort by `t`")
-        return t, notes
+        return t, time_order_notes(t, rows, path)
     if all(re.fullmatch(r"[-+]?\d+([.,]\d*)?[eE][-+]?\d+", s) for s in stamps):
         return None, [
             f"Timestamp is in a lossy scientific notation (e.g. {stamps[0]!r}; {len(set(stamps))} distinct value(s) over "
@@ -384,7 +376,7 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         rows=rows,
         source=str(path),
         excluded=excluded,
-        notes=notes + _ignored_note(header, used) + _excluded_note(excluded),
+        notes=notes + _ignored_note(header, used) + excluded_notes(excluded),
         extra=extra,
     )
 
@@ -444,28 +436,36 @@ def detect_format(path) -> str:
     raise DataError(f"unknown format: {seen}; {expected}", path, 1)
 
 
-def _check_robot(dataset: Dataset, fmt: str, robot: Optional[str], path) -> Dataset:
-    """Records ``robot`` in ``dataset`` after checking it matches the file."""
+def _check_robot(dataset: Dataset, fmt: str, robot, path) -> Dataset:
+    """Records ``robot`` (a name or file) in ``dataset`` after checking it matches the file; a
+    :class:`~robocal.robot.Robot` is checked for its joint count only, and the robot the data
+    name is kept (:func:`robocal.calibration.api.load_inputs` compares the two)."""
     if robot is None:
         return dataset
     from ..catalog import BUILTIN
+    from ..robot import Robot
     from ..robot import robot as load_robot
 
     native = FORMAT_ROBOT.get(fmt)
     if native and isinstance(robot, str) and robot in BUILTIN and robot != native:
         raise DataError(f"this is {fmt} data of the {native}; got robot={robot!r}", path)
-    n = load_robot(robot).n_joints
-    if n != dataset.n_joints:
-        raise DataError(f"robot {robot!r} has {n} joints; the file has {dataset.n_joints} joint columns", path, 1)
-    dataset.robot = robot
+    model = robot if isinstance(robot, Robot) else load_robot(robot)
+    name = model.name if isinstance(robot, Robot) else robot
+    if model.n_joints != dataset.n_joints:
+        raise DataError(f"robot {name!r} has {model.n_joints} joints; the file has {dataset.n_joints} joint columns", path, 1)
+    if not isinstance(robot, Robot):
+        dataset.robot = robot
     return dataset
 
 
 def _prismatic(robot) -> tuple:
-    """The prismatic joints of ``robot`` (a name or file, or None: none known)."""
+    """The prismatic joints of ``robot`` (a name or file, a Robot, or None: none known)."""
+    from ..robot import Robot
     from ..robot import robot as load_robot
 
-    return () if robot is None else load_robot(robot).prismatic
+    if robot is None:
+        return ()
+    return (robot if isinstance(robot, Robot) else load_robot(robot)).prismatic
 
 
 def load(
@@ -474,7 +474,7 @@ def load(
     format: Optional[str] = None,
     measurement: Optional[str] = None,
     angle_unit: Optional[str] = None,
-    robot: Optional[str] = None,
+    robot=None,
     exclude_bad_rows: bool = False,
     sheet: Optional[str] = None,
     check_units: bool = True,
@@ -496,9 +496,11 @@ def load(
     angle_unit : {"deg", "rad"}, optional
         Unit of canonical ``q`` columns (``"deg"`` by default). The public formats have fixed
         units (D1, D2 deg; D3 rad): a contradicting value is an error.
-    robot : str, optional
+    robot : str or Robot, optional
         Built-in robot name or robot file, checked against the file (the public formats belong to
-        one robot each; the joint count must match).
+        one robot each; the joint count must match), or a :class:`~robocal.robot.Robot` (joint
+        count checked). Its prismatic joints' columns are read as mm: without a robot, every
+        joint column is an angle.
     exclude_bad_rows : bool
         Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
     sheet : str, optional
@@ -549,9 +551,7 @@ def load(
         dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
     if check_units and len(dataset.prismatic) < dataset.n_joints:
         unit = angle_unit or native_unit or "deg"
-        angles = dataset.q.copy()
-        angles[:, list(dataset.prismatic)] = 0.0  # mm say nothing of the angle unit: a zero column neither passes nor fails the check
-        check = angle_unit_check(angles, unit, dataset.rows)
+        check = angle_unit_check(dataset.q, unit, dataset.rows, dataset.prismatic)
         if not check["plausible"] and angle_unit is None:
             read_as = (
                 f"read them as {check['likely']} with angle_unit={check['likely']!r} (--angle-unit {check['likely']}), or "

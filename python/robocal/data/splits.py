@@ -11,8 +11,6 @@ so every split takes ``groups`` (:func:`configuration_groups`) and keeps each gr
 
 from __future__ import annotations
 
-import hashlib
-import os
 from typing import Optional
 
 import numpy as np
@@ -168,29 +166,3 @@ def chronological(m: int, test_fraction: float = 0.2, t: Optional[np.ndarray] = 
     group_order = labels[order][np.sort(first)]  # groups by their first visit in time
     n_test = _test_count(g, test_fraction)
     return _members(labels, group_order[: g - n_test]), _members(labels, group_order[g - n_test :])
-
-
-def require_distinct_sessions(datasets: list, what: str = "session") -> None:
-    """An error naming both when two of ``datasets`` are one file (the same path, a link to it)
-    or hold the same samples (equal joint values and observations, by SHA-256): a
-    leave-one-session-out figure would then test on the data the fit saw.
-
-    Parameters
-    ----------
-    datasets : list of Dataset
-    what : str
-        What one dataset is, for the message.
-    """
-    seen: dict = {}
-    for i, d in enumerate(datasets, start=1):
-        keys = [("the same file", os.path.realpath(d.source))] if d.source and os.path.exists(d.source) else []
-        content = np.ascontiguousarray(d.q).tobytes() + b"|" + np.ascontiguousarray(d.y).tobytes()
-        keys.append(("the same samples", hashlib.sha256(content).hexdigest()))
-        for how, key in keys:
-            if key in seen:
-                j, other = seen[key]
-                raise InvalidParameterError(
-                    f"{what}s {j} ({other.source or 'data'}) and {i} ({d.source or 'data'}) are {how}: a {what} held out would "
-                    f"be one the fit saw; give each {what} once"
-                )
-            seen[key] = (i, d)

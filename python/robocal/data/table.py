@@ -33,6 +33,7 @@ import numpy as np
 from ..kernels import MAX_ABS, QUATERNION_NORM_TOL
 from ..exceptions import DataError
 from ..files import MAX_FILE_BYTES, open_regular, read_regular
+from .dataset import row_ranges
 
 #: Read numeric columns of delimited text with the columnar reader (pyarrow) where it can;
 #: ``False`` reads every cell with the per-cell path (the benchmarks and tests compare the two).
@@ -97,15 +98,33 @@ def split_delimited(text: str, delimiter: str, path):
     if body is not None:
         body.n_columns = len(header)
         return header, body
-    return header, [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+    return header, _data_records(lines)
+
+
+def _data_records(lines: list[list[str]]) -> list[tuple[int, list[str]]]:
+    """The ``(row_number, cells)`` records after the header, blank lines skipped (they hold no
+    cells). A row of only empty cells (``,,,,``, a spreadsheet's empty row) is kept: it is left
+    out by :func:`numeric_columns`, which says so."""
+    return [(i, row) for i, row in enumerate(lines[1:], start=2) if len(row) > 1 or any(cell.strip() for cell in row)]
 
 
 def _records(text: str, delimiter: str, path) -> list[list[str]]:
-    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path)."""
+    """Every line of ``text`` split into cells by :func:`csv.reader` (the per-cell path); an
+    error names the line (row) it stopped at, and the column of a cell beyond the reader's size limit."""
+    lines = text.splitlines()
+    reader = csv.reader(lines, delimiter=delimiter)
     try:
-        return list(csv.reader(text.splitlines(), delimiter=delimiter))
+        return list(reader)
     except csv.Error as exc:
-        raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path) from None
+        row = reader.line_num
+        limit = csv.field_size_limit()
+        cells = lines[row - 1].split(delimiter) if 0 < row <= len(lines) else []
+        long = next((k for k, cell in enumerate(cells) if len(cell) > limit), None)
+        if long is None:
+            raise DataError(f"not a readable {delimiter!r}-separated text ({exc})", path, row or None) from None
+        names = lines[0].split(delimiter) if row > 1 else []
+        column = names[long].strip()[:40] if long < len(names) else f"cell {long + 1}"
+        raise DataError(f"a cell of {len(cells[long])} characters, beyond the {limit} a cell of a delimited text may hold", path, row, column) from None
 
 
 #: Bytes a text may hold for the columnar reader to split it exactly as :func:`csv.reader`
@@ -215,8 +234,7 @@ class DelimitedBody(ColumnarBody):
 
     def _records(self) -> list[tuple[int, list[str]]]:
         """The records as the per-cell path has always split them."""
-        lines = _records(self.text, self.delimiter, self.path)
-        return [(i, row) for i, row in enumerate(lines[1:], start=2) if any(cell.strip() for cell in row)]
+        return _data_records(_records(self.text, self.delimiter, self.path))
 
     # -- the columnar reader
     @cached_property
@@ -423,6 +441,19 @@ def require_columns(header: Sequence[str], expected: Iterable[str], path, what: 
     raise DataError(f"{what} needs columns {expected}; missing {missing}{hint}; the header is {list(header)}", path, 1)
 
 
+#: The reason recorded for a row of only empty cells, which every reader leaves out.
+EMPTY_ROW = "every cell of the row is empty"
+
+
+def excluded_notes(excluded: list) -> list[str]:
+    """The notes of a dataset on the rows :func:`numeric_columns` left out: rows of only empty
+    cells (always) and rows with bad cells (on request)."""
+    empty = [e["row"] for e in excluded if e["reason"] == EMPTY_ROW]
+    bad = len(excluded) - len(empty)
+    notes = [f"left out {len(empty)} row(s) of only empty cells (rows {row_ranges(empty)}; see `excluded`)"] if empty else []
+    return notes + ([f"excluded {bad} rows with bad cells (see `excluded`)"] if bad else [])
+
+
 def numeric_columns(
     header: Sequence[str],
     body: Sequence[tuple[int, Sequence]],
@@ -449,7 +480,7 @@ def numeric_columns(
         Columns where NaN / infinity are allowed (e.g. an optional temperature).
     exclude_bad_rows : bool
         Record a row with a bad cell (or the wrong number of cells) in ``excluded`` instead of
-        raising.
+        raising. A row of only empty cells is always recorded there (reason :data:`EMPTY_ROW`), never an error.
 
     Returns
     -------
@@ -475,6 +506,9 @@ def numeric_columns(
         raise DataError("the file has a header but no data rows", path, 2)
     values, rows, excluded = [], [], []
     for row_number, cells in body:
+        if all(cell is None or (isinstance(cell, str) and not cell.strip()) for cell in cells):
+            excluded.append({"row": row_number, "column": None, "reason": EMPTY_ROW})  # no data to lose, but never silently
+            continue
         try:
             if len(cells) != len(header):
                 raise DataError(f"expected {len(header)} cells like the header; got {len(cells)}", path, row_number)

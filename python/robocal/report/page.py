@@ -99,8 +99,6 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     """The measurements of the report: ``data`` when given, read and checked as ``verify`` reads
     them (:func:`~robocal.calibration.api.load_inputs`: data naming another built-in robot than
     ``robot``, the result's, are refused; another name is a note), else the file the result names."""
-    from ..data import load
-
     recorded = _fitted(doc).get("source")
     if isinstance(data, Dataset):
         if data.measurement != doc["measurement"]:
@@ -110,9 +108,19 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     if data is not None:
         # An explicit file must load: its errors are the caller's to see.
         dataset, _ = load_inputs(data, robot, doc["measurement"], angle_unit)
-        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=_same_file(doc, data))
+        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=_same_file(_fitted(doc), data))
+    return _load_recorded(_fitted(doc), doc["measurement"], robot)
+
+
+def _load_recorded(fitted: dict, measurement: str, robot: Optional[Robot], what: str = "the result") -> _Data:
+    """The measurement file a result's provenance ``fitted`` (its ``dataset``, or one of its
+    ``sessions``; ``what`` names it in the notes) records, when it is on this machine and is, byte
+    for byte, the one recorded; else why it is not read."""
+    from ..data import load
+
+    recorded = fitted.get("source")
     if not recorded:
-        return _Data(notes=["the result file names no measurement file: the figures that need the data are left out (pass --data FILE)"])
+        return _Data(notes=[f"{what} names no measurement file: the figures that need the data are left out (pass --data FILE)"])
     recorded = str(recorded)
     if not Path(recorded).is_file():
         return _Data(
@@ -120,16 +128,16 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
         )
     # A result file may come from someone else and name any local file: it is read only when it
     # is, byte for byte, the file the result was calibrated on, and its content is never shown.
-    if not _same_file(doc, recorded):
+    if not _same_file(fitted, recorded):
         return _Data(
             path=recorded,
             notes=[
-                f"the file {recorded} named by the result is not read: its sha256 does not match the one recorded "
+                f"the file {recorded} named by {what} is not read: its sha256 does not match the one recorded "
                 "in the result; the figures that need the data are left out (pass --data FILE)"
             ],
         )
     try:
-        dataset = load(recorded, measurement=doc["measurement"])
+        dataset = load(recorded, measurement=measurement, robot=robot)  # the robot says which columns are mm
     except RobocalError:
         return _Data(path=recorded, notes=[f"the measurement file {recorded} could not be read: the figures that need the data are left out"])
     return _Data(dataset, recorded, [], same_file=True)
@@ -144,9 +152,30 @@ def _fitted(doc: dict) -> dict:
     return doc.get("dataset") or {}
 
 
-def _same_file(doc: dict, path) -> bool:
-    recorded = _fitted(doc).get("sha256")
+def _same_file(fitted: dict, path) -> bool:
+    """Whether ``path`` is, byte for byte, the file of the provenance ``fitted`` (its SHA-256)."""
+    recorded = fitted.get("sha256")
     return isinstance(recorded, str) and file_sha256(path) == recorded
+
+
+def _sessions(doc: dict) -> list[dict]:
+    """The sessions of a multi-session result (each a provenance dict), or none."""
+    sessions = doc.get("sessions")
+    return [s for s in sessions if isinstance(s, dict)] if isinstance(sessions, list) else []
+
+
+def session_robot(robot: Robot, doc: dict, s: int) -> Robot:
+    """The calibrated robot with session ``s``'s (0-based) own set-up: a multi-session result's
+    ``parameters`` hold session 1's, each session's ``setup`` its own (name -> value, mm / rad)."""
+    setup = _sessions(doc)[s].get("setup") or {}
+    if not isinstance(setup, dict) or not all(n in robot.param_names and isinstance(v, (int, float)) for n, v in setup.items()):
+        raise InvalidParameterError(
+            f"result: key 'sessions', session {s + 1}, key 'setup' must map the robot's set-up parameters to numbers; got {setup!r:.80}"
+        )
+    params = robot.params.copy()
+    for name, value in setup.items():
+        params[robot.index(name)] = float(value)
+    return Robot(robot.name, robot.joints, params, mass_model=robot.mass_model)
 
 
 def nominal_robot(robot: Robot, doc: dict) -> Robot:
@@ -167,10 +196,12 @@ class _Evaluation:
     residuals: np.ndarray
 
 
-def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Evaluation:
+def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool, fitted: Optional[dict] = None) -> _Evaluation:
     """The nominal and the calibrated model's errors on ``dataset``: the calibrated one is the
     result's model as ``verify`` applies it (reading conventions, joint causes), at the
-    calibrated set-up; the nominal one reads the joints in the same convention."""
+    calibrated set-up; the nominal one reads the joints in the same convention. ``fitted``: the
+    provenance of the data (default the result's, :func:`_fitted`), whose held-out rows are marked."""
+    fitted = _fitted(doc) if fitted is None else fitted
     meas = dataset.measurement
     model = result_model(robot, doc, dataset)
     p0 = start_parameters(model.nominal, model.read)
@@ -179,7 +210,7 @@ def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool) -> _Ev
     after = sample_errors(residuals, meas)
     held_out = None
     if same_file:
-        held_out = np.isin(dataset.rows, np.asarray(_fitted(doc).get("rows_held_out") or [], dtype=np.int64))
+        held_out = np.isin(dataset.rows, np.asarray(fitted.get("rows_held_out") or [], dtype=np.int64))
     names = set(robot.param_names)
     cols = [robot.index(n) for n in doc.get("free", []) if n in names]
     singular = None
@@ -207,8 +238,10 @@ def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     return figures, which
 
 
-def _acceptance_section(ev: _Evaluation, out: Path) -> str:
+def _acceptance_section(ev: _Evaluation, out: Path, several: bool = False) -> str:
     figures, which = _acceptance(ev)
+    if several:  # each session has its own set-up: distances between targets of two sessions mean nothing
+        which = f"session 1's samples only (each session has its own set-up): {which}"
     rows = [[_esc(name), _esc(value)] for name, value in summary_rows(figures)]
     maps = any(c.get("kind") == "joint_map" for c in ev.model.carried)
     caption = "Accuracy of each target: the distance from the barycentre of its measurements to the calibrated model's prediction" + (
@@ -263,6 +296,7 @@ def _header(doc: dict, data: _Data) -> str:
         ("written by", f"robocal {doc.get('robocal_version')} (this report: robocal {__version__})"),
         ("source file", (ds.get("source") or "not recorded") + (f" (session 1 of {len(doc['sessions'])})" if doc.get("sessions") else "")),
         ("sha256", ds.get("sha256") or "not recorded"),
+        *([("sessions", "; ".join(f"{i}: {f.get('source') or 'not recorded'}" for i, f in enumerate(_sessions(doc), start=1)))] if _sessions(doc) else []),
         ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
         ("figures computed on", _data_row(data)),
         (
@@ -283,48 +317,108 @@ def _data_row(data: _Data) -> str:
     return f"{where}, {len(data.dataset)} samples; {same}"
 
 
-def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Dataset]) -> tuple[dict, str]:
-    """The result's training and held-out metrics, recomputed from its parameter values where the
-    data it was calibrated on are at hand, and a note saying whether they could be checked: a
-    hand-edited file must not show the metrics of other values."""
-    m = doc.get("metrics") or {}
-    if ev is None or ev.held_out is None:
-        return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)"
-    if doc.get("method") == "rbf":
-        return m, "copied from the result file: its network is not held in it, so its values alone do not reproduce them"
-    if ev.model.session_terms:
-        return m, "copied from the result file: the terms of its own session are not applied here (they are not the robot's), so they cannot be reproduced"
-    used = np.isin(dataset.rows, np.asarray(_fitted(doc).get("rows_used") or [], dtype=np.int64))
-    recomputed = {"train": used, "test": ev.held_out}
-    out, differ = dict(m), []
-    for key, mask in recomputed.items():
-        if not mask.any() or not isinstance(m.get(key), dict):
+def _errors(ev: _Evaluation, dataset: Dataset, fitted: dict) -> dict:
+    """The calibrated model's per-sample errors on the training rows of the provenance ``fitted``
+    and on its held-out rows."""
+    used = np.isin(dataset.rows, np.asarray(fitted.get("rows_used") or [], dtype=np.int64))
+    return {"train": ev.after[used], "test": ev.after[ev.held_out]}
+
+
+def _compare(said: dict, errors: dict, label: str) -> tuple[dict, list[str]]:
+    """The metrics ``said`` (``train``, ``test``) with those of ``errors`` in their place, and
+    what differs (each prefixed by ``label``)."""
+    out, differ = dict(said), []
+    for key, e in errors.items():
+        if not e.size or not isinstance(said.get(key), dict):
             continue
-        e = ev.after[mask]
-        mine = {"rmse": rms(e), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(mask.sum())}
-        if not all(isinstance(m[key].get(k), (int, float)) and np.isclose(m[key][k], v, rtol=1e-6, atol=1e-9) for k, v in mine.items()):
-            said = m[key].get("rmse")
-            differ.append(
-                f"{key} RMSE {mine['rmse']:.4g} mm, the file says {said:.4g}" if isinstance(said, (int, float)) else f"{key} RMSE {mine['rmse']:.4g} mm"
-            )
-        out[key] = {**m[key], **mine}
-    if differ:
-        return out, (
-            "recomputed from the parameter values on the data: the result file's metrics do not match its values ("
-            + "; ".join(differ)
-            + "): the file was edited or is corrupt"
+        mine = {"rmse": rms(e), "mae": float(np.mean(e)), "max": float(np.max(e)), "n": int(e.size)}
+        if not all(isinstance(said[key].get(k), (int, float)) and np.isclose(said[key][k], v, rtol=1e-6, atol=1e-9) for k, v in mine.items()):
+            was = said[key].get("rmse")
+            differ.append(f"{label}{key} RMSE {mine['rmse']:.4g} mm" + (f", the file says {was:.4g}" if isinstance(was, (int, float)) else ""))
+        out[key] = {**said[key], **mine}
+    return out, differ
+
+
+def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Dataset], sessions: list = ()) -> tuple[dict, str, list]:
+    """The result's training and held-out metrics, recomputed from its parameter values where the
+    data it was calibrated on are at hand, a note saying whether they could be checked (a
+    hand-edited file must not show the metrics of other values) and, for a multi-session result,
+    each session's metrics ``(s, metrics)``, recomputed where its file is at hand.
+
+    ``ev`` and ``dataset`` are the result's data (a multi-session result's first session);
+    ``sessions``: ``(s, evaluation, dataset)`` of its other sessions (``s`` 0-based) whose files
+    are at hand, each evaluated at its own set-up. A multi-session result's metrics pool its
+    sessions: they are recomputed only from all of them, and each session is compared with its own."""
+    m = doc.get("metrics") or {}
+    recorded = _sessions(doc)
+    copied = [(s, f.get("metrics") or {}) for s, f in enumerate(recorded)]
+    if ev is None or ev.held_out is None:
+        return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)", copied
+    if doc.get("method") == "rbf":
+        return m, "copied from the result file: its network is not held in it, so its values alone do not reproduce them", copied
+    if ev.model.session_terms:
+        return (
+            m,
+            "copied from the result file: the terms of its own session are not applied here (they are not the robot's), so they cannot be reproduced",
+            copied,
         )
-    return out, "recomputed from the parameter values on the data: they match the result file"
+    if not recorded:
+        out, differ = _compare(m, _errors(ev, dataset, _fitted(doc)), "")
+        per_session, missing = [], []
+    else:
+        parts = [(0, ev, dataset), *sessions]
+        per_session, differ, pooled = [], [], {"train": [], "test": []}
+        for s, ev_s, d_s in parts:
+            errors = _errors(ev_s, d_s, recorded[s])
+            mine, wrong = _compare(recorded[s].get("metrics") or {}, errors, f"session {s + 1} ")
+            per_session.append((s, mine))
+            differ += wrong
+            for key in pooled:
+                pooled[key].append(errors[key])
+        missing = sorted(set(range(len(recorded))) - {s for s, _, _ in parts})
+        per_session += [(s, recorded[s].get("metrics") or {}) for s in missing]
+        per_session.sort(key=lambda item: item[0])
+        out = m
+        if not missing:
+            out, wrong = _compare(m, {key: np.concatenate(v) for key, v in pooled.items()}, "all sessions ")
+            differ += wrong
+    if differ:
+        return (
+            out,
+            (
+                "recomputed from the parameter values on the data: the result file's metrics do not match its values ("
+                + "; ".join(differ)
+                + "): the file was edited or is corrupt"
+            ),
+            per_session,
+        )
+    if recorded and missing:
+        sessions_missing = ", ".join(str(s + 1) for s in missing)
+        return (
+            out,
+            (
+                f"of all sessions copied from the result file (the files of sessions {sessions_missing} are not at hand); "
+                "each session at hand recomputed from the parameter values and its own set-up: they match the result file"
+            ),
+            per_session,
+        )
+    return (
+        out,
+        "recomputed from the parameter values on the data" + (" of every session, each at its own set-up" if recorded else "") + ": they match the result file",
+        per_session,
+    )
 
 
-def _metrics(doc: dict, m: dict, note: str) -> str:
+def _metrics(doc: dict, m: dict, note: str, per_session: list = ()) -> str:
     rows = []
-    for key, label in (("train", "training"), ("test", "held out")):
-        v = m.get(key)
-        if v is None:
-            rows.append([_esc(label), "–", "–", "–", "–"])
-        else:
-            rows.append([_esc(label), _fixed(v.get("rmse"), 4), _fixed(v.get("mae"), 4), _fixed(v.get("max"), 4), _esc(v.get("n", "–"))])
+    named = [(m, "")] + [(ms, f"session {s + 1}, ") for s, ms in per_session]
+    for metrics_, prefix in named:
+        for key, label in (("train", "training"), ("test", "held out")):
+            v = metrics_.get(key)
+            if v is None:
+                rows.append([_esc(prefix + label), "–", "–", "–", "–"])
+            else:
+                rows.append([_esc(prefix + label), _fixed(v.get("rmse"), 4), _fixed(v.get("mae"), 4), _fixed(v.get("max"), 4), _esc(v.get("n", "–"))])
     per = "|cable residual|" if doc.get("measurement") == "cable" else "Euclidean position error"
     warn = "warn" if "do not match" in note else "small"
     return (
@@ -594,13 +688,27 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
             )
         if doc.get("method") == "rbf":
             notes.append("method rbf corrects the prediction with a network the result file does not hold: the figures show its geometric parameters only")
-    paths_residuals = residual_figures(ev.before, ev.after, ev.held_out, len(ev.model.carried), meas, out) if ev is not None else []
+    # A multi-session result: every session whose file is at hand, each at its own set-up (its
+    # figures, and its metrics checked against its own; the result's pool them all).
+    others = []
+    if ev is not None and data is None:
+        for s, fitted in list(enumerate(_sessions(doc)))[1:]:
+            own = session_robot(robot, doc, s)
+            d_s = _load_recorded(fitted, meas, own, f"session {s + 1} of the result")
+            notes += d_s.notes
+            if d_s.dataset is not None:
+                others.append((s, _evaluate(own, doc, d_s.dataset, True, fitted), d_s.dataset))
+    shown = [ev] + [e for _, e, _ in others] if ev is not None else []
+    before, after = (np.concatenate([e.before for e in shown]), np.concatenate([e.after for e in shown])) if shown else (None, None)
+    held = None if ev is None or ev.held_out is None else np.concatenate([e.held_out for e in shown])
+    paths_residuals = residual_figures(before, after, held, len(ev.model.carried), meas, out) if ev is not None else []
     if paths_residuals:
-        before_rms, after_rms = rms(ev.before), rms(ev.after)
+        before_rms, after_rms = rms(before), rms(after)
+        of = f" of {len(shown)} sessions, in session order, each at its own set-up" if others else ""
         figures.append(
             _figure(
                 paths_residuals[0],
-                f"Per-sample error on all {len(ev.after)} samples: RMSE {before_rms:.4g} mm with the nominal kinematics "
+                f"Per-sample error on all {len(after)} samples{of}: RMSE {before_rms:.4g} mm with the nominal kinematics "
                 f"(measurement set-up refitted) and {after_rms:.4g} mm calibrated"
                 + (" (geometry and joint causes, the model robocal verify applies)." if ev.model.carried else "."),
             )
@@ -609,7 +717,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
             _figure(
                 paths_residuals[1],
                 "The same errors in the order of the measurement file"
-                + (", held-out samples marked with crosses." if ev.held_out is not None and ev.held_out.any() else "."),
+                + (", held-out samples marked with crosses." if held is not None and held.any() else "."),
             )
         )
     p = parameter_figure(doc, out)
@@ -667,8 +775,8 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 <h1>{_esc(title)}</h1>
 {_header(doc, d)}
 <h2>Accuracy</h2>
-{_metrics(doc, *checked_metrics(doc, ev, d.dataset))}
-{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out)}
+{_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
+{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(_sessions(doc)) > 1)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
 <h2>Figures</h2>
