@@ -87,6 +87,34 @@ def test_a_real_sigint_while_writing(tmp_path):
     assert out.read_text() == "old" and no_temporaries(tmp_path)
 
 
+# -- issue 52 #16: each output's write error names that output -----------------------------------
+def test_a_file_size_limit_names_the_csv_not_the_truth(tmp_path):
+    """The reproducer (``ulimit -f 50``): the CSV is too large, the truth is not; the error named the truth."""
+    import resource
+
+    out, truth = tmp_path / "big.csv", tmp_path / "t.json"
+    out.write_text("old")
+    argv = [sys.executable, "-m", "robocal", "simulate", "--robot", "ur10", "--measurement", "pose", "--samples", "3000", "--out", out, "--truth", truth]
+    done = subprocess.run(argv, capture_output=True, text=True, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (50 * 1024, 50 * 1024)))
+    assert done.returncode == 2 and done.stderr == f"robocal: error: {out}: cannot write it (File too large)\n", done.stderr
+    assert out.read_text() == "old" and not truth.exists() and no_temporaries(tmp_path)
+
+
+def test_a_failing_truth_write_names_the_truth(tmp_path, capsys, monkeypatch):
+    out, truth = tmp_path / "s.csv", tmp_path / "t.json"
+    real_write_text = Path.write_text
+
+    def full_disk(path, text, *args, **kw):
+        if path.name.startswith(".t.json"):
+            raise OSError(28, "No space left on device")
+        return real_write_text(path, text, *args, **kw)
+
+    monkeypatch.setattr(Path, "write_text", full_disk)
+    code, _, err = run(["simulate", "--samples", "20", "--out", out, "--truth", truth], capsys)
+    assert code == 2 and err == f"robocal: error: {truth}: cannot write it (No space left on device)\n"
+    assert not out.exists() and not truth.exists() and no_temporaries(tmp_path)
+
+
 # -- row 3: NUL in an API path --------------------------------------------------------------------
 @pytest.mark.parametrize("call", [lambda: robocal.load("a\x00b.csv"), lambda: robocal.load(Path("a\x00b.csv"), format="canonical")])
 def test_a_nul_in_a_data_path_is_a_robocal_error(call):

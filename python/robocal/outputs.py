@@ -21,6 +21,7 @@ import os
 import re
 import stat
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Optional
 
@@ -252,6 +253,17 @@ class Staged:
 
     def discard(self) -> None:
         self._keep = False
+
+    @contextmanager
+    def writing(self):
+        """A block that writes this output: an operating-system error in it (a full disk, a file
+        size limit) is an :class:`OutputError` naming this output. Needed where several stages are
+        open at once: the innermost ``with`` sees every error first and would otherwise blame its
+        own file for another's (``simulate --out big.csv --truth t.json`` blamed t.json)."""
+        try:
+            yield self.tmp
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot write it ({exc.strerror or exc})") from None
 
     def __exit__(self, kind, exc, tb) -> bool:
         try:
