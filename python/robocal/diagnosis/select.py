@@ -262,6 +262,13 @@ def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
 # Diagnosis solves thousands of small least-squares problems: a multi-threaded BLAS only adds
 # hand-over cost there, and on a loaded machine its spinning threads made it 20x slower.
 @threadpool_limits.wrap(limits=1, user_api="blas")
+def require_enough_samples(dataset: Dataset, folds: int) -> None:
+    """An error naming the data when ``dataset`` is too small for ``folds`` folds (four samples
+    per fold); a multi-session diagnosis asks it of every session before any work."""
+    if len(dataset) < 4 * folds:
+        raise InvalidParameterError(f"{dataset.source or 'the data'}: diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
+
+
 def diagnose(
     data: Union[str, Path, Dataset],
     robot: Union[str, Robot, None] = None,
@@ -324,8 +331,7 @@ def diagnose(
     dataset, rob = load_inputs(data, robot, measurement, angle_unit)
     if groups is not None and np.shape(groups) != (len(dataset),):
         raise InvalidParameterError(f"`groups` needs one label per sample, shape ({len(dataset)},); got {groups!r}")
-    if len(dataset) < 4 * folds:
-        raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
+    require_enough_samples(dataset, folds)
     mask = baseline_mask(rob, dataset.measurement, hayati)
     dataset, effects, rejected, geometric_cv = conventions.reading_conventions(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
