@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -165,3 +166,18 @@ def test_cli_end_to_end(data, tmp_path, capsys):
         assert (out / name).exists(), name
     doc = json.loads((out / "comparison.json").read_text())
     assert doc["config"]["seed"] == 3 and [m["name"] for m in doc["methods"]] == ["lm", "ukf-vslm", "rbf"]
+
+
+def test_cli_exits_1_when_every_run_failed_and_draws_without_warnings(data, tmp_path, capsys):
+    """Issue 52 #21: every run failing (4 training samples cannot place the cable) exited 0, and
+    the convergence figure's legend of no line made matplotlib warn on the terminal."""
+    path = tmp_path / "sim.csv"
+    write_canonical(data, path)
+    argv = ["compare", path, "--robot", "hsr-jr680", "--protocol", "80-20", "--repeats", "2", "--methods", "lm", "--subset", "5", "--out", tmp_path / "c"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main([str(a) for a in argv])
+    assert code == 1
+    assert "2 of 2 runs failed" in capsys.readouterr().out
+    assert all((tmp_path / "c" / name).exists() for name in FILES)  # the failures are written all the same
+    assert [str(w.message) for w in caught if issubclass(w.category, UserWarning)] == []

@@ -103,7 +103,8 @@ class _Log:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code: 0, 1 (a
-    check failed), 2 (refused: one line ``robocal: error: ...``), 130 (interrupted)."""
+    check failed, a target unreachable, every run of ``compare`` failed), 2 (refused: one line
+    ``robocal: error: ...``), 130 (interrupted)."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     try:
         return _run(argv)
