@@ -124,6 +124,7 @@ def _run(argv: list[str]) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(command).parse_args(argv)
     progress.QUIET = args.quiet
+    progress.STAGE_LINES = not args.quiet  # reset below: robocal called from Python draws only bars
     log = _Log(args.quiet, args.debug)
     paths = COMMANDS[args.command][1]
     claims = []
@@ -150,6 +151,7 @@ def _run(argv: list[str]) -> int:
         print("robocal: error: " + printable(" ".join(str(exc).split()), one_line=True), file=sys.stderr)
         return 2
     finally:
+        progress.STAGE_LINES = False
         log.close()
         for claim in claims:
             claim.release()
