@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 import time
+from contextlib import contextmanager
 
 #: Set by ``robocal --quiet``.
 QUIET = False
@@ -28,4 +29,18 @@ def _stage_line(items, desc: str, unit: str):
     start, n = time.perf_counter(), 0
     for n, item in enumerate(items, start=1):
         yield item
-    print(f"robocal: {desc}: {n} {unit}{'' if n == 1 else 's'} in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+    _line(f"{desc}: {n} {unit}{'' if n == 1 else 's'}", start)
+
+
+@contextmanager
+def stage(desc: str):
+    """A stage of work that is not one loop (or leaves its loop early): where :func:`progress`
+    prints stage lines, it ends with ``robocal: DESC in T s`` when it completes."""
+    start = time.perf_counter()
+    yield
+    if STAGE_LINES and not QUIET and not sys.stderr.isatty():
+        _line(desc, start)
+
+
+def _line(what: str, start: float) -> None:
+    print(f"robocal: {what} in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)

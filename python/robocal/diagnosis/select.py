@@ -64,7 +64,7 @@ from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_sess
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..kernels import as_count, as_float, as_tolerance, is_sparse
-from ..progress import progress
+from ..progress import progress, stage
 from ..robot import Robot
 from ..stats import paired_z, rmse_of_squares
 from . import conventions
@@ -479,7 +479,8 @@ def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int
         last_refusals = len(state.rejected)
         screening = screen_round(state, pool, wander_offered, alpha=alpha, max_effects=max_effects, replay=replay)
         last_rmse, searched = screening.rmse, max(searched, screening.candidates)
-        taken = confirm(state, screening)
+        with stage(f"diagnose: confirming round {len(state.model.causes) + 1}"):  # the nonlinear re-fits: most of a diagnosis' time
+            taken = confirm(state, screening)
         if taken is None:
             _refuse_best(state, screening)
             break
@@ -622,7 +623,8 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
             state.arcs = list(
                 {arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)}.values()
             )  # a long session widens them alike
-        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in state.arcs]
+        arcs = progress(state.arcs, desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
+        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs
