@@ -323,3 +323,11 @@ def test_a_table_with_a_misnamed_column_is_refused_by_name(hsr_file, tmp_path):
     path.write_text(path.read_text().replace("theta_deg", "theta_dg", 1))
     with pytest.raises(InvalidParameterError, match=r"t\.csv, row 1: not a robocal parameter table .*missing \['theta_deg'\]; unknown \['theta_dg'\]"):
         robocal.robot(str(path))
+
+
+def test_a_result_under_a_table_suffix_says_how_it_is_read(hsr_file, tmp_path):
+    """A result file saved as ``r.csv`` is read as a parameter table (by its suffix): the error says so."""
+    path = tmp_path / "r.csv"
+    path.write_text(open(hsr_file).read())
+    with pytest.raises(InvalidParameterError, match=r"r\.csv: not a robocal parameter table .*by its suffix: name it \.json"):
+        robocal.robot(str(path))

@@ -113,7 +113,9 @@ def read_table(path) -> list[dict]:
     if text.lstrip().startswith("{"):
         doc = parse_document(text, str(path), "robocal parameter table")
         if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:
-            raise InvalidParameterError(f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r})")
+            raise InvalidParameterError(
+                f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r}); robocal reads a robot or result file by its suffix: name it .json"
+            )
         return [dict(r) for r in doc["rows"]]
     if text.lstrip().startswith("<"):
         raise InvalidParameterError(f"{path}: holds XML (a URDF?), not a parameter table; robocal reads a robot file by its suffix: name a URDF .urdf")
