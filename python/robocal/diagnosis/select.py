@@ -259,9 +259,6 @@ def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
     return mask
 
 
-# Diagnosis solves thousands of small least-squares problems: a multi-threaded BLAS only adds
-# hand-over cost there, and on a loaded machine its spinning threads made it 20x slower.
-@threadpool_limits.wrap(limits=1, user_api="blas")
 def require_enough_samples(dataset: Dataset, folds: int) -> None:
     """An error naming the data when ``dataset`` is too small for ``folds`` folds (four samples
     per fold); a multi-session diagnosis asks it of every session before any work."""
@@ -269,6 +266,9 @@ def require_enough_samples(dataset: Dataset, folds: int) -> None:
         raise InvalidParameterError(f"{dataset.source or 'the data'}: diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
 
 
+# Diagnosis solves thousands of small least-squares problems: a multi-threaded BLAS only adds
+# hand-over cost there, and on a loaded machine its spinning threads made it 20x slower.
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def diagnose(
     data: Union[str, Path, Dataset],
     robot: Union[str, Robot, None] = None,
