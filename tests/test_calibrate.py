@@ -131,7 +131,12 @@ def test_cli_calibrate_writes_the_result(cable_data, tmp_path, capsys):
     assert main(["calibrate", str(csv), "--robot", "hsr-jr680", "--out", str(tmp_path / "r.json")]) == 0
     doc = json.loads((tmp_path / "r.json").read_text())
     assert doc["metrics"]["test"]["rmse"] < 0.06
-    assert "test:  RMSE" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "test:  RMSE" in out
+    # the count of fixed parameters and the names listed agree (issue 52: "fixed 6" and four names)
+    line = next(s for s in out.splitlines() if "parameters; fixed" in s)
+    assert len(doc["fixed"]) > 4 and f"fixed {len(doc['fixed'])}:" in line
+    assert all(f"{name} (" in line for name in doc["fixed"])
     assert main(["calibrate", str(tmp_path / "missing.csv"), "--robot", "hsr-jr680"]) == 2
 
 

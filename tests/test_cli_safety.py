@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 import robocal
 from robocal.cli import COMMANDS, main
 from robocal.exceptions import InvalidParameterError, OutputError, RobocalError
+from robocal.data import write_canonical
 from robocal.simulation import simulate, write_simulation
 
 ROBOT = "abb-irb120"
@@ -343,6 +344,29 @@ def test_too_few_samples_say_what_needs_how_many(inputs, tmp_path, capsys):
     refused(["compare", one, "--robot", ROBOT, "--out", tmp_path / "c"], capsys, "needs at least 120 samples; the data have 1")
     sixteen = _canonical(tmp_path, lines[0], lines[1:17], "sixteen.csv")
     refused(["calibrate", sixteen, "--robot", ROBOT, "--test-fraction", "0"], capsys, "16 residuals for 16 identifiable parameters", "0 degrees of freedom")
+
+
+def test_diagnose_refuses_before_any_work(inputs, tmp_path, capsys, monkeypatch):
+    """Issue 52 #17 and #19: one path for --json and --out, and a session too small for the folds,
+    are refused before the first diagnosis, naming the path (they came after seconds of work)."""
+    import robocal.diagnosis as diagnosis
+    from robocal.diagnosis import sessions
+
+    def work(*_args, **_kw):
+        raise AssertionError("the diagnosis of a session started")
+
+    monkeypatch.setattr(diagnosis, "diagnose_session", work)  # one session
+    monkeypatch.setattr(sessions, "diagnose", work)  # each session of several
+    same = tmp_path / "X"
+    refused(
+        ["diagnose", inputs / "d.csv", "--robot", ROBOT, "--json", same, "--out", same], capsys, f"{same}: the same path", "output file and as an output folder"
+    )
+    assert not same.exists()
+    paths = []
+    for session, rows in ((1, 60), (2, 3)):
+        data, _ = simulate(ROBOT, "cable", samples=rows, seed=3, session=session)
+        paths.append(write_canonical(data, tmp_path / f"s{session}.csv"))
+    refused(["diagnose", inputs / "d.csv", *paths, "--robot", ROBOT], capsys, f"{paths[1]}: diagnose needs at least 20 samples for 5 folds; got 3")
 
 
 def test_documented_optional_columns_are_accepted(inputs, tmp_path, capsys):

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import csv
 import json
+import re
+import warnings
 
 import numpy as np
 import pytest
@@ -165,3 +167,33 @@ def test_cli_end_to_end(data, tmp_path, capsys):
         assert (out / name).exists(), name
     doc = json.loads((out / "comparison.json").read_text())
     assert doc["config"]["seed"] == 3 and [m["name"] for m in doc["methods"]] == ["lm", "ukf-vslm", "rbf"]
+
+
+def test_cli_exits_1_when_every_run_failed_and_draws_without_warnings(data, tmp_path, capsys):
+    """Issue 52 #21: every run failing (4 training samples cannot place the cable) exited 0, and
+    the convergence figure's legend of no line made matplotlib warn on the terminal."""
+    path = tmp_path / "sim.csv"
+    write_canonical(data, path)
+    argv = ["compare", path, "--robot", "hsr-jr680", "--protocol", "80-20", "--repeats", "2", "--methods", "lm", "--subset", "5", "--out", tmp_path / "c"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main([str(a) for a in argv])
+    assert code == 1
+    assert "2 of 2 runs failed" in capsys.readouterr().out
+    assert all((tmp_path / "c" / name).exists() for name in FILES)  # the failures are written all the same
+    assert [str(w.message) for w in caught if issubclass(w.category, UserWarning)] == []
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_cli_prints_stage_lines_where_no_bar_is_drawn(data, tmp_path, capsys, quiet):
+    """Issue 52: off a terminal (here: captured), a long command printed nothing for minutes. Each
+    stage now ends with one line on stderr with its elapsed time; --quiet silences it, and called
+    from Python afterwards robocal prints none."""
+    path = tmp_path / "sim.csv"
+    write_canonical(data, path)
+    argv = ["compare", str(path), "--robot", "hsr-jr680", "--protocol", "80-20", "--repeats", "2", "--methods", "lm", "--out", str(tmp_path / "c")]
+    assert main(argv + (["--quiet"] if quiet else [])) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [] if quiet else [line for line in lines if re.fullmatch(r"robocal: compare: splits: 2 splits in \d+\.\d s", line)] == lines != []
+    compare(data, methods=["lm"], protocol="80-20", repeats=2)
+    assert capsys.readouterr().err == ""

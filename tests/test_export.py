@@ -15,6 +15,8 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import robocal
 from robocal import export as ex
@@ -285,3 +287,47 @@ def test_robot_reads_what_export_writes(calibrated, convention, table_format, tm
     (tmp_path / "other.json").write_text(json.dumps({"schema": "something/1"}))
     with pytest.raises(InvalidParameterError, match="other.json"):
         robocal.robot(str(tmp_path / "other.json"))
+
+
+@settings(deadline=None, max_examples=20, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    fmt=st.sampled_from(["dh", "urdf"]),
+    table_format=st.sampled_from([None, "csv", "json"]),
+    suffix=st.sampled_from([".csv", ".json", ".urdf", ".txt", ""]),
+)
+def test_an_export_is_read_back_or_a_note_says_why_not(ur10_file, tmp_path_factory, capsys, fmt, table_format, suffix):
+    """Issue 52 #22: ``--format urdf --out e.csv`` was written without a note, and reading it back
+    failed naming no file. Whatever the suffix, ``robocal.robot`` reads the export back, or the
+    export printed a note saying under which suffix it would, and the reader's error names the file."""
+    if fmt == "urdf" and table_format is not None:
+        return  # refused: --table-format applies to tables (test_cli_bad_input)
+    out = tmp_path_factory.mktemp("suffix") / f"e{suffix}"
+    argv = [ur10_file, "--format", fmt, "--out", str(out), "--samples", "5"] + (["--table-format", table_format] if table_format else [])
+    assert export_cli.run(_parser().parse_args(argv)) == 0
+    noted = "note:" in capsys.readouterr().out
+    try:
+        back = robocal.robot(str(out))
+    except InvalidParameterError as exc:
+        assert noted and str(out) in str(exc), (noted, str(exc))
+    else:
+        assert not noted
+        robot, _ = load_result(ur10_file)
+        q = np.random.default_rng(3).uniform(-2.0, 2.0, (10, robot.n_joints))
+        assert np.allclose(back.fkine(q, tool=True), robot.fkine(q, tool=True), atol=1e-6)
+
+
+def test_a_table_with_a_misnamed_column_is_refused_by_name(hsr_file, tmp_path):
+    """A column the reader does not know was read as missing (its values dropped silently)."""
+    robot, _ = load_result(hsr_file)
+    path = ex.write_table(ex.export_table(robot, "dh"), tmp_path / "t.csv")
+    path.write_text(path.read_text().replace("theta_deg", "theta_dg", 1))
+    with pytest.raises(InvalidParameterError, match=r"t\.csv, row 1: not a robocal parameter table .*missing \['theta_deg'\]; unknown \['theta_dg'\]"):
+        robocal.robot(str(path))
+
+
+def test_a_result_under_a_table_suffix_says_how_it_is_read(hsr_file, tmp_path):
+    """A result file saved as ``r.csv`` is read as a parameter table (by its suffix): the error says so."""
+    path = tmp_path / "r.csv"
+    path.write_text(open(hsr_file).read())
+    with pytest.raises(InvalidParameterError, match=r"r\.csv: not a robocal parameter table .*by its suffix: name it \.json"):
+        robocal.robot(str(path))

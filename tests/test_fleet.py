@@ -38,6 +38,14 @@ def test_every_backend_gives_the_serial_results_in_order(fleet, backend):
     assert len({tuple(parameters(d)) for d in serial}) == 3
 
 
+def test_a_robot_object_goes_to_the_worker_processes(fleet):
+    """A Robot, not only a name, reaches spawned workers (issue 52 #14: its chain could not be pickled)."""
+    paths, _ = fleet
+    by_name = robocal.calibrate_many(paths[:2], backend="serial", robot="abb-irb120", method="lm", seed=3)
+    by_object = robocal.calibrate_many(paths[:2], workers=2, robot=robocal.robot("abb-irb120"), method="lm", seed=3)
+    assert [parameters(d) for d in by_object] == [parameters(d) for d in by_name]
+
+
 def test_a_bad_dataset_is_reported_and_the_rest_still_calibrate(fleet):
     paths, broken = fleet
     results = robocal.calibrate_many([paths[0], broken, paths[1]], workers=2, robot="abb-irb120")

@@ -7,6 +7,8 @@ import shutil
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import robocal
 from robocal.data import detect_format, load, read_canonical, read_hsr, read_ipa, read_robotcali
@@ -185,6 +187,29 @@ def test_bad_files_name_file_row_and_column(tmp_path, reader, text, message, row
         reader(path)
     assert (err.value.row, err.value.column) == (row, column)
     assert str(path) in str(err.value)
+
+
+SEPARATOR_NAMES = {",": "','", ";": "';'", "\t": "tab"}
+
+
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    st.sampled_from([(read_hsr, ",", "q1,q2,q3,q4,q5,q6,L"), (read_canonical, ",", "q1,q2,q3,q4,q5,q6,L"), (read_ipa, ";", IPA_HEADER)]),
+    st.sampled_from([",", ";", "\t"]),
+)
+def test_a_file_of_another_separator_is_named_by_its_own(tmp_path, reader_case, used):
+    """Issue 52 #20: ``--format ipa`` on a comma file said "this file is ';'-separated". Every
+    delimited reader names the separator the file holds as the file's, and its own as expected."""
+    reader, expected, header = reader_case
+    if used == expected:
+        return
+    path = write(tmp_path, header.replace(expected, used) + "\n")
+    with pytest.raises(DataError) as err:
+        reader(path)
+    message = str(err.value)
+    assert f"this file looks {SEPARATOR_NAMES[used]}-separated" in message
+    assert f"the format it is read as is {SEPARATOR_NAMES[expected]}-separated" in message
+    assert (err.value.row, str(path) in message) == (1, True)
 
 
 def test_bad_rows_are_excluded_only_on_request(tmp_path):

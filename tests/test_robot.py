@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 import robocal
 from robocal.catalog import BUILTIN
+
+from helpers import cases
 
 
 def dh_link(alpha, a, d, theta):
@@ -118,3 +123,25 @@ def test_cli_bad_use_is_one_line_and_exit_code_2(capsys):
     assert main(["calibrate", "no-such-file.csv", "--robot", "hsr-jr680"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("robocal: error:") and "no-such-file.csv" in err[0]
+
+
+@given(cases(), st.booleans())
+def test_a_robot_survives_pickling_with_identical_kinematics(case, with_masses):
+    """A Robot crosses a process boundary (``calibrate_many(..., robot=<Robot>)``, issue 52 #14):
+    its compiled chain is rebuilt from the joints, so the copy computes exactly the same."""
+    joints = [robocal.Joint(convention=c, kind=k, hayati=bool(i % 2)) for i, (c, k) in enumerate(zip(*case.chain))]
+    masses = robocal.MassModel(tuple(range(1, case.n + 1)), 3.0) if with_masses else None
+    r = robocal.Robot("random", joints, case.params, masses)
+    copy = pickle.loads(pickle.dumps(r))
+    assert copy.joints == r.joints and copy.mass_model == r.mass_model and copy.param_names == r.param_names
+    assert np.array_equal(copy.params, r.params)
+    assert np.array_equal(copy.fkine(case.q, tool=True), r.fkine(case.q, tool=True))
+    assert np.array_equal(copy.jacobian("position", case.q), r.jacobian("position", case.q))
+
+
+def test_a_calibration_result_survives_pickling():
+    data, _ = robocal.simulate("ur10", "position", samples=120, seed=2)
+    result = robocal.calibrate(data, robot=robocal.robot("ur10"))
+    copy = pickle.loads(pickle.dumps(result))
+    assert json.dumps(copy.to_dict(), sort_keys=True) == json.dumps(result.to_dict(), sort_keys=True)
+    assert np.array_equal(copy.robot.params, result.robot.params)

@@ -72,19 +72,73 @@ def test_ctrl_c_in_a_report_releases_the_folder(inputs, tmp_path, capsys, monkey
     assert not (tmp_path / "rep").exists()  # created by the run, left empty: removed with its lock
 
 
+#: The command line with its CSV writer held mid-write: it writes the staged file, says so by
+#: creating the file argv[1], and waits for a signal. The SIGINT then always arrives while the
+#: output is being written, whatever the machine's speed (a timed loop lost the race under load:
+#: the child finished first).
+_HELD_WRITER = """
+import signal, sys
+from pathlib import Path
+from robocal import simulation
+from robocal.cli import main
+
+real = simulation.write_canonical
+
+def held(dataset, path):
+    real(dataset, path)
+    Path(sys.argv[1]).touch()
+    signal.pause()
+
+simulation.write_canonical = held
+sys.exit(main(sys.argv[2:]))
+"""
+
+
 def test_a_real_sigint_while_writing(tmp_path):
-    """The reproducer: SIGINT once the staged file exists; no traceback, the old file kept."""
-    out = tmp_path / "big.csv"
+    """The reproducer: a real SIGINT while the staged file is written; no traceback, the old file kept."""
+    out, writing = tmp_path / "big.csv", tmp_path / "writing"
     out.write_text("old")
-    argv = [sys.executable, "-m", "robocal", "simulate", "--robot", "ur10", "--measurement", "position", "--samples", "300000", "--out", str(out)]
+    argv = [sys.executable, "-c", _HELD_WRITER, writing, "simulate", "--robot", "ur10", "--measurement", "position", "--samples", "3000", "--out", out]
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and proc.poll() is None and not [p for p in tmp_path.iterdir() if p.name.startswith(".big.csv")]:
-        time.sleep(0.01)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    try:
+        hang = time.monotonic() + 600  # a bound against a hang only: the child cannot finish before it signals
+        while not writing.exists():
+            assert proc.poll() is None and time.monotonic() < hang, proc.communicate()[1] if proc.poll() is not None else "no write started"
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=600)  # a bound against a hang only
+    finally:
+        proc.kill()
     assert proc.returncode == 130 and err == "robocal: interrupted\n", err
     assert out.read_text() == "old" and no_temporaries(tmp_path)
+
+
+# -- issue 52 #16: each output's write error names that output -----------------------------------
+def test_a_file_size_limit_names_the_csv_not_the_truth(tmp_path):
+    """The reproducer (``ulimit -f 50``): the CSV is too large, the truth is not; the error named the truth."""
+    import resource
+
+    out, truth = tmp_path / "big.csv", tmp_path / "t.json"
+    out.write_text("old")
+    argv = [sys.executable, "-m", "robocal", "simulate", "--robot", "ur10", "--measurement", "pose", "--samples", "3000", "--out", out, "--truth", truth]
+    done = subprocess.run(argv, capture_output=True, text=True, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (50 * 1024, 50 * 1024)))
+    assert done.returncode == 2 and done.stderr == f"robocal: error: {out}: cannot write it (File too large)\n", done.stderr
+    assert out.read_text() == "old" and not truth.exists() and no_temporaries(tmp_path)
+
+
+def test_a_failing_truth_write_names_the_truth(tmp_path, capsys, monkeypatch):
+    out, truth = tmp_path / "s.csv", tmp_path / "t.json"
+    real_write_text = Path.write_text
+
+    def full_disk(path, text, *args, **kw):
+        if path.name.startswith(".t.json"):
+            raise OSError(28, "No space left on device")
+        return real_write_text(path, text, *args, **kw)
+
+    monkeypatch.setattr(Path, "write_text", full_disk)
+    code, _, err = run(["simulate", "--samples", "20", "--out", out, "--truth", truth], capsys)
+    assert code == 2 and err == f"robocal: error: {truth}: cannot write it (No space left on device)\n"
+    assert not out.exists() and not truth.exists() and no_temporaries(tmp_path)
 
 
 # -- row 3: NUL in an API path --------------------------------------------------------------------

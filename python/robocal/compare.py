@@ -625,7 +625,10 @@ def _figures(result: ComparisonResult, out: Path) -> list[Path]:
     ax.set_xlabel("iteration (each method's own unit; symlog scale)")
     ax.set_ylabel("training cost ½‖r‖² (mm²)")
     ax.set_title("Cost history of the first successful split per method (cf. paper Fig. 6)")
-    ax.legend(fontsize="small")
+    if ax.lines:
+        ax.legend(fontsize="small")
+    else:  # every run failed: a legend of nothing is what matplotlib warns about
+        ax.text(0.5, 0.5, "no method succeeded on any split", transform=ax.transAxes, ha="center", va="center")
     paths.append(out / "fig6_convergence.png")
     save_figure(fig, paths[-1], dpi=110)
 

@@ -283,7 +283,7 @@ def _exported_robot(exported) -> tuple[Robot, str]:
     path = Path(exported)
     if path.read_text().lstrip().startswith("<"):
         return read_urdf(path), "urdf"
-    return robot_from_table(read_table(path)), "table"
+    return robot_from_table(read_table(path), source=path), "table"
 
 
 def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -> dict:
@@ -327,6 +327,22 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
         "samples": int(samples),
         "representation": representation,
     }
+
+
+#: The suffixes :func:`robocal.robot` reads each export under (it tells the formats apart by
+#: suffix; a table under .csv is told CSV or JSON by its content).
+READ_BACK_SUFFIXES = {"urdf": (".urdf",), "csv": (".csv",), "json": (".json", ".csv")}
+
+
+def suffix_note(fmt: str, out, table_format: Optional[str] = None) -> Optional[str]:
+    """A note when ``out``'s suffix is not the one :func:`robocal.robot` reads this export by
+    (``--format urdf --out e.csv``: the file is fine, but read back as a table it fails), else None."""
+    form = "urdf" if fmt == "urdf" else _table_format(Path(out), table_format)
+    suffix = READ_BACK_SUFFIXES[form][0]
+    if Path(out).suffix.lower() in READ_BACK_SUFFIXES[form]:
+        return None
+    what = "URDF" if form == "urdf" else f"a {form.upper()} table"
+    return f"{out} holds {what} under another suffix; robocal reads a robot file by its suffix (--robot, robocal.robot): rename it to *{suffix} to read it back"
 
 
 def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:

@@ -21,6 +21,7 @@ import os
 import re
 import stat
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Optional
 
@@ -108,6 +109,7 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
             raise OutputError(f"{str(p)!r}: a path cannot contain a NUL character")
     sources = _existing(inputs)
     files = [Path(f) for f in files if f not in (None, "", "-")]
+    folders = [Path(f) for f in folders if f not in (None, "")]
     for i, out in enumerate(files):
         clash = next((s for s in sources if same_file(out, s)), None)
         if clash is not None:
@@ -115,11 +117,14 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
         other = next((o for o in files[:i] if same_file(out, o)), None)
         if other is not None:
             raise OutputError(f"{out}: the same file is given for two outputs")
+        # Before the folder is created below: afterwards the file would find a folder in its place,
+        # and only at the end of the work (`diagnose --json X --out X`).
+        if any(same_file(out, folder) for folder in folders):
+            raise OutputError(f"{out}: the same path is given as an output file and as an output folder")
         if out.is_dir():
             raise OutputError(f"{out}: is a folder; a file path is expected")
         refuse_special(out)
         _writable_folder(out.resolve().parent, out)
-    folders = [Path(f) for f in folders if f not in (None, "")]
     for folder in folders:
         if os.path.lexists(folder) and not folder.exists():
             raise OutputError(f"{folder}: is {special_kind(folder)}; an output folder is expected")
@@ -252,6 +257,17 @@ class Staged:
 
     def discard(self) -> None:
         self._keep = False
+
+    @contextmanager
+    def writing(self):
+        """A block that writes this output: an operating-system error in it (a full disk, a file
+        size limit) is an :class:`OutputError` naming this output. Needed where several stages are
+        open at once: the innermost ``with`` sees every error first and would otherwise blame its
+        own file for another's (``simulate --out big.csv --truth t.json`` blamed t.json)."""
+        try:
+            yield self.tmp
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot write it ({exc.strerror or exc})") from None
 
     def __exit__(self, kind, exc, tb) -> bool:
         try:

@@ -45,7 +45,7 @@ def robot(name: str | Path) -> Robot:
     if suffix == ".urdf":
         return read_urdf(name)
     if suffix in (".csv", ".json") and robot_table.is_table(name):
-        return robot_table.robot_from_table(robot_table.read_table(name), name=Path(name).stem)
+        return robot_table.robot_from_table(robot_table.read_table(name), name=Path(name).stem, source=name)
     if suffix in (".json", ".yaml", ".yml"):
         return read_robot_file(name)
     builtin = sorted(BUILTIN)

@@ -113,10 +113,22 @@ def read_table(path) -> list[dict]:
     if text.lstrip().startswith("{"):
         doc = parse_document(text, str(path), "robocal parameter table")
         if not isinstance(doc, dict) or doc.get("schema") != TABLE_SCHEMA:
-            raise InvalidParameterError(f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r})")
+            raise InvalidParameterError(
+                f"{path}: not a robocal parameter table (schema {TABLE_SCHEMA!r}); robocal reads a robot or result file by its suffix: name it .json"
+            )
         return [dict(r) for r in doc["rows"]]
+    if text.lstrip().startswith("<"):
+        raise InvalidParameterError(f"{path}: holds XML (a URDF?), not a parameter table; robocal reads a robot file by its suffix: name a URDF .urdf")
+    reader = csv.DictReader(text.splitlines())
+    header = [h.strip() for h in reader.fieldnames or []]
+    missing, unknown = [c for c in TABLE_COLUMNS if c not in header], [h for h in header if h not in TABLE_COLUMNS]
+    if missing or unknown:  # a column the rows would silently lack, or one they would silently drop
+        raise InvalidParameterError(
+            f"{path}, row 1: not a robocal parameter table (its header is {TABLE_COLUMNS}): "
+            + "; ".join(f"{what} {cols[:8]}" for what, cols in (("missing", missing), ("unknown", unknown)) if cols)
+        )
     rows = []
-    for i, raw in enumerate(csv.DictReader(text.splitlines()), start=2):
+    for i, raw in enumerate(reader, start=2):
         row = {}
         for col in TABLE_COLUMNS:
             cell = (raw.get(col) or "").strip()
@@ -135,24 +147,26 @@ def read_table(path) -> list[dict]:
     return rows
 
 
-def robot_from_table(rows: Sequence[dict], name: str = "exported") -> Robot:
+def robot_from_table(rows: Sequence[dict], name: str = "exported", source=None) -> Robot:
     """A :class:`Robot` rebuilt from table rows alone (sensor parameters at their neutral values:
-    anchor 0, ``cable_offset`` 0, ``cable_scale`` 1).
+    anchor 0, ``cable_offset`` 0, ``cable_scale`` 1). ``source``, the file the rows come from,
+    is named in the errors.
 
     Raises
     ------
     InvalidParameterError
         A row lacks a value it needs, or the base / tool row is missing.
     """
+    where = f"{source}: " if source is not None else ""
     joint_rows = [r for r in rows if str(r.get("frame", "")).startswith("joint")]
     frames = {r.get("frame"): r for r in rows if r.get("frame") in ("base", "tool")}
     if not joint_rows or set(frames) != {"base", "tool"}:
-        raise InvalidParameterError("a parameter table needs joint rows and one 'base' and one 'tool' row")
+        raise InvalidParameterError(f"{where}a parameter table needs joint rows and one 'base' and one 'tool' row")
 
     def need(row, col):
         value = row.get(col)
         if value is None:
-            raise InvalidParameterError(f"table row {row.get('frame')!r} lacks {col!r}")
+            raise InvalidParameterError(f"{where}table row {row.get('frame')!r} lacks {col!r}")
         return float(value)
 
     joints, values = [], []

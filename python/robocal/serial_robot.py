@@ -40,6 +40,11 @@ def setup_names(robot: "Robot", measurement: str) -> list[str]:
     return [n for n in names if n in robot.param_names]
 
 
+def _chain(joints: Sequence["Joint"]):
+    """The core's compiled chain of ``joints`` (their conventions and kinds are all it holds)."""
+    return _robocal.Chain([j.convention for j in joints], [j.kind for j in joints])
+
+
 @dataclass(frozen=True)
 class Joint:
     """One joint of a serial chain.
@@ -132,7 +137,7 @@ class Robot:
             limits = as_float_array(joint.limits, f"joint {i} limits")
             if limits.shape != (2,) or not (np.all(np.isfinite(limits)) and limits[0] < limits[1]):
                 raise InvalidParameterError(f"joint {i} limits must be finite (lower, upper) with lower < upper; got {joint.limits!r}")
-        self.chain = _robocal.Chain([j.convention for j in self.joints], [j.kind for j in self.joints])
+        self.chain = _chain(self.joints)
         self.param_names: list[str] = self.chain.param_names()
         self.param_units: list[str] = self.chain.param_units()
         self.params = self._check_params(params, "params")
@@ -353,3 +358,14 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, {self.n_joints} joints, {self.n_params} parameters)"
+
+    # -- pickling (process pools, copy.deepcopy) ----------------------------------------------
+    def __getstate__(self) -> dict:
+        # The compiled chain cannot be pickled; it is made of the joints alone and rebuilt from them.
+        state = self.__dict__.copy()
+        del state["chain"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.chain = _chain(self.joints)

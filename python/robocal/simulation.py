@@ -392,7 +392,9 @@ def write_simulation(dataset: Dataset, truth: Mapping, out_csv, truth_json=None)
     # Both staged before either is renamed: a bad truth path leaves no CSV behind.
     check_outputs(files=[out_csv, truth_json])
     with Staged(out_csv) as data_stage, Staged(truth_json) if truth_json is not None else nullcontext() as truth_stage:
-        write_canonical(dataset, data_stage.tmp)
+        with data_stage.writing():  # two stages open: each write names its own file if it fails
+            write_canonical(dataset, data_stage.tmp)
         if truth_stage is not None:
-            truth_stage.tmp.write_text(json.dumps(truth, indent=2) + "\n")
+            with truth_stage.writing():
+                truth_stage.tmp.write_text(json.dumps(truth, indent=2) + "\n")
     return Path(out_csv), None if truth_json is None else Path(truth_json)

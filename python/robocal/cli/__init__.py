@@ -103,7 +103,8 @@ class _Log:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code: 0, 1 (a
-    check failed), 2 (refused: one line ``robocal: error: ...``), 130 (interrupted)."""
+    check failed, a target unreachable, every run of ``compare`` failed), 2 (refused: one line
+    ``robocal: error: ...``), 130 (interrupted)."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     try:
         return _run(argv)
@@ -123,6 +124,7 @@ def _run(argv: list[str]) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(command).parse_args(argv)
     progress.QUIET = args.quiet
+    progress.STAGE_LINES = not args.quiet  # reset below: robocal called from Python draws only bars
     log = _Log(args.quiet, args.debug)
     paths = COMMANDS[args.command][1]
     claims = []
@@ -149,6 +151,7 @@ def _run(argv: list[str]) -> int:
         print("robocal: error: " + printable(" ".join(str(exc).split()), one_line=True), file=sys.stderr)
         return 2
     finally:
+        progress.STAGE_LINES = False
         log.close()
         for claim in claims:
             claim.release()

@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
             + (f", test RMSE {held['rmse']:.4f} mm ({held['n']} samples)" if held else "")
             + (f"; own terms: {', '.join(session['terms'])}" if session["terms"] else "")
         )
-    print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in list(doc["fixed"].items())[:4]))
+    # Every fixed parameter is named: a count above the names it lists reads as a contradiction.
+    print(f"  estimated {len(doc['free'])} parameters; fixed {len(doc['fixed'])}: " + "; ".join(f"{k} ({v})" for k, v in doc["fixed"].items()))
     for cause in doc.get("causes", []):
         shown = ", ".join(
             f"{k} {v['value']:.4g}" + (f" ± {v['std']:.2g}" if v["std"] is not None else "") + f" {v['unit']}"

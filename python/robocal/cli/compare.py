@@ -10,7 +10,15 @@ from ..exceptions import InvalidParameterError
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
+#: Exit status when every run failed: the tables hold no method's figure (written all the same, with the failures).
+ALL_FAILED = 1
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = (
+        f"exit status: 0 when at least one run succeeded (failed runs are named in the failures column), "
+        f"{ALL_FAILED} when every run failed (the tables and comparison.json are written, with the failures), 2 when refused"
+    )
     add_data_arguments(parser)
     parser.add_argument(
         "--protocol",
@@ -50,4 +58,4 @@ def run(args: argparse.Namespace) -> int:
     if failed:
         print(f"{len(failed)} of {len(result.runs)} runs failed (see the failures column and comparison.json)")
     print(f"wrote {len(paths)} files to {args.out}")
-    return 0
+    return ALL_FAILED if failed and len(failed) == len(result.runs) else 0

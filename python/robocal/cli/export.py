@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..export import FORMATS, TABLE_FORMATS, export_checked
+from ..export import FORMATS, TABLE_FORMATS, export_checked, suffix_note
 from ..outputs import printable
 from ..results import load_result
 
@@ -37,4 +37,7 @@ def run(args: argparse.Namespace) -> int:
         return 1
     article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
     print(f"wrote the calibrated {printable(robot.name, one_line=True)} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
+    note = suffix_note(args.format, args.out, args.table_format)
+    if note:
+        print(f"note: {note}")
     return 0

@@ -57,9 +57,6 @@ def read_canonical(
     if angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
     header, body = split_delimited(read_text(path), ",", path)
-    if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
-        sep = ";" if ";" in header[0] else "tab"
-        raise DataError(f"the header has a single column containing '{sep}': canonical files are comma-separated", path, 1)
     return canonical_dataset(header, body, path, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
 
 

@@ -157,10 +157,6 @@ def _read_table(path, sheet: Optional[str] = None, delimiter: str = ","):
     if sheet is not None:
         raise DataError(f"`sheet` applies to .xlsx workbooks; this is a text file (sheet={sheet!r})", path)
     header, body = split_delimited(read_text(path), delimiter, path)
-    if len(header) == 1:
-        for other in {",", ";", "\t"} - {delimiter}:
-            if other in header[0]:
-                raise DataError(f"the header is a single column containing {other!r}: this file is {delimiter!r}-separated", path, 1)
     return header, body, []
 
 

@@ -94,6 +94,16 @@ def split_delimited(text: str, delimiter: str, path):
     if not lines or not any(cell.strip() for cell in lines[0]):
         raise DataError("the file is empty (a header row is expected)", path, 1)
     header = [h.strip() for h in lines[0]]
+    if len(header) == 1:  # one column holding another separator: the file is of another format
+        seen = next((d for d in (",", ";", "\t") if d != delimiter and d in header[0]), None)
+        if seen is not None:
+            name = {",": "','", ";": "';'", "\t": "tab"}
+            raise DataError(
+                f"the header is a single column containing {name[seen]}: this file looks {name[seen]}-separated; "
+                f"the format it is read as is {name[delimiter]}-separated",
+                path,
+                1,
+            )
     check_header(header, path)
     if body is not None:
         body.n_columns = len(header)

@@ -64,7 +64,7 @@ from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_sess
 from ..data.dataset import Dataset
 from ..exceptions import InvalidParameterError
 from ..kernels import as_count, as_float, as_tolerance, is_sparse
-from ..progress import progress
+from ..progress import progress, stage
 from ..robot import Robot
 from ..stats import paired_z, rmse_of_squares
 from . import conventions
@@ -269,6 +269,13 @@ def baseline_mask(robot: Robot, measurement: str, hayati: bool) -> np.ndarray:
     return mask
 
 
+def require_enough_samples(dataset: Dataset, folds: int) -> None:
+    """An error naming the data when ``dataset`` is too small for ``folds`` folds (four samples
+    per fold); a multi-session diagnosis asks it of every session before any work."""
+    if len(dataset) < 4 * folds:
+        raise InvalidParameterError(f"{dataset.source or 'the data'}: diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
+
+
 # Diagnosis solves thousands of small least-squares problems: a multi-threaded BLAS only adds
 # hand-over cost there, and on a loaded machine its spinning threads made it 20x slower.
 @threadpool_limits.wrap(limits=1, user_api="blas")
@@ -334,8 +341,7 @@ def diagnose(
     dataset, rob = load_inputs(data, robot, measurement, angle_unit)
     if groups is not None and np.shape(groups) != (len(dataset),):
         raise InvalidParameterError(f"`groups` needs one label per sample, shape ({len(dataset)},); got {groups!r}")
-    if len(dataset) < 4 * folds:
-        raise InvalidParameterError(f"diagnose needs at least {4 * folds} samples for {folds} folds; got {len(dataset)}")
+    require_enough_samples(dataset, folds)
     mask = baseline_mask(rob, dataset.measurement, hayati)
     dataset, effects, rejected, geometric_cv = conventions.reading_conventions(rob, dataset, mask, folds, seed, groups)
     base = Problem.build(rob, dataset, mask=mask)
@@ -483,7 +489,8 @@ def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int
         last_refusals = len(state.rejected)
         screening = screen_round(state, pool, wander_offered, alpha=alpha, max_effects=max_effects, replay=replay)
         last_rmse, searched = screening.rmse, max(searched, screening.candidates)
-        taken = confirm(state, screening)
+        with stage(f"diagnose: confirming round {len(state.model.causes) + 1}"):  # the nonlinear re-fits: most of a diagnosis' time
+            taken = confirm(state, screening)
         if taken is None:
             _refuse_best(state, screening)
             break
@@ -626,7 +633,8 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
             state.arcs = list(
                 {arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)}.values()
             )  # a long session widens them alike
-        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in state.arcs]
+        arcs = progress(state.arcs, desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
+        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs

@@ -31,7 +31,7 @@ from . import conventions
 from ..causes.candidates import PHYSICAL_KINDS, library, map_candidate, map_coverage_mask
 from ..causes.problem import ExtendedProblem, judged_rmse, judged_unit, reported_rmse, rotation_squared_rad, squared_errors, stack
 from ..causes.wander import TIME_TERMS
-from ..kernels import is_sparse, truncated_svd, unit_columns
+from ..kernels import as_count, is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
@@ -46,6 +46,7 @@ from .select import (
     coefficient_reference,
     diagnose,
     physics_first,
+    require_enough_samples,
     undetermined,
 )
 from .uncertainty import uncertainty_entries
@@ -320,6 +321,8 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
     max_effects, min_gain, hayati = options["max_effects"], options["min_gain"], options["hayati"]
     t0 = time.perf_counter()
     datas, rob = load_sessions(data, robot, measurement, angle_unit, "a multi-session diagnosis")
+    for d in datas:  # up front: a session too small would otherwise stop the run after the others' diagnoses
+        require_enough_samples(d, as_count(options["folds"], "folds", 2))
     kind = datas[0].measurement
     sessions = []
     for d in progress(datas, desc="diagnose: each session on its own", unit="session"):
