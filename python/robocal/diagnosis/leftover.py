@@ -275,7 +275,7 @@ def leftover_words(verdict: Optional[dict]) -> Optional[str]:
     if verdict.get("unexplained") or not verdict["findings"]:  # (a report from before "unexplained")
         left = f"{verdict['rmse_mm']:.3g} mm held out is left" if isinstance(verdict.get("rmse_mm"), (int, float)) else "what is left"
         return (
-            f"not explained: {left}, {tried}; but the data do not measure their noise ({verdict.get('noise_reference')}), "
+            f"not explained: {left}, {tried}; but there is {verdict.get('noise_reference')}, "
             "so it is not known to be noise — revisit configurations, or record the sensor's noise, to tell"
         )
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])
