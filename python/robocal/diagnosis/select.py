@@ -533,6 +533,10 @@ class Round:
     #: Per shape of a joint or compliance screened (label): its held-out squared errors on the
     #: random folds (what :meth:`told_apart` compares).
     shape_errs: dict = field(default_factory=dict)
+    #: Per rigid step (label): by how many standard errors its held-out errors on the random
+    #: folds beat those of the shift at the same sample (:func:`paired_z`): the turn (or the
+    #: anchor's move) it claims beyond a shift must show, as a step's jump must.
+    turn_z: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
         """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
@@ -644,6 +648,9 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # differ (around the step); the public D2 file's 2.9 mm jump of the cable zero, 1.6
         # standard errors so scaled, beats its ramp by 8.3.
         screening.jump_z[c.label] = paired_z(best[on], step_errs[c.label][on])
+        shift = c.label.replace(" frame=rigid", "")
+        if shift != c.label and shift in step_errs:
+            screening.turn_z[c.label] = paired_z(step_errs[shift][on], step_errs[c.label][on])
     screening.ranked = confirmation_order(
         scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes), told_apart=screening.told_apart
     )
@@ -779,6 +786,16 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
                     f"the step's held-out errors beat it by {screening.jump_z[c.label]:.2f} standard errors, below {JUMP_Z:.2f}: no jump shown"
                 )
                 gradual_level = c.label
+            rejected.append(screening.refusal(item, None, why))
+            continue
+        if screening.turn_z.get(c.label, np.inf) < JUMP_Z:
+            # The sensor's rigid move claims a turn (or the anchor's move) beyond a shift of its
+            # readings: the shift at the same sample must predict the held-out samples worse
+            # (a rigid step took the leftover of time-correlated noise and of a sensor's own error).
+            why = (
+                f"the readings shifted at the same sample predict as well: the move and turn beat the shift by {screening.turn_z[c.label]:.2f} "
+                f"standard errors, below {JUMP_Z:.2f}: no turn shown"
+            )
             rejected.append(screening.refusal(item, None, why))
             continue
         if c.stage == "joints":
