@@ -34,12 +34,19 @@ def _numbers(count: int, what: str):
     return parse
 
 
+#: plan()'s arguments that no option of the same name sets (for :func:`robocal.cli.cli_words`).
+API_WORDS = {"joint_ranges": "--joint-range", "result": "--from", "causes": "--from"}
+
+
 def _joint_range(text: str) -> tuple:
     joint, _, bounds = text.partition("=")
     try:
-        return int(joint), _numbers(2, "LO,HI")(bounds)
+        joint, (lo, hi) = int(joint), _numbers(2, "LO,HI")(bounds)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected J=LO,HI (e.g. 2=-30,45); got {text!r}") from None
+    if not lo < hi:  # here, in the user's degrees, not in the library's radians
+        raise argparse.ArgumentTypeError(f"expected J=LO,HI with LO < HI; got {text!r}")
+    return joint, (lo, hi)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
