@@ -785,8 +785,6 @@ def _sources(robot, measurement, result, causes, data, angle_unit):
             raise InvalidParameterError(f"the result is a {doc['measurement']} calibration; the plan is for {measurement} measurements")
         measurement = doc["measurement"]
         labels = list(doc.get("structure", [])) + [c.get("label", c.get("kind")) for c in doc.get("causes", [])]
-    if causes is not None:
-        labels += read_causes(causes)[0]
     datasets = []
     for d in [] if data is None else ([data] if isinstance(data, (str, Path, Dataset)) else list(data)):
         dataset, robot = load_inputs(d, robot, measurement, angle_unit)
@@ -795,6 +793,8 @@ def _sources(robot, measurement, result, causes, data, angle_unit):
     if robot is None:
         raise InvalidParameterError("no robot: pass `robot`, a result or data that name it")
     robot = robot if isinstance(robot, Robot) else load_robot(robot)
+    if causes is not None:
+        labels += read_causes(causes, robot.name)[0]
     if measurement is None:
         raise InvalidParameterError(f"no measurement: pass `measurement`, one of {MEASUREMENTS}")
     if measurement not in MEASUREMENTS:

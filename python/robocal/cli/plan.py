@@ -9,6 +9,7 @@ import math
 import time
 
 from ..data.dataset import OBSERVATION_COLUMNS
+from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..outputs import printable, write_text
 from ..planning import CANDIDATES, CRITERIA, MAX_CANDIDATES, MAX_POSES, TRACKER_RANGE, plan
@@ -117,7 +118,7 @@ def _source(path):
     document = read_document(path, "result or diagnose report")
     if isinstance(document, dict) and document.get("schema") == RESULT_SCHEMA:
         return document, None
-    return None, document
+    return None, load_diagnosis(path)  # read from its path, so that its errors name the file
 
 
 def _mm(value) -> str:
