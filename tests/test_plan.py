@@ -296,6 +296,17 @@ def test_the_cli_bounds_poses_and_candidates_before_any_work(tmp_path, capsys, c
     assert not (tmp_path / "p.csv").exists()
 
 
+def test_data_of_another_robot_are_refused(tmp_path, capsys):
+    """Issue 52 #7: ABB data planned for as an HSR JR680 fitted its anchor at (752, 674, 974) mm and stated figures as if at noise."""
+    data, _ = simulate("abb-irb120", "cable", samples=200, seed=3)
+    path = robocal.data.write_canonical(data, tmp_path / "abb.csv")  # a file that does not name its robot
+    with pytest.raises(robocal.exceptions.DataError, match="the data do not fit hsr-jr680: .* another robot than the one given"):
+        plan("hsr-jr680", "cable", 10, data=str(path), **SMALL)
+    code = main(["plan", "--robot", "hsr-jr680", "--measurement", "cable", "--poses", "10", "--data", str(path), "--out", str(tmp_path / "p.csv")])
+    assert code == 2 and "abb.csv: the data do not fit hsr-jr680" in capsys.readouterr().err
+    assert plan("abb-irb120", "cable", 10, data=str(path), **SMALL).report["poses"] == 10
+
+
 def test_the_cli_takes_the_criterion_and_the_bound(tmp_path, capsys):
     args = ["plan", "--robot", "ur10", "--measurement", "position", "--poses", "12", "--candidates", "400", "--out", str(tmp_path / "p.csv")]
     assert main([*args, "--criterion", "D", "--bound"]) == 0

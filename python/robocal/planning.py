@@ -46,7 +46,7 @@ from typing import Mapping, Optional, Sequence, Union
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .calibration.api import load_inputs
+from .calibration.api import another_robot, load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
 from .calibration.sessions import SESSION_KINDS, concatenate
 from .causes import structure
@@ -54,7 +54,7 @@ from .causes.extended import extended_problem, read_causes
 from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
-from .exceptions import InvalidParameterError
+from .exceptions import DataError, InvalidParameterError
 from .outputs import Staged
 from .physics import DEG
 from .results import load_result
@@ -979,6 +979,9 @@ def plan(
         _check_setups(robot, datasets, params)
         measured = concatenate(datasets) if len(datasets) > 1 else datasets[0]
         params = start_parameters(robot, measured, params)
+        wrong = another_robot(robot, measured)  # else the set-up fits another robot's data and the figures look like noise
+        if wrong:
+            raise DataError(wrong, measured.source)
     constraints = Constraints(lower, upper, cable, tracker, distances, box)
     readings, notes = candidate_poses(robot, measurement, params, constraints, structures, candidates, rng, least=poses)
     pool = structure.to_model(readings, structures)
