@@ -337,6 +337,27 @@ def test_sample_counts_are_bounded(inputs, tmp_path, capsys, argv):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "argv,words",
+    [
+        (["plan", "--robot", ROBOT, "--measurement", "cable", "--poses", "1000000"], "`--poses` must be at most 500"),
+        (["plan", "--robot", ROBOT, "--measurement", "cable", "--poses", "300", "--candidates", "100"], "`--candidates` must be an integer >= 300"),
+        (["plan", "--measurement", "cable", "--poses", "10"], "pass `--robot`"),
+        (["plan", "--robot", ROBOT, "--measurement", "cable", "--poses", "10", "--joint-range", "9=1,2"], "`--joint-range`: joint 9 is not a joint"),
+        (["simulate", "--samples", "0"], "`--samples` must be an integer >= 1"),
+    ],
+)
+def test_errors_name_the_option_not_the_librarys_argument(tmp_path, capsys, argv, words):
+    """Issue 52 #15: the library's argument names (`candidates`, `robot`, `joint_ranges`) are the options the user typed."""
+    refused([*argv, "--out", tmp_path / "p.csv"], capsys, words)
+
+
+def test_a_joint_range_is_refused_in_the_degrees_it_was_given(tmp_path, capsys):
+    """Issue 52 #15: `2=10,10` was echoed in radians as `joint_ranges[2]`."""
+    code, _, err = run(["plan", "--robot", ROBOT, "--measurement", "cable", "--poses", "10", "--joint-range", "2=10,10", "--out", tmp_path / "p.csv"], capsys)
+    assert code == 2 and err.strip().splitlines()[-1].endswith("argument --joint-range: expected J=LO,HI with LO < HI; got '2=10,10'")
+
+
 def test_too_few_samples_say_what_needs_how_many(inputs, tmp_path, capsys):
     lines = (inputs / "d.csv").read_text().splitlines()
     one = _canonical(tmp_path, lines[0], lines[1:2], "one.csv")

@@ -542,10 +542,10 @@ def test_exception_hierarchy():
 
 @pytest.mark.parametrize("seed", range(5))
 def test_configuration_groups_equal_the_kd_tree_labels(seed):
-    """The core's sort-and-sweep labels (behind ``data.splits.configuration_groups``) are the
-    oracle's: a k-d tree's pairs within ``tol`` on every joint, connected components,
-    first-appearance order."""
-    from robocal.data.splits import configuration_groups
+    """The core's sort-and-sweep labels (the chained components ``data.splits.configuration_groups``
+    cuts where they span more than ``tol``) are the oracle's: a k-d tree's pairs within ``tol`` on
+    every joint, connected components, first-appearance order."""
+    from robocal.kernels import configuration_groups
     from robocal.reference import configuration_groups as oracle
 
     rng = np.random.default_rng(seed)

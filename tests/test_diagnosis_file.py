@@ -148,6 +148,27 @@ def test_the_command_line_refuses_a_bad_report_in_one_line(written, capsys, text
     assert err == f"robocal: error: diagnose report {path}: effect 1 lacks kind"
 
 
+def test_a_report_of_another_robot_is_refused_by_every_reader(written, tmp_path, capsys):
+    """Issue 52 #6: an abb-irb120 report was fitted to ur10 data, planned for and shown beside a ur10 result (a result of another robot was refused)."""
+    w = written[0]
+    data, _ = robocal.simulate("ur10", "position", samples=60, seed=2)
+    csv = write_canonical(data, tmp_path / "p.csv")
+    assert main(["calibrate", str(csv), "--robot", "ur10", "--out", str(tmp_path / "rp.json"), "--quiet"]) == 0
+    report = w / "report.json"
+    for argv in (
+        ["calibrate", str(csv), "--robot", "ur10", "--causes", str(report), "--out", str(tmp_path / "x.json")],
+        ["plan", "--robot", "ur10", "--from", str(report), "--poses", "10", "--candidates", "100", "--out", str(tmp_path / "x.csv")],
+        ["plan", "--robot", "ur10", "--from", str(report), "--data", str(csv), "--poses", "10", "--candidates", "100", "--out", str(tmp_path / "x.csv")],
+        ["report", str(tmp_path / "rp.json"), "--diagnosis", str(report), "--out", str(tmp_path / "page")],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err == f"robocal: error: diagnose report {report} is a diagnosis of robot 'abb-irb120', not of 'ur10': pass a diagnose report of 'ur10'"
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["p.csv", "rp.json"]
+    with pytest.raises(InvalidParameterError, match="is a diagnosis of robot 'abb-irb120', not of 'ur10'"):
+        robocal.calibrate(str(csv), robot="ur10", causes=written[2])
+
+
 def test_a_multi_session_report_reads_typed(tmp_path):
     """Several sessions: the leave-one-session-out figures, each session's own report and own terms."""
     sessions = [robocal.simulate("abb-irb120", "position", samples=150, seed=2, session=s)[0] for s in range(2)]

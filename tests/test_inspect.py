@@ -112,3 +112,17 @@ def test_cli_writes_json(datasets, tmp_path, capsys):
     assert report["rows"] == 120 and report["cross_check"]["inconsistent"] == []
     args = parser.parse_args([str(datasets / "robotcali-abb-irb120" / "RobotCali-new.xlsx"), "--strict"])
     assert run(args) == 1
+
+
+def test_data_of_another_robot_are_a_problem(tmp_path, capsys):
+    """Issue 52 #11: HSR cable data inspected as a UR10 passed --strict (inlier RMS 176 mm; 0.44 mm with the right robot)."""
+    data, _ = robocal.simulate("hsr-jr680", "cable", samples=300, seed=1)
+    path = write_canonical(data, tmp_path / "a.csv")
+    right, wrong = inspect(str(path), robot="hsr-jr680"), inspect(str(path), robot="ur10")
+    assert right["another_robot"] is None and right["problems"] == 0
+    assert wrong["another_robot"].startswith("the data do not fit ur10: ") and "another robot than the one given" in wrong["another_robot"]
+    assert wrong["problems"] == 1
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert run(parser.parse_args([str(path), "--robot", "ur10", "--strict"])) == 1
+    assert "another robot? the data do not fit ur10" in capsys.readouterr().out

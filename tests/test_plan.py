@@ -161,6 +161,8 @@ def test_a_tracker_keeps_the_tool_point_within_its_range():
         ({"joint_ranges": {2: (1.0, 0.0)}}, "lower < upper"),
         ({"poses": 50, "candidates": 20}, "`candidates` must be an integer >= 50"),
         ({"poses": 0}, "`poses` must be an integer >= 1"),
+        ({"poses": 501, "candidates": 600}, "`poses` must be at most 500; got 501"),
+        ({"candidates": 100_000_001}, "`candidates` must be at most 100,000; got 100,000,001"),
         ({"tracker": (1.0, 2.0, 3.0)}, "applies to position and pose measurements, not cable"),
         ({"cable_range": (0.0, 30.0)}, "`cable_range` must be (min, max)"),
         ({"box": (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)}, "each min < max"),
@@ -280,6 +282,29 @@ def test_the_cli_names_the_constraint_that_leaves_no_candidate(tmp_path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "the cable reading within 25..1975 mm" in err[0] and err[0].startswith("robocal: error: ")
     assert not (tmp_path / "p.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "counts,words",
+    [(["--candidates", "100000000"], "at most 100,000; got 100,000,000"), (["--poses", "200000", "--candidates", "200000"], "at most 500; got 200,000")],
+)
+def test_the_cli_bounds_poses_and_candidates_before_any_work(tmp_path, capsys, counts, words):
+    """Issue 52 #12, #13: a hundred million candidates ran out of memory with a traceback, 200 000 poses ran for minutes."""
+    code = main(["plan", "--robot", "hsr-jr680", "--measurement", "cable", "--poses", "10", *counts, "--out", str(tmp_path / "p.csv")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0]
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_data_of_another_robot_are_refused(tmp_path, capsys):
+    """Issue 52 #7: ABB data planned for as an HSR JR680 fitted its anchor at (752, 674, 974) mm and stated figures as if at noise."""
+    data, _ = simulate("abb-irb120", "cable", samples=200, seed=3)
+    path = robocal.data.write_canonical(data, tmp_path / "abb.csv")  # a file that does not name its robot
+    with pytest.raises(robocal.exceptions.DataError, match="the data do not fit hsr-jr680: .* another robot than the one given"):
+        plan("hsr-jr680", "cable", 10, data=str(path), **SMALL)
+    code = main(["plan", "--robot", "hsr-jr680", "--measurement", "cable", "--poses", "10", "--data", str(path), "--out", str(tmp_path / "p.csv")])
+    assert code == 2 and "abb.csv: the data do not fit hsr-jr680" in capsys.readouterr().err
+    assert plan("abb-irb120", "cable", 10, data=str(path), **SMALL).report["poses"] == 10
 
 
 def test_the_cli_takes_the_criterion_and_the_bound(tmp_path, capsys):

@@ -4,9 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
-from robocal.data import chronological, kfold, paper_split, random_split
+import robocal
+from robocal.data import chronological, configuration_groups, kfold, paper_split, random_split
+from robocal.data.splits import CONFIGURATION_TOLERANCE
 from robocal.exceptions import InvalidParameterError
+from robocal.kernels import configuration_groups as chained_groups
 
 
 def test_paper_split():
@@ -50,3 +56,43 @@ def test_chronological():
     np.testing.assert_array_equal(test, [0, 2])
     with pytest.raises(InvalidParameterError, match="`t` must be 5 finite times"):
         chronological(5, 0.4, t=[1, 2])
+
+
+def _sweep(samples: int, step: float = 0.0009) -> np.ndarray:
+    """Issue 52 #5's path: each joint moves ``step`` rad or less a sample, over 28–61° in all."""
+    amp = np.array([0.4, 0.3, 0.3, 0.5, 0.5, 0.6])
+    return np.radians([0, -60, 60, 0, 45, 0]) + amp * np.sin(np.outer(np.arange(samples), step / amp) + np.arange(6))
+
+
+@given(
+    q=hnp.arrays(np.float64, st.tuples(st.integers(1, 40), st.integers(1, 4)), elements=st.integers(0, 8).map(lambda k: k * 4e-4)),
+    tol=st.sampled_from([0.0, 5e-4, 1e-3, 2e-3]),
+)
+def test_grouping_never_joins_samples_farther_apart_than_the_tolerance(q, tol):
+    """Issue 52 #5: whatever the path between them, two samples of one group are within ``tol`` on
+    every joint; samples the chaining keeps apart stay apart, and repeats share a group."""
+    labels = configuration_groups(q, tol)
+    same = labels[:, None] == labels[None, :]
+    far = np.max(np.abs(q[:, None, :] - q[None, :, :]), axis=2) > tol
+    assert not np.any(same & far)
+    chained = chained_groups(q, tol)
+    assert not np.any(same & (chained[:, None] != chained[None, :]))
+    identical = np.all(q[:, None, :] == q[None, :, :], axis=2)
+    assert np.all(same[identical])
+    _, first = np.unique(labels, return_index=True)
+    assert np.array_equal(labels[np.sort(first)], np.arange(len(first)))  # numbered in order of first appearance
+
+
+def test_a_sweep_in_steps_under_the_tolerance_is_not_one_configuration():
+    """Issue 52 #5: 1500 samples 0.0009 rad apart were chained into one "target"; a 1500-sample
+    trajectory was refused as 1 distinct joint configuration."""
+    q = _sweep(1500)
+    labels = configuration_groups(q)
+    assert chained_groups(q, CONFIGURATION_TOLERANCE).max() == 0  # the chaining's one component
+    assert labels.max() + 1 >= 1500 // 2
+    data, _ = robocal.simulate("ur10", "position", seed=2, session=3, poses=q)
+    result = robocal.calibrate(data, robot="ur10")
+    assert result.metrics["test"]["rmse"] < 0.1
+    # ISO 9283: no pose of the path is commanded twice, so no repeatability (it was 17.9 mm for 0.02 mm of noise)
+    iso = robocal.verify(result.to_dict(), data)["iso9283"]
+    assert iso["n_targets"] == 1500 and iso["repeatability_mm"] is None

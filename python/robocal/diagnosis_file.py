@@ -294,6 +294,14 @@ class DiagnosisReport(BaseModel):
             raise InvalidParameterError(f"{self.where} lacks key 'model': the diagnosed causes to fit are its model.causes")
         return self.model
 
+    def check_robot(self, name: str) -> "DiagnosisReport":
+        """The report, or an error naming the file if it is a diagnosis of another robot than
+        ``name``: its causes name that robot's joints and were found on its data (a report that
+        names no robot, written by hand, is taken as it is)."""
+        if self.robot is not None and self.robot != name:
+            raise InvalidParameterError(f"{self.where} is a diagnosis of robot {self.robot!r}, not of {name!r}: pass a diagnose report of {name!r}")
+        return self
+
     def needs_figures(self, reader: str) -> "DiagnosisReport":
         """The report, or an error naming the file if it lacks the held-out figures ``reader``
         (what shows them) needs: the baseline's held-out RMSE, the effects, each with its

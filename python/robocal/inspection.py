@@ -15,6 +15,7 @@ from typing import Optional
 
 import numpy as np
 
+from .calibration.api import another_robot
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem, start_parameters
 from .kernels import as_float
@@ -63,7 +64,8 @@ def inspect(
         ``angle_unit`` (``{unit, plausible, message}``), ``fit`` (the robust nominal-model fit
         and its ``outliers``, ``{"error": message}`` when the data cannot be fitted — counted as a problem — or
         None), ``cross_check`` (D2's controller x, y, z against the
-        nominal forward kinematics, or None) and ``problems`` (the number of findings).
+        nominal forward kinematics, or None), ``another_robot`` (why the data are probably not of
+        the robot: :func:`robocal.calibration.api.another_robot`, or None) and ``problems`` (the number of findings).
     """
     sigmas = as_float(sigmas, "sigmas")
     if not (np.isfinite(sigmas) and sigmas > 0):  # 0 or less calls every sample an outlier
@@ -93,6 +95,9 @@ def inspect(
         "fit": _fit_or_error(dataset, model, sigmas) if model else None,
         "cross_check": cross_check(dataset, model) if model and "controller_xyz" in dataset.extra else None,
     }
+    # The robust fit holds the kinematics nominal: its set-up absorbs much of another robot's
+    # geometry, and its inliers' RMS has no bound that tells a worn robot from another one.
+    report["another_robot"] = another_robot(model, dataset) if report["fit"] and "error" not in report["fit"] else None
     report["problems"] = (
         len(report["bad_cells"])
         + len(report["duplicates"])
@@ -100,6 +105,7 @@ def inspect(
         + (not report["angle_unit"]["plausible"])
         + (len(report["fit"].get("outliers", [])) + ("error" in report["fit"]) if report["fit"] else 0)  # a failed fit is a finding
         + (len(report["cross_check"]["inconsistent"]) if report["cross_check"] else 0)
+        + (report["another_robot"] is not None)
     )
     return report
 

@@ -217,9 +217,10 @@ def truncated_svd(A: np.ndarray, rcond: Optional[float] = SVD_RCOND) -> tuple[np
 
 def configuration_groups(q, tol: float) -> np.ndarray:
     """One label per sample of ``q`` (m, N): samples whose joint values agree within ``tol`` on
-    every joint (chained) share one, numbered ``0..g-1`` in order of first appearance — the
-    labels of :func:`robocal.data.splits.configuration_groups` (a k-d tree's pairs and connected
-    components), from a sort-and-sweep in Rust (20 000 samples: 2 ms instead of 60 ms)."""
+    every joint (chained) share one, numbered ``0..g-1`` in order of first appearance — a k-d
+    tree's pairs and connected components (:func:`robocal.reference.configuration_groups`), from a
+    sort-and-sweep in Rust (20 000 samples: 2 ms instead of 60 ms). Chained components can span
+    far more than ``tol``: :func:`robocal.data.splits.configuration_groups` cuts those."""
     return _robocal.configuration_groups(as_float_array(q, "q"), as_float(tol, "tol"))
 
 

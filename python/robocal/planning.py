@@ -46,7 +46,7 @@ from typing import Mapping, Optional, Sequence, Union
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .calibration.api import load_inputs
+from .calibration.api import another_robot, load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
 from .calibration.sessions import SESSION_KINDS, concatenate
 from .causes import structure
@@ -54,7 +54,7 @@ from .causes.extended import extended_problem, read_causes
 from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
 from .data.canonical import write_canonical
 from .data.dataset import Dataset
-from .exceptions import InvalidParameterError
+from .exceptions import DataError, InvalidParameterError
 from .outputs import Staged
 from .physics import DEG
 from .results import load_result
@@ -68,6 +68,12 @@ SCHEMA = "robocal.plan/1"
 #: Candidates drawn within the constraints; the draws stop after this many times as many tries.
 CANDIDATES = 10_000
 MAX_DRAW_FACTOR = 200
+#: Upper bounds of ``poses`` and ``candidates``, checked before any work: the design holds every
+#: candidate's rows (100 000 pose candidates: about 1 GB and half a minute), and the exchange's
+#: time grows with poses × candidates (1 000 poses among 10 000 candidates: five minutes). A
+#: measuring campaign of more than a few hundred poses is several sessions, each planned anew.
+MAX_POSES = 500
+MAX_CANDIDATES = 100_000
 #: The greedy start's ridge, in columns scaled to one candidate's information each: a millionth
 #: of a pose, enough to invert the information before there are as many poses as parameters.
 RIDGE = 1e-6
@@ -779,8 +785,6 @@ def _sources(robot, measurement, result, causes, data, angle_unit):
             raise InvalidParameterError(f"the result is a {doc['measurement']} calibration; the plan is for {measurement} measurements")
         measurement = doc["measurement"]
         labels = list(doc.get("structure", [])) + [c.get("label", c.get("kind")) for c in doc.get("causes", [])]
-    if causes is not None:
-        labels += read_causes(causes)[0]
     datasets = []
     for d in [] if data is None else ([data] if isinstance(data, (str, Path, Dataset)) else list(data)):
         dataset, robot = load_inputs(d, robot, measurement, angle_unit)
@@ -789,6 +793,8 @@ def _sources(robot, measurement, result, causes, data, angle_unit):
     if robot is None:
         raise InvalidParameterError("no robot: pass `robot`, a result or data that name it")
     robot = robot if isinstance(robot, Robot) else load_robot(robot)
+    if causes is not None:
+        labels += read_causes(causes, robot.name)[0]
     if measurement is None:
         raise InvalidParameterError(f"no measurement: pass `measurement`, one of {MEASUREMENTS}")
     if measurement not in MEASUREMENTS:
@@ -886,7 +892,7 @@ def plan(
     measurement : {"cable", "position", "pose"}, optional
         Default: the result's or the data's.
     poses : int
-        How many poses to plan.
+        How many poses to plan, at most :data:`MAX_POSES`.
     result : path or dict, optional
         A calibration result: the plan is linearised at its calibrated robot and set-up (the
         cable's anchor, the tracker's frame) and its model includes the result's causes.
@@ -901,7 +907,7 @@ def plan(
         What is already measured, with the sensor where it still is (one set-up, fitted on them):
         the plan adds the poses that best determine what these leave open.
     candidates : int
-        Candidate poses drawn within the constraints.
+        Candidate poses drawn within the constraints: at least ``poses``, at most :data:`MAX_CANDIDATES`.
     seed : int
         Seeds the candidates, the workspace sample and the random poses compared with.
     joint_ranges : mapping, optional
@@ -952,6 +958,8 @@ def plan(
         ``correlation`` with the acquisition order), ``constraints`` and ``not_checked``,
         ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
     """
+    poses = as_count(poses, "poses", least=1, most=MAX_POSES)  # before any file is read
+    candidates = as_count(candidates, "candidates", least=poses, most=MAX_CANDIDATES)
     robot, measurement, params, labels, structures, datasets = _sources(robot, measurement, result, causes, data, angle_unit)
     kinds = [label.split()[0] if label.strip() else "" for label in labels]
     unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
@@ -959,8 +967,6 @@ def plan(
         raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
     if criterion not in CRITERIA:
         raise InvalidParameterError(f"`criterion` must be one of {sorted(CRITERIA)}; got {criterion!r}")
-    poses = as_count(poses, "poses", least=1)
-    candidates = as_count(candidates, "candidates", least=poses)
     rng = seeded_rng(seed)
     sigma = DEFAULT_NOISE[measurement].sigma if noise is None else as_positive(noise, "noise")
     passes = default_passes(poses) if passes is None else as_count(passes, "passes", least=1, most=poses)
@@ -973,6 +979,9 @@ def plan(
         _check_setups(robot, datasets, params)
         measured = concatenate(datasets) if len(datasets) > 1 else datasets[0]
         params = start_parameters(robot, measured, params)
+        wrong = another_robot(robot, measured)  # else the set-up fits another robot's data and the figures look like noise
+        if wrong:
+            raise DataError(wrong, measured.source)
     constraints = Constraints(lower, upper, cable, tracker, distances, box)
     readings, notes = candidate_poses(robot, measurement, params, constraints, structures, candidates, rng, least=poses)
     pool = structure.to_model(readings, structures)

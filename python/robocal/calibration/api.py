@@ -19,8 +19,8 @@ from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
-from .problem import Problem, check_observations
-from .result import CalibrationResult
+from .problem import TOLERANCE, Problem, check_observations
+from .result import CalibrationResult, describe_implausible, grossly_implausible
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
 METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
@@ -81,6 +81,26 @@ def _check_named_robot(dataset: Dataset, named, model: Robot) -> None:
     if model.name in BUILTIN:
         raise InvalidParameterError(f"the data{where} are of robot {named!r}; the robot given is {model.name!r}: pass the robot the data were measured on")
     dataset.notes.append(f"the data name robot {named!r}; used as asked: robot {model.name!r}")
+
+
+def another_robot(robot: Robot, dataset: Dataset) -> Optional[str]:
+    """Why ``dataset`` is probably not of ``robot`` (or not in its units), else None: a geometric
+    fit (LM, every sample) moves kinematic parameters beyond
+    :data:`~robocal.calibration.result.GROSS_FACTOR` times their plausibility limits (100 mm,
+    20°) — what ``calibrate`` warns of (:func:`~robocal.calibration.result.describe_implausible`).
+    The fit holds the manufacturing-tolerance prior (:data:`~robocal.calibration.problem.TOLERANCE`,
+    against the sensor's noise, as diagnose's physical model): what the data leave undetermined
+    stays near nominal (without it, 120 cable samples of the right robot, RobotCali.xlsx, move
+    parameters by hundreds of mm), what they determine goes where the data put it. A fit on
+    nominal kinematics alone cannot tell: its set-up (a cable's anchor, a tracker's frame) absorbs
+    much of another robot's geometry. None too when the data cannot be fitted (too few
+    configurations): the fit's own checks say so where a fit is made."""
+    tolerance = (TOLERANCE["mm"], float(np.degrees(TOLERANCE["rad"])))
+    try:
+        flags = levenberg_marquardt(Problem.build(robot, dataset, kinematic_prior=tolerance)).implausible()
+    except (DataError, InvalidParameterError):
+        return None
+    return f"the data do not fit {robot.name}: {describe_implausible(flags)}" if grossly_implausible(flags) else None
 
 
 def held_out_residuals(result: CalibrationResult, test: Dataset) -> np.ndarray:

@@ -35,8 +35,15 @@ GROSS_FACTOR = 10.0
 #: ... what they most likely mean.
 GROSS = (
     "far beyond any manufacturing error: the data are probably of another robot than the one given (check `--robot`), "
-    "or their joint or length unit is not the one read (deg, mm)"
+    "or their joint or length unit is not the one read (deg, mm), or a joint reads from another zero or direction (`robocal diagnose` names such reading conventions)"
 )
+
+
+def grossly_implausible(implausible: list[dict]) -> int:
+    """How many kinematic parameters lie beyond :data:`GROSS_FACTOR` times their plausibility
+    limit (100 mm, 20°): structure, not a cause a flexible term may fit around — a parameter
+    just past its limit (an undetermined last-joint offset) is not."""
+    return sum(abs(f["deviation"]) > GROSS_FACTOR * f["limit"] for f in implausible)
 
 
 def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDETERMINED) -> str:

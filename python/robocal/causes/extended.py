@@ -116,7 +116,7 @@ def calibrate(
         datasets, r = load_sessions(data, robot, measurement, angle_unit, "a fit on several sessions")
     else:
         dataset, r = api.load_inputs(data, robot, measurement, angle_unit)
-    labels, reported_prior = read_causes(causes) if causes is not None else ([], None)
+    labels, reported_prior = read_causes(causes, r.name) if causes is not None else ([], None)
     kinematic_prior = reported_prior if kinematic_prior is None else kinematic_prior
     parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
     structures = [s for _, s in parsed if s is not None]
@@ -246,13 +246,13 @@ def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
     return [[label for label in labels if _session_term(label)] for _ in range(n)]
 
 
-def read_causes(causes) -> tuple[list[str], Optional[tuple]]:
+def read_causes(causes, robot: str) -> tuple[list[str], Optional[tuple]]:
     """Cause labels from labels or a diagnose report (:func:`robocal.load_diagnosis`: typed, a
-    dict or its JSON file) — the report's reading conventions (``model.structure``) first, then
-    its ``model.causes`` — and the report's tolerance prior ``(mm, deg)`` on the kinematics, if
-    its final model has one."""
+    dict or its JSON file) of robot ``robot`` (a report of another robot is refused) — the
+    report's reading conventions (``model.structure``) first, then its ``model.causes`` — and the
+    report's tolerance prior ``(mm, deg)`` on the kinematics, if its final model has one."""
     if _is_report(causes):
-        model = load_diagnosis(causes).needs_model()
+        model = load_diagnosis(causes).check_robot(robot).needs_model()
         return model.structure + model.causes, None if model.kinematic_prior is None else tuple(model.kinematic_prior)
     if isinstance(causes, str):
         causes = [causes]

@@ -12,6 +12,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import sys
 from dataclasses import dataclass
 
@@ -69,10 +70,25 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         parser_of = sub.add_parser(name, help=help_text, description=help_text)
         if name == command:
             command_module(name).add_arguments(parser_of)
+            parser.command_parser = parser_of  # its options name the library's arguments in errors (cli_words)
         _global_options(parser_of, argparse.SUPPRESS)
         if paths.folders:
             parser_of.add_argument("--force", action="store_true", help="write into an existing, non-empty output folder (its files are overwritten)")
     return parser
+
+
+def cli_words(message: str, parser: argparse.ArgumentParser, aliases: dict) -> str:
+    """``message`` of the library in the command line's words: an argument it names in backticks
+    (`` `candidates` ``, `` `joint_ranges` ``) becomes the option that sets it (``--candidates``,
+    ``--joint-range``): the option's destination, or ``aliases`` (library argument -> option,
+    the command module's ``API_WORDS``) where the two differ. Other names are left as they are."""
+    options = {a.dest: max(a.option_strings, key=len) for a in parser._actions if a.option_strings}
+    options.update(aliases)
+
+    def option(match: re.Match) -> str:
+        return f"`{options[match[1]]}`" if match[1] in options else match[0]
+
+    return re.sub(r"`([A-Za-z_]\w*)`", option, message)
 
 
 #: Formats of the diagnostic log on stderr: one line per message, the module's name with --debug.
@@ -122,7 +138,8 @@ def _run(argv: list[str]) -> int:
     # The options before the subcommand are flags without values: the first word that is not an
     # option names it.
     command = next((a for a in argv if not a.startswith("-")), None)
-    args = build_parser(command).parse_args(argv)
+    parser = build_parser(command)
+    args = parser.parse_args(argv)
     progress.QUIET = args.quiet
     progress.STAGE_LINES = not args.quiet  # reset below: robocal called from Python draws only bars
     log = _Log(args.quiet, args.debug)
@@ -146,9 +163,11 @@ def _run(argv: list[str]) -> int:
         if args.debug:
             raise
         if isinstance(exc, OSError):  # a file error no reader turned into a RobocalError
-            exc = f"{exc.filename}: {exc.strerror or exc}" if exc.filename else (exc.strerror or str(exc))
+            message = f"{exc.filename}: {exc.strerror or exc}" if exc.filename else (exc.strerror or str(exc))
+        else:  # the library names its arguments; the user typed options
+            message = cli_words(str(exc), parser.command_parser, getattr(command_module(args.command), "API_WORDS", {}))
         # one line, whatever the message holds (a name from a file may hold terminal escapes)
-        print("robocal: error: " + printable(" ".join(str(exc).split()), one_line=True), file=sys.stderr)
+        print("robocal: error: " + printable(" ".join(message.split()), one_line=True), file=sys.stderr)
         return 2
     finally:
         progress.STAGE_LINES = False

@@ -53,6 +53,8 @@ def format_report(report: dict, limit: int = 20) -> str:
             + f" ({e['sigmas']:.1f} sigma)"
             for e in _first(fit["outliers"], limit)
         ]
+    if report["another_robot"]:
+        lines.append(f"  another robot? {report['another_robot']}")
     check = report["cross_check"]
     if check:
         lines.append(

@@ -9,9 +9,10 @@ import math
 import time
 
 from ..data.dataset import OBSERVATION_COLUMNS
+from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..outputs import printable, write_text
-from ..planning import CANDIDATES, CRITERIA, TRACKER_RANGE, plan
+from ..planning import CANDIDATES, CRITERIA, MAX_CANDIDATES, MAX_POSES, TRACKER_RANGE, plan
 from ..results import load_result
 from ..robot import MEASUREMENTS
 from ..robot import robot as load_robot
@@ -34,25 +35,34 @@ def _numbers(count: int, what: str):
     return parse
 
 
+#: plan()'s arguments that no option of the same name sets (for :func:`robocal.cli.cli_words`).
+API_WORDS = {"joint_ranges": "--joint-range", "result": "--from", "causes": "--from"}
+
+
 def _joint_range(text: str) -> tuple:
     joint, _, bounds = text.partition("=")
     try:
-        return int(joint), _numbers(2, "LO,HI")(bounds)
+        joint, (lo, hi) = int(joint), _numbers(2, "LO,HI")(bounds)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected J=LO,HI (e.g. 2=-30,45); got {text!r}") from None
+    if not lo < hi:  # here, in the user's degrees, not in the library's radians
+        raise argparse.ArgumentTypeError(f"expected J=LO,HI with LO < HI; got {text!r}")
+    return joint, (lo, hi)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", help="robot name, or a robot / result .json/.yaml, exported table or .urdf file (default: the result's or the data's)")
     parser.add_argument("--measurement", choices=MEASUREMENTS, help="what will be measured (default: the result's or the data's)")
-    parser.add_argument("--poses", type=int, required=True, metavar="N", help="how many poses to plan")
+    parser.add_argument("--poses", type=int, required=True, metavar="N", help=f"how many poses to plan (at most {MAX_POSES})")
     parser.add_argument(
         "--from", dest="source", metavar="FILE", help="a calibration result (its robot, set-up and causes) or a diagnose report (its causes) to plan for"
     )
     parser.add_argument("--data", nargs="+", metavar="MEASURED", help="what is already measured, sensor still in place: plan the next poses")
     parser.add_argument("--out", required=True, help="the plan: a canonical CSV (joints in deg, in measuring order; expected readings)")
     parser.add_argument("--json", metavar="FILE", help="write the JSON report here ('-' for standard output)")
-    parser.add_argument("--candidates", type=int, default=CANDIDATES, help=f"candidate poses drawn within the constraints (default {CANDIDATES})")
+    parser.add_argument(
+        "--candidates", type=int, default=CANDIDATES, help=f"candidate poses drawn within the constraints (default {CANDIDATES}, at most {MAX_CANDIDATES:,})"
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument(
         "--joint-range",
@@ -108,7 +118,7 @@ def _source(path):
     document = read_document(path, "result or diagnose report")
     if isinstance(document, dict) and document.get("schema") == RESULT_SCHEMA:
         return document, None
-    return None, document
+    return None, load_diagnosis(path)  # read from its path, so that its errors name the file
 
 
 def _mm(value) -> str:

@@ -56,7 +56,7 @@ from threadpoolctl import threadpool_limits
 
 from ..calibration.api import load_inputs
 from ..calibration.problem import Problem
-from ..calibration.result import GROSS_FACTOR, CalibrationResult
+from ..calibration.result import GROSS_FACTOR, CalibrationResult, grossly_implausible
 from ..causes import structure
 from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, curved_drift, drift_candidate, library
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
@@ -168,13 +168,6 @@ def simplest_first(ranked: list) -> list:
         if simpler:
             out.insert(i, out.pop(min(simpler, key=lambda j: (out[j][1].size, -out[j][0]))))
     return out
-
-
-def grossly_implausible(implausible: list[dict]) -> int:
-    """How many kinematic parameters lie beyond :data:`GROSS_FACTOR` times their plausibility
-    limit (100 mm, 20°): structure, not a cause a flexible term may fit around — a parameter
-    just past its limit (an undetermined last-joint offset) is not."""
-    return sum(abs(f["deviation"]) > GROSS_FACTOR * f["limit"] for f in implausible)
 
 
 def is_flexible(c: Candidate) -> bool:

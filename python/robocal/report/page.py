@@ -664,7 +664,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     """
     robot, doc = load_result(result)
     implausible = checked_implausible(robot, doc)
-    diag = None if diagnosis is None else load_diagnosis(diagnosis).needs_figures("report --diagnosis")
+    diag = None if diagnosis is None else load_diagnosis(diagnosis).check_robot(robot.name).needs_figures("report --diagnosis")
     d = _load_data(doc, data, angle_unit, robot)
     out = make_folder(out)
     meas = doc["measurement"]
