@@ -461,6 +461,18 @@ def score_alike(named: list[dict], hidden: list[dict]) -> None:
                 break
 
 
+def diagnosed(data) -> tuple[dict, list[dict], float]:
+    """The diagnosis of ``data`` (its report), the causes it names as the scoring reads them
+    (kind, joint, label, params and the shapes it could not tell apart) and its time (s)."""
+    t0 = time.perf_counter()
+    report = robocal.diagnose(data).to_dict()
+    elapsed = time.perf_counter() - t0
+    named = [{k: e.get(k) for k in ("kind", "joint", "label", "params")} for e in report["effects"]]
+    for n, e in zip(named, report["effects"]):
+        n["undetermined_between"] = (e.get("significance") or {}).get("undetermined_between") or []
+    return report, named, elapsed
+
+
 def run_file(f: dict) -> dict:
     """Simulates, diagnoses and scores one planned file; a record (``skipped`` with the reason
     when the combination does not apply)."""
@@ -484,12 +496,7 @@ def run_file(f: dict) -> dict:
     for h, rec in zip((h for h in hidden if "spec" in h), truth["effects"]):
         if h["kind"] == "outliers":
             h["samples"] = rec.get("samples")
-    t0 = time.perf_counter()
-    report = robocal.diagnose(data).to_dict()
-    elapsed = time.perf_counter() - t0
-    named = [{k: e.get(k) for k in ("kind", "joint", "label", "params")} for e in report["effects"]]
-    for n, e in zip(named, report["effects"]):
-        n["undetermined_between"] = (e.get("significance") or {}).get("undetermined_between") or []
+    report, named, elapsed = diagnosed(data)
     score(named, hidden)
     score_equivalent(data, q_true, named, hidden)
     score_alike(named, hidden)
@@ -594,12 +601,7 @@ def run_mismatch_file(f: dict) -> dict:
         return record
     y = mismatch.readings(acq, effects)
     data = robocal.Dataset(q=acq.q, y=y, measurement=f["measurement"], robot=f["robot"], t=acq.t)
-    t0 = time.perf_counter()
-    report = robocal.diagnose(data).to_dict()
-    elapsed = time.perf_counter() - t0
-    named = [{k: e.get(k) for k in ("kind", "joint", "label", "params")} for e in report["effects"]]
-    for n, e in zip(named, report["effects"]):
-        n["undetermined_between"] = (e.get("significance") or {}).get("undetermined_between") or []
+    report, named, elapsed = diagnosed(data)
     score(named, hidden)
     score_alike(named, hidden)
     leftover = report["final"].get("residuals") or {}
