@@ -1,7 +1,7 @@
 """Discovery benchmark: how often a cause ``robocal.diagnose`` names is real, and how often a real
 one is found (issue 25).
 
-    python benches/discovery.py [--files N] [--seed S] [--jobs J] [--kinds k1,k2] [--out F]
+    python benches/discovery.py [--section matched|mismatch] [--files N] [--seed S] [--jobs J] [--kinds k1,k2] [--out F]
 
 Data. About 380 simulated files (deterministic from ``--seed``; 300 samples each, the simulator's
 default geometric errors and sensor noise): the built-in robots (HSR JR680, ABB IRB 120, UR10) ×
