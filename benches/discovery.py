@@ -64,6 +64,11 @@ in the same file, or "nothing"), and the files whose leftover is said to hold an
 cycles a turn of one joint (none is hidden, so each such claim is false). Every file's record (truth, named causes, ``k``, time) goes to
 ``--out`` as JSON.
 
+``--section mismatch``: the same scoring on files made by ``benches/mismatch.py``, a simulator
+that shares only the nominal chain with robocal and makes its effects with physically different
+models (its module notes); each family states the named kinds that are true for it, noise
+families hide no cause. Reported apart, with how often what is left is called noise.
+
 BLAS (and, with ``--jobs`` > 1, Rayon) threads are limited to 1; the time of a diagnosis is
 measured with this setting. Uses only robocal's public API.
 """
