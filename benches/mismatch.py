@@ -26,13 +26,12 @@ within the limits and the cable's range) and the nominal set-up (tool point, anc
 robocal: what was measured where, not how the robot erred.
 
 Each family states which named causes are true for it (``accept``: a claim about the robot a user
-could act on) — e.g. gravity deflection of joint 2 is found by a compliance of joint 2 (or a
-joint map of joint 2, which follows any error of that joint's angle only... not a deflection
-that depends on all joints: so only the compliance); a knocked tracker by a step within ±5
-samples; a warm-up by a drift, a wander or a temperature term (one of them: a second claims
-nothing). Families of noise hide no cause (``optional``): naming one there is false, except the
-shape noted (outliers in heavy-tailed noise, a wander in AR(1) noise), which is neither counted
-true nor false... it is counted true and nothing is missed without it.
+could act on): gravity deflection of joint 2 is found by a compliance of joint 2 (a joint map of
+joint 2 follows an error of that joint's angle alone, not a deflection that depends on every
+joint's); a knocked sensor by a step within ±5 samples; a warm-up by one of a drift, a wander or
+a temperature term (a second claims nothing). Families of noise hide no cause (``optional``):
+naming one there is false, but for the shape noted (outliers in heavy-tailed noise, a wander in
+AR(1) noise), which counts as true; missing it is no error.
 """
 
 from __future__ import annotations
