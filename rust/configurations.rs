@@ -4,9 +4,11 @@
 //! A sweep along the joint with the widest range: after sorting by it, only the samples within
 //! `tol` further along can be partners, so the work is `O(m log m + m·w)` with `w` the samples
 //! per `tol`-wide window (a few for distinct configurations), and pairs are merged by
-//! union-find. The labels are those of `robocal.data.splits.configuration_groups` (a k-d tree's
-//! `query_pairs` with `p = inf`, then connected components), bit for bit: the same pairs
-//! (`max_k |q_ik − q_jk| ≤ tol`), numbered in order of first appearance.
+//! union-find. The labels are the chained components of the pairs `max_k |q_ik − q_jk| ≤ tol`
+//! (a k-d tree's `query_pairs` with `p = inf`, then connected components, bit for bit),
+//! numbered in order of first appearance. `robocal.data.splits.configuration_groups` keeps a
+//! component only where it spans at most `tol` on every joint and cuts a wider one (a sweep in
+//! steps under `tol`) into groups around representatives.
 
 use crate::error::{check_finite, CoreError, CoreResult};
 
