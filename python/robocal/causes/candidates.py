@@ -574,7 +574,7 @@ TURN_AXES = ("rx", "ry", "rz")
 SHIFT_AXES = ("L", "x", "y", "z")
 
 
-def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None, rigid: bool = False) -> Candidate:
+def step_candidate(data: Dataset, sample: int, rigid: bool = False, directions: Optional[np.ndarray] = None) -> Candidate:
     """A step of the sensor's set-up at ``sample`` (0-based index of the first sample after
     it): every sample acquired from then on is read by a sensor placed otherwise.
 
@@ -586,8 +586,8 @@ def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None, ri
     ``y``, and a pose's orientation ``ω`` more); a cable sensor's zero jumps and its anchor moves
     (``anchor_u``, ``anchor_v``: across the mean direction of the cable after the step, mm; along
     it the anchor's move is the zero's). Only those directions the readings determine are
-    columns: the rotation where the points after the step spread, the anchor where a robot
-    (``robot``, the nominal tool points) gives the cable's directions. Both are offered; the
+    columns: the rotation where the points after the step spread, the anchor where the cable's
+    ``directions`` are given (:func:`cable_directions`, once for all of a round's steps). Both are offered; the
     selection takes the shift where the turn gains nothing (:func:`~robocal.diagnosis.select.simplest_first`)."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     if not 0 < sample < m:
@@ -596,7 +596,7 @@ def step_candidate(data: Dataset, sample: int, robot: Optional[Robot] = None, ri
     after = position >= position[sample]
     if data.measurement == "cable":
         axes, columns = ["L"], [np.ones((m, 1, 1))]
-        u = cable_directions(data, robot) if rigid else None
+        u = directions if rigid else None
         if u is not None:
             mean = u[after].mean(axis=0)
             across = np.linalg.svd(np.eye(3) - np.outer(mean, mean) / (mean @ mean))[0][:, :2]  # two unit vectors ⟂ the mean direction

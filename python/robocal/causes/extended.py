@@ -29,7 +29,7 @@ from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
 from ..results import file_sha256, training_fingerprint
 from . import structure
-from .candidates import MAP_LABEL, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
+from .candidates import MAP_LABEL, cable_directions, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
 from .problem import ExtendedProblem, stack
 from .wander import wander_candidate
 
@@ -280,7 +280,9 @@ def extended_problem(
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+( frame=rigid)?", label)
         if step:
-            pool[label] = step_candidate(dataset, int(step.group(1)), problem.robot, rigid=bool(step.group(2)))
+            rigid = bool(step.group(2))
+            directions = cable_directions(dataset, problem.robot) if rigid and dataset.measurement == "cable" else None
+            pool[label] = step_candidate(dataset, int(step.group(1)), rigid, directions)
         wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
             pool[label] = wander_candidate(dataset, float(wander.group(1)), *([float(wander.group(2))] if wander.group(2) else []))

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..causes.candidates import SHIFT_AXES, Candidate, acquisition_order, acquisition_position, step_candidate
+from ..causes.candidates import SHIFT_AXES, Candidate, acquisition_order, acquisition_position, cable_directions, step_candidate
 from ..data.dataset import Dataset
 from ..serial_robot import Robot
 
@@ -60,8 +60,11 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     if m < 2 * min_size + 1:
         return []
     breaks = ruptures.Binseg(custom_cost=_summed_l2_cost(), min_size=min_size, jump=1).fit(signal).predict(n_bkps=min(STEPS_PROPOSED, m // min_size - 1))
-    # each as a shift of the readings and as the sensor's rigid move (the selection prefers the shift where it gains as much)
-    return [step_candidate(data, int(idx[order[b]]), robot, rigid) for b in breaks if b < m for rigid in (False, True)]
+    # each as a shift of the readings and as the sensor's rigid move (the selection prefers the shift where it gains as much);
+    # a cable's move needs its directions, a robot's tool points
+    directions = cable_directions(data, robot) if data.measurement == "cable" else None
+    moves = (False,) if data.measurement == "cable" and directions is None else (False, True)
+    return [step_candidate(data, int(idx[order[b]]), rigid, directions) for b in breaks if b < m for rigid in moves]
 
 
 def ramps(data: Dataset, step: Candidate) -> list[Candidate]:

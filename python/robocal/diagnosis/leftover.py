@@ -272,10 +272,9 @@ def leftover_words(verdict: Optional[dict]) -> Optional[str]:
     tried = f"neither correlated in acquisition order nor in joint space{sensor}{periodic}"
     if verdict.get("noise"):
         return f"the residuals look like noise: within {FLOOR_MULTIPLE:g} times {verdict.get('noise_reference')}, and {tried}"
-    if verdict.get("unexplained") or not verdict["findings"]:  # (a report from before "unexplained")
-        left = f"{verdict['rmse_mm']:.3g} mm held out is left" if isinstance(verdict.get("rmse_mm"), (int, float)) else "what is left"
+    if not verdict["findings"]:  # nothing found, and no measured noise to call it noise
         return (
-            f"not explained: {left}, {tried}; but there is {verdict.get('noise_reference')}, "
+            f"not explained: {verdict['rmse_mm']:.3g} mm held out is left, {tried}; but there is {verdict.get('noise_reference')}, "
             "so it is not known to be noise — revisit configurations, or record the sensor's noise, to tell"
         )
     return "not noise: " + "; ".join(str(f) for f in verdict["findings"])
