@@ -42,6 +42,11 @@ DEFAULT_TOOL = (30.0, -10.0, 80.0)
 #: Geometric errors: standard deviations of lengths (mm) and angles (deg).
 LENGTH_ERROR_MM = 0.5
 ANGLE_ERROR_DEG = 0.05
+#: The seed's true robot is drawn on the first this many configurations of its path (the default
+#: ``samples``), whatever ``samples`` is: which parameters the path identifies, and so which ones
+#: the draws perturb, would otherwise depend on its length (300 and 400 samples of seed 1 were
+#: robots 1.7 mm apart in a2).
+TRUTH_PATH_SAMPLES = 400
 #: Random-walk step per joint and sample (deg, standard deviation), and candidates per step.
 STEP_DEG = 5.0
 CANDIDATES = 64
@@ -224,7 +229,7 @@ def simulate(
     robot: Union[str, Robot] = "hsr-jr680",
     measurement: str = "cable",
     *,
-    samples: int = 400,
+    samples: int = TRUTH_PATH_SAMPLES,
     seed: int = 1,
     effects: Sequence[Union[str, Effect]] = (),
     noise=None,
@@ -265,14 +270,15 @@ def simulate(
         Cable anchor in mm (default: see :func:`setup`).
     session : int
         ``0``: the acquisition of ``seed``. ``s > 0``: the same robot (the kinematic errors of
-        session 0 with the same ``samples``, the same draws of the effects) measured in another
-        session: a new path and noise, and the set-up (base, tool, anchor, zero errors) drawn
-        anew.
+        session 0, whatever the ``samples`` of either; the same draws of the effects) measured in
+        another session: a new path and noise, and the set-up (base, tool, anchor, zero errors)
+        drawn anew.
     poses : array_like, shape (m, N), optional
         Joint values (rad; mm for prismatic joints) to measure at, in this order, instead of a
         random path — a plan of :func:`robocal.planning.plan`, say. The true robot is still drawn
-        on the seed's path of ``samples`` configurations, so that one seed is one robot whatever
-        the poses: two plans compare on it.
+        on the seed's path (its first :data:`TRUTH_PATH_SAMPLES` configurations, as for any
+        ``samples``), so that one seed is one robot whatever the poses and the sample count: two
+        plans compare on it.
 
     Returns
     -------
@@ -311,8 +317,12 @@ def simulate(
     seeds = np.random.SeedSequence(check_seed(seed))  # seed=None draws fresh entropy, recorded in the truth
     rng_path, rng_errors, rng_noise, rng_effects = (np.random.default_rng(s) for s in seeds.spawn(4))
 
-    q = acquisition_path(nominal, measurement, int(samples), rng_path)
-    errors, perturbed = geometric_errors(nominal, measurement, q, rng_errors) if geometric_error else (np.zeros(nominal.n_params), np.array([], int))
+    # One walk, long enough for both: a path's first rows do not depend on its length.
+    walk = acquisition_path(nominal, measurement, max(int(samples), TRUTH_PATH_SAMPLES), rng_path)
+    q = walk[: int(samples)]
+    errors, perturbed = (
+        geometric_errors(nominal, measurement, walk[:TRUTH_PATH_SAMPLES], rng_errors) if geometric_error else (np.zeros(nominal.n_params), np.array([], int))
+    )
     if session:
         rng_path, rng_noise, rng_setup = (np.random.default_rng(s) for s in np.random.SeedSequence([seeds.entropy, session]).spawn(3))
         q = acquisition_path(nominal, measurement, int(samples), rng_path)
