@@ -188,3 +188,53 @@ def approach_directions(q: np.ndarray) -> np.ndarray:
     step[0] = 1.0
     last_move = np.maximum.accumulate(np.where(step != 0, np.arange(len(q)), 0))
     return step[last_move]
+
+
+def gravity_regressor(robot: Robot, q, joint: int, params=None) -> np.ndarray:
+    """The static gravity regressor of joint ``joint`` (0-based): its gravity torque (N·m) is
+    ``Y·π`` for any masses of the links it carries, ``π`` their masses (kg) and first mass
+    moments (kg·m, in each link's DH frame), four per link ``joint+1 .. N`` (a payload is part of
+    the last link's). ``τ = z·((o_k − o) × m_k g) + z·((R_k h_k) × g)`` about the joint's axis
+    ``z`` through ``o``, ``g`` along −z of the robot base frame (:func:`gravity_torques`, whose
+    mass model is one ``π``). Returns ``Y``, (m, 4·(N − joint))."""
+    if any(j.convention != "dh" or j.kind != "revolute" for j in robot.joints):
+        raise InvalidParameterError("gravity torques need a chain of revolute standard-DH joints")
+    p = _zero_base(robot, robot.params if params is None else params)
+    T = link_transforms(robot, q, p)
+    origin, axis = T[:, joint, :3, 3] / 1000.0, T[:, joint, :3, 2]
+    down = np.array([0.0, 0.0, -GRAVITY])
+    columns = []
+    for k in range(joint + 1, robot.n_joints + 1):  # the frame of each link the joint carries
+        lever = T[:, k, :3, 3] / 1000.0 - origin
+        columns.append(np.einsum("mi,mi->m", np.cross(lever, down), axis))  # its mass at the frame's origin
+        # its first moment h (frame k): z·((R h) × g) = h · Rᵀ(g × z)
+        columns.append(np.einsum("mji,mj->mi", T[:, k, :3, :3], np.cross(down, axis)))
+    return np.column_stack(columns)
+
+
+#: Configurations (uniform within the joint limits, a fixed draw) on which the base parameters
+#: of static gravity are found: the regressor's columns that are independent at every pose.
+BASE_CONFIGURATIONS = 200
+
+
+def standard_poses(robot: Robot) -> np.ndarray:
+    """:data:`BASE_CONFIGURATIONS` joint configurations uniform within the joint limits (at most
+    a turn), the same draw every time: where a deflection is summarised independently of the
+    data."""
+    lower, upper = np.array([j.limits for j in robot.joints]).T
+    return np.random.default_rng(0).uniform(np.maximum(lower, -math.pi), np.minimum(upper, math.pi), size=(BASE_CONFIGURATIONS, robot.n_joints))
+
+
+def gravity_base_columns(robot: Robot, joint: int) -> np.ndarray:
+    """The columns of :func:`gravity_regressor` that are independent (pivoted QR on
+    :data:`BASE_CONFIGURATIONS` poses of the nominal robot, as dynamic identification finds its
+    base parameters): the rest are combinations of them at every pose (a mass at a frame's
+    origin is the previous link's moment along its ``a``; a moment along a vertical axis makes
+    no torque). Fixed for a robot and a joint, so that a fitted deflection carries to any pose."""
+    from scipy.linalg import qr  # imported on use: only the free-mass compliance needs it
+
+    Y = gravity_regressor(robot, standard_poses(robot), joint)
+    _, R, order = qr(Y, mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    rank = int(np.count_nonzero(d > 1e-9 * max(float(d[0]), 1e-300))) if len(d) else 0
+    return np.sort(order[:rank])

@@ -27,7 +27,7 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..physics import DEG, approach_directions, gravity_torques, mass_model
+from ..physics import DEG, approach_directions, gravity_base_columns, gravity_regressor, gravity_torques, mass_model, standard_poses
 from ..kernels import as_float_array, cable_initial_guess, is_sparse
 from ..exceptions import InvalidParameterError
 from ..geometry import skew
@@ -42,7 +42,7 @@ LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h
 
 #: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
 #: only describe it).
-LABELLED = ("harmonic", "source", "target", "sample", "row", "frame", "spacing", "roughness", "degree", "settling")
+LABELLED = ("harmonic", "source", "target", "sample", "row", "frame", "spacing", "roughness", "trend", "degree", "settling", "masses")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -109,6 +109,8 @@ class Candidate:
             return {"value": float(value), "std": None if not np.isfinite(sd) else float(sd), "unit": unit}
 
         kind = self.kind
+        if kind == "joint_compliance" and self.detail.get("masses") == "free":
+            return free_mass_compliance(robot, self.joint, c)
         if kind == "joint_compliance":
             out = {"compliance": q(c[0] / DEG * 1000.0, s[0] / DEG * 1000.0, "deg/(kN·m)")}
             if c[0] > 0:  # the joint's stiffness k = 1/c, its std by first-order propagation
@@ -203,6 +205,41 @@ class Candidate:
         return out, why
 
 
+def free_mass_compliance(robot: Robot, joint: int, c: np.ndarray) -> tuple[dict, Optional[str]]:
+    """A compliance fitted on the static gravity regressor (``masses=free``: the deflection
+    ``Δq = Y·c`` for any masses, ``c`` the compliance times the base parameters of the links'
+    masses and first moments) as physical quantities, on :func:`~robocal.physics.standard_poses`:
+    the compliance that the mass model's torque gives the deflection (least squares), the share
+    of the deflection that torque explains, and the base parameters (kg, kg·m) the deflection
+    implies at that compliance. Implausible as any compliance is. (The coefficients' covariance
+    is not kept, so the compliance comes without its standard deviation.)"""
+    poses = standard_poses(robot)
+    deflection = joint_basis(robot, poses, "joint_compliance", joint, {"masses": "free"}) @ c
+    torque = gravity_torques(robot, poses)[:, joint]
+    compliance = float(torque @ deflection) / max(float(torque @ torque), 1e-300)
+    left = deflection - compliance * torque
+    share = 1.0 - float(left @ left) / max(float(deflection @ deflection), 1e-300)
+    out = {
+        "compliance": {"value": compliance / DEG * 1000.0, "std": None, "unit": "deg/(kN·m)"},
+        "model_torque_share": {"value": share, "std": None, "unit": "1"},
+        "deflection_rms": {"value": float(np.sqrt(np.mean(deflection**2))) / DEG, "std": None, "unit": "deg"},
+    }
+    if compliance > 0:
+        out["stiffness"] = {"value": 1.0 / compliance, "std": None, "unit": "N·m/rad"}
+        for i, value in zip(gravity_base_columns(robot, joint), c / compliance):  # base parameters: combinations of the links'
+            link, part = joint + 1 + i // 4, ("m", "mx", "my", "mz")[i % 4]
+            out[f"{part}{link}"] = {"value": float(value), "std": None, "unit": "kg" if part == "m" else "kg·m"}
+    bad = not 0.0 < compliance < LIMITS["compliance"]
+    return out, (f"compliance {compliance:.3g} rad/(N·m) is not within (0, {LIMITS['compliance']:g})" if bad else None)
+
+
+def free_mass_candidate(robot: Robot, data: Dataset, joint: int) -> Candidate:
+    """The gravity compliance of ``joint`` (0-based) for any masses and payload it carries: its
+    deflection on the static gravity regressor's base parameters (``masses=free``)."""
+    detail = {"masses": "free"}
+    return Candidate("joint_compliance", joint, "joints", joint_basis(robot, data.q, "joint_compliance", joint, detail), detail=detail)
+
+
 def has_mass_model(robot: Robot) -> bool:
     """Gravity torques are available (a mass model and a revolute standard-DH chain)."""
     return mass_model(robot) is not None and all(j.convention == "dh" and j.kind == "revolute" for j in robot.joints)
@@ -212,6 +249,8 @@ def joint_basis(robot: Robot, q: np.ndarray, kind: str, joint: int, detail: dict
     """The basis ``B`` (m, n_c) of a joint cause at joint angles ``q`` (m, N), rows in
     acquisition order (backlash needs it): ``Δq_joint = B·c``."""
     qj = q[:, joint]
+    if kind == "joint_compliance" and detail.get("masses") == "free":  # any masses: the static gravity regressor
+        return gravity_regressor(robot, q, joint)[:, gravity_base_columns(robot, joint)]
     if kind == "joint_compliance":
         torques = gravity_torques(robot, q) if tau is None else tau
         return torques[:, joint : joint + 1].copy()

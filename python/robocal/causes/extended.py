@@ -29,9 +29,20 @@ from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
 from ..results import file_sha256, training_fingerprint
 from . import structure
-from .candidates import MAP_LABEL, cable_directions, drift_candidate, library, map_candidate, map_noise, periodic_candidate, step_candidate
+from .candidates import (
+    MAP_LABEL,
+    cable_directions,
+    drift_candidate,
+    free_mass_candidate,
+    has_mass_model,
+    library,
+    map_candidate,
+    map_noise,
+    periodic_candidate,
+    step_candidate,
+)
 from .problem import ExtendedProblem, stack
-from .wander import wander_candidate
+from .wander import ROUGHNESS, wander_candidate
 
 logger = logging.getLogger(__name__)
 
@@ -283,9 +294,10 @@ def extended_problem(
             rigid = bool(step.group(2))
             directions = cable_directions(dataset, problem.robot) if rigid and dataset.measurement == "cable" else None
             pool[label] = step_candidate(dataset, int(step.group(1)), rigid, directions)
-        wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?", label)
+        wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?( trend=kept)?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
-            pool[label] = wander_candidate(dataset, float(wander.group(1)), *([float(wander.group(2))] if wander.group(2) else []))
+            roughness = float(wander.group(2)) if wander.group(2) else ROUGHNESS
+            pool[label] = wander_candidate(dataset, float(wander.group(1)), roughness, trend=bool(wander.group(3)))
         curved = re.fullmatch(r"drift degree=(\d+)", label)
         if curved:  # the session's own drift, refitted on these data
             pool[label] = drift_candidate(dataset, int(curved.group(1)))
@@ -295,6 +307,9 @@ def extended_problem(
         periodic = re.fullmatch(r"joint_periodic joint (\d+) harmonic=(\d+)", label)
         if periodic and 1 <= int(periodic.group(1)) <= problem.robot.n_joints and label not in pool:  # a harmonic found in the place of several
             pool[label] = periodic_candidate(problem.robot, dataset, int(periodic.group(1)) - 1, int(periodic.group(2)))
+        free = re.fullmatch(r"joint_compliance joint (\d+) masses=free", label)
+        if free and 1 <= int(free.group(1)) <= problem.robot.n_joints and has_mass_model(problem.robot):  # a compliance on any masses
+            pool[label] = free_mass_candidate(problem.robot, dataset, int(free.group(1)) - 1)
         joint_map = MAP_LABEL.fullmatch(label)
         if joint_map and 1 <= int(joint_map.group(1)) <= problem.robot.n_joints:
             if noise is None:  # the roughness is weighed against the geometric fit's residuals

@@ -42,10 +42,12 @@ ROUGHNESS = 0.3
 MAX_KNOTS = 80
 
 
-def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS) -> Candidate:
+def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS, trend: bool = False) -> Candidate:
     """The session term of a wandering sensor: a cubic B-spline of the acquisition order with
     knots ``spacing`` samples apart (at least so many that there are at most
-    :data:`MAX_KNOTS` per axis), one per sensor axis, and its ``roughness`` penalty."""
+    :data:`MAX_KNOTS` per axis), one per sensor axis, and its ``roughness`` penalty. With
+    ``trend`` it keeps its trend (a wander whose trend is no more than chance: labelled
+    ``trend=kept``)."""
     m, k = len(data), RESIDUAL_WIDTH[data.measurement]
     spacing = max(float(spacing), (m - 1) / (MAX_KNOTS - 3), 2.0)
     rank = acquisition_position(data)
@@ -55,7 +57,7 @@ def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS
     # Without its mean and its trend: a constant offset of the sensor is the set-up's (anchor,
     # cable zero, tracker base), which the geometric model already fits, and a steady trend is
     # a drift, a cause of its own with one coefficient per axis.
-    centred = null_space(np.vstack([B.sum(axis=0), rank @ B]))
+    centred = null_space(np.vstack([B.sum(axis=0)] + ([] if trend else [rank @ B])))
     B = B @ centred
     axes = ["L"] if data.measurement == "cable" else ["x", "y", "z"]
     n = B.shape[1]
@@ -64,7 +66,7 @@ def wander_candidate(data: Dataset, spacing: float, roughness: float = ROUGHNESS
         basis[:, a, a * n : (a + 1) * n] = B
     second = np.diff(np.eye(len(centred)), 2, axis=0) @ centred
     penalty = roughness * np.kron(np.eye(len(axes)), second)  # per axis, no coupling between axes
-    detail = {"spacing": round(spacing, 3), "axes": axes} | ({} if roughness == ROUGHNESS else {"roughness": roughness})
+    detail = {"spacing": round(spacing, 3), "axes": axes} | ({} if roughness == ROUGHNESS else {"roughness": roughness}) | ({"trend": "kept"} if trend else {})
     return Candidate("wander", None, "observations", basis, detail=detail, penalty=penalty)
 
 

@@ -33,6 +33,7 @@ from ..causes.candidates import MAX_HARMONIC, covered_when_fitted_on, map_candid
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
 from .conventions import EQUAL
 from .validation import cross_validate, fit_problem, weak_gain
+from .wander import serial_inflation
 
 #: Relative ridge of the screening's normal equations (directions the data leave free).
 RIDGE = 1e-10
@@ -197,16 +198,21 @@ class _NormalScreen:
             out[name] = (e * e).reshape(-1, self.k).sum(axis=1)
         return out
 
-    def f_test(self, C) -> tuple[float, int]:
+    def f_test(self, C, inflation: float = 1.0) -> tuple[float, int]:
         """p-value of the extra-sum-of-squares F test for adding ``C`` unpenalised (all data), and
-        the rank it adds."""
+        the rank it adds; for residuals correlated in time, the statistic and the residual degrees
+        of freedom divided by their variance ``inflation``."""
         CtC, CtJ, Ctr = _dense(C.T @ C), _dense(C.T @ self.Jd), np.asarray(C.T @ self.rd)
         rss0, rank0 = _rss(self.JtJ, self.Jtr, float(self.r @ self.r))
         rss1, rank1 = _rss(np.block([[self.JtJ, CtJ.T], [CtJ, CtC]]), np.concatenate([self.Jtr, Ctr]), float(self.r @ self.r))
         extra, dof = rank1 - rank0, len(self.r) - rank1
         if extra < 1 or dof < 1 or rss1 <= 0:
             return 1.0, max(extra, 0)
-        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof), extra, dof)), extra
+        return float(f_dist.sf(max(rss0 - rss1, 0.0) / extra / (rss1 / dof) / inflation, extra, max(dof / inflation, 1.0))), extra
+
+    def left(self, C) -> np.ndarray:
+        """The data rows' residuals once ``C`` is fitted to them (the geometry held)."""
+        return self.rd - C @ _solve(_dense(C.T @ C), np.asarray(C.T @ self.rd))
 
 
 def _diagonal_scale(N: np.ndarray) -> np.ndarray:
@@ -282,7 +288,9 @@ def map_stage(
         chosen = None
         for score, c, errs, C in ranked:
             gains = {name: rmse_of_squares(base_err[name]) - rmse_of_squares(errs[name]) for name in schemes}
-            p_value, _ = screen.f_test(C)
+            # judged with the correlation in time of what it leaves: a map follows noise
+            # correlated in time along a path that moves the joints a little at a time
+            p_value, _ = screen.f_test(C, serial_inflation(data, model.idx, screen.left(C).reshape(len(model.idx), model.k)))
             entry = {"candidate": c, "gains_mm": gains, "p_value": p_value, "tests": n_tests}
             if not all(g >= min_gain * rmse_of_squares(base_err[name]) for name, g in gains.items()) or p_value * n_tests >= alpha:
                 rejected.append(

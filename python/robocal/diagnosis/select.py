@@ -30,7 +30,9 @@ report as far as it is written) and leaves it updated:
    re-fits per fold. A round whose linear drift gains on the random folds but not on the
    blocked ones screens the drift's curves too (:func:`bent_drift`). The rounds end when one
    takes nothing.
-3. :func:`try_curved_drift`: a linear drift replaced by a curved one where that gains.
+3. :func:`wander_keeps_its_trend`: a linear drift beside a wander that is no more than the trend
+   the wander makes by chance is the wander's. :func:`try_curved_drift`: a linear drift replaced
+   by a curved one where that gains.
 4. :func:`backward`: every cause must still earn its place once those found after it are in.
 5. :func:`joint_maps`: a joint error map per joint (:mod:`.maps`), then the backward check again.
 6. :func:`recheck_compliances`: a gravity compliance whose size became implausible or
@@ -58,7 +60,17 @@ from ..calibration.api import load_inputs
 from ..calibration.problem import Problem
 from ..calibration.result import GROSS_FACTOR, CalibrationResult, grossly_implausible
 from ..causes import structure
-from ..causes.candidates import CURVED_DRIFT_DEGREE, PHYSICAL_KINDS, SETTLING_TIMES, Candidate, acquisition_order, curved_drift, drift_candidate, library
+from ..causes.candidates import (
+    CURVED_DRIFT_DEGREE,
+    PHYSICAL_KINDS,
+    SETTLING_TIMES,
+    Candidate,
+    acquisition_order,
+    curved_drift,
+    drift_candidate,
+    free_mass_candidate,
+    library,
+)
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
 from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
 from ..data.dataset import Dataset
@@ -77,7 +89,7 @@ from .physical import physical_model
 from .screening import Screen
 from .state import Baseline, Decided, Pass, refusal_record, retraction
 from .validation import GAIN_LEVEL, GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
-from .wander import residual_correlation, time_inflation
+from .wander import CHANCE_ORDERS, residual_correlation, serial_inflation, time_inflation, trend_beyond_chance
 
 
 @dataclass
@@ -214,6 +226,9 @@ JUMP_Z = float(norm.isf(0.025))
 #: samples leaves arcs that a change-point search cuts into steps.
 ARC_SPACINGS = (4.0, 8.0, 16.0)
 
+#: Terms of acquisition time judged with the correlation in time of the residuals they leave
+#: (:func:`~.wander.serial_inflation`); a wander models that correlation itself.
+SERIAL_TERMS = ("step", "drift")
 #: Knot spacings of the wander candidates, in correlation lengths of the residuals.
 WANDER_SPACINGS = (0.5, 1.0, 2.0)
 #: ... and roughness penalties, in multiples of :data:`~robocal.causes.wander.ROUGHNESS`.
@@ -400,6 +415,7 @@ def _select(
         pool = [c for c in pool if not is_flexible(c)]
     searched, found = forward_selection(state, pool, alpha=alpha, max_effects=max_effects, replay=replay)
     forward = list(state.model.causes)
+    wander_keeps_its_trend(state)
     try_curved_drift(state)
     backward(state, not_physical)
     if unexplained_structure:  # the causes found may have been what bent the geometry
@@ -487,6 +503,10 @@ def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int
         if taken is None:
             _refuse_best(state, screening)
             break
+        if taken.kind == "joint_compliance":
+            # its masses settled before the next round: what the mass model's torque misses
+            # of a deflection is taken by couplings and harmonics of the joints it moves with
+            try_free_masses(state, taken)
         if taken.kind == "drift":
             # its shape settled before the next round: the bends a line leaves would be taken by
             # joint causes that outlive its curve (seed 33 of benches/discovery.py, file 24: a
@@ -593,6 +613,9 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
             C = ext.weighted_columns(x, c, parts, p)
         errs = screen.errors(C, c.penalty)
         p_value = screen.f_test(C, 1.0 if c.kind in TIME_TERMS else inflation, c.penalty)
+        if c.kind in SERIAL_TERMS and p_value < alpha:  # judged with the correlation in time of what it leaves
+            left = r - C @ np.linalg.lstsq(C, r, rcond=None)[0]
+            p_value = screen.f_test(C, max(inflation, serial_inflation(state.dataset, keep, left.reshape(len(keep), k))), c.penalty)
         on = judgeable(c, keep, schemes)
         gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
         if c.kind == "step":
@@ -904,6 +927,81 @@ def _refuse_best(state: Pass, screening: Round) -> None:
             else:
                 why = "no gain on every fold scheme"
             state.rejected.append(screening.refusal(item, None, why))
+
+
+#: A linear drift beside a wander is named only when the sensor's time term puts more into its
+#: line than a wander puts by chance, at this level (:func:`~.wander.trend_beyond_chance`).
+CHANCE_TREND_LEVEL = 0.05
+
+
+def wander_keeps_its_trend(state: Pass) -> None:
+    """Stage 3a: a drift and a wander judged on equal terms. The wander is fitted without its
+    trend (a steady trend is a drift, one coefficient per axis), so a wandering reading's
+    chance trend over the session was named a drift beside it. A linear drift beside a wander
+    stays named only when the sensor's time term (wander and drift) puts more into its line than
+    into the next orders of the session (:func:`~.wander.trend_beyond_chance` at
+    :data:`CHANCE_TREND_LEVEL`); otherwise the wander keeps its trend (``trend=kept``: the
+    same columns, the same fit in the model) and the drift is retracted."""
+    model, x = state.model, state.x
+    wander = next((c for c in model.causes if c.kind == "wander" and "trend" not in c.detail), None)
+    drift = next((c for c in model.causes if c.kind == "drift" and not curved_drift(c)), None)
+    if wander is None or drift is None:
+        return
+    axes = len(wander.detail["axes"])
+    order = acquisition_order(model.full_data)
+    order = order[np.isin(order, model.idx)]
+    path = (wander.basis @ model.coefficients(x, wander))[order, :axes]
+    trend = (drift.basis @ model.coefficients(x, drift))[order, :axes]
+    ratio, p = trend_beyond_chance(path, trend)
+    if p < CHANCE_TREND_LEVEL:
+        return
+    kept = wander_candidate(model.full_data, wander.detail["spacing"], wander.detail.get("roughness", ROUGHNESS), trend=True)
+    trial = state.problem([kept if c is wander else c for c in model.causes if c is not drift])
+    fit = fit_problem(trial, x0=trial.start_from(x, model))
+    cv, fold_x = cross_validate(trial, state.schemes, state.fold_x, model)
+    why = (
+        f"the wander's own trend: the sensor's time term puts {ratio:.3g}× as much into its line as into the next "
+        f"{CHANCE_ORDERS} orders of the session, as a wander does by chance (p = {p:.2g} ≥ {CHANCE_TREND_LEVEL:g}); the wander keeps it ({kept.label})"
+    )
+    state.retract(drift, None, why)
+    entry = next(e for e in state.effects if e["label"] == wander.label)
+    entry["label"], entry["params"] = kept.label, kept.physical(trial.coefficients(fit.x, kept), None, model.robot, model.robot.params)[0]
+    entry["rmse_heldout_after"] = reported_rmse(cv["random"])
+    if wander.label in state.plots:
+        state.plots[kept.label] = state.plots.pop(wander.label)
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, fold_x
+
+
+def try_free_masses(state: Pass, compliance: Candidate) -> None:
+    """A gravity compliance whose masses are not the mass model's: the ``compliance`` just taken
+    replaced by the same joint's compliance on the static gravity regressor (``masses=free``:
+    the deflection of any masses and payload the joint carries, the base parameters of static
+    gravity as dynamic identification finds them; :func:`~robocal.physics.gravity_regressor`)
+    when that lowers the random folds' held-out RMSE by ``min_gain`` of it, significantly as
+    any cause must (:func:`held_out_refusal`), with a plausible compliance. In the report the
+    free-mass compliance takes the other's place."""
+    model, x, min_gain = state.model, state.x, state.min_gain
+    free = free_mass_candidate(model.robot, model.full_data, compliance.joint)
+    trial = ExtendedProblem(model.base, [free if c is compliance else c for c in model.causes], model.full_data, model.idx)
+    fit = fit_problem(trial, x0=trial.start_from(x, model))
+    physical, why = free.physical(trial.coefficients(fit.x, free), None, model.robot, model.robot.params)
+    if why is not None:
+        return
+    cv, trial_fold_x = cross_validate(trial, state.schemes, state.fold_x, model)
+    before, after = judged_rmse(state.cv["random"]), judged_rmse(cv["random"])
+    if before - after < min_gain * before or held_out_refusal(free, state.schemes, model.idx, state.cv, cv) is not None:
+        return
+    entry = next(e for e in state.effects if e["label"] == compliance.label)
+    entry.update(label=free.label, params=physical, rmse_heldout_after=reported_rmse(cv["random"]))
+    entry["significance"]["free_masses"] = {
+        "test": f"the static gravity regressor's {free.size} base parameters in the place of the mass model's torque: held-out gain of at least {min_gain:.1%} on the random folds, significant at one-sided {GAIN_LEVEL:g} (paired z), no harm on the others",
+        "rmse_heldout_before": reported_rmse(state.cv["random"]),
+        "rmse_heldout_blocked_before": reported_rmse(state.cv["blocked"]),
+        "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
+    }
+    if compliance.label in state.plots:
+        state.plots[free.label] = state.plots.pop(compliance.label)
+    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, trial_fold_x
 
 
 def try_curved_drift(state: Pass) -> None:

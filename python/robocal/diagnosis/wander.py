@@ -28,6 +28,7 @@ from typing import Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import f as f_dist
 from scipy.stats import norm
 
 from ..causes.candidates import acquisition_position
@@ -190,3 +191,46 @@ def time_inflation(test: Optional[dict]) -> float:
         return 1.0
     rho = min(max(float(test["lag1"]["correlation"]), 0.0), MAX_LAG1)
     return (1.0 + rho) / (1.0 - rho)
+
+
+def serial_inflation(data: Dataset, idx: np.ndarray, residuals: np.ndarray) -> float:
+    """The AR(1) variance inflation ``(1 + ρ₁)/(1 − ρ₁)`` of the sensor's part of ``residuals``
+    (the samples ``idx``, (len(idx), k)) for their lag-1 correlation in acquisition order, pooled
+    over the axes, where it exceeds :data:`Z_LAG1` standard errors; 1 otherwise. A term of time
+    (a step, a drift) is judged with the correlation of the residuals it leaves: noise correlated
+    in time (a sensor's AR(1) noise) otherwise makes a step of its own wiggles, whatever the
+    residual test says of time against joints."""
+    e = sensor_part(data, residuals)[np.argsort(acquisition_rank(data, idx))]
+    e = e - e.mean(axis=0)
+    total = float(np.sum(e * e))
+    if len(e) < 8 or total <= 0.0:
+        return 1.0
+    rho = float(np.sum(e[1:] * e[:-1])) / total
+    if rho * np.sqrt(len(e)) < Z_LAG1:
+        return 1.0
+    rho = min(rho, MAX_LAG1)
+    return (1.0 + rho) / (1.0 - rho)
+
+
+#: Orthogonal polynomials of the session above the line the trend is judged against.
+CHANCE_ORDERS = 3
+
+
+def trend_beyond_chance(path: np.ndarray, trend: np.ndarray) -> tuple[float, float]:
+    """Whether the linear ``trend`` (m, axes; in acquisition order) beside a wandering reading's
+    ``path`` (same shape, fitted without its trend) is more than the wander's own trend. The
+    sensor's whole time term ``path + trend`` is expanded in orthonormal polynomials of the
+    acquisition order; a stationary wander puts about as much into the line as into the next
+    :data:`CHANCE_ORDERS` (its spectrum is smooth at the lowest frequencies, whatever its
+    shape), a drift puts more. Returns the largest F ratio over the axes (line against the mean
+    of the next orders) and its p-value, Bonferroni over the axes (large: the wander's own
+    trend). Long correlation times leave few independent pieces in a session: there the test
+    errs toward naming the drift (simulated Gaussian and exponential wanders of 5-40 samples
+    in 300: 5-13 % at p 0.05)."""
+    m, axes = path.shape
+    u = np.linspace(-1.0, 1.0, m)
+    polys, _ = np.linalg.qr(np.vander(u, CHANCE_ORDERS + 2, increasing=True))
+    a = polys.T @ (path + trend)  # (orders, axes)
+    ratio = a[1] ** 2 / np.maximum(np.mean(a[2:] ** 2, axis=0), 1e-300)
+    worst = int(np.argmax(ratio))
+    return float(ratio[worst]), min(1.0, float(f_dist.sf(ratio[worst], 1, CHANCE_ORDERS)) * axes)
