@@ -96,8 +96,11 @@ def test_calibrate_is_deterministic(data, method):
 @pytest.mark.parametrize("method", ["pso", "de"])
 def test_population_methods_follow_the_seed(data, method):
     """``calibrate``'s seed reaches the method's draws (not only the split): with the split
-    fixed (no held-out samples), another seed gives another result."""
-    x = [robocal.calibrate(data, method=method, test_fraction=0.0, seed=seed, **METHODS[method]).x for seed in (4, 4, 5)]
+    fixed (no held-out samples), another seed gives another result. On six of the geometry's
+    parameters, where the methods' few iterations improve on the start (on all of them the
+    start stayed the best member for every seed: the draws could not show)."""
+    mask = ["theta2", "theta3", "theta4", "a2", "a3", "d4"]
+    x = [robocal.calibrate(data, method=method, test_fraction=0.0, seed=seed, mask=mask, **METHODS[method]).x for seed in (4, 4, 5)]
     assert_identical(x[0], x[1], method)
     assert not np.array_equal(x[0], x[2])
 

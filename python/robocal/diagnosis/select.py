@@ -503,16 +503,17 @@ def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int
         if taken is None:
             _refuse_best(state, screening)
             break
-        if taken.kind == "joint_compliance":
-            # its masses settled before the next round: what the mass model's torque misses
-            # of a deflection is taken by couplings and harmonics of the joints it moves with
-            try_free_masses(state, taken)
         if taken.kind == "drift":
             # its shape settled before the next round: the bends a line leaves would be taken by
             # joint causes that outlive its curve (seed 33 of benches/discovery.py, file 24: a
             # drift ∝ t^0.65 left a compliance and a coupling)
             try_curved_drift(state)
         pool = [o for o in screening.offered if o is not taken]
+        if taken.kind == "joint_compliance" and "masses" not in taken.detail:
+            # the same joint on any masses competes from the next round on: what the mass
+            # model's torque misses of a deflection was taken by couplings and harmonics of the
+            # joints that move with it
+            pool.append(free_mass_candidate(state.robot, state.dataset, taken.joint))
     if replay is not None:
         return searched, replay.unexplained
     return searched, unexplained(state.rejected[last_refusals:], last_rmse)
@@ -732,6 +733,7 @@ def confirmation_order(scored: list, significant, inflation: float, established:
     scored = sorted(scored, key=lambda s: -s[0])
     scored = simplest_first(scored)
     scored = physics_first(scored, lambda s: s[0], lambda s: s[1], lambda s: significant(*s), established=established, told_apart=told_apart)
+    scored = mass_model_first(scored, significant)
     # A drift or a step that gains at least SENSOR_TERM_SHARE of what a significant wander gains
     # is judged before it: one coefficient per axis against dozens, and a wander fine enough
     # follows a drift, or smooths a jump, as well (a simulated drift well beyond its detection
@@ -820,7 +822,7 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
                 rejected.append(screening.refusal(item, None, why))
                 continue
             joint_trials += 1
-        trial = state.problem(ext.causes + [c])
+        trial = state.problem(with_cause(ext.causes, c))
         fit = fit_problem(trial, x0=trial.start_from(x, ext))
         physical, why = c.physical(trial.coefficients(fit.x, c), coefficient_std(trial, fit, c), rob, rob.params)
         why = f"implausible: {why}" if why else undetermined(trial.coefficients(fit.x, c) - coefficient_reference(c, rob), coefficient_std(trial, fit, c))
@@ -852,7 +854,10 @@ def _take_cause(
 ) -> None:
     """The confirmed cause ``c`` taken: ``trial`` (the model with it, fitted by ``fit``, its held-out
     errors ``new_cv`` and fold fits ``new_fold_x``) becomes the current model; its report entry and its plot (the residual
-    it was found in, against its fitted signature) are written."""
+    it was found in, against its fitted signature) are written, and the entry of a cause it took
+    the place of retracted."""
+    for refined in [o for o in state.model.causes if o not in trial.causes]:  # what c took the place of (:func:`with_cause`)
+        state.retract(refined, None, f"replaced by {c.label} (the same joint's compliance on any masses and payload)")
     signature = trial.columns(fit.x, c) @ (trial.coefficients(fit.x, c) - coefficient_reference(c, state.robot))
     state.plots[c.label] = {"residual": screening.residual, "signature": signature, "k": state.k}
     state.effects.append(
@@ -972,36 +977,11 @@ def wander_keeps_its_trend(state: Pass) -> None:
     state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, fold_x
 
 
-def try_free_masses(state: Pass, compliance: Candidate) -> None:
-    """A gravity compliance whose masses are not the mass model's: the ``compliance`` just taken
-    replaced by the same joint's compliance on the static gravity regressor (``masses=free``:
-    the deflection of any masses and payload the joint carries, the base parameters of static
-    gravity as dynamic identification finds them; :func:`~robocal.physics.gravity_regressor`)
-    when that lowers the random folds' held-out RMSE by ``min_gain`` of it, significantly as
-    any cause must (:func:`held_out_refusal`), with a plausible compliance. In the report the
-    free-mass compliance takes the other's place."""
-    model, x, min_gain = state.model, state.x, state.min_gain
-    free = free_mass_candidate(model.robot, model.full_data, compliance.joint)
-    trial = ExtendedProblem(model.base, [free if c is compliance else c for c in model.causes], model.full_data, model.idx)
-    fit = fit_problem(trial, x0=trial.start_from(x, model))
-    physical, why = free.physical(trial.coefficients(fit.x, free), None, model.robot, model.robot.params)
-    if why is not None:
-        return
-    cv, trial_fold_x = cross_validate(trial, state.schemes, state.fold_x, model)
-    before, after = judged_rmse(state.cv["random"]), judged_rmse(cv["random"])
-    if before - after < min_gain * before or held_out_refusal(free, state.schemes, model.idx, state.cv, cv) is not None:
-        return
-    entry = next(e for e in state.effects if e["label"] == compliance.label)
-    entry.update(label=free.label, params=physical, rmse_heldout_after=reported_rmse(cv["random"]))
-    entry["significance"]["free_masses"] = {
-        "test": f"the static gravity regressor's {free.size} base parameters in the place of the mass model's torque: held-out gain of at least {min_gain:.1%} on the random folds, significant at one-sided {GAIN_LEVEL:g} (paired z), no harm on the others",
-        "rmse_heldout_before": reported_rmse(state.cv["random"]),
-        "rmse_heldout_blocked_before": reported_rmse(state.cv["blocked"]),
-        "rmse_heldout_blocked_after": reported_rmse(cv["blocked"]),
-    }
-    if compliance.label in state.plots:
-        state.plots[free.label] = state.plots.pop(compliance.label)
-    state.model, state.x, state.cv, state.fold_x = trial, fit.x, cv, trial_fold_x
+def with_cause(causes: list, c: Candidate) -> list:
+    """``causes`` with ``c``: in the place of what it refines (a compliance on any masses in the
+    place of its joint's on the mass model's torque, whose columns it spans), else added."""
+    refined = [o for o in causes if c.kind == "joint_compliance" and "masses" in c.detail and o.kind == "joint_compliance" and o.joint == c.joint]
+    return [c if o in refined else o for o in causes] if refined else causes + [c]
 
 
 def try_curved_drift(state: Pass) -> None:
@@ -1297,6 +1277,26 @@ def physics_first(ranked: list, gain, cause, eligible=lambda item: True, establi
             if place == front:  # the next compliance moved goes behind this one
                 front += 1
     return order
+
+
+def mass_model_first(ranked: list, significant) -> list:
+    """``ranked`` ((gain, candidate, ...) best first) with each significant compliance on the mass
+    model's torque (one coefficient) moved before a compliance on free masses (a coefficient per
+    base parameter of static gravity) that gains less than 1/:data:`PHYSICS_SHARE` times as
+    much: the mass model is the prior, left only where the data ask for it (joint 2's free
+    masses took joint 3's compliance and a harmonic of joint 2 where both were hidden)."""
+    out = list(ranked)
+    for i in range(len(out)):
+        gain, c = out[i][0], out[i][1]
+        if c.kind == "joint_compliance" and "masses" in c.detail:
+            simpler = [
+                j
+                for j in range(i + 1, len(out))
+                if out[j][1].kind == "joint_compliance" and "masses" not in out[j][1].detail and significant(*out[j]) and out[j][0] >= PHYSICS_SHARE * gain
+            ]
+            if simpler:
+                out.insert(i, out.pop(simpler[0]))
+    return out
 
 
 def not_physical(c: Candidate) -> bool:
