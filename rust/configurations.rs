@@ -26,18 +26,11 @@ fn find(parent: &mut [usize], mut i: usize) -> usize {
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (tol not finite or negative).
 pub fn configuration_groups(q: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Vec<usize>> {
     if q.len() != m * n || (m > 0 && n == 0) {
-        return Err(CoreError::Shape {
-            arg: "q",
-            expected: format!("({m}, {n}) with n >= 1"),
-            got: format!("{} values", q.len()),
-        });
+        return Err(CoreError::Shape { arg: "q", expected: format!("({m}, {n}) with n >= 1"), got: format!("{} values", q.len()) });
     }
     check_finite("q", q)?;
     if !(tol.is_finite() && tol >= 0.0) {
-        return Err(CoreError::InvalidParameter {
-            arg: "tol",
-            reason: format!("must be finite and >= 0; got {tol}"),
-        });
+        return Err(CoreError::InvalidParameter { arg: "tol", reason: format!("must be finite and >= 0; got {tol}") });
     }
     if m == 0 {
         return Ok(Vec::new());

@@ -8,27 +8,14 @@ use thiserror::Error;
 pub enum CoreError {
     /// An array has the wrong shape or length.
     #[error("`{arg}` must have shape {expected}; got {got}")]
-    Shape {
-        arg: &'static str,
-        expected: String,
-        got: String,
-    },
+    Shape { arg: &'static str, expected: String, got: String },
     /// An input holds NaN or infinity.
     #[error("`{arg}` must be finite; got {value} at index {index}")]
-    NonFinite {
-        arg: &'static str,
-        index: usize,
-        value: f64,
-    },
+    NonFinite { arg: &'static str, index: usize, value: f64 },
     /// An input value is finite but beyond what the kernel takes ([`MAX_ABS_INPUT`],
     /// [`MAX_ABS_MATRIX`]).
     #[error("`{arg}` must lie within ±{limit:e}; got {value:e} at index {index}")]
-    OutOfRange {
-        arg: &'static str,
-        index: usize,
-        value: f64,
-        limit: f64,
-    },
+    OutOfRange { arg: &'static str, index: usize, value: f64, limit: f64 },
     /// A parameter or option is outside its domain.
     #[error("`{arg}`: {reason}")]
     InvalidParameter { arg: &'static str, reason: String },
@@ -49,11 +36,7 @@ pub type CoreResult<T> = Result<T, CoreError>;
 pub fn check_finite(arg: &'static str, values: &[f64]) -> CoreResult<()> {
     match values.iter().position(|v| !v.is_finite()) {
         None => Ok(()),
-        Some(index) => Err(CoreError::NonFinite {
-            arg,
-            index,
-            value: values[index],
-        }),
+        Some(index) => Err(CoreError::NonFinite { arg, index, value: values[index] }),
     }
 }
 
@@ -78,12 +61,7 @@ pub fn check_within(arg: &'static str, values: &[f64], limit: f64) -> CoreResult
     check_finite(arg, values)?;
     match values.iter().position(|v| v.abs() > limit) {
         None => Ok(()),
-        Some(index) => Err(CoreError::OutOfRange {
-            arg,
-            index,
-            value: values[index],
-            limit,
-        }),
+        Some(index) => Err(CoreError::OutOfRange { arg, index, value: values[index], limit }),
     }
 }
 
@@ -97,10 +75,6 @@ pub fn check_len(arg: &'static str, len: usize, expected: usize) -> CoreResult<(
     if len == expected {
         Ok(())
     } else {
-        Err(CoreError::Shape {
-            arg,
-            expected: format!("({expected},)"),
-            got: format!("({len},)"),
-        })
+        Err(CoreError::Shape { arg, expected: format!("({expected},)"), got: format!("({len},)") })
     }
 }

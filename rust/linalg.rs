@@ -7,11 +7,7 @@ use faer::MatRef;
 /// finite and within ±[`MAX_ABS_MATRIX`].
 pub fn row_major<'a>(arg: &'static str, data: &'a [f64], m: usize, n: usize) -> CoreResult<MatRef<'a, f64>> {
     if data.len() != m * n {
-        return Err(CoreError::Shape {
-            arg,
-            expected: format!("({m}, {n})"),
-            got: format!("{} values", data.len()),
-        });
+        return Err(CoreError::Shape { arg, expected: format!("({m}, {n})"), got: format!("{} values", data.len()) });
     }
     check_within(arg, data, MAX_ABS_MATRIX)?;
     Ok(MatRef::from_row_major_slice(data, m, n))

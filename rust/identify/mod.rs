@@ -108,7 +108,8 @@ pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Id
             let rhs = r.get(..rank, rank..k).to_owned();
             let coefs = r11.qr().solve_lstsq(&rhs);
             for (c, &p) in fwd.iter().enumerate().skip(rank) {
-                let partners = (0..rank).map(|b| (eff_idx[fwd[b]], coefs[(b, c - rank)])).filter(|(_, v)| v.abs() > REDUNDANCY_COEF_MIN).collect();
+                let partners =
+                    (0..rank).map(|b| (eff_idx[fwd[b]], coefs[(b, c - rank)])).filter(|(_, v)| v.abs() > REDUNDANCY_COEF_MIN).collect();
                 redundant.push((eff_idx[p], partners));
             }
             redundant.sort_by_key(|(col, _)| *col);
@@ -138,7 +139,10 @@ pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreRes
     let keep: Vec<usize> = (0..k).filter(|&i| s[i] > tol * s1 && s[i] > 0.0).collect();
     let rank = keep.len();
     if m <= rank {
-        return Err(CoreError::InvalidParameter { arg: "J", reason: format!("{m} residuals leave no degrees of freedom for {rank} identifiable parameters") });
+        return Err(CoreError::InvalidParameter {
+            arg: "J",
+            reason: format!("{m} residuals leave no degrees of freedom for {rank} identifiable parameters"),
+        });
     }
     let dof = m - rank;
     let sigma2 = rv.col(0).squared_norm_l2() / dof as f64;

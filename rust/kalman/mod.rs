@@ -50,7 +50,10 @@ pub fn ukf_sweep(batch: &Batch, cols: &[usize], x: &[f64], p: &[f64], settings: 
         return Err(CoreError::Shape { arg: "x", expected: format!("({n},) matching `cols`, n >= 1"), got: format!("({},)", x.len()) });
     }
     if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
-        return Err(CoreError::InvalidParameter { arg: "cols", reason: format!("column index {bad} out of range for {n_params} parameters") });
+        return Err(CoreError::InvalidParameter {
+            arg: "cols",
+            reason: format!("column index {bad} out of range for {n_params} parameters"),
+        });
     }
     check_finite("x", x)?;
     let k = batch.measurement.res_width();
@@ -68,9 +71,9 @@ pub fn ukf_sweep(batch: &Batch, cols: &[usize], x: &[f64], p: &[f64], settings: 
     let mut z = DMatrix::zeros(n_sigma, k);
     let mut res = vec![0.0; k];
     for i in 0..batch.m {
-        let l = (&p * spread).cholesky().ok_or_else(|| {
-            CoreError::NotPositiveDefinite(format!("the parameter covariance before sample {i} (0-based) of the sweep"))
-        })?;
+        let l = (&p * spread)
+            .cholesky()
+            .ok_or_else(|| CoreError::NotPositiveDefinite(format!("the parameter covariance before sample {i} (0-based) of the sweep")))?;
         let l = l.unpack();
         for (s, ps) in params.iter_mut().enumerate() {
             for (a, &col) in cols.iter().enumerate() {
@@ -107,7 +110,8 @@ pub fn ukf_sweep(batch: &Batch, cols: &[usize], x: &[f64], p: &[f64], settings: 
         }
         let dz0 = z.row(0).transpose() - &z_mean;
         s_cov += wc[0] * &dz0 * dz0.transpose();
-        let s_chol = s_cov.clone().cholesky().ok_or_else(|| CoreError::Singular(format!("the innovation covariance at sample {i} (0-based)")))?;
+        let s_chol =
+            s_cov.clone().cholesky().ok_or_else(|| CoreError::Singular(format!("the innovation covariance at sample {i} (0-based)")))?;
         let gain = s_chol.solve(&pxz.transpose()).transpose();
         x -= &gain * &z_mean;
         p = &p + &q - &gain * &s_cov * gain.transpose();

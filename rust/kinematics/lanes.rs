@@ -69,7 +69,9 @@ pub fn sin_cos<const L: usize>(x: &Lane<L>) -> (Lane<L>, Lane<L>) {
     let r = lanewise::<L>(|l| (x[l] - k[l] * PIO2_1) - k[l] * PIO2_1T);
     let z = lanewise::<L>(|l| r[l] * r[l]);
     let sr = lanewise::<L>(|l| r[l] + r[l] * z[l] * (S[0] + z[l] * (S[1] + z[l] * (S[2] + z[l] * (S[3] + z[l] * (S[4] + z[l] * S[5]))))));
-    let cr = lanewise::<L>(|l| 1.0 - 0.5 * z[l] + z[l] * z[l] * (C[0] + z[l] * (C[1] + z[l] * (C[2] + z[l] * (C[3] + z[l] * (C[4] + z[l] * C[5]))))));
+    let cr = lanewise::<L>(|l| {
+        1.0 - 0.5 * z[l] + z[l] * z[l] * (C[0] + z[l] * (C[1] + z[l] * (C[2] + z[l] * (C[3] + z[l] * (C[4] + z[l] * C[5])))))
+    });
     let mut s = [0.0; L];
     let mut c = [0.0; L];
     for l in 0..L {

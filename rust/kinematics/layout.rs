@@ -1,18 +1,11 @@
 //! The stable, named order of the parameter vector.
 
 /// Per-joint parameter names, in order, and their units.
-const JOINT_PARAMS: [(&str, &str); 5] =
-    [("alpha", "rad"), ("a", "mm"), ("d", "mm"), ("theta", "rad"), ("beta", "rad")];
-const FRAME_PARAMS: [(&str, &str); 6] =
-    [("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "rad"), ("ry", "rad"), ("rz", "rad")];
+const JOINT_PARAMS: [(&str, &str); 5] = [("alpha", "rad"), ("a", "mm"), ("d", "mm"), ("theta", "rad"), ("beta", "rad")];
+const FRAME_PARAMS: [(&str, &str); 6] = [("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "rad"), ("ry", "rad"), ("rz", "rad")];
 /// Sensor parameters (cable model), in order, and their units.
-const SENSOR_PARAMS: [(&str, &str); 5] = [
-    ("anchor_x", "mm"),
-    ("anchor_y", "mm"),
-    ("anchor_z", "mm"),
-    ("cable_offset", "mm"),
-    ("cable_scale", "1"),
-];
+const SENSOR_PARAMS: [(&str, &str); 5] =
+    [("anchor_x", "mm"), ("anchor_y", "mm"), ("anchor_z", "mm"), ("cable_offset", "mm"), ("cable_scale", "1")];
 
 /// Index arithmetic of the parameter vector for N joints (length `5N + 17`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

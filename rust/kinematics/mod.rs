@@ -16,8 +16,8 @@ mod lanes;
 mod layout;
 
 pub use frame::Frame;
-pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, BLOCK, LANES, SMALL_BATCH};
 use lanes::sin_cos;
+pub use lanes::{lane_vec, splat, Frames, Lane, Vec3L, BLOCK, LANES, SMALL_BATCH};
 pub use layout::Layout;
 
 use crate::error::{check_kinematic_input, check_len, CoreError, CoreResult};
@@ -37,10 +37,7 @@ impl Convention {
         match s.to_ascii_lowercase().as_str() {
             "dh" => Ok(Self::Dh),
             "mdh" => Ok(Self::Mdh),
-            other => Err(CoreError::InvalidParameter {
-                arg: "conventions",
-                reason: format!("expected 'dh' or 'mdh'; got '{other}'"),
-            }),
+            other => Err(CoreError::InvalidParameter { arg: "conventions", reason: format!("expected 'dh' or 'mdh'; got '{other}'") }),
         }
     }
 }
@@ -59,10 +56,9 @@ impl JointKind {
         match s.to_ascii_lowercase().as_str() {
             "revolute" | "r" => Ok(Self::Revolute),
             "prismatic" | "p" => Ok(Self::Prismatic),
-            other => Err(CoreError::InvalidParameter {
-                arg: "kinds",
-                reason: format!("expected 'revolute' or 'prismatic'; got '{other}'"),
-            }),
+            other => {
+                Err(CoreError::InvalidParameter { arg: "kinds", reason: format!("expected 'revolute' or 'prismatic'; got '{other}'") })
+            }
         }
     }
 }
@@ -153,20 +149,8 @@ impl Chain {
                 JointKind::Prismatic => (None, Some(j)),
             };
             let link = match conv {
-                Convention::Dh => [
-                    rot(Z, theta, q_theta),
-                    trans(Z, d, q_d),
-                    trans(X, a, None),
-                    rot(X, alpha, None),
-                    rot(Y, beta, None),
-                ],
-                Convention::Mdh => [
-                    rot(X, alpha, None),
-                    trans(X, a, None),
-                    rot(Y, beta, None),
-                    rot(Z, theta, q_theta),
-                    trans(Z, d, q_d),
-                ],
+                Convention::Dh => [rot(Z, theta, q_theta), trans(Z, d, q_d), trans(X, a, None), rot(X, alpha, None), rot(Y, beta, None)],
+                Convention::Mdh => [rot(X, alpha, None), trans(X, a, None), rot(Y, beta, None), rot(Z, theta, q_theta), trans(Z, d, q_d)],
             };
             ops.extend_from_slice(&link);
         }
@@ -380,13 +364,20 @@ impl Chain {
         let n = self.n_joints();
         let pre = self.prepare(params);
         if m < SMALL_BATCH {
-            for_each_group::<LANES, _, _, _>(out, 16, || vec![splat::<LANES>(0.0); n], |first, count, rows, ql| {
-                self.fk_rows(&pre, q, tool, first, count, rows, ql)
-            });
+            for_each_group::<LANES, _, _, _>(
+                out,
+                16,
+                || vec![splat::<LANES>(0.0); n],
+                |first, count, rows, ql| self.fk_rows(&pre, q, tool, first, count, rows, ql),
+            );
         } else {
-            for_each_group::<BLOCK, _, _, _>(out, 16, || vec![splat::<BLOCK>(0.0); n], #[inline(always)] |first, count, rows, ql| {
-                self.fk_rows(&pre, q, tool, first, count, rows, ql)
-            });
+            for_each_group::<BLOCK, _, _, _>(
+                out,
+                16,
+                || vec![splat::<BLOCK>(0.0); n],
+                #[inline(always)]
+                |first, count, rows, ql| self.fk_rows(&pre, q, tool, first, count, rows, ql),
+            );
         }
         Ok(())
     }
@@ -395,7 +386,16 @@ impl Chain {
     /// (`ql`: scratch of N lanes).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    pub(crate) fn fk_rows<const L: usize>(&self, pre: &Prepared, q: &[f64], tool: bool, first: usize, count: usize, rows: &mut [f64], ql: &mut [Lane<L>]) {
+    pub(crate) fn fk_rows<const L: usize>(
+        &self,
+        pre: &Prepared,
+        q: &[f64],
+        tool: bool,
+        first: usize,
+        count: usize,
+        rows: &mut [f64],
+        ql: &mut [Lane<L>],
+    ) {
         gather_lanes(q, self.n_joints(), first, count, ql);
         let f = self.forward(pre, ql, tool);
         for (l, row) in rows.chunks_exact_mut(16).enumerate() {
@@ -426,9 +426,7 @@ mod tests {
     fn dh_matrix(alpha: f64, a: f64, d: f64, theta: f64) -> nalgebra::Matrix4<f64> {
         let (st, ct) = theta.sin_cos();
         let (sa, ca) = alpha.sin_cos();
-        nalgebra::Matrix4::new(
-            ct, -st * ca, st * sa, a * ct, st, ct * ca, -ct * sa, a * st, 0.0, sa, ca, d, 0.0, 0.0, 0.0, 1.0,
-        )
+        nalgebra::Matrix4::new(ct, -st * ca, st * sa, a * ct, st, ct * ca, -ct * sa, a * st, 0.0, sa, ca, d, 0.0, 0.0, 0.0, 1.0)
     }
 
     #[test]

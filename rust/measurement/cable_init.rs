@@ -42,9 +42,9 @@ pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> 
         b[i] = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - l[i] * l[i];
     }
     // A bounded iteration count: an SVD that does not converge is an error, never a hang.
-    let svd = a.try_svd(true, true, f64::EPSILON, 10_000).ok_or_else(|| {
-        CoreError::Singular(format!("the SVD of the {m}-sample cable anchor system did not converge"))
-    })?;
+    let svd = a
+        .try_svd(true, true, f64::EPSILON, 10_000)
+        .ok_or_else(|| CoreError::Singular(format!("the SVD of the {m}-sample cable anchor system did not converge")))?;
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
     if !(smin > 1e-10 * smax) {
@@ -54,9 +54,7 @@ pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> 
             smax / smin
         )));
     }
-    let sol = svd
-        .solve(&b, 0.0)
-        .map_err(|e| CoreError::Singular(format!("cable anchor least squares: {e}")))?;
+    let sol = svd.solve(&b, 0.0).map_err(|e| CoreError::Singular(format!("cable anchor least squares: {e}")))?;
     Ok(([sol[0] + centre[0], sol[1] + centre[1], sol[2] + centre[2]], sol[3]))
 }
 

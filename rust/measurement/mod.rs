@@ -10,7 +10,8 @@
 //! right Jacobian of SO(3) and are the exact derivative of the residual.
 
 mod cable_init;
-#[cfg(test)] mod proptests;
+#[cfg(test)]
+mod proptests;
 pub mod so3;
 
 pub use cable_init::cable_initial_guess;
@@ -77,13 +78,7 @@ impl<'a> Batch<'a> {
     /// (to 1e-3). `y` may be omitted where it is not needed (prediction, cable/position Jacobian).
     ///
     /// Errors: `Shape`, `NonFinite`, `OutOfRange`, `InvalidParameter`.
-    pub fn new(
-        chain: &'a Chain,
-        measurement: Measurement,
-        params: &'a [f64],
-        q: &'a [f64],
-        y: Option<&'a [f64]>,
-    ) -> CoreResult<Self> {
+    pub fn new(chain: &'a Chain, measurement: Measurement, params: &'a [f64], q: &'a [f64], y: Option<&'a [f64]>) -> CoreResult<Self> {
         let m = chain.check_inputs(params, q)?;
         if m == 0 {
             return Err(CoreError::Shape {
@@ -95,11 +90,7 @@ impl<'a> Batch<'a> {
         if let Some(y) = y {
             let w = measurement.obs_width();
             if y.len() != m * w {
-                return Err(CoreError::Shape {
-                    arg: "y",
-                    expected: format!("({m}, {w})"),
-                    got: format!("{} values", y.len()),
-                });
+                return Err(CoreError::Shape { arg: "y", expected: format!("({m}, {w})"), got: format!("{} values", y.len()) });
             }
             check_kinematic_input("y", y)?;
             if measurement == Measurement::Pose {
@@ -187,13 +178,20 @@ impl<'a> Batch<'a> {
     fn per_sample(&self, width: usize, residual: bool) -> Vec<f64> {
         let mut out = vec![0.0; self.m * width];
         if self.m < SMALL_BATCH {
-            for_each_group::<LANES, _, _, _>(&mut out, width, || self.q_scratch::<LANES>(), |first, count, rows, ql| {
-                self.sample_rows(residual, first, count, rows, ql)
-            });
+            for_each_group::<LANES, _, _, _>(
+                &mut out,
+                width,
+                || self.q_scratch::<LANES>(),
+                |first, count, rows, ql| self.sample_rows(residual, first, count, rows, ql),
+            );
         } else {
-            for_each_group::<BLOCK, _, _, _>(&mut out, width, || self.q_scratch::<BLOCK>(), #[inline(always)] |first, count, rows, ql| {
-                self.sample_rows(residual, first, count, rows, ql)
-            });
+            for_each_group::<BLOCK, _, _, _>(
+                &mut out,
+                width,
+                || self.q_scratch::<BLOCK>(),
+                #[inline(always)]
+                |first, count, rows, ql| self.sample_rows(residual, first, count, rows, ql),
+            );
         }
         out
     }

@@ -12,9 +12,7 @@ pub fn quaternion_from_matrix(r: &Matrix3<f64>) -> [f64; 4] {
 /// Rotation matrix of a quaternion `[w, x, y, z]` (normalised here; the caller has checked it is
 /// not zero).
 pub fn matrix_from_quaternion(q: &[f64]) -> Matrix3<f64> {
-    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
-        .to_rotation_matrix()
-        .into_inner()
+    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3])).to_rotation_matrix().into_inner()
 }
 
 /// Rotation vector `log(R)` (rad), through the quaternion so that it stays accurate near π.

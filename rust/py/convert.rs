@@ -8,10 +8,7 @@ use pyo3::prelude::*;
 /// Raises `robocal.exceptions.<class>(message)`.
 fn robocal_error(class: &str, message: String) -> PyErr {
     Python::attach(|py| {
-        let made = py
-            .import("robocal.exceptions")
-            .and_then(|m| m.getattr(class))
-            .and_then(|cls| cls.call1((message,)));
+        let made = py.import("robocal.exceptions").and_then(|m| m.getattr(class)).and_then(|cls| cls.call1((message,)));
         match made {
             Ok(instance) => PyErr::from_value(instance),
             Err(e) => e,
@@ -51,10 +48,7 @@ fn shape_str(shape: &[usize]) -> String {
 /// A float64 array of any layout, copied in logical (C) order, with its shape.
 fn owned(obj: &Bound<'_, PyAny>, arg: &'static str) -> PyResult<(Vec<f64>, Vec<usize>)> {
     let arr: PyReadonlyArrayDyn<'_, f64> = obj.extract().map_err(|_| {
-        core_err(CoreError::InvalidParameter {
-            arg,
-            reason: format!("must be a float64 NumPy array; got {}", describe(obj)),
-        })
+        core_err(CoreError::InvalidParameter { arg, reason: format!("must be a float64 NumPy array; got {}", describe(obj)) })
     })?;
     let shape = arr.shape().to_vec();
     // `as_slice` also succeeds on Fortran-ordered arrays (memory order); only a C-ordered
@@ -106,10 +100,15 @@ pub fn index_array(obj: &Bound<'_, PyAny>, arg: &'static str) -> PyResult<Vec<us
     } else if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, i32>>() {
         a.as_array().iter().map(|&v| v as i64).collect()
     } else {
-        return Err(core_err(CoreError::InvalidParameter { arg, reason: format!("must be a 1-D int32 or int64 NumPy array; got {}", describe(obj)) }));
+        return Err(core_err(CoreError::InvalidParameter {
+            arg,
+            reason: format!("must be a 1-D int32 or int64 NumPy array; got {}", describe(obj)),
+        }));
     };
     values
         .into_iter()
-        .map(|v| usize::try_from(v).map_err(|_| core_err(CoreError::InvalidParameter { arg, reason: format!("indices must be >= 0; got {v}") })))
+        .map(|v| {
+            usize::try_from(v).map_err(|_| core_err(CoreError::InvalidParameter { arg, reason: format!("indices must be >= 0; got {v}") }))
+        })
         .collect()
 }

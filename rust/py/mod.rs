@@ -85,7 +85,13 @@ impl PyChain {
 
     /// Flange (or tool) poses, (m, 4, 4) in mm.
     #[pyo3(signature = (params, q, tool = false))]
-    fn fk<'py>(&self, py: Python<'py>, params: &Bound<'py, PyAny>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    fn fk<'py>(
+        &self,
+        py: Python<'py>,
+        params: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        tool: bool,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let params = array1(params, "params", Some(self.inner.layout().n_params()))?;
         let (q, m, _) = array2(q, "q", Some(self.inner.n_joints()))?;
         // Filled in place: a zeroed Vec handed over with `from_vec` costs a pass over the whole
@@ -154,9 +160,7 @@ impl PyChain {
         let inp = self.owned(measurement, params, q, Some(y))?;
         let cols = index_list(cols, "cols")?;
         let (sigmas, s, _) = array2(sigmas, "sigmas", Some(cols.len()))?;
-        let out = py
-            .detach(|| measurement::sigma_residuals(&inp.batch(&self.inner)?, &cols, &sigmas))
-            .map_err(core_err)?;
+        let out = py.detach(|| measurement::sigma_residuals(&inp.batch(&self.inner)?, &cols, &sigmas)).map_err(core_err)?;
         matrix(py, out, s, inp.m * inp.measurement.res_width())
     }
 
@@ -194,13 +198,8 @@ impl PyChain {
     }
 
     fn __repr__(&self) -> String {
-        let joints: Vec<String> = self
-            .inner
-            .conventions()
-            .iter()
-            .zip(self.inner.kinds())
-            .map(|(c, k)| format!("{c:?}/{k:?}").to_lowercase())
-            .collect();
+        let joints: Vec<String> =
+            self.inner.conventions().iter().zip(self.inner.kinds()).map(|(c, k)| format!("{c:?}/{k:?}").to_lowercase()).collect();
         format!("Chain([{}])", joints.join(", "))
     }
 }
@@ -250,13 +249,23 @@ fn unscented_transform<'py>(
 #[pyfunction]
 #[pyo3(signature = (J, r, lam, damping = "marquardt", factor = "normal"))]
 #[allow(non_snake_case)]
-fn solve_damped<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, PyAny>, lam: f64, damping: &str, factor: &str) -> PyResult<(Arr1<'py>, &'static str)> {
+fn solve_damped<'py>(
+    py: Python<'py>,
+    J: &Bound<'py, PyAny>,
+    r: &Bound<'py, PyAny>,
+    lam: f64,
+    damping: &str,
+    factor: &str,
+) -> PyResult<(Arr1<'py>, &'static str)> {
     let damping = Damping::parse(damping).map_err(core_err)?;
     let solve = match factor {
         "normal" => solve::solve_damped,
         "lstsq" => solve::solve_damped_lstsq,
         other => {
-            return Err(core_err(CoreError::InvalidParameter { arg: "factor", reason: format!("expected 'normal' or 'lstsq'; got '{other}'") }));
+            return Err(core_err(CoreError::InvalidParameter {
+                arg: "factor",
+                reason: format!("expected 'normal' or 'lstsq'; got '{other}'"),
+            }));
         }
     };
     let (j, m, n) = array2(J, "J", None)?;
@@ -298,7 +307,13 @@ impl PyDampedQr {
 
 /// `JᵀJ` (n, n) of a CSR matrix `(indptr, indices, data)` with `ncols` columns.
 #[pyfunction]
-fn sparse_gram<'py>(py: Python<'py>, indptr: &Bound<'py, PyAny>, indices: &Bound<'py, PyAny>, data: &Bound<'py, PyAny>, ncols: usize) -> PyResult<Arr2<'py>> {
+fn sparse_gram<'py>(
+    py: Python<'py>,
+    indptr: &Bound<'py, PyAny>,
+    indices: &Bound<'py, PyAny>,
+    data: &Bound<'py, PyAny>,
+    ncols: usize,
+) -> PyResult<Arr2<'py>> {
     let indptr = index_array(indptr, "indptr")?;
     let indices = index_array(indices, "indices")?;
     let data = array1(data, "data", None)?;
@@ -368,13 +383,17 @@ fn stack_csr<'py>(
     let weights = array1(weights, "weights", None)?;
     let thin = thin
         .iter()
-        .map(|(indptr, indices, data, offset)| PyResult::Ok((index_array(indptr, "indptr")?, index_array(indices, "indices")?, array1(data, "thin", None)?, *offset)))
+        .map(|(indptr, indices, data, offset)| {
+            PyResult::Ok((index_array(indptr, "indptr")?, index_array(indices, "indices")?, array1(data, "thin", None)?, *offset))
+        })
         .collect::<PyResult<Vec<_>>>()?;
     let extra = (index_array(&extra.0, "indptr")?, index_array(&extra.1, "indices")?, array1(&extra.2, "extra", None)?, extra.3);
     let (layout, data) = py
         .detach(|| {
-            let blocks: Vec<(solve::Csr, usize)> =
-                thin.iter().map(|(p, i, d, offset)| (solve::Csr { indptr: p, indices: i, data: d, ncols: extra.3.saturating_sub(*offset) }, *offset)).collect();
+            let blocks: Vec<(solve::Csr, usize)> = thin
+                .iter()
+                .map(|(p, i, d, offset)| (solve::Csr { indptr: p, indices: i, data: d, ncols: extra.3.saturating_sub(*offset) }, *offset))
+                .collect();
             let extra = solve::Csr { indptr: &extra.0, indices: &extra.1, data: &extra.2, ncols: extra.3 };
             solve::stack_csr(&dense, &dense_cols, &blocks, &weights, extra, pattern)
         })

@@ -37,11 +37,7 @@ pub fn merwe_sigma_points(x: &[f64], p: &[f64], alpha: f64, beta: f64, kappa: f6
         return Err(CoreError::Shape { arg: "x", expected: "(n,) with n >= 1".into(), got: "(0,)".into() });
     }
     if p.len() != n * n {
-        return Err(CoreError::Shape {
-            arg: "P",
-            expected: format!("({n}, {n})"),
-            got: format!("{} values", p.len()),
-        });
+        return Err(CoreError::Shape { arg: "P", expected: format!("({n}, {n})"), got: format!("{} values", p.len()) });
     }
     check_finite("x", x)?;
     check_finite("P", p)?;
@@ -53,10 +49,7 @@ pub fn merwe_sigma_points(x: &[f64], p: &[f64], alpha: f64, beta: f64, kappa: f6
     if asym > 1e-9 * pm.abs().max() {
         return Err(CoreError::InvalidParameter { arg: "P", reason: format!("must be symmetric; max |P − Pᵀ| = {asym:e}") });
     }
-    let l = pm
-        .cholesky()
-        .ok_or_else(|| CoreError::NotPositiveDefinite("`P` (sigma-point covariance)".into()))?
-        .unpack();
+    let l = pm.cholesky().ok_or_else(|| CoreError::NotPositiveDefinite("`P` (sigma-point covariance)".into()))?.unpack();
     let mut out = Vec::with_capacity((2 * n + 1) * n);
     out.extend_from_slice(x);
     for sign in [1.0, -1.0] {
@@ -71,11 +64,16 @@ pub fn merwe_sigma_points(x: &[f64], p: &[f64], alpha: f64, beta: f64, kappa: f6
 /// images, row-major. Returns `(ŷ (k), S_yy (k, k), P_xy (n, k))`, the paper's eq. (10)–(11).
 ///
 /// Errors: `Shape`, `NonFinite`.
-pub fn unscented_transform(sx: &[f64], n: usize, sy: &[f64], k: usize, wm: &[f64], wc: &[f64]) -> CoreResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+pub fn unscented_transform(
+    sx: &[f64],
+    n: usize,
+    sy: &[f64],
+    k: usize,
+    wm: &[f64],
+    wc: &[f64],
+) -> CoreResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let s = wm.len();
-    let shape = |arg, len: usize, expected: String| {
-        Err(CoreError::Shape { arg, expected, got: format!("{len} values") })
-    };
+    let shape = |arg, len: usize, expected: String| Err(CoreError::Shape { arg, expected, got: format!("{len} values") });
     if s == 0 {
         return shape("Wm", 0, "(S,) with S >= 1".into());
     }

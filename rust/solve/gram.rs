@@ -183,7 +183,14 @@ pub type CsrPattern = (Vec<usize>, Vec<usize>);
 ///
 /// Errors: `InvalidParameter` (a malformed CSR, a block of another row count, lengths that
 /// disagree), `NonFinite`.
-pub fn stack_csr(dense: &[f64], dense_cols: &[usize], thin: &[(Csr, usize)], weights: &[f64], extra: Csr, pattern: bool) -> CoreResult<(Option<CsrPattern>, Vec<f64>)> {
+pub fn stack_csr(
+    dense: &[f64],
+    dense_cols: &[usize],
+    thin: &[(Csr, usize)],
+    weights: &[f64],
+    extra: Csr,
+    pattern: bool,
+) -> CoreResult<(Option<CsrPattern>, Vec<f64>)> {
     let (m, nd) = (weights.len(), dense_cols.len());
     let bad = |arg: &'static str, reason: String| Err(CoreError::InvalidParameter { arg, reason });
     if dense.len() != m * nd {
@@ -366,20 +373,14 @@ mod tests {
         let (m, n) = (200, 15);
         let mut seed = 11u64;
         let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
         let (mut indptr, mut indices, mut data, mut rows) = (vec![0], vec![], vec![], vec![]);
         for i in 0..m {
             let mut row = vec![0.0; n];
             let first = i % 3;
-            let mut cols: Vec<usize> = if i % 17 == 0 {
-                vec![]
-            } else {
-                (first..first + 6).collect()
-            };
+            let mut cols: Vec<usize> = if i % 17 == 0 { vec![] } else { (first..first + 6).collect() };
             cols.extend((9..n).filter(|_| next() < 0.4));
             if i % 5 == 0 {
                 cols.reverse();
@@ -411,11 +412,13 @@ mod tests {
     fn fold_products_match_the_definition() {
         // 7 rows, C (7 × 2), J (7 × 3), two labellings
         // rows with one, two or no entries of C
-        let c_rows: Vec<Vec<(usize, f64)>> = (0..7).map(|i| match i % 3 {
-            0 => vec![(0, 1.0 + i as f64)],
-            1 => vec![(0, -2.0), (1, 0.5 * i as f64)],
-            _ => vec![],
-        }).collect();
+        let c_rows: Vec<Vec<(usize, f64)>> = (0..7)
+            .map(|i| match i % 3 {
+                0 => vec![(0, 1.0 + i as f64)],
+                1 => vec![(0, -2.0), (1, 0.5 * i as f64)],
+                _ => vec![],
+            })
+            .collect();
         let j_rows: Vec<Vec<(usize, f64)>> = (0..7).map(|i| vec![(0, 1.0), (2, (i as f64).sin())]).collect();
         let csr = |rows: &Vec<Vec<(usize, f64)>>| {
             let mut indptr = vec![0];
@@ -490,6 +493,9 @@ mod tests {
         assert_eq!(data, vec![10.0, 20.0, 50.0, 300.0, 400.0, 7.0]);
         let (layout, values) = stack_csr(&[1.0, 2.0, 3.0, 4.0], &[0, 1], &thin, &[10.0, 100.0], extra, false).unwrap();
         assert!(layout.is_none() && values == data);
-        assert!(stack_csr(&[1.0, 2.0, 3.0], &[0, 1], &thin, &[10.0, 100.0], extra, true).unwrap_err().to_string().contains("need 4 values"));
+        assert!(stack_csr(&[1.0, 2.0, 3.0], &[0, 1], &thin, &[10.0, 100.0], extra, true)
+            .unwrap_err()
+            .to_string()
+            .contains("need 4 values"));
     }
 }

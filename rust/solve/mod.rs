@@ -19,8 +19,8 @@
 
 mod gram;
 mod tall_qr;
-pub use tall_qr::TallQr;
 pub use gram::{fold_products, normal_equations, sparse_gram, stack_csr, Csr, FoldProducts, MAX_FOLD_PRODUCTS, MAX_GRAM_COLUMNS};
+pub use tall_qr::TallQr;
 
 use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
@@ -41,10 +41,9 @@ impl Damping {
         match s.to_ascii_lowercase().as_str() {
             "marquardt" => Ok(Self::Marquardt),
             "identity" | "levenberg" => Ok(Self::Identity),
-            other => Err(CoreError::InvalidParameter {
-                arg: "damping",
-                reason: format!("expected 'marquardt' or 'identity'; got '{other}'"),
-            }),
+            other => {
+                Err(CoreError::InvalidParameter { arg: "damping", reason: format!("expected 'marquardt' or 'identity'; got '{other}'") })
+            }
         }
     }
 }
@@ -80,10 +79,7 @@ fn damped_inputs<'a>(j: &'a [f64], r: &'a [f64], m: usize, n: usize, lambda: f64
 
 fn check_lambda(lambda: f64) -> CoreResult<()> {
     if !(lambda >= 0.0 && lambda.is_finite()) {
-        return Err(CoreError::InvalidParameter {
-            arg: "lam",
-            reason: format!("must be finite and >= 0; got {lambda}"),
-        });
+        return Err(CoreError::InvalidParameter { arg: "lam", reason: format!("must be finite and >= 0; got {lambda}") });
     }
     Ok(())
 }
@@ -240,7 +236,15 @@ impl DampedQr {
         check_lambda(lambda)?;
         let sqrt_lambda = lambda.sqrt();
         let r = self.qr.r();
-        let aug = Mat::from_fn(2 * n, n, |row, col| if row < n { r[row * n + col] } else if row - n == col { sqrt_lambda } else { 0.0 });
+        let aug = Mat::from_fn(2 * n, n, |row, col| {
+            if row < n {
+                r[row * n + col]
+            } else if row - n == col {
+                sqrt_lambda
+            } else {
+                0.0
+            }
+        });
         let rhs = Mat::from_fn(2 * n, 1, |row, _| if row < n { cv[(row, 0)] } else { 0.0 });
         let rcond = f64::EPSILON * (self.m + n) as f64;
         let qr = aug.col_piv_qr();
@@ -260,9 +264,7 @@ impl DampedQr {
 /// through the thin SVD of `A`, singular values
 /// at or below `rcond` of the largest treated as zero.
 fn min_norm_lstsq(a: MatRef<'_, f64>, b: MatRef<'_, f64>, rcond: f64) -> CoreResult<Vec<f64>> {
-    let svd = a
-        .thin_svd()
-        .map_err(|e| CoreError::NoConvergence(format!("SVD of the damped system: {e:?}")))?;
+    let svd = a.thin_svd().map_err(|e| CoreError::NoConvergence(format!("SVD of the damped system: {e:?}")))?;
     let s = svd.S().column_vector();
     let smax = (0..s.nrows()).map(|i| s[i]).fold(0.0, f64::max);
     let utb: Mat<f64> = svd.U().transpose() * b;

@@ -152,10 +152,12 @@ mod tests {
 
     fn matrix(m: usize, n: usize) -> Vec<f64> {
         // Columns falling over six decades, like an unscaled identification Jacobian.
-        (0..m * n).map(|p| {
-            let (i, j) = (p / n, p % n);
-            ((i * 7 + j * 13) % 17) as f64 * 0.1 + ((i * j) as f64 * 0.37).sin() * 10f64.powi(-(j as i32) / 4)
-        }).collect()
+        (0..m * n)
+            .map(|p| {
+                let (i, j) = (p / n, p % n);
+                ((i * 7 + j * 13) % 17) as f64 * 0.1 + ((i * j) as f64 * 0.37).sin() * 10f64.powi(-(j as i32) / 4)
+            })
+            .collect()
     }
 
     #[test]
