@@ -101,12 +101,12 @@ pub fn ukf_sweep(batch: &Batch, cols: &[usize], x: &[f64], p: &[f64], settings: 
         let z_mean = z.tr_mul(&DVector::from_column_slice(&wm));
         let mut s_cov = r.clone();
         let mut pxz = DMatrix::zeros(n, k);
-        for s in 1..n_sigma {
+        for (s, &wc_s) in wc.iter().enumerate().skip(1) {
             // χ_s − x̄ is ±col(L); the centre point (s = 0) has zero state deviation.
             let dz = z.row(s).transpose() - &z_mean;
             let dx = if s <= n { l.column(s - 1).into_owned() } else { -l.column(s - 1 - n) };
-            s_cov += wc[s] * &dz * dz.transpose();
-            pxz += wc[s] * dx * dz.transpose();
+            s_cov += wc_s * &dz * dz.transpose();
+            pxz += wc_s * dx * dz.transpose();
         }
         let dz0 = z.row(0).transpose() - &z_mean;
         s_cov += wc[0] * &dz0 * dz0.transpose();

@@ -40,6 +40,7 @@ const REDUCTION_LIMIT: f64 = 1.0e5;
 /// Sine and cosine of every lane: Cody–Waite reduction to [−π/4, π/4] and fdlibm's kernel
 /// polynomials (error ≲ 2 ulp for |x| < 1e5).
 #[inline(always)]
+#[allow(clippy::excessive_precision)] // fdlibm's k_sin.c / k_cos.c constants verbatim, to check against the source
 pub fn sin_cos<const L: usize>(x: &Lane<L>) -> (Lane<L>, Lane<L>) {
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17;
     const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;

@@ -186,7 +186,7 @@ impl Chain {
         check_len("params", params.len(), self.layout.n_params())?;
         check_kinematic_input("params", params)?;
         let n = self.n_joints();
-        if q.len() % n != 0 {
+        if !q.len().is_multiple_of(n) {
             return Err(CoreError::Shape {
                 arg: "q",
                 expected: format!("(m, {n})"),
@@ -435,9 +435,9 @@ mod tests {
         let q = [0.3, -0.2, 0.5, 1.1, -0.7, 2.0];
         let f = single(&chain, &p, &q, false);
         let mut expected = nalgebra::Matrix4::<f64>::identity();
-        for j in 0..6 {
+        for (j, &qj) in q.iter().enumerate() {
             let (ia, ii, id, it, _) = chain.layout().joint(j);
-            expected *= dh_matrix(p[ia], p[ii], p[id], p[it] + q[j]);
+            expected *= dh_matrix(p[ia], p[ii], p[id], p[it] + qj);
         }
         let mut got = [0.0; 16];
         f.write_homogeneous(&mut got);

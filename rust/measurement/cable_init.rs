@@ -6,6 +6,7 @@
 
 use crate::error::{check_kinematic_input, CoreError, CoreResult};
 use nalgebra::{DMatrix, DVector};
+use std::cmp::Ordering;
 
 /// Anchor `P0` (mm, base frame) and `cable_offset` `L0` (mm) from tool points `p` (m, 3)
 /// row-major and cable lengths `l` (m).
@@ -47,7 +48,8 @@ pub fn cable_initial_guess(p: &[f64], l: &[f64]) -> CoreResult<([f64; 3], f64)> 
         .ok_or_else(|| CoreError::Singular(format!("the SVD of the {m}-sample cable anchor system did not converge")))?;
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
-    if !(smin > 1e-10 * smax) {
+    // Not greater, NaN included.
+    if smin.partial_cmp(&(1e-10 * smax)) != Some(Ordering::Greater) {
         return Err(CoreError::Singular(format!(
             "the {m} tool positions and lengths do not determine the cable anchor (condition number {:.3e}); \
              use configurations spread over 3-D space",
@@ -84,7 +86,7 @@ mod tests {
 
     #[test]
     fn degenerate_positions_are_reported() {
-        let p = vec![100.0, 0.0, 0.0].repeat(8);
+        let p = [100.0, 0.0, 0.0].repeat(8);
         let l = vec![50.0; 8];
         assert!(matches!(cable_initial_guess(&p, &l), Err(CoreError::Singular(_))));
     }

@@ -342,7 +342,7 @@ pub fn sigma_residuals(batch: &Batch, cols: &[usize], sigmas: &[f64]) -> CoreRes
         });
     }
     let nc = cols.len();
-    if nc == 0 || sigmas.len() % nc != 0 {
+    if nc == 0 || !sigmas.len().is_multiple_of(nc) {
         return Err(CoreError::Shape {
             arg: "sigmas",
             expected: format!("(S, {nc}) with {nc} >= 1"),

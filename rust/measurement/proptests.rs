@@ -25,7 +25,7 @@ use proptest::test_runner::{Config, RngSeed};
 use std::f64::consts::PI;
 
 fn config() -> Config {
-    let seed = std::env::var("PROPTEST_RNG_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x0b0c_a1);
+    let seed = std::env::var("PROPTEST_RNG_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x000b_0ca1);
     Config {
         cases: std::env::var("PROPTEST_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(64),
         rng_seed: RngSeed::Fixed(seed),

@@ -147,6 +147,7 @@ impl PyChain {
 
     /// Residuals of every sigma point, (S, m·res_width); `sigmas` (S, len(cols)) are absolute
     /// values of `params[cols]`.
+    #[allow(clippy::too_many_arguments)] // the arguments are the Python method's signature
     fn sigma_residuals<'py>(
         &self,
         py: Python<'py>,

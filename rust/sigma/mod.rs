@@ -12,7 +12,8 @@ use nalgebra::{DMatrix, DVector};
 pub fn merwe_weights(n: usize, alpha: f64, beta: f64, kappa: f64) -> CoreResult<(Vec<f64>, Vec<f64>)> {
     let nf = n as f64;
     let lambda = alpha * alpha * (nf + kappa) - nf;
-    if !(alpha > 0.0) || !(nf + lambda > 0.0) || !beta.is_finite() || !kappa.is_finite() {
+    // Written as the valid domain so that a NaN `alpha` or `kappa` fails it.
+    if !(alpha > 0.0 && nf + lambda > 0.0 && beta.is_finite() && kappa.is_finite()) {
         return Err(CoreError::InvalidParameter {
             arg: "alpha",
             reason: format!("need alpha > 0 and alpha²·(n+kappa) > 0; got alpha={alpha}, kappa={kappa}, n={n}"),
@@ -101,8 +102,8 @@ pub fn unscented_transform(
         dx.row_mut(i).iter_mut().zip(x_mean.iter()).for_each(|(v, m)| *v -= m);
     }
     let mut wdy = dy.clone();
-    for i in 0..s {
-        wdy.row_mut(i).scale_mut(wc[i]);
+    for (i, &w) in wc.iter().enumerate() {
+        wdy.row_mut(i).scale_mut(w);
     }
     let cov = dy.transpose() * &wdy;
     let cross = dx.transpose() * &wdy;

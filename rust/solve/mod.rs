@@ -26,6 +26,7 @@ use crate::error::{CoreError, CoreResult};
 use crate::linalg::row_major;
 use faer::prelude::*;
 use faer::{Mat, MatRef, Side};
+use std::cmp::Ordering;
 
 /// Damping matrix `D`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,7 +125,8 @@ fn cholesky_step(m: MatRef<'_, f64>, g: MatRef<'_, f64>, min_ratio: f64) -> Opti
     let pivots: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
     let max = pivots.iter().cloned().fold(0.0, f64::max);
     let min = pivots.iter().cloned().fold(f64::INFINITY, f64::min);
-    if n > 0 && !(min > min_ratio * max) {
+    // Not greater, NaN included.
+    if n > 0 && min.partial_cmp(&(min_ratio * max)) != Some(Ordering::Greater) {
         return None;
     }
     let x = llt.solve(g);
