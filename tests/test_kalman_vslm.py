@@ -8,8 +8,8 @@ positions. Budgets and what is asserted:
   relative) and an RMSE below 1.5× the expected noise level, within 20 (M6), 60 (M8) and
   5 sweeps + 40 iterations (M9).
 * M1 and M3 alone, 5 sweeps: below 1.5× the noise level, cost falling. They are R-weighted,
-  sample-by-sample estimators and land slightly above the least-squares minimum (RMSE ~0.1-1 %
-  higher here). This relies on :func:`~robocal.calibration.problem.start_parameters` fitting the
+  sample-by-sample estimators and land above the least-squares minimum (cost 0.01-7 % higher
+  here after 5 sweeps; within 1 % after 15). This relies on :func:`~robocal.calibration.problem.start_parameters` fitting the
   set-up and tool first (start RMSE ~0.1-0.4 mm); from a start ~17 mm off (closed-form cable
   anchor alone) 5 sweeps left the cable RMSE at ~4σ and ~30 sweeps were needed.
 """
@@ -74,10 +74,13 @@ def test_filters_alone(case, method):
     kind, problem, reference = case
     result = METHODS[method][2](problem, sweeps=5)
     assert result.method == method and result.nit == 5 and len(result.history) == 6
-    # the cost falls, then hovers at the filter's fixed point (changes of ~1e-8 relative)
-    assert result.history[1] < result.history[0] and result.history[-1] <= min(result.history) * (1 + 1e-6)
+    # the cost falls, then hovers at the filter's fixed point (changes of ~1e-6 relative)
+    assert result.history[1] < result.history[0] and result.history[-1] <= min(result.history) * (1 + 1e-5)
     assert result.metrics["train"]["rmse"] < 1.5 * FLOOR[kind]
-    assert result.cost < 1.05 * reference.cost
+    # sweeps bring the sequential estimate toward the least-squares minimum (the cable converges
+    # slowest: 7 % above it after 5 sweeps, 0.2-0.3 % after 15)
+    longer = METHODS[method][2](problem, sweeps=15)
+    assert reference.cost <= longer.cost < result.cost * (1 + 1e-6) and longer.cost < 1.01 * reference.cost
 
 
 @pytest.mark.parametrize("method", sorted(METHODS))
