@@ -166,16 +166,18 @@ def test_a_drift_waits_for_a_wander_only_not_for_a_temperature_that_gains_more()
 
 def test_a_cause_the_later_ones_make_insignificant_is_retracted_with_its_z_score():
     """The backward check asks of a cause in the model what the forward test asked of it: a
-    significant held-out gain over the model without it. A drift taken early, beside a
-    compliance off the mass model and two conventions, still gains on every scheme once the
-    later causes are in, but by 1.9 standard errors: retracted (discovery benchmark, seed 28,
-    file 13; before, it was named)."""
-    data, _ = simulate("ur10", "cable", samples=300, seed=28280, effects=["joint_compliance:joint=2,mass_error=0.284,compliance=7.51761"])
+    significant held-out gain over the model without it. A wander taken early, beside a
+    compliance off the mass model and two conventions, still gains on the random folds once the
+    later causes are in, but by 2.0 standard errors: retracted, with its z score. (The case of
+    the discovery benchmark's seed 28, file 13 — a drift so retracted — no longer arises since the
+    simulator's truth stopped depending on the number of samples; this one was found by running
+    its scenario on the next seeds.)"""
+    data, _ = simulate("ur10", "cable", samples=300, seed=28292, effects=["joint_compliance:joint=2,mass_error=0.284,compliance=7.51761"])
     hidden = [Structure("joint_zero", 1, np.pi), Structure("joint_zero", 2, np.pi)]
     report = diagnose(replace(data, q=to_readings(data.q, hidden))).to_dict()
-    assert "drift" not in [e["kind"] for e in report["effects"]]
-    (drift,) = [r for r in report["rejected"] if r["kind"] == "drift"]
-    assert drift["reason"].startswith("no longer earns its place") and "held-out gain not significant" in drift["reason"]
+    assert "wander" not in [e["kind"] for e in report["effects"]]
+    (wander,) = [r for r in report["rejected"] if r["kind"] == "wander" and r["reason"].startswith("no longer earns its place")]
+    assert "held-out gain not significant" in wander["reason"] and "standard errors" in wander["reason"]
 
 
 @pytest.mark.parametrize("seed", [3, 7])
