@@ -82,6 +82,11 @@ from pathlib import Path
 from robocal import simulation
 from robocal.cli import main
 
+# Ctrl-C as a terminal delivers it, however the suite was started: a shell's background job
+# (``pytest &``, ``nohup``) starts with SIGINT ignored, which the child would inherit and hang in
+# pause() until the test's bound.
+signal.signal(signal.SIGINT, signal.default_int_handler)
+
 real = simulation.write_canonical
 
 def held(dataset, path):
