@@ -83,3 +83,27 @@ def test_a_deflection_by_masses_elsewhere_is_one_compliance_and_nothing_else():
     assert 0.5 < params["model_torque_share"]["value"] < 1.0
     fit = robocal.calibrate(data, causes=["joint_compliance joint 2 masses=free"])
     assert fit.metrics["train"]["rmse"] < report["baseline"]["rmse_train"]
+
+
+def test_a_free_mass_compliance_must_be_mostly_the_mass_models_torque():
+    """The free masses refine the mass model's torque; a deflection that torque explains less than
+    MIN_MODEL_TORQUE_SHARE of is another cause's shape (a harmonic, a joint map) and is refused."""
+    from robocal.causes.candidates import MIN_MODEL_TORQUE_SHARE, free_mass_compliance
+    from robocal.physics import standard_poses
+
+    r = robocal.robot("ur10")
+    poses, joint = standard_poses(r), 1
+    Y = gravity_regressor(r, poses, joint)[:, gravity_base_columns(r, joint)]
+    tau = gravity_torques(r, poses)[:, joint]
+    model = np.linalg.lstsq(Y, 1e-5 * tau, rcond=None)[0]  # the model's torque at 1e-5 rad/(N·m)
+    params, why = free_mass_compliance(r, joint, model)
+    assert why is None and params["model_torque_share"]["value"] == pytest.approx(1.0)
+    assert params["compliance"]["value"] == pytest.approx(1e-5 * 180 / np.pi * 1000, rel=1e-6)
+    # the same plus a shape orthogonal to that torque, twice as large: a share of 0.2
+    other = Y @ np.random.default_rng(0).normal(size=Y.shape[1])
+    other -= (other @ tau) / (tau @ tau) * tau
+    other *= 2.0 * np.linalg.norm(1e-5 * tau) / np.linalg.norm(other)
+    mixed = np.linalg.lstsq(Y, 1e-5 * tau + other, rcond=None)[0]
+    params, why = free_mass_compliance(r, joint, mixed)
+    assert params["model_torque_share"]["value"] == pytest.approx(0.2, abs=0.01) and 0.2 < MIN_MODEL_TORQUE_SHARE
+    assert why is not None and "explains 0.20 of the deflection" in why
