@@ -109,7 +109,7 @@ class Candidate:
             return {"value": float(value), "std": None if not np.isfinite(sd) else float(sd), "unit": unit}
 
         kind = self.kind
-        if kind == "joint_compliance" and self.detail.get("masses") == "free":
+        if on_free_masses(self):
             return free_mass_compliance(robot, self.joint, c)
         if kind == "joint_compliance":
             out = {"compliance": q(c[0] / DEG * 1000.0, s[0] / DEG * 1000.0, "deg/(kN·m)")}
@@ -244,6 +244,11 @@ def free_mass_compliance(robot: Robot, joint: int, c: np.ndarray) -> tuple[dict,
 #: (0.49), the joint maps of UR10 series C (0.61, whose compliance then turned negative). The
 #: bar sits between those two groups of cases, which it was chosen on.
 MIN_MODEL_TORQUE_SHARE = 0.8
+
+
+def on_free_masses(c: Candidate) -> bool:
+    """Whether ``c`` is a gravity compliance on free masses (:func:`free_mass_candidate`)."""
+    return c.kind == "joint_compliance" and c.detail.get("masses") == "free"
 
 
 def free_mass_candidate(robot: Robot, data: Dataset, joint: int) -> Candidate:

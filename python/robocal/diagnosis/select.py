@@ -71,6 +71,7 @@ from ..causes.candidates import (
     drift_candidate,
     free_mass_candidate,
     library,
+    on_free_masses,
 )
 from ..causes.problem import ExtendedProblem, judged_rmse, reported_rmse
 from ..causes.wander import ROUGHNESS, TIME_TERMS, wander_candidate, within_session
@@ -510,7 +511,7 @@ def forward_selection(state: Pass, pool: list, *, alpha: float, max_effects: int
             # drift ∝ t^0.65 left a compliance and a coupling)
             try_curved_drift(state)
         pool = [o for o in screening.offered if o is not taken]
-        if taken.kind == "joint_compliance" and "masses" not in taken.detail:
+        if taken.kind == "joint_compliance" and not on_free_masses(taken):
             # the same joint on any masses competes from the next round on: what the mass
             # model's torque misses of a deflection was taken by couplings and harmonics of the
             # joints that move with it
@@ -981,7 +982,7 @@ def wander_keeps_its_trend(state: Pass) -> None:
 def with_cause(causes: list, c: Candidate) -> list:
     """``causes`` with ``c``: in the place of what it refines (a compliance on any masses in the
     place of its joint's on the mass model's torque, whose columns it spans), else added."""
-    refined = [o for o in causes if c.kind == "joint_compliance" and "masses" in c.detail and o.kind == "joint_compliance" and o.joint == c.joint]
+    refined = [o for o in causes if on_free_masses(c) and o.kind == "joint_compliance" and o.joint == c.joint]
     return [c if o in refined else o for o in causes] if refined else causes + [c]
 
 
@@ -1233,7 +1234,7 @@ def recheck_compliances(state: Pass) -> None:
         if not failed:
             break
         dropped += failed
-        fallbacks = {c: compliance_candidate(current.robot, current.full_data, c.joint) for c, _, _ in failed if "masses" in c.detail}
+        fallbacks = {c: compliance_candidate(current.robot, current.full_data, c.joint) for c, _, _ in failed if on_free_masses(c)}
         restored += list(fallbacks.values())
         causes = [fallbacks.get(c, c) for c in causes if c in fallbacks or all(c is not d for d, _, _ in failed)]
         trial = ExtendedProblem(model.base, causes, model.full_data, model.idx)
@@ -1329,11 +1330,11 @@ def mass_model_first(ranked: list, significant) -> list:
     out = list(ranked)
     for i in range(len(out)):
         gain, c = out[i][0], out[i][1]
-        if c.kind == "joint_compliance" and "masses" in c.detail:
+        if on_free_masses(c):
             simpler = [
                 j
                 for j in range(i + 1, len(out))
-                if out[j][1].kind == "joint_compliance" and "masses" not in out[j][1].detail and significant(*out[j]) and out[j][0] >= PHYSICS_SHARE * gain
+                if out[j][1].kind == "joint_compliance" and not on_free_masses(out[j][1]) and significant(*out[j]) and out[j][0] >= PHYSICS_SHARE * gain
             ]
             if simpler:
                 out.insert(i, out.pop(simpler[0]))
