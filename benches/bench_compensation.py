@@ -75,7 +75,7 @@ def main() -> None:
         targets = calibrated.predict(measurement, q_true)
 
         t0 = time.perf_counter()
-        rows = compensate(doc, Targets(targets, None, np.arange(2, args.targets + 2)))
+        rows = compensate(doc, Targets(targets, None, np.arange(2, args.targets + 2)), frame="session")  # the calibrated set-up's frame
         t_robocal = (time.perf_counter() - t0) / args.targets
         ok_robocal = sum(_reached(calibrated, measurement, np.radians(r["q"]), y, lower, upper) for r, y in zip(rows, targets))
 

@@ -30,10 +30,11 @@ geometric = robocal.calibrate(data)
 extended = robocal.calibrate(data, causes=report)
 print(f"held-out RMSE: geometric {geometric.metrics['test']['rmse']:.4f} mm, extended {extended.metrics['test']['rmse']:.4f} mm")
 
-# Joint commands for three target positions (tracker frame, mm) on the calibrated model.
+# Joint commands for three target positions on the calibrated model: measured points, so in the
+# tracker frame (frame="session"; by default targets are in the robot base frame).
 result = out / "result.json"
 result.write_text(json.dumps(geometric.to_dict()))
 targets = out / "targets.csv"
 targets.write_text("x,y,z\n" + "\n".join(",".join(f"{v:.3f}" for v in p) for p in data.y[:3, :3]) + "\n")
-for row in robocal.compensate(result, targets):
+for row in robocal.compensate(result, targets, frame="session"):
     print(f"target row {row['row']}: q = {np.round(row['q'], 3).tolist()} deg, residual {row['residual_mm']:.1e} mm, {row['status']}")

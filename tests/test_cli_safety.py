@@ -515,7 +515,7 @@ SPECS = {
             "--force": None,
         },
     ),
-    "compensate": (["result", "targets"], {"--out": "out", "--angle-unit": "text"}),
+    "compensate": (["result", "targets"], {"--out": "out", "--angle-unit": "text", "--frame": "text", "--user-frame": "text"}),
     "verify": (["result", "data"], {"--measurement": "text", "--angle-unit": "text", "--json": "out"}),
     "report": (["result"], {"--out": "folder", "--data": "data", "--diagnosis": "diagnosis", "--force": None, "--angle-unit": "text"}),
     "export": (["result"], {"--format": "text", "--table-format": "text", "--out": "out", "--name": "text", "--samples": "int", "--seed": "int"}),
@@ -547,6 +547,8 @@ CHOICES = {
     "--kinematic-prior": ["10,1", "1", "a,b", "-1,0"],
     "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"],
     "--name": ["r", "<b>&"],
+    "--frame": ["base", "session", "session:1", "session:2", "user", "tool", "session:0"],
+    "--user-frame": ["0,0,0,0,0,0", "100,0,500,0,0,90", "1,2,3", "a,b,c,d,e,f", "nan,0,0,0,0,0"],
 }
 #: Options always drawn (required, or without which the canonical file cannot be calibrated).
 REQUIRED = {

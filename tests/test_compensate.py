@@ -43,7 +43,7 @@ def test_compensated_joints_reach_the_targets_on_the_true_robot(calibrated, tmp_
         + "\n".join(",".join(f"{v:.9f}" for v in [*t, *np.degrees(q)]) for t, q in zip(targets, q_nominal))
         + "\n"
     )
-    rows = compensate(path, csv)
+    rows = compensate(path, csv, frame="session")  # the targets are in the tracker frame
     assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows if r["status"] != "ok"]
     q = np.radians([r["q"] for r in rows])
     err_comp = np.linalg.norm(true.predict("position", q) - targets, axis=1)
@@ -111,7 +111,7 @@ def test_extended_model_compensates_a_gear_error(tmp_path):
     csv.write_text("x,y,z\n" + "\n".join(",".join(f"{v:.9f}" for v in t) for t in targets) + "\n")
     errors = {}
     for name, path in files.items():
-        rows = compensate(path, csv)
+        rows = compensate(path, csv, frame="session")
         assert all(r["status"].startswith("ok") for r in rows)
         errors[name] = np.linalg.norm(reached(np.radians([r["q"] for r in rows])) - targets, axis=1)
     assert np.median(errors["extended"]) < 0.5 * np.median(errors["geometric"]), errors
@@ -128,7 +128,7 @@ def test_targets_from_configurations_within_the_limits_are_reached_within_them()
     robot, _ = robocal.load_result(doc)
     lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(1).random((100, 6))
-    rows = compensate(doc, Targets(robot.predict("position", q), None, np.arange(2, 102)))
+    rows = compensate(doc, Targets(robot.predict("position", q), None, np.arange(2, 102)), frame="session")
     reached = [r for r in rows if r["status"] == "ok"]
     assert len(reached) >= 99, [r["status"] for r in rows if r["status"] != "ok"]
     solved = np.radians([r["q"] for r in rows])
@@ -151,7 +151,7 @@ def test_commands_are_in_the_controllers_reading_convention(tmp_path):
     true = ur10.with_params(**dict(zip(ur10.param_names, true_params(truth, ur10))))
     q_true = np.radians(np.random.default_rng(1).uniform(-100, 100, (8, 6)))
     targets = true.predict("position", q_true)
-    rows = compensate(doc, np.column_stack([targets]))
+    rows = compensate(doc, np.column_stack([targets]), frame="session")
     assert all(r["status"].startswith("ok") for r in rows)
     commands = np.radians([r["q"] for r in rows])  # as the controller reads them: joint 3 reversed
     assert np.max(np.linalg.norm(true.predict("position", commands * flip) - targets, axis=1)) < 0.1
@@ -173,7 +173,7 @@ def _assert_pose_targets_reached(doc: dict, m: int, seed: int) -> None:
     lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(seed).random((m, robot.n_joints))
     targets = robot.predict("pose", actual(q))
-    rows = compensate(doc, Targets(targets, None, np.arange(2, m + 2)))
+    rows = compensate(doc, Targets(targets, None, np.arange(2, m + 2)), frame="session")
     assert all(r["status"].startswith("ok") for r in rows), [r["status"] for r in rows if not r["status"].startswith("ok")]
     solved = np.radians([r["q"] for r in rows])
     assert np.all(solved >= lower - 1e-9) and np.all(solved <= upper + 1e-9)

@@ -84,7 +84,7 @@ def test_calibrate_verify_and_compensate_apply_the_map(geared, tmp_path):
     assert [c["label"] for c in carried["coverage"]] == [label]
     # compensation: the targets the calibrated model reaches, with the map in the joint angles
     targets = extended.robot.predict("position", data.q[:5])
-    rows = robocal.compensate(extended.to_dict(), targets)
+    rows = robocal.compensate(extended.to_dict(), targets, frame="session")
     assert all(r["status"].startswith("ok") for r in rows)
 
 
@@ -107,7 +107,7 @@ def test_coverage_names_samples_beyond_the_fitted_range(geared, tmp_path, capsys
     assert report["nominal"]["metrics_covered"]["n"] == covered["n"]
     # compensating a target beyond the range says so
     q = second.q[~inside][:1]
-    (row,) = robocal.compensate(result, fit.robot.predict("position", q))
+    (row,) = robocal.compensate(result, fit.robot.predict("position", q), frame="session")
     assert "beyond its map's data: joint 2 beyond" in row["status"]
     # and so does the command line
     save_result(result, tmp_path / "result.json")

@@ -261,7 +261,7 @@ def test_row18_every_reachable_pose_target_is_reached(position_result):
     robot, _ = robocal.load_result(result)
     lower, upper = joint_limits(robot)
     q = lower + (upper - lower) * np.random.default_rng(11).random((40, 6))
-    rows = compensate(result, robot.predict("pose", q))
+    rows = compensate(result, robot.predict("pose", q), frame="session")
     assert all(r["status"].startswith("ok") for r in rows), [r["status"] for r in rows if not r["status"].startswith("ok")]
 
 

@@ -1,27 +1,63 @@
 """Compensation: joint commands that make the calibrated robot reach desired tool positions.
 
-``robocal compensate RESULT TARGETS.csv --out joints.csv`` reads a result file
-(:mod:`robocal.results`) and a CSV of targets ``x, y, z`` (mm) — optionally ``qw, qx, qy, qz``
-for full poses, and optionally the joint commands ``q1 … qN`` (deg) the nominal model would use,
-which then seed the solution. Targets are in the frame the calibrated model predicts in: the
-measurement frame of the calibration (the tracker's frame for tracker data, the robot base for
-cable data).
+``robocal compensate RESULT TARGETS.csv [--frame F] [--user-frame X,Y,Z,RX,RY,RZ] --out joints.csv``
+reads a result file (:mod:`robocal.results`) and a CSV of targets.
 
-For each target: a seed (the given joints, else the nominal model's inverse kinematics from the
-middle of the joint ranges), then Levenberg–Marquardt on the joint angles of the *calibrated*
-model with the joint limits kept at every step (:func:`bounded_lm`: projected steps, accepted
-only when they decrease the error, damping by the gain ratio) — with the joint causes of an
-extended model (``calibrate --causes``: compliance, periodic gear errors, scale, coupling)
-applied to the commanded angles; backlash and sensor causes are named in the status as not
-compensated. Where the result found how the controller reads its joints (``structure``), seeds
-and commands are the controller's readings, converted to the model's angles and back. The Jacobian
-comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
+The targets file: a header, then one row per target (in program order), comma-separated —
+``x, y, z`` (mm): where the calibration's tool point is to go; optionally ``qw, qx, qy, qz``
+(unit quaternion, scalar first): the tool frame's orientation too (pose targets); optionally
+``q1 … qN``: the joint commands the nominal model would use (deg, or ``--angle-unit rad``), which
+then seed the solution. The tool is the one the calibration fitted (a tracker's reflector or
+T-Mac, a cable's hook): a target is a position (pose) of that point (frame).
+
+The frame of the targets (``frame=``, ``--frame``):
+
+``base`` (default)
+    The robot's base frame: the calibrated chain without the measurement set-up (the result's
+    ``base_*`` set to the identity), with the calibrated tool (for a multi-session result, session
+    1's). The base frame of a tracker calibration is the chain's own: what the tracker cannot
+    tell apart from its own placement (``d1`` against ``base_z``, ``theta1`` against ``base_rz``,
+    listed under the result's ``fixed``) keeps the value the fit held it at. A cable
+    calibration's frame is already the robot base (the anchor is placed in it; ``base_*`` are not
+    fitted), so ``base`` and ``session`` agree there unless the robot file places the base.
+``session``, ``session:K``
+    The calibration's measurement frame (the tracker's for tracker data): that of session K
+    (1-based) of a multi-session result — each session's set-up (base frame and tool) is in the
+    result's ``sessions`` — or of the first.
+``user``
+    A user frame (work object) ``x, y, z`` (mm), ``rx, ry, rz`` (deg) given in the base frame,
+    in robocal's frame convention ``Tx·Ty·Tz·Rz·Ry·Rx`` (:func:`robocal.geometry.frame_transform`):
+    a target ``p`` in it is ``T_user·p`` in the base frame.
+
+For each target: a seed (the given joints; else the nominal model's inverse kinematics started
+from the previous target's command — program order: consecutive targets stay on one branch and
+turn of the arm —, the first from the middle of the joint ranges), then Levenberg–Marquardt on the
+joint angles of the *calibrated* model with the joint limits kept at every step (:func:`bounded_lm`:
+projected steps, accepted only when they decrease the error, damping by the gain ratio) — with the
+joint causes of an extended model (``calibrate --causes``: compliance, periodic gear errors,
+scale, coupling, joint maps) applied to the commanded angles; backlash and sensor causes are named
+in the status as not compensated. Where the result found how the controller reads its joints
+(``structure``), seeds and commands are the controller's readings, converted to the model's angles
+and back. The Jacobian comes from the Rust core (``∂h/∂q_j`` is the ``theta_j`` column).
 Position targets leave three degrees of freedom of a 6-axis arm free: the damped steps take a
 small change from the seed, so the tool keeps the seed's orientation as far as possible. A
 target that the seed does not lead to is tried from the middle of the joint ranges and from
 :data:`RESTARTS` random configurations within the limits; only then is it reported
-unreachable — a row with its reason, never dropped. ``benches/bench_compensation.py`` compares
-the reach rate and time with scipy's ``least_squares(bounds=...)``.
+unreachable — a row with its reason, never dropped.
+
+A revolute joint reaches the same place a whole turn away: every command is the equivalent
+(± k·360°) within the joint limits nearest its seed (:func:`nearest_turn`) — within 180° of it
+wherever the limits allow one so near. Where a joint map of the result has data at some of the
+equivalents but not the nearest, the nearest of those is taken and the status says so (the map's
+correction only fades out beyond its data).
+
+The joints file (:func:`write_joints`): ``row`` (the target's row in its file, header = 1),
+``q1 … qN`` (deg, the commands as the controller reads its joints), ``dq1 … dqN`` (deg, the
+commands minus the seed: the correction to the nominal commands where no seeds were given),
+``residual_mm`` (the calibrated model's distance to the target), ``frame`` (``base``,
+``session K`` or ``user x y z rx ry rz``) and ``status`` (``ok``, or why not; notes after ``;``).
+``benches/bench_compensation.py`` compares the reach rate and time with scipy's
+``least_squares(bounds=...)``.
 """
 
 from __future__ import annotations
@@ -37,12 +73,13 @@ import numpy as np
 
 from .kernels import as_float_array, solve_damped
 from .causes import structure
-from .causes.candidates import COMPENSABLE, joint_offsets, map_coverage_report, uncovered_words
+from .causes.candidates import COMPENSABLE, joint_offsets, map_coverage, map_coverage_report, uncovered_words
 from .data.table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
-from .results import load_result
+from .geometry import frame_params, frame_transform
+from .results import load_result, result_sessions, session_robot
 from .serial_robot import Robot
 
 logger = logging.getLogger(__name__)
@@ -132,11 +169,46 @@ def joint_limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     return np.array([j.limits[0] for j in robot.joints]), np.array([j.limits[1] for j in robot.joints])
 
 
+#: A full turn of a revolute joint (rad): its angles ``q + k·TURN`` put the links in the same place.
+TURN = 2.0 * np.pi
+#: Equivalent angles considered either side of the one nearest the seed (ranges of more turns
+#: than a real joint has would otherwise make the list endless).
+MAX_TURNS = 4
+
+
+def nearest_turn(q: np.ndarray, toward: np.ndarray, lower: np.ndarray, upper: np.ndarray, covered=None) -> tuple[np.ndarray, list[int]]:
+    """``q`` (N,) with each joint moved by whole turns to its equivalent angle within the limits
+    nearest ``toward`` (N,); a joint with no equivalent within its limits is clipped into them.
+
+    ``covered(j, angles)`` says which equivalent angles of joint ``j`` (0-based) a joint map of
+    the result has data at (None: the joint has no map): where it covers some but not the nearest,
+    the nearest covered one is taken — the map's correction only fades out beyond its data.
+    Returns the angles and the joints the map's data moved off the nearest equivalent.
+    """
+    out = np.array(q, dtype=np.float64)
+    off = []
+    for j in range(len(out)):
+        lo, hi = np.ceil((lower[j] - out[j]) / TURN - 1e-12), np.floor((upper[j] - out[j]) / TURN + 1e-12)
+        if not lo <= hi:  # no equivalent within the limits (or a non-finite angle)
+            out[j] = np.clip(out[j], lower[j], upper[j])
+            continue
+        aim = toward[j] if np.isfinite(toward[j]) else out[j]
+        near = np.clip(np.round((aim - out[j]) / TURN), lo, hi)
+        k = np.arange(max(lo, near - MAX_TURNS), min(hi, near + MAX_TURNS) + 1)
+        angles = out[j] + TURN * k
+        best = int(np.argmin(np.abs(angles - aim)))
+        inside = covered(j, angles) if covered is not None else None
+        if inside is not None and inside.any() and not inside[best]:
+            best = int(np.flatnonzero(inside)[np.argmin(np.abs(angles[inside] - aim))])
+            off.append(j)
+        out[j] = np.clip(angles[best], lower[j], upper[j])
+    return out, off
+
+
 def _into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """``q`` moved by whole turns towards the middle of each range, then clipped into it: the
-    same joint angles where the range allows (revolute joints), the nearest ones otherwise."""
-    q = q + 2.0 * np.pi * np.round((0.5 * (lower + upper) - q) / (2.0 * np.pi))
-    return np.clip(q, lower, upper)
+    """``q`` itself where it lies within the limits, else the same joint angles a whole turn or
+    more away where the range allows (revolute joints), the nearest ones otherwise."""
+    return nearest_turn(q, q, lower, upper)[0]
 
 
 def bounded_lm(residual, jacobian, q0, lower, upper, done, max_iter: int = 100):
@@ -183,7 +255,14 @@ def bounded_lm(residual, jacobian, q0, lower, upper, done, max_iter: int = 100):
 
 
 def solve_joints(
-    robot: Robot, target: np.ndarray, seed: np.ndarray, tol: float = 1e-4, max_iter: int = 100, offsets=None, restarts: Optional[int] = None
+    robot: Robot,
+    target: np.ndarray,
+    seed: np.ndarray,
+    tol: float = 1e-4,
+    max_iter: int = 100,
+    offsets=None,
+    restarts: Optional[int] = None,
+    covered=None,
 ) -> tuple[np.ndarray, float, str]:
     """Joint commands (rad) within the joint limits with which ``robot`` reaches ``target``
     (xyz, or xyz + quaternion).
@@ -191,16 +270,20 @@ def solve_joints(
     :func:`bounded_lm` from ``seed`` (moved into the limits), then from the middle of the joint
     ranges and from ``restarts`` random configurations within the limits (seeded: the same
     target gives the same answer; default :data:`RESTARTS`, :data:`RESTARTS_POSE` for a pose)
-    until one reaches the target. ``offsets(q) -> Δq`` are joint
-    causes of an extended model: the links take ``q + Δq(q)`` (the Jacobian neglects
-    ``∂Δq/∂q``, a relative change of order 1e-4).
-    Returns ``(q, residual_mm, status)``; ``status`` is ``"ok"`` or the reason it is not.
+    until one reaches the target. The solution is then moved by whole turns to the equivalent
+    angles within the limits nearest ``seed`` (:func:`nearest_turn`; ``covered``: a joint map's
+    data, preferred) and polished there (a joint cause need not repeat with a turn).
+    ``offsets(q) -> Δq`` are joint causes of an extended model: the links take ``q + Δq(q)``
+    (the Jacobian neglects ``∂Δq/∂q``, a relative change of order 1e-4).
+    Returns ``(q, residual_mm, status)``; ``status`` is ``"ok"`` (followed by ``"; ..."`` where a
+    map's data took a joint off the turn nearest its seed) or the reason it is not.
     """
     measurement = "pose" if target.size == 7 else "position"
     cols = joint_columns(robot)
     lower, upper = joint_limits(robot)
     y = target[None, :]
     weight = residual_weights(measurement)
+    seed = np.asarray(seed, dtype=np.float64)
 
     def actual(q):
         return q[None, :] if offsets is None else q[None, :] + offsets(q[None, :])
@@ -214,10 +297,23 @@ def solve_joints(
     def reached(r):
         return np.linalg.norm(r[:3]) < tol and (measurement == "position" or np.linalg.norm(r[3:]) < tol * 1e-3 * ROTATION_WEIGHT_MM)
 
+    def near_seed(q, r):
+        """The reached ``q`` a whole number of turns nearer the seed, where that still reaches."""
+        turned, off = nearest_turn(q, seed, lower, upper, covered)
+        if np.array_equal(turned, q):
+            return q, r, ""
+        q_t, r_t = bounded_lm(residual, jacobian, turned, lower, upper, reached, max_iter)
+        if not reached(r_t):  # a joint cause that does not repeat with the turn, and no solution there
+            return q, r, ""
+        note = "".join(
+            f"; joint {j + 1} {abs(np.degrees(q_t[j] - seed[j])):.0f} deg from its seed: the angle a turn nearer lies beyond its map's data" for j in off
+        )
+        return q_t, r_t, note
+
     if restarts is None:
         restarts = RESTARTS if measurement == "position" else RESTARTS_POSE
     rng = np.random.default_rng(0)
-    starts = [_into_limits(np.asarray(seed, dtype=np.float64), lower, upper), 0.5 * (lower + upper)]
+    starts = [_into_limits(seed, lower, upper), 0.5 * (lower + upper)]
     starts += list(lower + (upper - lower) * rng.random((restarts, len(lower))))
     best = None
     for start in starts:
@@ -226,7 +322,8 @@ def solve_joints(
         if not np.isfinite(error):
             continue
         if reached(r):
-            return q, error, "ok"
+            q, r, note = near_seed(q, r)
+            return q, float(np.linalg.norm(r[:3])), "ok" + note
         if best is None or r @ r < best[2]:
             best = (q, error, r @ r)
     if best is None:
@@ -234,14 +331,120 @@ def solve_joints(
     return best[0], best[1], (f"unreachable within the joint limits: from {len(starts)} starts the calibrated model gets no closer than {best[1]:.3g} mm")
 
 
-def nominal_seed(nominal: Robot, target: np.ndarray) -> np.ndarray:
-    """The nominal model's solution within the limits (a start for the calibrated one)."""
+def nominal_seed(nominal: Robot, target: np.ndarray, start: Optional[np.ndarray] = None) -> np.ndarray:
+    """The nominal model's solution within the limits (a start for the calibrated one), from
+    ``start`` (default: the middle of the joint ranges) and at the turns nearest it; where the
+    nominal model does not reach the target (near a singularity, the calibrated one may), its
+    closest approach from :data:`RESTARTS` random starts — a start, not worth a pose's 256."""
     lower, upper = joint_limits(nominal)
-    q, _, _ = solve_joints(nominal, target, 0.5 * (lower + upper))
+    q, _, _ = solve_joints(nominal, target, 0.5 * (lower + upper) if start is None else start, restarts=RESTARTS)
     return q
 
 
-def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dict]:
+@dataclass(frozen=True)
+class Frame:
+    """The frame targets are given in: ``kind`` ``"base"``, ``"session"`` (``session``, 1-based)
+    or ``"user"`` (``user``: its pose in the base frame, ``x, y, z`` mm, ``rx, ry, rz`` deg)."""
+
+    kind: str
+    session: int = 1
+    user: Optional[tuple] = None
+
+    @property
+    def label(self) -> str:
+        """The frame as a short word (the ``frame`` column of the joints file)."""
+        if self.kind == "session":
+            return f"session {self.session}"
+        if self.kind == "user":
+            return "user " + " ".join(f"{v:g}" for v in self.user)
+        return "base"
+
+    @property
+    def words(self) -> str:
+        if self.kind == "session":
+            return f"the measurement frame of session {self.session} of the calibration"
+        if self.kind == "user":
+            x, y, z, rx, ry, rz = self.user
+            return f"the user frame at {x:g},{y:g},{z:g} mm, {rx:g},{ry:g},{rz:g} deg in the robot base frame"
+        return "the robot base frame"
+
+
+FRAME_SPECS = "base, session, session:K (K = 1, 2, ...: a session of a multi-session result) or user (with a user frame x,y,z,rx,ry,rz)"
+
+
+def parse_frame(frame: Optional[str] = None, user_frame=None) -> Frame:
+    """The :class:`Frame` of a ``frame`` spec (None: ``user`` where ``user_frame`` is given,
+    else ``base``) and ``user_frame``: six numbers ``x, y, z`` (mm), ``rx, ry, rz`` (deg, the
+    frame convention ``Tx·Ty·Tz·Rz·Ry·Rx``: :func:`~robocal.geometry.frame_transform`) as a
+    sequence or a comma-separated string."""
+    if frame is None:
+        frame = "user" if user_frame is not None else "base"
+    if not isinstance(frame, str):
+        raise InvalidParameterError(f"`frame` must be {FRAME_SPECS}; got {frame!r:.60}")
+    kind, colon, k = frame.strip().partition(":")
+    if kind == "user":
+        if k or user_frame is None:
+            raise InvalidParameterError(
+                f"`frame` user needs a user frame x,y,z,rx,ry,rz (mm, deg, in the robot base frame: --user-frame); got frame {frame!r:.60}"
+            )
+        try:
+            values = np.asarray(user_frame.split(",") if isinstance(user_frame, str) else user_frame, dtype=np.float64)
+        except (TypeError, ValueError):
+            values = None
+        if values is None or values.shape != (6,) or not np.all(np.isfinite(values)):
+            raise InvalidParameterError(f"the user frame must be 6 finite numbers x,y,z,rx,ry,rz (mm, deg); got {user_frame!r:.80}")
+        return Frame("user", user=tuple(float(v) for v in values))
+    if user_frame is not None:
+        raise InvalidParameterError(f"a user frame is given but `frame` is {frame!r:.60}: use frame user (or leave the user frame out)")
+    if kind == "base" and not k:
+        return Frame("base")
+    if kind == "session" and (not colon or (k.isdigit() and int(k) >= 1)):
+        return Frame("session", session=int(k) if k else 1)
+    raise InvalidParameterError(f"`frame` must be {FRAME_SPECS}; got {frame!r:.60}")
+
+
+def framed_robot(calibrated: Robot, doc: dict, frame: Frame) -> Robot:
+    """The calibrated robot predicting in ``frame``: its base parameters (``base_*``) and tool.
+
+    ``base``: the calibrated chain with ``base_*`` the identity and the result's tool (for a
+    multi-session result, session 1's). ``session``: the set-up of that session (the result's
+    ``parameters`` hold session 1's, ``sessions`` every session's). ``user``: ``base_*`` the
+    inverse of the user frame — a target given in it is one in the base frame moved by the frame.
+    """
+    params = calibrated.params.copy()
+    base = [calibrated.index(f"base_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]
+    if frame.kind == "session":
+        sessions = max(1, len(result_sessions(doc)))
+        if frame.session > sessions:
+            which = "1 session: K must be 1" if sessions == 1 else f"{sessions} sessions: K must be 1..{sessions}"
+            raise InvalidParameterError(f"frame session:{frame.session}: the result holds {which}")
+        if frame.session > 1:
+            params = session_robot(calibrated, doc, frame.session - 1).params
+    elif frame.kind == "base":
+        params[base] = 0.0
+    else:
+        xyz, angles = np.array(frame.user[:3]), np.radians(frame.user[3:])
+        params[base] = frame_params(np.linalg.inv(frame_transform(np.concatenate([xyz, angles]))))
+    return Robot(calibrated.name, calibrated.joints, params, mass_model=calibrated.mass_model)
+
+
+def _map_cover(causes: list[dict]):
+    """``covered(j, angles)`` for :func:`nearest_turn`: where the joint maps of ``causes`` on joint
+    ``j`` (0-based) all have data, or None for a joint without a map; None without maps."""
+    details: dict = {}
+    for c in causes:
+        if c.get("kind") == "joint_map":
+            details.setdefault(c["joint"] - 1, []).append(c["detail"])
+    if not details:
+        return None
+
+    def covered(j, angles):
+        return np.logical_and.reduce([map_coverage(angles, d) for d in details[j]]) if j in details else None
+
+    return covered
+
+
+def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Optional[str] = None, user_frame=None) -> list[dict]:
     """Joint commands for every target (see the module notes).
 
     Parameters
@@ -253,21 +456,30 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dic
         or :class:`Targets`.
     angle_unit : {"deg", "rad"}, optional
         Unit of the seed joint columns of a targets file (deg by default).
+    frame : {"base", "session", "session:K", "user"}, optional
+        The frame the targets are given in: the robot base frame (default; ``user`` where
+        ``user_frame`` is given), the calibration's measurement frame (of its K-th session, 1-based),
+        or ``user_frame``.
+    user_frame : str or sequence of 6 float, optional
+        The user frame (work object) ``x, y, z`` (mm), ``rx, ry, rz`` (deg) in the robot base
+        frame, as ``Tx·Ty·Tz·Rz·Ry·Rx`` (:func:`robocal.geometry.frame_transform`).
 
     Returns
     -------
     list of dict
         Per target, in order: ``row``, ``q`` (deg), ``correction`` (deg, against the seed),
-        ``residual_mm`` (the calibrated model's distance to the target), ``status`` (which says
-        when a joint lies beyond the range a joint map was fitted on).
+        ``residual_mm`` (the calibrated model's distance to the target), ``frame`` (its label),
+        ``status`` (which says when a joint lies beyond the range a joint map was fitted on, or
+        was taken a turn from its seed into it).
     """
+    where = parse_frame(frame, user_frame)
     calibrated, doc = load_result(result)
+    framed = framed_robot(calibrated, doc, where)
+    # The nominal model in the targets' frame: nominal kinematics with the frame's set-up (base
+    # frame, tool), as a user's controller would have it after a base/tool calibration.
     nominal = Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"], mass_model=calibrated.mass_model)  # checked by load_result
-    # The nominal model in the calibration's measurement frame: nominal kinematics, the
-    # calibrated set-up (base frame, tool), as a user's controller would have it after a
-    # base/tool calibration.
     setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
-    nominal.params[setup] = calibrated.params[setup]
+    nominal.params[setup] = framed.params[setup]
     if isinstance(targets, (str, os.PathLike)):
         targets = read_targets(targets, calibrated.n_joints, angle_unit)
     elif not isinstance(targets, Targets):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
@@ -275,21 +487,35 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dic
         targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
     conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
     causes = doc.get("causes", [])
-    offsets = joint_offsets(calibrated, causes)
+    offsets = joint_offsets(calibrated, causes)  # the causes act on the joints whatever frame the targets are in
+    covered = _map_cover(causes)
     skipped = sorted({str(c.get("label", c.get("kind"))) for c in causes if c.get("kind") not in COMPENSABLE})
     note = f" (not compensated: {', '.join(skipped)})" if skipped else ""
     out = []
+    previous = None  # the last command that reached its target: where the next target's nominal solution starts
     for i, target in enumerate(targets.y):
         # Seeds and commands in the controller's convention; the model solves in its own.
-        seed = targets.seeds[i] if targets.seeds is not None else structure.to_readings(nominal_seed(nominal, target)[None, :], conventions)[0]
-        q, error, status = solve_joints(calibrated, target, structure.to_model(seed[None, :], conventions)[0], offsets=offsets)
+        if targets.seeds is not None:
+            seed = structure.to_model(targets.seeds[i][None, :], conventions)[0]
+        else:  # program order: from the previous command, the nominal solution stays on its branch and turns
+            seed = nominal_seed(nominal, target, previous)
+        q, error, status = solve_joints(framed, target, seed, offsets=offsets, covered=covered)
+        if status.startswith("ok"):
+            previous = q
+            status = "ok" + note + status[2:]
         beyond = [m for m in map_coverage_report(causes, q[None, :]) if m["outside"]]
-        q = structure.to_readings(q[None, :], conventions)[0]
-        status += note if status == "ok" else ""
         if beyond:  # the map's correction only fades out there: the user must know
             status += "; beyond its map's data: " + ", ".join(f"joint {m['joint']} {uncovered_words(m)}" for m in beyond)
+        command, seed = (structure.to_readings(v[None, :], conventions)[0] for v in (q, seed))
         out.append(
-            {"row": int(targets.rows[i]), "q": np.degrees(q).tolist(), "correction": np.degrees(q - seed).tolist(), "residual_mm": error, "status": status}
+            {
+                "row": int(targets.rows[i]),
+                "q": np.degrees(command).tolist(),
+                "correction": np.degrees(command - seed).tolist(),
+                "residual_mm": error,
+                "frame": where.label,
+                "status": status,
+            }
         )
         logger.debug("compensate: target row %d: %s", targets.rows[i], status)
     return out
@@ -298,7 +524,7 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None) -> list[dic
 def write_joints(rows: list[dict], path, n_joints: int) -> Path:
     with Staged(path) as stage, stage.tmp.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["row"] + [f"q{j}" for j in range(1, n_joints + 1)] + [f"dq{j}" for j in range(1, n_joints + 1)] + ["residual_mm", "status"])
+        w.writerow(["row"] + [f"q{j}" for j in range(1, n_joints + 1)] + [f"dq{j}" for j in range(1, n_joints + 1)] + ["residual_mm", "frame", "status"])
         for r in rows:
-            w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["status"]])
+            w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["frame"], r["status"]])
     return stage.path

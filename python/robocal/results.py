@@ -33,8 +33,11 @@ import hashlib
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
+
 from ._robocal import __version__
 from .data.identity import MAX_KEYS, Fingerprint
+from .exceptions import InvalidParameterError
 from .outputs import write_json
 from .robot_file import RESULT_SCHEMA as SCHEMA
 from .robot_file import calibrated_robot, load_document, robot_document
@@ -82,6 +85,29 @@ def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
         },
     }
     return doc
+
+
+def result_sessions(doc: dict) -> list[dict]:
+    """The sessions of a multi-session result (each a provenance dict with its ``setup``), or none."""
+    sessions = doc.get("sessions")
+    return [s for s in sessions if isinstance(s, dict)] if isinstance(sessions, list) else []
+
+
+def session_robot(robot: Robot, doc: dict, s: int) -> Robot:
+    """The calibrated robot with session ``s``'s (0-based) own set-up: a multi-session result's
+    ``parameters`` hold session 1's, each session's ``setup`` its own (name -> value, mm / rad)."""
+    setup = result_sessions(doc)[s].get("setup") or {}
+    valid = isinstance(setup, dict) and all(
+        n in robot.param_names and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for n, v in setup.items()
+    )
+    if not valid:
+        raise InvalidParameterError(
+            f"result: key 'sessions', session {s + 1}, key 'setup' must map the robot's set-up parameters to finite numbers; got {setup!r:.80}"
+        )
+    params = robot.params.copy()
+    for name, value in setup.items():
+        params[robot.index(name)] = float(value)
+    return Robot(robot.name, robot.joints, params, mass_model=robot.mass_model)
 
 
 def save_result(document: dict, path) -> Path:

@@ -49,7 +49,7 @@ from ..diagnosis.leftover import leftover_words
 from ..diagnosis_file import DiagnosisReport, Quantity, load_diagnosis
 from ..exceptions import InvalidParameterError, RobocalError
 from ..outputs import make_folder, write_text
-from ..results import file_sha256, load_result
+from ..results import file_sha256, load_result, result_sessions, session_robot
 from ..serial_robot import Robot
 from .figures import (
     acceptance_figure,
@@ -156,26 +156,6 @@ def _same_file(fitted: dict, path) -> bool:
     """Whether ``path`` is, byte for byte, the file of the provenance ``fitted`` (its SHA-256)."""
     recorded = fitted.get("sha256")
     return isinstance(recorded, str) and file_sha256(path) == recorded
-
-
-def _sessions(doc: dict) -> list[dict]:
-    """The sessions of a multi-session result (each a provenance dict), or none."""
-    sessions = doc.get("sessions")
-    return [s for s in sessions if isinstance(s, dict)] if isinstance(sessions, list) else []
-
-
-def session_robot(robot: Robot, doc: dict, s: int) -> Robot:
-    """The calibrated robot with session ``s``'s (0-based) own set-up: a multi-session result's
-    ``parameters`` hold session 1's, each session's ``setup`` its own (name -> value, mm / rad)."""
-    setup = _sessions(doc)[s].get("setup") or {}
-    if not isinstance(setup, dict) or not all(n in robot.param_names and isinstance(v, (int, float)) for n, v in setup.items()):
-        raise InvalidParameterError(
-            f"result: key 'sessions', session {s + 1}, key 'setup' must map the robot's set-up parameters to numbers; got {setup!r:.80}"
-        )
-    params = robot.params.copy()
-    for name, value in setup.items():
-        params[robot.index(name)] = float(value)
-    return Robot(robot.name, robot.joints, params, mass_model=robot.mass_model)
 
 
 def nominal_robot(robot: Robot, doc: dict) -> Robot:
@@ -296,7 +276,11 @@ def _header(doc: dict, data: _Data) -> str:
         ("written by", f"robocal {doc.get('robocal_version')} (this report: robocal {__version__})"),
         ("source file", (ds.get("source") or "not recorded") + (f" (session 1 of {len(doc['sessions'])})" if doc.get("sessions") else "")),
         ("sha256", ds.get("sha256") or "not recorded"),
-        *([("sessions", "; ".join(f"{i}: {f.get('source') or 'not recorded'}" for i, f in enumerate(_sessions(doc), start=1)))] if _sessions(doc) else []),
+        *(
+            [("sessions", "; ".join(f"{i}: {f.get('source') or 'not recorded'}" for i, f in enumerate(result_sessions(doc), start=1)))]
+            if result_sessions(doc)
+            else []
+        ),
         ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
         ("figures computed on", _data_row(data)),
         (
@@ -350,7 +334,7 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
     are at hand, each evaluated at its own set-up. A multi-session result's metrics pool its
     sessions: they are recomputed only from all of them, and each session is compared with its own."""
     m = doc.get("metrics") or {}
-    recorded = _sessions(doc)
+    recorded = result_sessions(doc)
     copied = [(s, f.get("metrics") or {}) for s, f in enumerate(recorded)]
     if ev is None or ev.held_out is None:
         return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)", copied
@@ -692,7 +676,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     # figures, and its metrics checked against its own; the result's pool them all).
     others = []
     if ev is not None and data is None:
-        for s, fitted in list(enumerate(_sessions(doc)))[1:]:
+        for s, fitted in list(enumerate(result_sessions(doc)))[1:]:
             own = session_robot(robot, doc, s)
             d_s = _load_recorded(fitted, meas, own, f"session {s + 1} of the result")
             notes += d_s.notes
@@ -776,7 +760,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 {_header(doc, d)}
 <h2>Accuracy</h2>
 {_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
-{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(_sessions(doc)) > 1)}
+{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(result_sessions(doc)) > 1)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
 <h2>Figures</h2>
