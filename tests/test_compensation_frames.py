@@ -215,3 +215,29 @@ def test_cli_frame_errors_and_summary(far, tmp_path, capsys):
     assert header.endswith("residual_mm,frame,status") and row.endswith(",base,ok")
     assert main(["compensate", str(result), str(targets), "--out", str(out), "--user-frame", "0,0,0,0,0,90"]) == 0
     assert "targets in the user frame at 0,0,0 mm, 0,0,90 deg in the robot base frame" in capsys.readouterr().out
+
+
+def test_targets_without_seeds_follow_the_program_order(far):
+    """Eleven targets along a joint path through ±180°, no seeds: each nominal solution starts at
+    the previous command, so the commands follow the path (steps of ~6°). From the middle of the
+    ranges every time, they jumped between branches and turns (steps of 200–360°)."""
+    doc, _, base = far
+    t = np.linspace(0.0, 1.0, 11)[:, None]
+    q = np.radians([150.0, -70.0, 80.0, -100.0, 80.0, 150.0]) + t * np.radians([60.0, 10.0, -10.0, 20.0, 10.0, 60.0])
+    for measurement in ("position", "pose"):
+        rows = robocal.compensate(doc, base.predict(measurement, q))
+        assert all(r["status"] == "ok" for r in rows)
+        assert np.abs(np.diff([r["q"] for r in rows], axis=0)).max() < 10.0, measurement
+
+
+def test_a_cable_results_base_frame_is_its_measurement_frame():
+    """A cable calibration places the anchor in the robot base frame (``base_*`` not fitted): the
+    two frames give the same commands."""
+    data, _ = simulate("hsr-jr680", "cable", samples=300, seed=1)
+    doc = robocal.calibrate(data, robot="hsr-jr680", test_fraction=0.0).to_dict()
+    robot, _ = robocal.load_result(doc)
+    lower, upper = joint_limits(robot)
+    y = robot.predict("position", lower + (upper - lower) * np.random.default_rng(0).random((10, 6)))
+    base, session = robocal.compensate(doc, y), robocal.compensate(doc, y, frame="session")
+    assert all(r["status"] == "ok" for r in base + session)
+    assert np.array_equal([r["q"] for r in base], [r["q"] for r in session])
