@@ -382,8 +382,8 @@ def parse_frame(frame: Optional[str] = None, user_frame=None) -> Frame:
     if not isinstance(frame, str):
         raise InvalidParameterError(f"`frame` must be {FRAME_SPECS}; got {frame!r:.60}")
     kind, colon, k = frame.strip().partition(":")
-    if kind == "user":
-        if k or user_frame is None:
+    if kind == "user" and not colon:
+        if user_frame is None:
             raise InvalidParameterError(
                 f"`frame` user needs a user frame x,y,z,rx,ry,rz (mm, deg, in the robot base frame: --user-frame); got frame {frame!r:.60}"
             )
@@ -396,9 +396,9 @@ def parse_frame(frame: Optional[str] = None, user_frame=None) -> Frame:
         return Frame("user", user=tuple(float(v) for v in values))
     if user_frame is not None:
         raise InvalidParameterError(f"a user frame is given but `frame` is {frame!r:.60}: use frame user (or leave the user frame out)")
-    if kind == "base" and not k:
+    if kind == "base" and not colon:
         return Frame("base")
-    if kind == "session" and (not colon or (k.isdigit() and int(k) >= 1)):
+    if kind == "session" and (not colon or (k.isdecimal() and int(k) >= 1)):
         return Frame("session", session=int(k) if k else 1)
     raise InvalidParameterError(f"`frame` must be {FRAME_SPECS}; got {frame!r:.60}")
 
