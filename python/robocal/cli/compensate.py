@@ -13,7 +13,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="joints CSV: one row per target, joints in deg, corrections, residual, frame, status")
     parser.add_argument("--angle-unit", choices=("deg", "rad"), help="unit of the q1..qN seed columns of the targets (default deg)")
     parser.add_argument("--frame", help=f"the frame of the targets: {FRAME_SPECS}; default base (the robot base frame), user with --user-frame")
-    parser.add_argument("--user-frame", metavar="X,Y,Z,RX,RY,RZ", help="the user frame (work object) in the robot base frame: mm and deg, Tx.Ty.Tz.Rz.Ry.Rx")
+    parser.add_argument(
+        "--user-frame",
+        metavar="X,Y,Z,RX,RY,RZ",
+        help="the user frame (work object) in the robot base frame: mm and deg, Tx.Ty.Tz.Rz.Ry.Rx (a value starting with -: --user-frame=-100,0,...)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
