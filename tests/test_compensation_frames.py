@@ -150,6 +150,15 @@ def test_nearest_turn_is_the_equivalent_within_the_limits_nearest_the_seed(q, to
         assert out == min(max(q, lower[0]), upper[0])
 
 
+@pytest.mark.parametrize("q", [1e300, -1e300, np.inf, -np.inf, 7.0])
+@pytest.mark.parametrize("toward", [0.0, 1e300, -np.inf, np.nan])
+def test_nearest_turn_of_absurd_angles_is_within_the_limits(q, toward):
+    """A seed of 1e300 or inf rad (the API takes any float) gives an angle within the limits, not
+    an empty list of turns (found by tests/test_fuzz_api.py)."""
+    (out,), _ = nearest_turn(np.array([q]), np.array([toward]), np.array([-2 * np.pi]), np.array([2 * np.pi]))
+    assert -2 * np.pi <= out <= 2 * np.pi
+
+
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(u=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6), s=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6))
 def test_no_command_is_more_than_half_a_turn_from_its_seed_where_an_equivalent_is(far, u, s):

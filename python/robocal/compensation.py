@@ -188,14 +188,18 @@ def nearest_turn(q: np.ndarray, toward: np.ndarray, lower: np.ndarray, upper: np
     out = np.array(q, dtype=np.float64)
     off = []
     for j in range(len(out)):
-        lo, hi = np.ceil((lower[j] - out[j]) / TURN - 1e-12), np.floor((upper[j] - out[j]) / TURN + 1e-12)
-        if not lo <= hi:  # no equivalent within the limits (or a non-finite angle)
+        with np.errstate(invalid="ignore"):  # an infinite angle: NaN, refused below
+            first = lower[j] + np.mod(out[j] - lower[j], TURN)  # the lowest equivalent within the limits
+        if not first <= upper[j]:  # none within the limits (or a non-finite angle: NaN stays NaN)
             out[j] = np.clip(out[j], lower[j], upper[j])
             continue
         aim = toward[j] if np.isfinite(toward[j]) else out[j]
-        near = np.clip(np.round((aim - out[j]) / TURN), lo, hi)
-        k = np.arange(max(lo, near - MAX_TURNS), min(hi, near + MAX_TURNS) + 1)
-        angles = out[j] + TURN * k
+        count = np.floor((upper[j] - first) / TURN)  # equivalents above the lowest within the limits
+        near = np.clip(np.round((aim - first) / TURN), 0.0, count)
+        k = np.arange(max(0.0, near - MAX_TURNS), min(count, near + MAX_TURNS) + 1)
+        k = k if k.size else np.array([near])  # limits of astronomic width: near ± MAX_TURNS rounds to near
+        # Turns counted from q itself: where q is the one chosen it comes back unchanged, bit for bit.
+        angles = out[j] + TURN * (np.round((first - out[j]) / TURN) + k)
         best = int(np.argmin(np.abs(angles - aim)))
         inside = covered(j, angles) if covered is not None else None
         if inside is not None and inside.any() and not inside[best]:
