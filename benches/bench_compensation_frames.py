@@ -54,10 +54,10 @@ def main() -> None:
         targets.write_text(",".join(columns) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in y) + "\n")
         argv = ["--quiet", "compensate", args.result, str(targets), "--out", str(joints), "--frame", args.frame]
         argv += ["--user-frame", args.user_frame] if args.user_frame else []
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         with contextlib.redirect_stdout(io.StringIO()) as out:
             code = cli(argv)
-        elapsed = time.perf_counter() - t0
+        elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         rows = list(csv.DictReader(joints.open()))
     commands = np.radians([[float(r[f"q{j}"]) for j in range(1, robot.n_joints + 1)] for r in rows])
     error = np.linalg.norm(model.residuals(args.measurement, commands, y)[:, :3], axis=1)
@@ -66,7 +66,7 @@ def main() -> None:
     load = " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
     print(out.getvalue().strip())
     print(
-        f"{args.measurement} targets in frame {args.frame}: {reached}/{args.targets} reached in {elapsed:.2f} s (exit {code}); "
+        f"{args.measurement} targets in frame {args.frame}: {reached}/{args.targets} reached in {elapsed:.2f} s ({cpu:.2f} s CPU; exit {code}); "
         f"largest |dq| {largest_dq:.3g} deg; load {load}"
     )
 

@@ -185,27 +185,26 @@ def nearest_turn(q: np.ndarray, toward: np.ndarray, lower: np.ndarray, upper: np
     the nearest covered one is taken — the map's correction only fades out beyond its data.
     Returns the angles and the joints the map's data moved off the nearest equivalent.
     """
-    out = np.array(q, dtype=np.float64)
-    off = []
-    for j in range(len(out)):
-        with np.errstate(invalid="ignore"):  # an infinite angle: NaN, refused below
-            first = lower[j] + np.mod(out[j] - lower[j], TURN)  # the lowest equivalent within the limits
-        if not first <= upper[j]:  # none within the limits (or a non-finite angle: NaN stays NaN)
-            out[j] = np.clip(out[j], lower[j], upper[j])
-            continue
-        aim = toward[j] if np.isfinite(toward[j]) else out[j]
-        count = np.floor((upper[j] - first) / TURN)  # equivalents above the lowest within the limits
-        near = np.clip(np.round((aim - first) / TURN), 0.0, count)
-        k = np.arange(max(0.0, near - MAX_TURNS), min(count, near + MAX_TURNS) + 1)
-        k = k if k.size else np.array([near])  # limits of astronomic width: near ± MAX_TURNS rounds to near
+    q = np.asarray(q, dtype=np.float64)
+    toward = np.asarray(toward, dtype=np.float64)
+    with np.errstate(invalid="ignore"):  # an infinite angle: NaN here, clipped below
+        first = lower + np.mod(q - lower, TURN)  # each joint's lowest equivalent within its limits
+        valid = first <= upper  # False where none lies within (or for a non-finite angle)
+        count = np.floor((upper - first) / TURN)  # equivalents above the lowest within the limits
+        aim = np.where(np.isfinite(toward), toward, q)
+        near = np.clip(np.round((aim - first) / TURN), 0.0, count)  # the nearest: turns from the lowest
         # Turns counted from q itself: where q is the one chosen it comes back unchanged, bit for bit.
-        angles = out[j] + TURN * (np.round((first - out[j]) / TURN) + k)
-        best = int(np.argmin(np.abs(angles - aim)))
-        inside = covered(j, angles) if covered is not None else None
-        if inside is not None and inside.any() and not inside[best]:
-            best = int(np.flatnonzero(inside)[np.argmin(np.abs(angles[inside] - aim))])
-            off.append(j)
-        out[j] = np.clip(angles[best], lower[j], upper[j])
+        from_q = np.round((first - q) / TURN)
+        out = np.where(valid, q + TURN * (from_q + near), q)
+    off = []
+    for j in np.flatnonzero(valid) if covered is not None else ():
+        k = np.arange(max(0.0, near[j] - MAX_TURNS), min(count[j], near[j] + MAX_TURNS) + 1)
+        angles = q[j] + TURN * (from_q[j] + k)
+        inside = covered(j, angles) if k.size else None
+        if inside is not None and inside.any() and not covered(j, out[j : j + 1])[0]:
+            out[j] = angles[inside][np.argmin(np.abs(angles[inside] - aim[j]))]
+            off.append(int(j))
+    out = np.clip(out, lower, upper)
     return out, off
 
 
