@@ -78,11 +78,14 @@ from __future__ import annotations
 
 import csv
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Sequence
 
 import numpy as np
 
+from .causes import structure
+from .causes.candidates import COMPENSABLE, JOINT_KINDS, joint_offsets
 from .kernels import MAX_SAMPLES, as_count, seeded_rng
 from .outputs import Staged, write_json, write_text
 from .exceptions import InvalidParameterError
@@ -105,7 +108,9 @@ ROTATION_TOL = 1e-9
 # ---------------------------------------------------------------------------------------------
 
 
-def _table_format(path: Path, table_format: Optional[str]) -> str:
+def table_format_of(path, table_format: Optional[str]) -> str:
+    """``table_format``, or the one the suffix of ``path`` says (``.json``: JSON, else CSV)."""
+    path = Path(path)
     if table_format is None:
         return "json" if path.suffix.lower() == ".json" else "csv"
     if table_format not in TABLE_FORMATS:
@@ -123,7 +128,7 @@ def _cell(value) -> str:
     return str(value)
 
 
-def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:
+def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, name: Optional[str] = None, notes: Sequence[str] = ()) -> Path:
     """Writes the rows of :func:`export_table` as CSV or JSON.
 
     Parameters
@@ -134,13 +139,16 @@ def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, 
         By default from the suffix of ``path`` (``.json`` → JSON, anything else CSV).
     name : str, optional
         The robot's name, recorded in the JSON form.
+    notes : sequence of str
+        What the table does not carry (:func:`deliverable`): the JSON form's ``notes``; a CSV
+        has no place for them.
 
     Returns
     -------
     Path
     """
     path = Path(path)
-    fmt = _table_format(path, table_format)
+    fmt = table_format_of(path, table_format)
     if fmt == "csv":
         with Staged(path) as stage, stage.tmp.open("w", newline="") as f:
             writer = csv.writer(f)
@@ -156,6 +164,7 @@ def write_table(rows: Sequence[dict], path, table_format: Optional[str] = None, 
             "units": {"length": "mm", "angle": "deg", "limits": "deg (revolute), mm (prismatic)"},
             "frame_convention": "Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)",
             "rows": [{c: row.get(c) for c in TABLE_COLUMNS} for row in rows],
+            **({"notes": list(notes)} if notes else {}),
         }
         write_json(path, doc)
     return path
@@ -217,7 +226,7 @@ def _fixed_joint(root: ET.Element, name: str, parent: str, child: str, **origin)
     _origin(joint, **origin)
 
 
-def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, velocity: float = 0.0) -> str:
+def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, velocity: float = 0.0, notes: Sequence[str] = ()) -> str:
     """A URDF of the robot whose chain ``base_link → tool0`` reproduces its tool frame exactly.
 
     See the module docstring for the layout. Revolute joints become ``revolute`` URDF joints
@@ -231,6 +240,8 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
         The URDF robot name (default ``robot.name``).
     effort, velocity : float
         The ``<limit>`` attributes URDF requires; a calibration does not know them.
+    notes : sequence of str
+        What the file does not carry (:func:`deliverable`), written as comments.
 
     Returns
     -------
@@ -246,6 +257,8 @@ def export_urdf(robot: Robot, name: Optional[str] = None, effort: float = 0.0, v
         "velocity limits are not known from a calibration. "
     )
     root.append(ET.Comment(comment))
+    for note in notes:
+        root.append(ET.Comment(" " + note.replace("--", "- -") + " "))  # "--" may not appear in an XML comment
     base_values = p[frame_slice(robot, "base")]
     links = (["world"] if np.any(base_values != 0.0) else []) + ["base_link"] + [f"link{j}" for j in range(1, robot.n_joints + 1)] + ["flange", "tool0"]
     for link in links:
@@ -286,12 +299,13 @@ def _exported_robot(exported) -> tuple[Robot, str]:
     return robot_from_table(read_table(path), source=path), "table"
 
 
-def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -> dict:
+def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0, structures: Sequence = ()) -> dict:
     """How closely an export reproduces ``robot``'s tool frame.
 
     Draws ``samples`` joint vectors uniformly within the joint limits (seeded), computes the
     tool pose from the export alone and from ``robot.fkine(q, tool=True)``, and returns the
-    largest differences.
+    largest differences. With reading conventions ``structures`` the export is read at the
+    controller's readings of those angles (``structure.to_readings``), as it is meant to be.
 
     Parameters
     ----------
@@ -318,7 +332,7 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
     q = lo + (hi - lo) * rng.random((samples, robot.n_joints))
     want = robot.fkine(q, tool=True)
     exported_robot, representation = _exported_robot(exported)
-    got = exported_robot.fkine(q, tool=True)
+    got = exported_robot.fkine(structure.to_readings(q, list(structures)), tool=True)
     pos = np.linalg.norm(got[:, :3, 3] - want[:, :3, 3], axis=1)
     rot = np.linalg.norm(so3_log(np.swapaxes(want[:, :3, :3], -1, -2) @ got[:, :3, :3]), axis=1)
     return {
@@ -337,7 +351,7 @@ READ_BACK_SUFFIXES = {"urdf": (".urdf",), "csv": (".csv",), "json": (".json", ".
 def suffix_note(fmt: str, out, table_format: Optional[str] = None) -> Optional[str]:
     """A note when ``out``'s suffix is not the one :func:`robocal.robot` reads this export by
     (``--format urdf --out e.csv``: the file is fine, but read back as a table it fails), else None."""
-    form = "urdf" if fmt == "urdf" else _table_format(Path(out), table_format)
+    form = "urdf" if fmt == "urdf" else table_format_of(Path(out), table_format)
     suffix = READ_BACK_SUFFIXES[form][0]
     if Path(out).suffix.lower() in READ_BACK_SUFFIXES[form]:
         return None
@@ -345,34 +359,46 @@ def suffix_note(fmt: str, out, table_format: Optional[str] = None) -> Optional[s
     return f"{out} holds {what} under another suffix; robocal reads a robot file by its suffix (--robot, robocal.robot): rename it to *{suffix} to read it back"
 
 
-def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:
-    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh`` or ``urdf``) to ``out``."""
+def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, notes: Sequence[str] = ()) -> Path:
+    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh`` or ``urdf``) to ``out``, with ``notes``
+    where the format has room for them."""
     if fmt not in FORMATS:
         raise InvalidParameterError(f"`format` must be one of {FORMATS}; got {fmt!r}")
     out = Path(out)
     if fmt == "urdf":
         if table_format is not None:
             raise InvalidParameterError("--table-format applies to --format dh and mdh, not urdf")
-        return write_text(out, export_urdf(robot, name=name))
-    return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name)
+        return write_text(out, export_urdf(robot, name=name, notes=notes))
+    return write_table(export_table(robot, fmt), out, table_format, name=name or robot.name, notes=notes)
 
 
 def export_checked(
-    robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0
+    robot: Robot,
+    fmt: str,
+    out,
+    table_format: Optional[str] = None,
+    name: Optional[str] = None,
+    samples: int = 200,
+    seed: int = 0,
+    delivered: Optional["Deliverable"] = None,
 ) -> tuple[dict, list[str]]:
     """:func:`export` then :func:`roundtrip_check` of what it wrote: the check and the tolerances
     it breaks (then nothing is written).
 
+    ``delivered`` (:func:`deliverable` of a result) writes its robot, at the controller's
+    readings, with its notes, and checks it against its geometry at the model's angles; else
+    ``robot`` is written as it is.
     The file is written to a temporary beside ``out`` and replaces it only once its round trip
     passes: a failed export never overwrites a previous good one.
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
     if fmt == "urdf":
         require_yourdfpy("checking a URDF export (it is read back)")
-    table_format = _table_format(Path(out), table_format) if fmt != "urdf" else table_format
+    table_format = table_format_of(Path(out), table_format) if fmt != "urdf" else table_format
+    delivered = delivered or Deliverable(robot, robot, [], [])
     with Staged(out) as stage:
-        export(robot, fmt, stage.tmp, table_format=table_format, name=name)
-        check = roundtrip_check(robot, stage.tmp, samples=samples, seed=seed)
+        export(delivered.written, fmt, stage.tmp, table_format=table_format, name=name, notes=delivered.notes)
+        check = roundtrip_check(delivered.geometry, stage.tmp, samples=samples, seed=seed, structures=delivered.structures)
         failed = []
         if not check["max_position_error_mm"] <= POSITION_TOL:
             failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
@@ -381,3 +407,76 @@ def export_checked(
         if failed:
             stage.discard()
     return check, failed
+
+
+# ---------------------------------------------------------------------------------------------
+# What a result delivers
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class Deliverable:
+    """What an export of a result writes: ``written``, the robot whose joint variables are what
+    the file's user feeds it (the controller's readings, unless asked for the model's angles);
+    ``geometry``, the measured geometry at the model's angles, which the round trip holds it to;
+    ``structures``, the reading conventions between the two; ``notes``, what the file does not
+    carry and what that costs."""
+
+    written: Robot
+    geometry: Robot
+    structures: list
+    notes: list
+
+
+#: Joint vectors within the limits on which a cause's effect at the tool is measured.
+COST_SAMPLES = 500
+
+
+def _geometry(robot: Robot, doc: dict) -> tuple[Robot, list[str]]:
+    """The geometry an export of result ``doc`` carries and the notes on what it leaves out."""
+    carried_by_joints = [c for c in doc.get("causes", []) if c.get("kind") in JOINT_KINDS]
+    if not carried_by_joints:
+        return robot, []
+    labels = [str(c.get("label", c.get("kind"))) for c in carried_by_joints]
+    notes = [f"not carried (a joint-by-joint geometry has no place for them): {', '.join(labels)}"]
+    record = doc.get("geometry_only")
+    if not isinstance(record, dict):  # a result written before calibrate fitted the geometry alone
+        notes.append("the geometry is the extended fit's, fitted with those causes; calibrate again for the best geometry without them")
+        offsets = joint_offsets(robot, carried_by_joints, kinds=COMPENSABLE)
+        if offsets is not None:  # what leaving them out costs this geometry anywhere within the limits
+            lower, upper = (np.array([j.limits[k] for j in robot.joints]) for k in (0, 1))
+            q = lower + (upper - lower) * seeded_rng(0).random((COST_SAMPLES, robot.n_joints))
+            moved = np.linalg.norm(robot.fkine(q + offsets(q), tool=True)[:, :3, 3] - robot.fkine(q, tool=True)[:, :3, 3], axis=1)
+            notes.append(f"without them it is off by {np.sqrt(np.mean(moved**2)):.3g} mm RMS (at most {moved.max():.3g} mm) over {COST_SAMPLES} joint vectors within the limits")
+        return robot, notes
+    values = np.asarray(record.get("parameters", []), dtype=np.float64)
+    if values.shape != robot.params.shape or not np.all(np.isfinite(values)):
+        raise InvalidParameterError(f"result: key 'geometry_only', key 'parameters' must be {robot.params.size} finite numbers; got {values.size}")
+    what = "fitted again without them" if record.get("choice") == "refit" else "the extended fit's, without them"
+    notes.append(f"the geometry is {what}: {record.get('why')}")
+    held = record.get("held_out") or {}
+    chosen, full = held.get(record.get("choice")), held.get("full_model")
+    if chosen and full:
+        notes.append(f"on the calibration's held-out samples it predicts at RMSE {chosen['rmse']:.4g} mm; the full model at {full['rmse']:.4g} mm (robocal compensate applies it)")
+    return Robot(robot.name, robot.joints, values, mass_model=robot.mass_model), notes
+
+
+def deliverable(robot: Robot, doc: dict, angles: str = "readings") -> Deliverable:
+    """What an export of the result ``doc`` (calibrated ``robot``, :func:`robocal.results.load_result`) writes.
+
+    - **Geometry**: a result with joint causes (compliance, maps, ...) exports the geometry its
+      ``geometry_only`` record chose (the best geometry without them, by the held-out samples),
+      with notes naming the causes left out and their cost in mm.
+    - **Readings**: with ``angles="readings"`` (default) the result's reading conventions are
+      folded in (:func:`robocal.causes.structure.robot_at_readings`), so the file works at the
+      controller's readings; ``"model"`` writes the model's angles and says so.
+    """
+    if angles not in ("readings", "model"):
+        raise InvalidParameterError(f"`angles` must be 'readings' or 'model'; got {angles!r}")
+    geometry, notes = _geometry(robot, doc)
+    structures = structure.parse_all(doc.get("structure", []), robot.n_joints)
+    if not structures:
+        return Deliverable(geometry, geometry, [], notes)
+    labels = ", ".join(s.label for s in structures)
+    if angles == "model":
+        return Deliverable(geometry, geometry, [], notes + [f"joint values are the model's angles, not the controller's readings ({labels})"])
+    written = structure.robot_at_readings(geometry, structures)
+    return Deliverable(written, geometry, structures, notes + [f"joint values are the controller's readings: {labels} folded into the joints"])

@@ -141,6 +141,10 @@ class CalibrationResult:
     sessions : list of dict, optional
         A fit on several sessions at once: each session's provenance, set-up, own terms and
         metrics (``problem`` is then the stacked :class:`~robocal.calibration.sessions.Sessions`).
+    geometry_only : dict, optional
+        An extended model's best geometry without its joint causes — what a URDF or DH table can
+        carry — and what leaving them out costs on the held-out samples
+        (:func:`robocal.causes.extended.geometry_only_record`).
     """
 
     method: str
@@ -160,6 +164,7 @@ class CalibrationResult:
     njev: Optional[int] = None
     structure: list = field(default_factory=list)
     sessions: Optional[list] = None
+    geometry_only: Optional[dict] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -303,6 +308,8 @@ class CalibrationResult:
             doc["structure"] = list(self.structure)  # reading conventions applied to the joint readings
         if self.sessions is not None:
             doc["sessions"] = self.sessions
+        if self.geometry_only is not None:
+            doc["geometry_only"] = self.geometry_only
         return doc
 
     @classmethod

@@ -30,6 +30,7 @@ from ..serial_robot import Robot
 from ..results import file_sha256, training_fingerprint
 from . import structure
 from .candidates import (
+    JOINT_KINDS,
     MAP_LABEL,
     cable_directions,
     drift_candidate,
@@ -148,7 +149,60 @@ def calibrate(
     result = api.fit(model, method, seed, options)
     logger.info("calibrate: %s after %d iterations, training RMSE %.4g", result.message, result.nit, result.metrics["train"]["rmse"])
     result.structure = [s.label for s in structures]
-    return _held_out(result, dataset, test_idx, lambda test: model.with_samples(test_idx).data_residuals(result.x))
+    result = _held_out(result, dataset, test_idx, lambda test: model.with_samples(test_idx).data_residuals(result.x))
+    not_carried = [c.label for c in model.causes if c.kind in JOINT_KINDS]
+    if not_carried:
+        refit_model = extended_problem(problem, dataset, train_idx, [label for label in labels if label not in not_carried])
+        refit = api.fit(refit_model, method, seed, options)
+
+        def held_out(m: ExtendedProblem, x: np.ndarray) -> Optional[dict]:
+            return None if test_idx is None else metrics(m.with_samples(test_idx).data_residuals(x), dataset.measurement)
+
+        candidates = {
+            "extended": (model.full(result.x), held_out(model, without_joint_causes(model, result.x))),
+            "refit": (refit_model.full(refit.x), held_out(refit_model, refit.x)),
+        }
+        result.geometry_only = geometry_only_record(not_carried, candidates, result.metrics.get("test"))
+    return result
+
+
+def without_joint_causes(problem: ExtendedProblem, x: np.ndarray) -> np.ndarray:
+    """``x`` with the coefficients of its joint causes at zero: the geometry alone, as a URDF or
+    DH table carries it."""
+    x = np.array(x, dtype=np.float64, copy=True)
+    for cause, at in zip(problem.causes, problem.slices):
+        if cause.kind in JOINT_KINDS:
+            x[at] = 0.0
+    return x
+
+
+def geometry_only_record(not_carried: list[str], candidates: dict, full_model: Optional[dict]) -> dict:
+    """What a geometry-only export of an extended result carries (``geometry_only`` of the
+    result file), from two ``candidates`` ``name -> (parameter vector, held-out metrics or
+    None)``: ``extended`` (the extended fit's geometry, its joint causes left out) and
+    ``refit`` (the geometry fitted again without them, the session's sensor terms kept).
+
+    The geometry of an extended fit is fitted *with* its causes: without them it may predict
+    worse than a geometry fitted alone. The one that predicts the held-out samples better is
+    chosen (a choice between two, made on those samples: its figure is not a blind one); with no
+    held-out samples, the refit. Keys: ``not_carried`` (labels), ``choice``, ``why``,
+    ``held_out`` (metrics of ``full_model``, ``extended`` and ``refit``), ``parameters`` (the
+    chosen vector, in the result's ``parameters`` order).
+    """
+    held = {name: figures for name, (_, figures) in candidates.items()}
+    if any(m is None for m in held.values()):
+        choice, why = "refit", "no held-out samples: the geometry fitted without the causes"
+    else:
+        choice = min(held, key=lambda name: held[name]["rmse"])
+        other = next(name for name in held if name != choice)
+        why = f"it predicts the held-out samples better: RMSE {held[choice]['rmse']:.4g} against {held[other]['rmse']:.4g} mm ({other})"
+    return {
+        "not_carried": list(not_carried),
+        "choice": choice,
+        "why": why,
+        "held_out": {"full_model": full_model, **held},
+        "parameters": [float(v) for v in candidates[choice][0]],
+    }
 
 
 def _held_out(result: CalibrationResult, dataset: Dataset, test_idx: Optional[np.ndarray], residuals) -> CalibrationResult:
@@ -184,7 +238,7 @@ def _fit_sessions(
     ``metrics``.
     """
     shared = [label for label in shared if not _session_term(label)]
-    datasets = [structure.apply_all(d, structures) for d in datasets]
+    raw, datasets = datasets, [structure.apply_all(d, structures) for d in datasets]
     splits = [_split(d, test_fraction, seed) for d in datasets]
     for d in datasets:
         check_observations(r, d)
@@ -220,6 +274,17 @@ def _fit_sessions(
         result.sessions.append(entry)
     if pooled:
         result.metrics["test"] = metrics(np.concatenate(pooled), datasets[0].measurement)
+    not_carried = sorted({c.label for p in problems for c in p.causes if c.kind in JOINT_KINDS})
+    if not_carried:
+        refit = _fit_sessions(raw, r, structures, [label for label in shared if label not in not_carried], terms, kinematic_prior, test_fraction, seed, options)
+        extended = [
+            p.with_samples(test).data_residuals(without_joint_causes(p, stacked.session_x(result.x, s)))
+            for s, (p, (_, test)) in enumerate(zip(problems, splits))
+            if test is not None
+        ]
+        held_out = metrics(np.concatenate(extended), datasets[0].measurement) if extended else None
+        candidates = {"extended": (result.params, held_out), "refit": (refit.params, refit.metrics.get("test"))}
+        result.geometry_only = geometry_only_record(not_carried, candidates, result.metrics.get("test"))
     return result
 
 

@@ -77,6 +77,14 @@ def run(args: argparse.Namespace) -> int:
             if v["value"] == v["value"]
         )
         print(f"  cause {cause['label']}: {shown}")
+    geometry_only = doc.get("geometry_only")
+    if geometry_only:
+        held = geometry_only["held_out"][geometry_only["choice"]]
+        print(
+            f"  geometry alone (what export writes; it leaves out {len(geometry_only['not_carried'])} joint causes): "
+            + (f"held-out RMSE {held['rmse']:.4f} mm, " if held else "")
+            + ("re-fitted without them" if geometry_only["choice"] == "refit" else "the extended fit's")
+        )
     if "robust" in doc:
         rows = doc["robust"]["outlying_rows"]
         print(
