@@ -134,7 +134,7 @@ def calibrate(
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
     if several:
-        terms = session_terms(causes, labels, len(datasets))
+        terms = session_terms(causes, labels, [d.source for d in datasets])
         return _fit_sessions(datasets, r, structures, labels, terms, kinematic_prior, test_fraction, seed, options)
     if causes is None:
         problem, _, test_idx = api.held_out_problem(r, dataset, test_fraction, seed, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
@@ -304,22 +304,50 @@ def _is_report(causes) -> bool:
     return isinstance(causes, (dict, DiagnosisReport)) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
 
 
-def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
-    """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
-    (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
-    session fits its own). A step sits at one session's sample: it needs the report."""
+def session_terms(causes, labels: list[str], sources: list) -> list[list[str]]:
+    """Each session's own terms, for the sessions read from ``sources`` (in order).
+
+    From a multi-session diagnose report: its ``model.sessions``, each given session matched to
+    the report's by its file (the same path, or the same content); a report on more sessions
+    than given serves a fit on some of them (a session left out to check the model on). A
+    session the report did not diagnose is refused: its own terms are not known. Without a
+    report: the session-kind ``labels`` that hold in any session (a drift, a wander: each session
+    fits its own); a step sits at one session's sample and needs the report."""
     report = load_diagnosis(causes) if _is_report(causes) else None
     listed = report.needs_model().sessions if report is not None else None
     if listed is not None:
-        if len(listed) != n:
-            raise InvalidParameterError(
-                f"{report.where}: key 'model', key 'sessions' lists {len(listed)} sessions; the causes of each of the {n} sessions given are needed, in order"
-            )
-        return [list(entry.causes) for entry in listed]
+        if any(entry.source is None for entry in listed) or any(source is None for source in sources):  # unnamed: in order
+            if len(listed) != len(sources):
+                raise InvalidParameterError(
+                    f"{report.where}: key 'model', key 'sessions' lists {len(listed)} sessions; "
+                    f"the causes of each of the {len(sources)} sessions given are needed, in order (or name their files)"
+                )
+            return [list(entry.causes) for entry in listed]
+        terms = []
+        for source in sources:
+            found = [entry for entry in listed if entry.source is not None and _same_file(entry.source, source)]
+            if not found:
+                named = "; ".join(str(entry.source) for entry in listed)
+                raise InvalidParameterError(
+                    f"{report.where}: session {source} is not among the report's sessions ({named}): its own terms (steps, drift) "
+                    "were not diagnosed; diagnose it with the others, or pass cause labels"
+                )
+            terms.append(list(found[0].causes))
+        return terms
     steps = [label for label in labels if label.startswith("step ")]
     if steps:
         raise InvalidParameterError(f"{steps[0]!r} is a step of one session's sensor: for several sessions pass the multi-session diagnose report")
-    return [[label for label in labels if _session_term(label)] for _ in range(n)]
+    return [[label for label in labels if _session_term(label)] for _ in sources]
+
+
+def _same_file(a, b) -> bool:
+    """Whether two recorded sources name one file: the same resolved path, or the same content."""
+    if a is None or b is None:
+        return False
+    if Path(a).resolve() == Path(b).resolve():
+        return True
+    digest = file_sha256(a)
+    return digest is not None and digest == file_sha256(b)
 
 
 def read_causes(causes, robot: str) -> tuple[list[str], Optional[tuple]]:
