@@ -180,3 +180,31 @@ def test_a_multi_session_result_records_its_geometry_without_joint_causes():
     assert record["not_carried"] == ["joint_periodic joint 2 harmonic=1"]
     assert record["held_out"]["full_model"]["rmse"] < min(record["held_out"][k]["rmse"] for k in ("extended", "refit"))
     assert record["held_out"]["extended"]["n"] == record["held_out"]["refit"]["n"] == result.metrics["test"]["n"]
+
+
+def test_calibrate_verify_and_report_open_with_one_verdict_and_agree_on_the_nominal_figure(periodic, tmp_path, capsys):
+    """A verdict first, in words; the nominal robot's figure is the same in verify and report."""
+    from robocal.calibration.result import VERDICTS, verdict
+
+    doc = json.loads(periodic.read_text())
+    assert verdict(doc)[0] == "trusted"
+    bad = {**doc, "implausible": [{"name": "a3", "unit": "mm", "deviation": 856.0, "limit": 10.0}]}
+    word, why = verdict(bad)
+    assert word == VERDICTS[1] and "a3 +856 mm" in why
+    assert verdict({**doc, "convergence": {"success": False, "message": "stopped"}})[0] == VERDICTS[2]
+    data, _ = simulate("ur10", "position", samples=150, seed=2, session=1, effects=["joint_periodic:joint=2,amplitude=0.05"])  # the same robot, a new session
+    new = tmp_path / "new.csv"
+    robocal.data.write_canonical(data, new)
+    report = tmp_path / "verify.json"
+    assert main(["verify", str(periodic), str(new), "--json", str(report), "--quiet"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("verdict: trusted: ") and "on these new data RMSE" in first
+    nominal = json.loads(report.read_text())["nominal"]["metrics"]["rmse"]
+    assert main(["report", str(periodic), "--data", str(new), "--out", str(tmp_path / "page"), "--quiet"]) == 0
+    page = (tmp_path / "page" / "index.html").read_text()
+    assert "Verdict: trusted" in page
+    assert f"RMSE {nominal:.4g} mm with the nominal kinematics" in page
+    other, _ = simulate("ur10", "position", samples=150, seed=9, session=1)  # another UR10's errors
+    robocal.data.write_canonical(other, new)
+    assert main(["verify", str(periodic), str(new), "--quiet"]) == 0
+    assert capsys.readouterr().out.startswith("verdict: not determined: on these new data it predicts worse than the nominal robot")

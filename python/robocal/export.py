@@ -445,7 +445,9 @@ def _geometry(robot: Robot, doc: dict) -> tuple[Robot, list[str]]:
             lower, upper = (np.array([j.limits[k] for j in robot.joints]) for k in (0, 1))
             q = lower + (upper - lower) * seeded_rng(0).random((COST_SAMPLES, robot.n_joints))
             moved = np.linalg.norm(robot.fkine(q + offsets(q), tool=True)[:, :3, 3] - robot.fkine(q, tool=True)[:, :3, 3], axis=1)
-            notes.append(f"without them it is off by {np.sqrt(np.mean(moved**2)):.3g} mm RMS (at most {moved.max():.3g} mm) over {COST_SAMPLES} joint vectors within the limits")
+            notes.append(
+                f"without them it is off by {np.sqrt(np.mean(moved**2)):.3g} mm RMS (at most {moved.max():.3g} mm) over {COST_SAMPLES} joint vectors within the limits"
+            )
         return robot, notes
     values = np.asarray(record.get("parameters", []), dtype=np.float64)
     if values.shape != robot.params.shape or not np.all(np.isfinite(values)):
@@ -455,7 +457,9 @@ def _geometry(robot: Robot, doc: dict) -> tuple[Robot, list[str]]:
     held = record.get("held_out") or {}
     chosen, full = held.get(record.get("choice")), held.get("full_model")
     if chosen and full:
-        notes.append(f"on the calibration's held-out samples it predicts at RMSE {chosen['rmse']:.4g} mm; the full model at {full['rmse']:.4g} mm (robocal compensate applies it)")
+        notes.append(
+            f"on the calibration's held-out samples it predicts at RMSE {chosen['rmse']:.4g} mm; the full model at {full['rmse']:.4g} mm (robocal compensate applies it)"
+        )
     return Robot(robot.name, robot.joints, values, mass_model=robot.mass_model), notes
 
 

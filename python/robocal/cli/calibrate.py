@@ -6,7 +6,7 @@ import argparse
 import json
 
 from ..calibration.api import METHODS
-from ..calibration.result import describe_implausible
+from ..calibration.result import describe_implausible, verdict
 from ..causes.extended import calibrate
 from ..diagnosis_file import load_diagnosis
 from ..outputs import printable
@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2))
         return 0
     train, test = doc["metrics"]["train"], doc["metrics"]["test"]
+    print("verdict: {}: {}".format(*verdict(doc)))
     print(
         f"{doc['method']} on {printable(doc['robot'], one_line=True)} ({doc['measurement']}, {train['n']} training samples): "
         f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms"
