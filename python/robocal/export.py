@@ -90,8 +90,9 @@ from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_lo
 from .serial_robot import Robot
 from .robot_table import TABLE_COLUMNS, TABLE_SCHEMA, export_table, frame_slice, read_table, robot_from_table
 from .urdf import read_urdf, require_yourdfpy, robot_from_urdf
+from .ur_kinematics import is_ur_yaml, read_ur_yaml, ur_kinematics, ur_reference, ur_yaml_text
 
-FORMATS = ("dh", "mdh", "urdf")
+FORMATS = ("dh", "mdh", "urdf", "ur-yaml")
 TABLE_FORMATS = ("csv", "json")
 
 #: Largest tool-position difference (mm) the round trip of an export may show.
@@ -281,8 +282,11 @@ def _exported_robot(exported) -> tuple[Robot, str]:
     if isinstance(exported, str) and exported.lstrip().startswith("<"):
         return robot_from_urdf(exported, where="the exported URDF"), "urdf"
     path = Path(exported)
-    if path.read_text().lstrip().startswith("<"):
+    text = path.read_text()
+    if text.lstrip().startswith("<"):
         return read_urdf(path), "urdf"
+    if is_ur_yaml(text):
+        return read_ur_yaml(path), "ur-yaml"
     return robot_from_table(read_table(path), source=path), "table"
 
 
@@ -345,11 +349,21 @@ def suffix_note(fmt: str, out, table_format: Optional[str] = None) -> Optional[s
     return f"{out} holds {what} under another suffix; robocal reads a robot file by its suffix (--robot, robocal.robot): rename it to *{suffix} to read it back"
 
 
-def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None) -> Path:
-    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh`` or ``urdf``) to ``out``."""
+def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, structures: Sequence = ()) -> Path:
+    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh``, ``urdf`` or ``ur-yaml``) to ``out``.
+
+    ``structures``: the result's reading conventions (:func:`robocal.causes.structure.parse_all`
+    of its ``structure``), which only ``ur-yaml`` folds in (:mod:`robocal.ur_kinematics`).
+    """
     if fmt not in FORMATS:
         raise InvalidParameterError(f"`format` must be one of {FORMATS}; got {fmt!r}")
     out = Path(out)
+    if fmt != "ur-yaml" and structures:
+        raise InvalidParameterError(f"--format {fmt} does not fold reading conventions in; only --format ur-yaml does")
+    if fmt == "ur-yaml":
+        if table_format is not None:
+            raise InvalidParameterError("--table-format applies to --format dh and mdh, not ur-yaml")
+        return write_text(out, ur_yaml_text(ur_kinematics(robot, urdf_segments(robot), structures), robot_name=name or robot.name))
     if fmt == "urdf":
         if table_format is not None:
             raise InvalidParameterError("--table-format applies to --format dh and mdh, not urdf")
@@ -358,21 +372,31 @@ def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name
 
 
 def export_checked(
-    robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, samples: int = 200, seed: int = 0
+    robot: Robot,
+    fmt: str,
+    out,
+    table_format: Optional[str] = None,
+    name: Optional[str] = None,
+    samples: int = 200,
+    seed: int = 0,
+    structures: Sequence = (),
 ) -> tuple[dict, list[str]]:
     """:func:`export` then :func:`roundtrip_check` of what it wrote: the check and the tolerances
     it breaks (then nothing is written).
 
     The file is written to a temporary beside ``out`` and replaces it only once its round trip
-    passes: a failed export never overwrites a previous good one.
+    passes: a failed export never overwrites a previous good one. A ``ur-yaml`` file is checked
+    against :func:`robocal.ur_kinematics.ur_reference` (the robot in ``base_link``, at the
+    controller's readings).
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
     if fmt == "urdf":
         require_yourdfpy("checking a URDF export (it is read back)")
-    table_format = _table_format(Path(out), table_format) if fmt != "urdf" else table_format
+    table_format = _table_format(Path(out), table_format) if fmt in ("dh", "mdh") else table_format
     with Staged(out) as stage:
-        export(robot, fmt, stage.tmp, table_format=table_format, name=name)
-        check = roundtrip_check(robot, stage.tmp, samples=samples, seed=seed)
+        export(robot, fmt, stage.tmp, table_format=table_format, name=name, structures=structures)
+        reference = ur_reference(robot, structures) if fmt == "ur-yaml" else robot
+        check = roundtrip_check(reference, stage.tmp, samples=samples, seed=seed)
         failed = []
         if not check["max_position_error_mm"] <= POSITION_TOL:
             failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")

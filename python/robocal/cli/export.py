@@ -1,19 +1,21 @@
-"""``robocal export``: a result file's calibrated robot as a DH / MDH table or URDF, checked by a
-round trip (:func:`robocal.export.export_checked`)."""
+"""``robocal export``: a result file's calibrated robot as a DH / MDH table, a URDF or UR's
+kinematics file, checked by a round trip (:func:`robocal.export.export_checked`)."""
 
 from __future__ import annotations
 
 import argparse
 
+from ..causes import structure
 from ..export import FORMATS, TABLE_FORMATS, export_checked, suffix_note
 from ..outputs import printable
 from ..results import load_result
+from ..ur_kinematics import read_ur_kinematics, tcp_message
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``robocal export``."""
     parser.add_argument("result", help="calibration result JSON (robocal calibrate --out)")
-    parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, or urdf")
+    parser.add_argument("--format", required=True, choices=FORMATS, help="dh / mdh parameter table, urdf, or ur-yaml (Universal Robots' kinematics file)")
     parser.add_argument(
         "--table-format", choices=TABLE_FORMATS, default=None, help="dh / mdh table as csv or json (default: from the --out suffix, csv unless .json)"
     )
@@ -25,9 +27,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Runs ``robocal export``: writes the file, then checks its round trip; returns the exit code."""
-    robot, _ = load_result(args.result)
-    kind = "URDF" if args.format == "urdf" else f"{args.format.upper()} table"
-    check, failed = export_checked(robot, args.format, args.out, table_format=args.table_format, name=args.name, samples=args.samples, seed=args.seed)
+    robot, doc = load_result(args.result)
+    kind = {"urdf": "URDF", "ur-yaml": "UR kinematics file"}.get(args.format, f"{args.format.upper()} table")
+    # Only UR's file folds the reading conventions in (its joint positions are the controller's readings).
+    conventions = structure.parse_all(doc.get("structure", []), robot.n_joints) if args.format == "ur-yaml" else ()
+    check, failed = export_checked(
+        robot, args.format, args.out, table_format=args.table_format, name=args.name, samples=args.samples, seed=args.seed, structures=conventions
+    )
     print(
         f"round trip over {check['samples']} joint vectors within limits: max tool position error "
         f"{check['max_position_error_mm']:.3g} mm, max rotation error {check['max_rotation_error_rad']:.3g} rad"
@@ -37,6 +43,9 @@ def run(args: argparse.Namespace) -> int:
         return 1
     article = "" if args.format == "urdf" else ("an " if args.format == "mdh" else "a ")
     print(f"wrote the calibrated {printable(robot.name, one_line=True)} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
+    if args.format == "ur-yaml":
+        print(tcp_message(read_ur_kinematics(args.out)))
+        return 0
     note = suffix_note(args.format, args.out, args.table_format)
     if note:
         print(f"note: {note}")
