@@ -1,6 +1,7 @@
-"""Export a calibrated robot: a DH / MDH parameter table (CSV or JSON) or a URDF for ROS.
+"""Export a calibrated robot: a DH / MDH parameter table (CSV or JSON), a URDF for ROS, or
+Universal Robots' kinematics file.
 
-``robocal export RESULT --format {dh,mdh,urdf} [--table-format {csv,json}] --out FILE`` reads a
+``robocal export RESULT --format {dh,mdh,urdf,ur-yaml} [--table-format {csv,json}] --out FILE`` reads a
 calibration result file (schema ``robocal.result/1``, see :mod:`robocal.results`), writes the
 calibrated kinematics in the asked form and then *checks* what it wrote: it reads the file back
 with the reader ``robocal.robot`` uses for it (one URDF reader, :mod:`robocal.urdf`), and
@@ -72,6 +73,16 @@ MoveIt's ``joint_limits.yaml``).
 (``fkine(q)``) and ``tool0`` as the tool frame (``fkine(q, tool=True)``), as the exporting robot
 has them. Reading it back — for the round-trip check too — needs yourdfpy (``pip install
 'robocal[urdf]'``), the maintained URDF parser robocal reads every URDF with.
+
+UR kinematics file (``--format ur-yaml``)
+-----------------------------------------
+The ``kinematics:`` YAML of Universal Robots' ``ur_description`` (``shoulder`` … ``wrist_3``,
+each ``x y z roll pitch yaw`` in m and rad, and ``hash``), written at the controller's joint
+readings (a ``joint_zero`` reading convention folded in), with the part after the last joint
+that the file cannot hold reported as the pendant's TCP: see :mod:`robocal.ur_kinematics`. Its
+round trip reads the file back into UR's chain and compares it with the calibrated robot in
+``base_link`` (:func:`robocal.ur_kinematics.ur_reference`): the measurement set-up (``base``) is
+not part of the robot.
 """
 
 from __future__ import annotations
