@@ -204,6 +204,12 @@ def test_cli(ur10_result, tmp_path, capsys):
     assert set(doc) == {"kinematics", urk.TCP_KEY}
     assert list(doc["kinematics"]) == [*urk.SEGMENTS, "hash"]
     assert all(type(doc["kinematics"][s][k]) is float for s in urk.SEGMENTS for k in urk.KEYS)
+    # The pendant's TCP is printed without rounding residues (UR's fixed frames compose to the identity to 1e-16).
+    assert "rx ry rz = 0.000000 0.000000 0.000000 rad" in printed
+    # A robot name that would end the YAML comment it is written in stays on its line.
+    named = tmp_path / "named.yaml"
+    assert main(["export", str(ur10_result), "--format", "ur-yaml", "--name", "x\nrobocal_tcp: 1\u2028hash: 2", "--out", str(named)]) == 0
+    assert urk.read_ur_kinematics(named).origins[2].tolist() == urk.read_ur_kinematics(out).origins[2].tolist()
     assert main(["export", str(ur10_result), "--format", "ur-yaml", "--table-format", "csv", "--out", str(tmp_path / "x.yaml")]) == 2
     assert "--table-format applies to --format dh and mdh, not ur-yaml" in capsys.readouterr().err
 

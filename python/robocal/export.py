@@ -314,9 +314,11 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
         The calibrated robot.
     exported : list of dict, str or Path
         Table rows (:func:`export_table`), URDF text, or the path of a written table (CSV /
-        JSON) or URDF file. Either is read back into a :class:`Robot` by the reader
+        JSON), URDF or UR kinematics file. Either is read back into a :class:`Robot` by the reader
         ``robocal.robot`` uses for it: :func:`robocal.urdf.robot_from_urdf` (yourdfpy's parse,
-        then the chain's DH form) or :func:`robot_from_table`.
+        then the chain's DH form) or :func:`robot_from_table`; a UR kinematics file by
+        :func:`robocal.ur_kinematics.read_ur_yaml` (UR's chain, in ``base_link``, at the
+        controller's readings: compare it with :func:`robocal.ur_kinematics.ur_reference`).
     samples : int
     seed : int
 
@@ -324,7 +326,7 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0) -
     -------
     dict
         ``max_position_error_mm``, ``max_rotation_error_rad`` (angle of ``R_robot^T R_export``),
-        ``samples`` and ``representation`` (``table`` / ``urdf``).
+        ``samples`` and ``representation`` (``table`` / ``urdf`` / ``ur-yaml``).
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)
     rng = seeded_rng(seed)

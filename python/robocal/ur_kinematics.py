@@ -229,7 +229,7 @@ def ur_yaml_text(kinematics: URKinematics, robot_name: str = "") -> str:
         "# the calibrated joint origins, m and rad. Joint positions are the controller's readings. The hash is not the controller's:",
         "# ur_robot_driver logs at start-up that the calibration does not match the robot's and runs on.",
         "# robocal_tcp (ignored by ur_description): tool0 -> the calibrated tool, to set as the TCP on the teach pendant:",
-        f"#   x y z = {' '.join(f'{v:.6f}' for v in position)} mm, rotation vector rx ry rz = {' '.join(f'{v:.9f}' for v in rotvec)} rad",
+        f"#   x y z = {_digits(position, 6)} mm, rotation vector rx ry rz = {_digits(rotvec, 9)} rad",
         "kinematics:",
         _values_text(kinematics.origins),
         f"  hash: {kinematics.hash}",
@@ -329,10 +329,16 @@ def read_ur_yaml(path) -> Robot:
     return robot_from_ur_kinematics(read_ur_kinematics(path), name=path.stem)
 
 
+def _digits(values, digits: int) -> str:
+    """``values`` to ``digits`` decimals; a rounding residue (UR's fixed frames compose to the
+    identity to 1e-16) prints as 0, not -0."""
+    return " ".join(f"{round(float(v), digits) + 0.0:.{digits}f}" for v in values)
+
+
 def tcp_message(kinematics: URKinematics) -> str:
     """One line saying which TCP to set on the pendant for the file's tool frame."""
     position, rotvec = kinematics.tcp_pendant()
     return (
-        f"set the TCP on the teach pendant to x y z = {' '.join(f'{v:.4f}' for v in position)} mm, rx ry rz = {' '.join(f'{v:.6f}' for v in rotvec)} rad "
+        f"set the TCP on the teach pendant to x y z = {_digits(position, 4)} mm, rx ry rz = {_digits(rotvec, 6)} rad "
         "(tool0 -> the calibrated tool: what UR's kinematics file cannot hold)"
     )
