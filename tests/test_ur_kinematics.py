@@ -170,6 +170,15 @@ def test_joint_zero_is_folded_in_at_the_controllers_readings(zero_result, tmp_pa
     assert np.abs((to_tracker @ _ur_chain(kin, data.q))[:, :3, 3] - data.y).max() > 100.0
 
 
+def test_causes_the_file_cannot_hold_are_named(tmp_path, capsys):
+    """A result with a joint cause: the geometry is exported and the cause named as left out."""
+    data, _ = simulate("ur10", "position", samples=150, seed=4)
+    path = tmp_path / "scaled.json"
+    path.write_text(json.dumps(robocal.calibrate(data, robot="ur10", causes=["joint_scale joint 2"]).to_dict()))
+    assert main(["export", str(path), "--format", "ur-yaml", "--out", str(tmp_path / "s.yaml")]) == 0
+    assert "note: the result's causes are not in" in (out := capsys.readouterr().out) and "joint_scale joint 2" in out
+
+
 @pytest.mark.parametrize("label", ["joint_sign joint 3", "joint_reference joint 3 source=2 coefficient=-1"])
 def test_other_reading_conventions_are_refused(ur10_result, tmp_path, capsys, label):
     doc = json.loads(ur10_result.read_text())

@@ -45,6 +45,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote the calibrated {printable(robot.name, one_line=True)} ({robot.n_joints} joints) as {article}{kind} to {args.out}")
     if args.format == "ur-yaml":
         print(tcp_message(read_ur_kinematics(args.out)))
+        causes = [printable(c.get("label", c.get("kind")), one_line=True) for c in doc.get("causes", [])]
+        if causes:
+            print(f"note: the result's causes are not in {args.out} (UR's kinematics file holds joint origins only): {', '.join(causes)}")
         return 0
     note = suffix_note(args.format, args.out, args.table_format)
     if note:
