@@ -206,5 +206,6 @@ def test_calibrate_verify_and_report_open_with_one_verdict_and_agree_on_the_nomi
     assert f"RMSE {nominal:.4g} mm with the nominal kinematics" in page
     other, _ = simulate("ur10", "position", samples=150, seed=9, session=1)  # another UR10's errors
     robocal.data.write_canonical(other, new)
+    capsys.readouterr()
     assert main(["verify", str(periodic), str(new), "--quiet"]) == 0
     assert capsys.readouterr().out.startswith("verdict: not determined: on these new data it predicts worse than the nominal robot")

@@ -1,6 +1,7 @@
-"""Export a calibrated robot: a DH / MDH parameter table (CSV or JSON) or a URDF for ROS.
+"""Export a calibrated robot: a DH / MDH parameter table (CSV or JSON), a URDF for ROS, or
+Universal Robots' kinematics file.
 
-``robocal export RESULT --format {dh,mdh,urdf} [--table-format {csv,json}] --out FILE`` reads a
+``robocal export RESULT --format {dh,mdh,urdf,ur-yaml} [--table-format {csv,json}] --out FILE`` reads a
 calibration result file (schema ``robocal.result/1``, see :mod:`robocal.results`), writes the
 calibrated kinematics in the asked form and then *checks* what it wrote: it reads the file back
 with the reader ``robocal.robot`` uses for it (one URDF reader, :mod:`robocal.urdf`), and
@@ -72,6 +73,16 @@ MoveIt's ``joint_limits.yaml``).
 (``fkine(q)``) and ``tool0`` as the tool frame (``fkine(q, tool=True)``), as the exporting robot
 has them. Reading it back — for the round-trip check too — needs yourdfpy (``pip install
 'robocal[urdf]'``), the maintained URDF parser robocal reads every URDF with.
+
+UR kinematics file (``--format ur-yaml``)
+-----------------------------------------
+The ``kinematics:`` YAML of Universal Robots' ``ur_description`` (``shoulder`` … ``wrist_3``,
+each ``x y z roll pitch yaw`` in m and rad, and ``hash``), written at the controller's joint
+readings (a ``joint_zero`` reading convention folded in), with the part after the last joint
+that the file cannot hold reported as the pendant's TCP: see :mod:`robocal.ur_kinematics`. Its
+round trip reads the file back into UR's chain and compares it with the calibrated robot in
+``base_link`` (:func:`robocal.ur_kinematics.ur_reference`): the measurement set-up (``base``) is
+not part of the robot.
 """
 
 from __future__ import annotations
@@ -93,8 +104,9 @@ from .geometry import chain_ops, frame_params, frame_transform, rotation, so3_lo
 from .serial_robot import Robot
 from .robot_table import TABLE_COLUMNS, TABLE_SCHEMA, export_table, frame_slice, read_table, robot_from_table
 from .urdf import read_urdf, require_yourdfpy, robot_from_urdf
+from .ur_kinematics import is_ur_yaml, read_ur_yaml, ur_kinematics, ur_reference, ur_yaml_text
 
-FORMATS = ("dh", "mdh", "urdf")
+FORMATS = ("dh", "mdh", "urdf", "ur-yaml")
 TABLE_FORMATS = ("csv", "json")
 
 #: Largest tool-position difference (mm) the round trip of an export may show.
@@ -294,8 +306,11 @@ def _exported_robot(exported) -> tuple[Robot, str]:
     if isinstance(exported, str) and exported.lstrip().startswith("<"):
         return robot_from_urdf(exported, where="the exported URDF"), "urdf"
     path = Path(exported)
-    if path.read_text().lstrip().startswith("<"):
+    text = path.read_text()
+    if text.lstrip().startswith("<"):
         return read_urdf(path), "urdf"
+    if is_ur_yaml(text):
+        return read_ur_yaml(path), "ur-yaml"
     return robot_from_table(read_table(path), source=path), "table"
 
 
@@ -313,9 +328,11 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0, s
         The calibrated robot.
     exported : list of dict, str or Path
         Table rows (:func:`export_table`), URDF text, or the path of a written table (CSV /
-        JSON) or URDF file. Either is read back into a :class:`Robot` by the reader
+        JSON), URDF or UR kinematics file. Either is read back into a :class:`Robot` by the reader
         ``robocal.robot`` uses for it: :func:`robocal.urdf.robot_from_urdf` (yourdfpy's parse,
-        then the chain's DH form) or :func:`robot_from_table`.
+        then the chain's DH form) or :func:`robot_from_table`; a UR kinematics file by
+        :func:`robocal.ur_kinematics.read_ur_yaml` (UR's chain, in ``base_link``, at the
+        controller's readings: compare it with :func:`robocal.ur_kinematics.ur_reference`).
     samples : int
     seed : int
 
@@ -323,7 +340,7 @@ def roundtrip_check(robot: Robot, exported, samples: int = 200, seed: int = 0, s
     -------
     dict
         ``max_position_error_mm``, ``max_rotation_error_rad`` (angle of ``R_robot^T R_export``),
-        ``samples`` and ``representation`` (``table`` / ``urdf``).
+        ``samples`` and ``representation`` (``table`` / ``urdf`` / ``ur-yaml``).
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)
     rng = seeded_rng(seed)
@@ -360,11 +377,16 @@ def suffix_note(fmt: str, out, table_format: Optional[str] = None) -> Optional[s
 
 
 def export(robot: Robot, fmt: str, out, table_format: Optional[str] = None, name: Optional[str] = None, notes: Sequence[str] = ()) -> Path:
-    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh`` or ``urdf``) to ``out``, with ``notes``
-    where the format has room for them."""
+    """Writes ``robot`` in format ``fmt`` (``dh``, ``mdh``, ``urdf`` or ``ur-yaml``) to ``out``,
+    with ``notes`` where the format has room for them. Its joint variables are the file's: a
+    result's reading conventions are folded in before (:func:`deliverable`)."""
     if fmt not in FORMATS:
         raise InvalidParameterError(f"`format` must be one of {FORMATS}; got {fmt!r}")
     out = Path(out)
+    if fmt == "ur-yaml":
+        if table_format is not None:
+            raise InvalidParameterError("--table-format applies to --format dh and mdh, not ur-yaml")
+        return write_text(out, ur_yaml_text(ur_kinematics(robot, urdf_segments(robot)), robot_name=name or robot.name))
     if fmt == "urdf":
         if table_format is not None:
             raise InvalidParameterError("--table-format applies to --format dh and mdh, not urdf")
@@ -389,16 +411,22 @@ def export_checked(
     readings, with its notes, and checks it against its geometry at the model's angles; else
     ``robot`` is written as it is.
     The file is written to a temporary beside ``out`` and replaces it only once its round trip
-    passes: a failed export never overwrites a previous good one.
+    passes: a failed export never overwrites a previous good one. A ``ur-yaml`` file is checked
+    against :func:`robocal.ur_kinematics.ur_reference` (the robot in ``base_link``).
     """
     samples = as_count(samples, "samples", most=MAX_SAMPLES)  # before anything is written
     if fmt == "urdf":
         require_yourdfpy("checking a URDF export (it is read back)")
-    table_format = table_format_of(Path(out), table_format) if fmt != "urdf" else table_format
+    table_format = table_format_of(Path(out), table_format) if fmt in ("dh", "mdh") else table_format
     delivered = delivered or Deliverable(robot, robot, [], [])
+    if fmt == "ur-yaml":
+        turned = [s.label for s in delivered.structures if s.kind != "joint_zero"]
+        if turned:  # a UR joint turns one way about its axis, read from its own zero
+            raise InvalidParameterError(f"--format ur-yaml: UR's kinematics file cannot carry {', '.join(turned)}: a UR joint is read in its own direction")
     with Staged(out) as stage:
         export(delivered.written, fmt, stage.tmp, table_format=table_format, name=name, notes=delivered.notes)
-        check = roundtrip_check(delivered.geometry, stage.tmp, samples=samples, seed=seed, structures=delivered.structures)
+        reference = ur_reference(delivered.geometry) if fmt == "ur-yaml" else delivered.geometry
+        check = roundtrip_check(reference, stage.tmp, samples=samples, seed=seed, structures=delivered.structures)
         failed = []
         if not check["max_position_error_mm"] <= POSITION_TOL:
             failed.append(f"position error {check['max_position_error_mm']:.3g} mm > {POSITION_TOL:g} mm")
