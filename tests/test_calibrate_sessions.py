@@ -116,3 +116,25 @@ def test_report_of_sessions_draws_the_first_session(tmp_path):
     assert main(["report", str(path), "--out", str(tmp_path / "report"), "--quiet"]) == 0
     page = (tmp_path / "report" / "index.html").read_text()
     assert "session 1 of 2" in page and (tmp_path / "report" / "residuals_samples.png").is_file()
+
+
+def test_a_report_on_three_sessions_calibrates_two_and_refuses_one_it_never_saw(tmp_path, capsys):
+    """Checking on a session left out is one line: the causes of a three-session report serve a
+    fit on two of its sessions (each with its own terms, found by its file); a session the
+    report never diagnosed is refused in words."""
+    data, _ = sessions(n=4, samples=120, effects=())
+    files = []
+    for i, d in enumerate(data):
+        files.append(tmp_path / f"s{i}.csv")
+        write_canonical(d, files[-1])
+    report = tmp_path / "diagnosis.json"
+    assert main(["diagnose", *map(str, files[:3]), "--robot", "ur10", "--json", str(report), "--quiet"]) == 0
+    out = tmp_path / "two.json"
+    assert main(["calibrate", str(files[0]), str(files[2]), "--robot", "ur10", "--causes", str(report), "--out", str(out), "--quiet"]) == 0
+    listed = json.loads(report.read_text())["model"]["sessions"]
+    doc = json.loads(out.read_text())
+    assert [s["terms"] for s in doc["sessions"]] == [listed[0]["causes"], listed[2]["causes"]]
+    capsys.readouterr()
+    assert main(["calibrate", str(files[0]), str(files[3]), "--robot", "ur10", "--causes", str(report), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"session {files[3]} is not among the report's sessions" in err and "Traceback" not in err

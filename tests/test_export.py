@@ -209,7 +209,9 @@ def test_urdf_export_without_yourdfpy_writes_nothing(ur10_file, tmp_path, monkey
 
 def test_run_fails_when_the_export_is_wrong(hsr_file, tmp_path, monkeypatch, capsys):
     good = ex.export_urdf
-    monkeypatch.setattr(ex, "export_urdf", lambda robot, name=None: good(robot.with_params(a2=robot.params[robot.index("a2")] + 1e-3), name))
+    monkeypatch.setattr(
+        ex, "export_urdf", lambda robot, name=None, notes=(): good(robot.with_params(a2=robot.params[robot.index("a2")] + 1e-3), name, notes=notes)
+    )
     code = export_cli.run(_parser().parse_args([hsr_file, "--format", "urdf", "--out", str(tmp_path / "r.urdf")]))
     assert code == 1
     assert "does not reproduce" in capsys.readouterr().out

@@ -8,7 +8,8 @@ only what belongs to the new *session* (:func:`~robocal.robot.setup_names`): the
 tracker's base frame and the tool point, or the cable's anchor and zero. The old session's own
 terms (a step of its sensor's zero, its drift, its outliers) are not carried. Beside the
 calibrated model's eq. (28) metrics it reports the nominal model's on the same data, set-up
-re-fitted the same way: what the calibration gains where it was not fitted; and the acceptance
+and tool point fitted (:func:`~robocal.calibration.problem.nominal_residuals`, the figure the report
+shows too): what the calibration gains where it was not fitted; and the acceptance
 figures of ISO 9283 (:mod:`robocal.acceptance`). The model is the one ``robocal report`` draws
 (:func:`~robocal.causes.result_model.result_model`).
 """
@@ -26,7 +27,8 @@ from .acceptance import iso9283
 from .calibration.api import load_inputs
 from .calibration.lm import levenberg_marquardt
 from .calibration.metrics import metrics
-from .calibration.problem import Problem
+from .calibration.problem import Problem, nominal_residuals
+from .calibration.result import VERDICTS, verdict
 from .causes.result_model import result_model
 from .data.dataset import Dataset
 from .data.identity import Fingerprint
@@ -125,10 +127,12 @@ def verify(
     model = result_model(calibrated, doc, dataset)
     residuals, setup, refit = _refit_setup(calibrated, model.links)
     logger.info("verify: %d samples, the session set-up re-fitted (%s)", len(dataset), ", ".join(refit) if isinstance(refit, list) else refit)
-    nominal_residuals, _, _ = _refit_setup(model.nominal, model.read)
+    nominal = nominal_residuals(model.nominal, model.read)
     covered = model.covered
     held_out, seen = _seen_by_fit(doc, dataset, model.read)
+    here, before = (metrics(r, dataset.measurement)["rmse"] for r in (residuals, nominal))
     return {
+        "verdict": _verdict_here(doc, here, before, held_out),
         "held_out": held_out,
         "notes": seen + list(dataset.notes),  # and what the reader and load_inputs noticed (data naming another robot)
         "schema": SCHEMA,
@@ -144,8 +148,8 @@ def verify(
         "refit": refit,
         "setup": setup,
         "nominal": {
-            "metrics": metrics(nominal_residuals, dataset.measurement),
-            "metrics_covered": metrics(nominal_residuals[covered], dataset.measurement) if covered.any() else None,
+            "metrics": metrics(nominal, dataset.measurement),
+            "metrics_covered": metrics(nominal[covered], dataset.measurement) if covered.any() else None,
         },
         "applied": model.applied,
         "not_applied": model.not_applied,
@@ -153,3 +157,16 @@ def verify(
         "coverage": model.coverage(),
         "iso9283": iso9283(residuals, model.read.y, model.read.q, dataset.measurement, covered=covered, rows=model.read.rows),
     }
+
+
+def _verdict_here(doc: dict, rmse: float, nominal_rmse: float, held_out: bool) -> dict:
+    """The result's verdict (:func:`~robocal.calibration.result.verdict`) as these data bear it
+    out: a calibration that predicts new data worse than the nominal robot is not determined."""
+    word, why = verdict(doc)
+    if held_out and rmse > nominal_rmse:
+        word, why = VERDICTS[2], f"on these new data it predicts worse than the nominal robot (RMSE {rmse:.4g} against {nominal_rmse:.4g} mm); {why}"
+    elif held_out:
+        why += f"; on these new data RMSE {rmse:.4g} mm against the nominal robot's {nominal_rmse:.4g} mm"
+    else:
+        why += "; these data trained it, so they cannot bear it out"
+    return {"verdict": word, "why": why}

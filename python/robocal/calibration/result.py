@@ -57,6 +57,45 @@ def describe_implausible(flags: list[dict], shown: int = 3, meaning: str = UNDET
     return f"{len(flags)} kinematic parameters moved beyond 10 mm / 2 deg from nominal ({', '.join(parts)}{more}): {meaning}"
 
 
+#: Held-out RMSE beyond this many times the training RMSE: the fit does not carry to new poses.
+OVERFIT_RATIO = 2.0
+#: The three verdicts, best first.
+VERDICTS = ("trusted", "describes the measured region only", "not determined")
+
+
+def verdict(doc: dict) -> tuple[str, str]:
+    """One of :data:`VERDICTS` on a result document and why, in words: what a user may take
+    from it before any figure.
+
+    ``not determined``: the solver did not converge, or the held-out error exceeds
+    :data:`OVERFIT_RATIO` times the training error. ``describes the measured region only``:
+    parameters beyond 10 mm / 2 deg from nominal, or combinations the data do not determine —
+    the model predicts poses like the measured ones, but its parameters are not the robot's.
+    ``trusted``: neither.
+    """
+    train, test = doc["metrics"]["train"], doc["metrics"].get("test")
+    if not doc.get("convergence", {}).get("success", True):
+        return VERDICTS[2], f"the fit did not converge ({doc['convergence'].get('message', 'no message')})"
+    if test and train and train["rmse"] > 0 and test["rmse"] > OVERFIT_RATIO * train["rmse"]:
+        return VERDICTS[
+            2
+        ], f"held-out RMSE {test['rmse']:.4g} mm is over {OVERFIT_RATIO:g}x the training {train['rmse']:.4g} mm: the fit does not carry to new poses"
+    implausible, undetermined = doc.get("implausible") or [], doc.get("undetermined") or []
+    if implausible or undetermined:
+        why = []
+        if implausible:
+            worst = max(implausible, key=lambda f: abs(f["deviation"]) / f["limit"])
+            size = worst["deviation"] if worst["unit"] == "mm" else np.degrees(worst["deviation"])
+            why.append(
+                f"{len(implausible)} parameters beyond 10 mm / 2 deg from nominal (worst {worst['name']} {size:+.4g} {'mm' if worst['unit'] == 'mm' else 'deg'})"
+            )
+        if undetermined:
+            why.append(f"{len(undetermined)} parameter combinations the data do not determine")
+        return VERDICTS[1], "; ".join(why) + ": its predictions hold for poses like the measured ones, its parameters are not the robot's"
+    held = f"held-out RMSE {test['rmse']:.4g} mm, " if test else "no held-out samples, "
+    return VERDICTS[0], f"converged, {held}every parameter determined and within 10 mm / 2 deg of nominal"
+
+
 def bounds_against_nominal(problem, x: np.ndarray) -> list[str]:
     """``"a2 at 1 mm (nominal -612.7 mm)"`` for every free parameter of ``x`` that sits on a bound
     of ``problem`` whose interval excludes the parameter's nominal value."""
@@ -141,6 +180,10 @@ class CalibrationResult:
     sessions : list of dict, optional
         A fit on several sessions at once: each session's provenance, set-up, own terms and
         metrics (``problem`` is then the stacked :class:`~robocal.calibration.sessions.Sessions`).
+    geometry_only : dict, optional
+        An extended model's best geometry without its joint causes — what a URDF or DH table can
+        carry — and what leaving them out costs on the held-out samples
+        (:func:`robocal.causes.extended.geometry_only_record`).
     """
 
     method: str
@@ -160,6 +203,7 @@ class CalibrationResult:
     njev: Optional[int] = None
     structure: list = field(default_factory=list)
     sessions: Optional[list] = None
+    geometry_only: Optional[dict] = None
 
     @property
     def params(self) -> np.ndarray:
@@ -303,6 +347,8 @@ class CalibrationResult:
             doc["structure"] = list(self.structure)  # reading conventions applied to the joint readings
         if self.sessions is not None:
             doc["sessions"] = self.sessions
+        if self.geometry_only is not None:
+            doc["geometry_only"] = self.geometry_only
         return doc
 
     @classmethod

@@ -30,6 +30,7 @@ from ..serial_robot import Robot
 from ..results import file_sha256, training_fingerprint
 from . import structure
 from .candidates import (
+    JOINT_KINDS,
     MAP_LABEL,
     cable_directions,
     drift_candidate,
@@ -133,7 +134,7 @@ def calibrate(
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
     if several:
-        terms = session_terms(causes, labels, len(datasets))
+        terms = session_terms(causes, labels, [d.source for d in datasets])
         return _fit_sessions(datasets, r, structures, labels, terms, kinematic_prior, test_fraction, seed, options)
     if causes is None:
         problem, _, test_idx = api.held_out_problem(r, dataset, test_fraction, seed, mask=mask, prior=prior, bounds=bounds, kinematic_prior=kinematic_prior)
@@ -148,7 +149,60 @@ def calibrate(
     result = api.fit(model, method, seed, options)
     logger.info("calibrate: %s after %d iterations, training RMSE %.4g", result.message, result.nit, result.metrics["train"]["rmse"])
     result.structure = [s.label for s in structures]
-    return _held_out(result, dataset, test_idx, lambda test: model.with_samples(test_idx).data_residuals(result.x))
+    result = _held_out(result, dataset, test_idx, lambda test: model.with_samples(test_idx).data_residuals(result.x))
+    not_carried = [c.label for c in model.causes if c.kind in JOINT_KINDS]
+    if not_carried:
+        refit_model = extended_problem(problem, dataset, train_idx, [label for label in labels if label not in not_carried])
+        refit = api.fit(refit_model, method, seed, options)
+
+        def held_out(m: ExtendedProblem, x: np.ndarray) -> Optional[dict]:
+            return None if test_idx is None else metrics(m.with_samples(test_idx).data_residuals(x), dataset.measurement)
+
+        candidates = {
+            "extended": (model.full(result.x), held_out(model, without_joint_causes(model, result.x))),
+            "refit": (refit_model.full(refit.x), held_out(refit_model, refit.x)),
+        }
+        result.geometry_only = geometry_only_record(not_carried, candidates, result.metrics.get("test"))
+    return result
+
+
+def without_joint_causes(problem: ExtendedProblem, x: np.ndarray) -> np.ndarray:
+    """``x`` with the coefficients of its joint causes at zero: the geometry alone, as a URDF or
+    DH table carries it."""
+    x = np.array(x, dtype=np.float64, copy=True)
+    for cause, at in zip(problem.causes, problem.slices):
+        if cause.kind in JOINT_KINDS:
+            x[at] = 0.0
+    return x
+
+
+def geometry_only_record(not_carried: list[str], candidates: dict, full_model: Optional[dict]) -> dict:
+    """What a geometry-only export of an extended result carries (``geometry_only`` of the
+    result file), from two ``candidates`` ``name -> (parameter vector, held-out metrics or
+    None)``: ``extended`` (the extended fit's geometry, its joint causes left out) and
+    ``refit`` (the geometry fitted again without them, the session's sensor terms kept).
+
+    The geometry of an extended fit is fitted *with* its causes: without them it may predict
+    worse than a geometry fitted alone. The one that predicts the held-out samples better is
+    chosen (a choice between two, made on those samples: its figure is not a blind one); with no
+    held-out samples, the refit. Keys: ``not_carried`` (labels), ``choice``, ``why``,
+    ``held_out`` (metrics of ``full_model``, ``extended`` and ``refit``), ``parameters`` (the
+    chosen vector, in the result's ``parameters`` order).
+    """
+    held = {name: figures for name, (_, figures) in candidates.items()}
+    if any(m is None for m in held.values()):
+        choice, why = "refit", "no held-out samples: the geometry fitted without the causes"
+    else:
+        choice = min(held, key=lambda name: held[name]["rmse"])
+        other = next(name for name in held if name != choice)
+        why = f"it predicts the held-out samples better: RMSE {held[choice]['rmse']:.4g} against {held[other]['rmse']:.4g} mm ({other})"
+    return {
+        "not_carried": list(not_carried),
+        "choice": choice,
+        "why": why,
+        "held_out": {"full_model": full_model, **held},
+        "parameters": [float(v) for v in candidates[choice][0]],
+    }
 
 
 def _held_out(result: CalibrationResult, dataset: Dataset, test_idx: Optional[np.ndarray], residuals) -> CalibrationResult:
@@ -184,7 +238,7 @@ def _fit_sessions(
     ``metrics``.
     """
     shared = [label for label in shared if not _session_term(label)]
-    datasets = [structure.apply_all(d, structures) for d in datasets]
+    raw, datasets = datasets, [structure.apply_all(d, structures) for d in datasets]
     splits = [_split(d, test_fraction, seed) for d in datasets]
     for d in datasets:
         check_observations(r, d)
@@ -220,6 +274,17 @@ def _fit_sessions(
         result.sessions.append(entry)
     if pooled:
         result.metrics["test"] = metrics(np.concatenate(pooled), datasets[0].measurement)
+    not_carried = sorted({c.label for p in problems for c in p.causes if c.kind in JOINT_KINDS})
+    if not_carried:
+        refit = _fit_sessions(raw, r, structures, [label for label in shared if label not in not_carried], terms, kinematic_prior, test_fraction, seed, options)
+        extended = [
+            p.with_samples(test).data_residuals(without_joint_causes(p, stacked.session_x(result.x, s)))
+            for s, (p, (_, test)) in enumerate(zip(problems, splits))
+            if test is not None
+        ]
+        held_out = metrics(np.concatenate(extended), datasets[0].measurement) if extended else None
+        candidates = {"extended": (result.params, held_out), "refit": (refit.params, refit.metrics.get("test"))}
+        result.geometry_only = geometry_only_record(not_carried, candidates, result.metrics.get("test"))
     return result
 
 
@@ -239,22 +304,50 @@ def _is_report(causes) -> bool:
     return isinstance(causes, (dict, DiagnosisReport)) or (isinstance(causes, (str, Path)) and str(causes).endswith(".json"))
 
 
-def session_terms(causes, labels: list[str], n: int) -> list[list[str]]:
-    """Each of ``n`` sessions' own terms: a multi-session diagnose report's ``model.sessions``
-    (in order), else the session-kind ``labels`` that hold in any session (a drift, a wander: each
-    session fits its own). A step sits at one session's sample: it needs the report."""
+def session_terms(causes, labels: list[str], sources: list) -> list[list[str]]:
+    """Each session's own terms, for the sessions read from ``sources`` (in order).
+
+    From a multi-session diagnose report: its ``model.sessions``, each given session matched to
+    the report's by its file (the same path, or the same content); a report on more sessions
+    than given serves a fit on some of them (a session left out to check the model on). A
+    session the report did not diagnose is refused: its own terms are not known. Without a
+    report: the session-kind ``labels`` that hold in any session (a drift, a wander: each session
+    fits its own); a step sits at one session's sample and needs the report."""
     report = load_diagnosis(causes) if _is_report(causes) else None
     listed = report.needs_model().sessions if report is not None else None
     if listed is not None:
-        if len(listed) != n:
-            raise InvalidParameterError(
-                f"{report.where}: key 'model', key 'sessions' lists {len(listed)} sessions; the causes of each of the {n} sessions given are needed, in order"
-            )
-        return [list(entry.causes) for entry in listed]
+        if any(entry.source is None for entry in listed) or any(source is None for source in sources):  # unnamed: in order
+            if len(listed) != len(sources):
+                raise InvalidParameterError(
+                    f"{report.where}: key 'model', key 'sessions' lists {len(listed)} sessions; "
+                    f"the causes of each of the {len(sources)} sessions given are needed, in order (or name their files)"
+                )
+            return [list(entry.causes) for entry in listed]
+        terms = []
+        for source in sources:
+            found = [entry for entry in listed if entry.source is not None and _same_file(entry.source, source)]
+            if not found:
+                named = "; ".join(str(entry.source) for entry in listed)
+                raise InvalidParameterError(
+                    f"{report.where}: session {source} is not among the report's sessions ({named}): its own terms (steps, drift) "
+                    "were not diagnosed; diagnose it with the others, or pass cause labels"
+                )
+            terms.append(list(found[0].causes))
+        return terms
     steps = [label for label in labels if label.startswith("step ")]
     if steps:
         raise InvalidParameterError(f"{steps[0]!r} is a step of one session's sensor: for several sessions pass the multi-session diagnose report")
-    return [[label for label in labels if _session_term(label)] for _ in range(n)]
+    return [[label for label in labels if _session_term(label)] for _ in sources]
+
+
+def _same_file(a, b) -> bool:
+    """Whether two recorded sources name one file: the same resolved path, or the same content."""
+    if a is None or b is None:
+        return False
+    if Path(a).resolve() == Path(b).resolve():
+        return True
+    digest = file_sha256(a)
+    return digest is not None and digest == file_sha256(b)
 
 
 def read_causes(causes, robot: str) -> tuple[list[str], Optional[tuple]]:

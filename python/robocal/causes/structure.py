@@ -26,8 +26,10 @@ from typing import Optional
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..physics import DEG
 from ..exceptions import InvalidParameterError
+from ..geometry import frame_params, frame_transform, rotation
+from ..physics import DEG
+from ..serial_robot import Robot
 
 #: The kinds of reading convention.
 KINDS = ("joint_zero", "joint_sign", "joint_reference")
@@ -144,3 +146,60 @@ def to_model(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
 def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
     """``data`` with its joint readings transformed by ``structures`` in order."""
     return replace(data, q=to_model(data.q, structures))
+
+
+def affine_readings(structures: list[Structure], n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(sign, offset)`` with ``model angle_j = sign_j · reading_j + offset_j`` for every joint,
+    or an error when a joint is read relative to another (``joint_reference``): no joint-by-joint
+    form (a URDF joint, a DH row) can carry that."""
+    offset = to_model(np.zeros((1, n_joints)), structures)[0]
+    slope = to_model(np.eye(n_joints), structures) - offset  # row i: the model's answer to reading i alone
+    coupled = [s.label for s in structures if s.kind == "joint_reference"]
+    if coupled or np.any(np.abs(slope - np.diag(np.diag(slope))) > 1e-12):
+        raise InvalidParameterError(
+            f"the controller reads {', '.join(coupled) or 'a joint relative to another'}: a joint-by-joint format cannot carry that; "
+            "export at the model's angles (--angles model) and convert the readings on the controller's side"
+        )
+    return np.diag(slope).copy(), offset
+
+
+def robot_at_readings(robot: Robot, structures: list[Structure]) -> Robot:
+    """The same tool frame as ``robot`` with the controller's readings as its joint variables:
+    ``robot_at_readings(robot, s).fkine(r) == robot.fkine(to_model(r, s))``.
+
+    A zero offset adds to the joint's ``theta`` (``d`` when prismatic). A joint counted the
+    other way turns its axis over: ``Rz(θ − r) = Rx(π)·Rz(r − θ)·Rx(π)``, so ``θ`` and ``d``
+    change sign, ``alpha`` takes a half turn, and the ``Rx(π)`` left over moves into the link
+    before it (standard DH: its ``alpha`` and ``beta``; the base for joint 1) or after it
+    (modified DH: the next link's ``alpha``; the tool for the last joint). Joint limits follow.
+    """
+    sign, offset = affine_readings(structures, robot.n_joints)
+    p = robot.params.copy()
+    joints = list(robot.joints)
+    for j, joint in enumerate(joints):
+        variable = robot.index(f"theta{j + 1}" if joint.kind == "revolute" else f"d{j + 1}")
+        p[variable] += offset[j]
+        lower, upper = sorted(((limit - offset[j]) / sign[j] for limit in joint.limits))
+        joints[j] = replace(joint, limits=(lower, upper))
+        if sign[j] > 0:
+            continue
+        for name in ("theta", "d"):
+            p[robot.index(f"{name}{j + 1}")] *= -1.0
+        p[robot.index(f"alpha{j + 1}")] += np.pi
+        if joint.convention == "mdh":
+            p[robot.index(f"beta{j + 1}")] *= -1.0
+        neighbour = j - 1 if joint.convention == "dh" else j + 1  # where the spare Rx(pi) goes
+        if 0 <= neighbour < robot.n_joints:
+            if joints[neighbour].convention != joint.convention:
+                raise InvalidParameterError(f"joint {j + 1} is counted the other way beside a joint of the other DH convention: not carried joint by joint")
+            p[robot.index(f"alpha{neighbour + 1}")] += np.pi
+            if joint.convention == "dh":
+                p[robot.index(f"beta{neighbour + 1}")] *= -1.0
+        else:
+            end = "base" if joint.convention == "dh" else "tool"
+            frame = [robot.index(f"{end}_{k}") for k in ("x", "y", "z", "rx", "ry", "rz")]
+            flip = np.eye(4)
+            flip[:3, :3] = rotation(0, np.pi)
+            T = frame_transform(p[frame])
+            p[frame] = frame_params(T @ flip if end == "base" else flip @ T)
+    return Robot(robot.name, joints, p, mass_model=robot.mass_model)

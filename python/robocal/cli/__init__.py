@@ -42,7 +42,7 @@ COMMANDS = {
     "verify": ("evaluate a calibration result on new measurements, re-fitting only the session set-up", Paths(("result", "data"), ("json",))),
     "compensate": ("joint commands that make the calibrated robot reach desired tool positions", Paths(("result", "targets"), ("out",))),
     "report": ("an HTML page with figures of a calibration result (and its diagnosis)", Paths(("result", "data", "diagnosis"), (), ("out",))),
-    "export": ("write a calibrated robot as a DH / MDH table (CSV, JSON) or URDF, checked by a round trip", Paths(("result",), ("out",))),
+    "export": ("write a calibrated robot as a DH / MDH table (CSV, JSON), URDF or UR kinematics YAML, checked by a round trip", Paths(("result",), ("out",))),
     "plan": ("the poses to measure next, and their order, that determine the model's parameters best", Paths(("robot", "source", "data"), ("out", "json"))),
 }
 

@@ -6,7 +6,7 @@ import argparse
 import json
 
 from ..calibration.api import METHODS
-from ..calibration.result import describe_implausible
+from ..calibration.result import describe_implausible, verdict
 from ..causes.extended import calibrate
 from ..diagnosis_file import load_diagnosis
 from ..outputs import printable
@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2))
         return 0
     train, test = doc["metrics"]["train"], doc["metrics"]["test"]
+    print("verdict: {}: {}".format(*verdict(doc)))
     print(
         f"{doc['method']} on {printable(doc['robot'], one_line=True)} ({doc['measurement']}, {train['n']} training samples): "
         f"{doc['convergence']['message']} after {doc['convergence']['nit']} iterations, {doc['convergence']['time_s'] * 1e3:.0f} ms"
@@ -77,6 +78,14 @@ def run(args: argparse.Namespace) -> int:
             if v["value"] == v["value"]
         )
         print(f"  cause {cause['label']}: {shown}")
+    geometry_only = doc.get("geometry_only")
+    if geometry_only:
+        held = geometry_only["held_out"][geometry_only["choice"]]
+        print(
+            f"  geometry alone (what export writes; it leaves out {len(geometry_only['not_carried'])} joint causes): "
+            + (f"held-out RMSE {held['rmse']:.4f} mm, " if held else "")
+            + ("re-fitted without them" if geometry_only["choice"] == "refit" else "the extended fit's")
+        )
     if "robust" in doc:
         rows = doc["robust"]["outlying_rows"]
         print(

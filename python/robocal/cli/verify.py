@@ -16,6 +16,7 @@ def summary(report: dict) -> str:
     m, n = report["metrics"], report["nominal"]["metrics"]
     applied = report["applied"]["structure"] + report["applied"]["causes"]
     lines = [
+        f"verdict: {report['verdict']['verdict']}: {report['verdict']['why']}",
         f"{printable(report['robot'], one_line=True)} on {report['samples']} {'new ' if report.get('held_out', True) else ''}{report['measurement']} samples "
         f"({report['data'] or 'data'}), "
         f"session set-up re-fitted ({', '.join(report['refit'])}):",
@@ -46,7 +47,7 @@ def summary(report: dict) -> str:
         width = max(len(name) for name, _ in rows)
         lines += [f"    {name:<{width}}  {value}" for name, value in rows]
     if "rotation_rmse_deg" in m:
-        lines.insert(2, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
+        lines.insert(3, f"  orientation: calibrated RMS {m['rotation_rmse_deg']:.4f} deg, nominal {n['rotation_rmse_deg']:.4f} deg")
     return "\n".join(lines)
 
 

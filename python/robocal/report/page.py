@@ -6,8 +6,8 @@ The page, the inputs it reads and their evaluation; the figures are in
 ``robocal report RESULT --out DIR`` reads a result file (:mod:`robocal.results`, written by
 ``robocal calibrate --out``) and writes ``DIR/index.html`` with PNG figures beside it:
 
-1. the per-sample error before calibration (nominal kinematics, measurement set-up refitted by
-   :func:`~robocal.calibration.problem.start_parameters`) and after it, as histograms and along
+1. the per-sample error before calibration (nominal kinematics, measurement set-up and tool point
+   refitted: :func:`~robocal.calibration.problem.nominal_residuals`, the figure ``verify`` reports) and after it, as histograms and along
    the samples, held-out samples marked. "After" is the model ``verify`` evaluates
    (:func:`~robocal.causes.result_model.result_model`: the result's reading conventions and
    joint causes), so an extended result's figures include its causes; beside them the ISO 9283
@@ -40,8 +40,8 @@ from .._robocal import __version__
 from ..acceptance import iso9283, summary_rows
 from ..calibration.api import load_inputs
 from ..calibration.metrics import sample_errors
-from ..calibration.problem import implausible_parameters, start_parameters
-from ..calibration.result import describe_implausible, implausible_meaning
+from ..calibration.problem import implausible_parameters, nominal_residuals
+from ..calibration.result import describe_implausible, implausible_meaning, verdict
 from ..causes import structure
 from ..causes.result_model import ResultModel, result_model
 from ..data.dataset import Dataset
@@ -184,8 +184,7 @@ def _evaluate(robot: Robot, doc: dict, dataset: Dataset, same_file: bool, fitted
     fitted = _fitted(doc) if fitted is None else fitted
     meas = dataset.measurement
     model = result_model(robot, doc, dataset)
-    p0 = start_parameters(model.nominal, model.read)
-    before = sample_errors(model.nominal.residuals(meas, model.read.q, model.read.y, params=p0), meas)
+    before = sample_errors(nominal_residuals(model.nominal, model.read), meas)
     residuals = model.residuals(robot)
     after = sample_errors(residuals, meas)
     held_out = None
@@ -245,6 +244,7 @@ th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: left; vertic
 th { background: #f4f4f4; } td.n { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 table.meta th { width: 11em; } tr.flag td { background: #fff1f0; } tr.off td { color: #777; }
 .note { background: #f5f8ff; border-left: 4px solid #6b8bd6; padding: 0.5em 0.8em; margin: 0.8em 0; }
+.verdict { background: #fffbe6; border-left: 4px solid #c9a100; padding: 0.5em 0.8em; margin: 0.8em 0; font-size: 1.05em; }
 .warn { background: #fff6e5; border-left: 4px solid #e0a030; padding: 0.5em 0.8em; margin: 0.8em 0; }
 figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: 0.9em; color: #444; margin-top: 0.3em; }
@@ -757,6 +757,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 </head>
 <body>
 <h1>{_esc(title)}</h1>
+<p class="verdict"><strong>Verdict: {_esc(verdict(doc)[0])}</strong>: {_esc(verdict(doc)[1])}.</p>
 {_header(doc, d)}
 <h2>Accuracy</h2>
 {_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
