@@ -1,0 +1,92 @@
+"""``robocal monitor``: a calibrated robot watched sample by sample (:class:`robocal.monitoring.Monitor`).
+
+DATA is a measurement file (canonical CSV or a public dataset, replayed in acquisition order) or
+``-``: a canonical CSV on standard input, its header first, read line by line as the lines come,
+so that a cell can pipe its readings in. One JSON line per alarm goes to ``--json-lines``; a
+readable line per alarm and a summary to the terminal; ``--out`` writes the result with what
+changed applied.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+
+from ..calibration.api import load_inputs
+from ..causes.candidates import acquisition_order
+from ..data.canonical import canonical_dataset
+from ..exceptions import DataError
+from ..monitoring import MEAN_RUN_LENGTH, OPENING, Monitor
+from ..outputs import Staged, printable
+from ..results import save_result
+from .arguments import add_angle_unit_argument
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("result", help="a result file of robocal calibrate (--out)")
+    parser.add_argument("data", help="measurements of the robot in acquisition order: a file, or - for a canonical CSV on standard input")
+    parser.add_argument("--json-lines", help="write one JSON line per alarm here")
+    parser.add_argument("--out", help="write the result with what changed applied (verify, compensate and export take it)")
+    parser.add_argument(
+        "--new-session", action="store_true", help="re-fit the session's set-up on the opening samples (default: the calibration's session goes on)"
+    )
+    parser.add_argument("--mean-run-length", type=float, default=MEAN_RUN_LENGTH, help=f"mean samples between false alarms (default {MEAN_RUN_LENGTH:,})")
+    parser.add_argument("--opening", type=int, default=OPENING, help=f"samples that set the innovations' scale; no alarm before them (default {OPENING})")
+    add_angle_unit_argument(parser)
+
+
+def _stdin_samples(monitor: Monitor, angle_unit):
+    """``(q, y, row)`` of each line of a canonical CSV on standard input, as it comes; a line that
+    does not parse is refused with a note naming its row, and the stream goes on."""
+    header = None
+    for number, line in enumerate(sys.stdin, start=1):
+        if not line.strip():
+            continue
+        cells = [c.strip() for c in line.rstrip("\n").split(",")]
+        if header is None:
+            header = cells
+            continue
+        try:
+            sample = canonical_dataset(header, [(number, cells)], "<stdin>", angle_unit or "deg", monitor.measurement, None, False)
+        except DataError as exc:
+            monitor.refused.append(f"row {number} refused: {exc}")
+            print(f"  row {number} refused: {printable(str(exc), one_line=True)}", file=sys.stderr)
+            continue
+        yield sample.q[0], sample.y[0], number
+    if header is None:
+        raise DataError("no header line: a canonical CSV starts with its column names", "<stdin>", 1)
+
+
+def run(args: argparse.Namespace) -> int:
+    monitor = Monitor(args.result, new_session=args.new_session, mean_run_length=args.mean_run_length, opening=args.opening)
+    if args.data == "-":
+        samples = _stdin_samples(monitor, args.angle_unit)
+    else:
+        data, _ = load_inputs(args.data, monitor.robot, monitor.measurement, args.angle_unit)
+        samples = ((data.q[i], data.y[i], int(data.rows[i])) for i in acquisition_order(data))
+    with contextlib.ExitStack() as stack:  # the JSON lines file is complete, and replaces any old one, when the stream ends
+        out = stack.enter_context(stack.enter_context(Staged(args.json_lines)).tmp.open("w")) if args.json_lines else None
+        for q, y, row in samples:
+            for alarm in monitor.update(q, y, rows=[row]):
+                print(alarm.words(), flush=True)
+                if out:
+                    out.write(json.dumps(alarm.to_dict()) + "\n")
+    summary = monitor.summary()
+    limits = ", ".join(f"{'joint ' + str(l['joint']) if l['joint'] else l['kind']} {l['size']:.3g} {l['unit']}" for l in summary["detection_limits"])
+    print(
+        f"{summary['samples']} samples, {len(summary['alarms'])} alarms, {len(summary['refused'])} refused; "
+        f"thresholds for one false alarm per {args.mean_run_length:,.0f} samples"
+        + (
+            f"; innovations' long-run inflation {monitor.inflation:.2f}"
+            if monitor.sigma is not None
+            else f"; fewer than the {monitor.opening} opening samples: nothing tested"
+        )
+    )
+    if limits:
+        print(f"  detection limits (found within {summary['detection_limits'][0]['within']} samples): {limits}")
+    if args.out:
+        save_result(monitor.result_document(), args.out)
+        print(f"  the result with what changed applied written to {args.out}")
+    return 0

@@ -1,0 +1,496 @@
+"""In-line monitoring: a calibrated robot watched sample by sample as it works.
+
+``Monitor(result)`` takes measured samples in acquisition order (``update(q, y)``, one or a
+block) and says when something changed since the calibration — a joint's zero (a collision, a
+motor or encoder swap), the sensor's frame or zero (a bumped tracker, a re-zeroed cable), a slow
+drift of the sensor —, when it began, how large it is, and applies it to the model, which
+``result_document()`` then holds (``verify``, ``compensate`` and ``export`` take it).
+
+The estimator
+-------------
+Each sample's innovation is the measured reading less the result's model (its parameters, reading
+conventions and joint causes: :func:`~robocal.causes.result_model.result_model`'s model), with the
+Jacobian of each change on the Rust core. A change of parameters ``θ`` (one joint's zero; the
+sensor frame's translation, or the cable's zero) from sample ``τ`` on moves the innovations by
+``J_t δ``; a drift by ``J_t δ (t − τ)``. The generalised likelihood ratio of each against "no
+change" over the last :data:`WINDOW` samples is ``gᵀ G⁻¹ g`` with ``g = Σ_{t≥τ} J_tᵀ W e_t`` and
+``G = Σ_{t≥τ} J_tᵀ W J_t`` (``W`` the readings' inverse variance), maximised over ``τ``: the
+least-squares estimate of the change given where it began, its χ² evidence. The sums are kept
+per sample in ring buffers: an update costs one model evaluation and a few suffix sums, and the
+memory does not grow with the stream. Why a GLR rather than the paper's UKF on the parameters: a
+filter tracks a drift that is there, a change detector says *that* and *when* something changed,
+with a false-alarm rate one can state; the parameters it finds are then the UKF's fixed point.
+
+False alarms
+------------
+Under no change each statistic is χ² with as many degrees of freedom as the change has
+parameters. The threshold is the χ² quantile of ``1 / (mean_run_length · WINDOW · changes)`` —
+a Bonferroni bound over every start in the window and every change — so false alarms come at
+most once per ``mean_run_length`` samples (default :data:`MEAN_RUN_LENGTH`). Real innovations
+are correlated in time (the model's own errors along a path, a sensor that wanders): the
+statistics are divided by the AR(1) inflation ``(1 + ρ)/(1 − ρ)`` of the lag-1 correlation ``ρ``
+of the opening samples' innovations (their mean removed), and the variance ``W⁻¹`` is those
+innovations' per reading. No alarm is raised during the opening (:data:`OPENING` samples): a
+change there cannot be told from the set-up. With ``new_session`` the opening samples first
+re-fit the session's set-up (as ``verify`` does).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from scipy.stats import chi2
+
+from .calibration.lm import levenberg_marquardt
+from .calibration.problem import Problem
+from .causes import structure
+from .causes.candidates import COMPENSABLE, joint_offsets
+from .data.dataset import Dataset
+from .exceptions import InvalidParameterError
+from .kernels import as_float_array
+from .results import load_result
+from .serial_robot import setup_names
+
+logger = logging.getLogger(__name__)
+
+#: Samples of the ring buffers: how far back a change may have begun to be found.
+WINDOW = 100
+#: Samples that set the innovations' scale and correlation (and the set-up with ``new_session``).
+OPENING = 200
+#: Samples per batch of the long-run variance (batch means) of the innovations.
+BATCH = 50
+#: Batches over which the long-run variance forgets (exponential weights).
+MEMORY_BATCHES = 100
+#: Default mean number of samples between false alarms.
+MEAN_RUN_LENGTH = 100_000
+#: Fewest samples after a change's start before it may be tested (one bad sample is no change).
+MIN_AFTER = 3
+#: Samples after a change's estimated start before it is named: the kinds tell apart by then.
+CONFIRM = 6
+#: Samples at which each change's detection limit is stated.
+LIMIT_SAMPLES = 25
+
+
+@dataclass(frozen=True)
+class Change:
+    """A change the monitor tests for: ``kind`` (``joint_zero``, ``step``, ``drift``), the
+    1-based ``joint`` of a joint's zero, and the parameters (indices into the robot's vector) it moves."""
+
+    kind: str
+    joint: Optional[int]
+    columns: tuple
+    names: tuple
+
+    @property
+    def ramp(self) -> bool:
+        return self.kind == "drift"
+
+
+@dataclass
+class Alarm:
+    """A change found: at stream sample ``sample`` (0-based; file ``row``), begun at ``since``,
+    of ``size`` (per parameter, ``unit``), with ``evidence`` (statistic over threshold)."""
+
+    sample: int
+    row: Optional[int]
+    since: int
+    kind: str
+    joint: Optional[int]
+    size: list
+    unit: str
+    names: list
+    evidence: float
+
+    def to_dict(self) -> dict:
+        return {
+            "sample": self.sample,
+            "row": self.row,
+            "since": self.since,
+            "kind": self.kind,
+            "joint": self.joint,
+            "size": self.size,
+            "unit": self.unit,
+            "parameters": self.names,
+            "evidence": self.evidence,
+        }
+
+    def words(self) -> str:
+        what = f"joint {self.joint}'s zero" if self.kind == "joint_zero" else f"the sensor's {'drift' if self.kind == 'drift' else 'set-up'}"
+        size = ", ".join(f"{n} {v:+.4g}" for n, v in zip(self.names, self.size))
+        return f"sample {self.sample} (row {self.row}): {what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold)"
+
+
+class _Buffers:
+    """The window's sums, kept so that an update costs no copy of the window.
+
+    Per sample ``t`` the monitor adds ``g_t = J_tᵀ W e_t`` and ``G_t = J_tᵀ W J_t`` over all
+    ``p`` monitored columns. The window's own sums ``Σ g_t``, ``Σ G_t`` (for the constant profiled
+    out) are kept by adding each sample and subtracting the one that leaves; the sums *from a
+    start on* are needed only against the ``h`` columns a change acts on (also weighted by ``t``
+    and ``t²`` for a ramp): running totals, and per sample of the window the totals before it (a
+    ring), so the sums from any start ``τ`` to now are one subtraction. Memory: the window's
+    samples, whatever the stream's length."""
+
+    def __init__(self, p: int, tested: list):
+        self.p, self.tested = p, list(tested)
+        h = len(self.tested)
+        self.shapes = {"g": (h,), "tg": (h,), "G": (p, h), "tG": (p, h), "ttG": (h, h)}
+        self.rings = {n: np.zeros((WINDOW,) + shape) for n, shape in self.shapes.items()}
+        self.each_g, self.each_G = np.zeros((WINDOW, p)), np.zeros((WINDOW, p, p))
+        self.times = np.zeros(WINDOW)
+        self.clear()
+
+    def clear(self) -> None:
+        self.n, self.head = 0, 0
+        self.total = {n: np.zeros(shape) for n, shape in self.shapes.items()}
+        self.window_g, self.window_G = np.zeros(self.p), np.zeros((self.p, self.p))
+
+    def push(self, t: int, g: np.ndarray, G: np.ndarray) -> None:
+        if self.n == WINDOW:  # the oldest leaves
+            self.window_g -= self.each_g[self.head]
+            self.window_G -= self.each_G[self.head]
+            at, self.head = self.head, (self.head + 1) % WINDOW
+        else:
+            at = (self.head + self.n) % WINDOW
+            self.n += 1
+        for name, ring in self.rings.items():
+            ring[at] = self.total[name]
+        self.times[at], self.each_g[at], self.each_G[at] = t, g, G
+        self.window_g += g
+        self.window_G += G
+        H = self.tested
+        Gh = G[:, H]
+        for name, add in (("g", g[H]), ("tg", t * g[H]), ("G", Gh), ("tG", t * Gh), ("ttG", t * t * Gh[H])):
+            self.total[name] += add
+
+    @property
+    def order(self) -> np.ndarray:
+        return (self.head + np.arange(self.n)) % WINDOW
+
+    def index(self, k: int) -> int:
+        return int(self.times[self.order[k]])
+
+    def evidence(self, hypotheses: list, starts: int, prior: np.ndarray) -> tuple[list, np.ndarray]:
+        """Per hypothesis ``(cols, ramp)`` (``cols``: indices into the monitored columns), the
+        score and information ``(s, F)`` of a change on ``cols`` begun at each of the first
+        ``starts`` samples of the window, every monitored column held constant over the window
+        and profiled out (``prior``: their information from the calibration): what the
+        calibration left, or a change already in force, is no evidence; only a change *within*
+        the window is. Also the window's constant ``G_w⁻¹ g_w`` (the calibration's error as the
+        window sees it)."""
+        rows = self.order[:starts]
+        G = self.window_G + np.diag(prior)
+        # A ridge a millionth of the mean information: a direction the window does not determine
+        # stays at the calibration's value instead of making the inverse blow up.
+        inverse = np.linalg.inv(G + 1e-6 * np.trace(G) / len(G) * np.eye(len(G)))
+        level = inverse @ self.window_g
+        tau = self.times[rows]
+        after = {n: self.total[n] - self.rings[n][rows] for n in self.rings}
+        at = {c: i for i, c in enumerate(self.tested)}
+        out = []
+        for cols, ramp in hypotheses:
+            h = [at[c] for c in cols]
+            if ramp:  # Σ (t−τ) g_t, Σ (t−τ) G_t and Σ (t−τ)² G_t after τ
+                g = after["tg"][:, h] - tau[:, None] * after["g"][:, h]
+                cross = after["tG"][:, :, h] - tau[:, None, None] * after["G"][:, :, h]
+                tt = after["ttG"][:, h][:, :, h]
+                F = tt - 2.0 * tau[:, None, None] * after["tG"][:, cols][:, :, h] + tau[:, None, None] ** 2 * after["G"][:, cols][:, :, h]
+            else:
+                g, cross = after["g"][:, h], after["G"][:, :, h]
+                F = cross[:, cols]
+            score = g - np.einsum("npd,p->nd", cross, level)
+            info = F - np.matmul(cross.transpose(0, 2, 1), inverse @ cross)
+            out.append((score, info))
+        return out, level
+
+
+class _LongRunVariance:
+    """How much more the innovations' sums vary than independent samples of unit variance would:
+    ``BATCH`` times the variance of batch means of the whitened innovations, per reading, the
+    largest taken (batch means capture any correlation shorter than a batch and a scale the
+    opening misjudged). Fed with innovations that have left the window, so a change under test
+    does not inflate its own yardstick; forgets over :data:`MEMORY_BATCHES` batches."""
+
+    def __init__(self, z: np.ndarray):
+        batches = len(z) // BATCH
+        means = z[: batches * BATCH].reshape(batches, BATCH, -1).mean(axis=1)
+        self.mean = means.mean(axis=0)
+        self.square = np.mean((means - self.mean) ** 2, axis=0)
+        self.pending: list = []
+
+    @property
+    def inflation(self) -> float:
+        return float(max(1.0, BATCH * np.max(self.square)))
+
+    def add(self, z: np.ndarray) -> None:
+        self.pending.append(z)
+        if len(self.pending) < BATCH:
+            return
+        m = np.mean(self.pending, axis=0)
+        self.pending.clear()
+        w = 1.0 / MEMORY_BATCHES
+        self.mean = (1 - w) * self.mean + w * m
+        self.square = (1 - w) * self.square + w * (m - self.mean) ** 2
+
+
+class Monitor:
+    """Watches a calibrated robot sample by sample (see the module notes).
+
+    Parameters
+    ----------
+    result : path or dict
+        A result file of ``robocal calibrate`` (:func:`robocal.results.load_result`).
+    new_session : bool
+        Re-fit the session's set-up on the opening samples (default: the stream continues the
+        calibration's session, its set-up as calibrated).
+    mean_run_length : float
+        Mean samples between false alarms the thresholds are set for.
+    opening : int
+        Samples that set the innovations' scale and correlation; no alarm before them.
+    """
+
+    def __init__(self, result, *, new_session: bool = False, mean_run_length: float = MEAN_RUN_LENGTH, opening: int = OPENING):
+        if not mean_run_length >= 10:
+            raise InvalidParameterError(f"`mean_run_length` must be at least 10 samples; got {mean_run_length!r}")
+        if not isinstance(opening, int) or opening < 10:
+            raise InvalidParameterError(f"`opening` must be an integer of at least 10 samples; got {opening!r}")
+        self.robot, self.doc = load_result(result)
+        self.measurement = self.doc["measurement"]
+        self.params = self.robot.params.copy()
+        self.structures = structure.parse_all(self.doc.get("structure", []), self.robot.n_joints)
+        causes = self.doc.get("causes", [])
+        self.offsets = joint_offsets(self.robot, causes, kinds=COMPENSABLE)
+        self.not_applied = sorted({c.get("label", c.get("kind")) for c in causes if c.get("kind") not in COMPENSABLE})
+        self.new_session, self.opening, self.mean_run_length = new_session, opening, float(mean_run_length)
+        self.changes = self._changes()
+        # The null hypothesis is no change in the window, the parameters then as the calibration
+        # left them or anywhere near (its own error): every parameter it estimated is profiled out
+        # over the window, held near its value by the calibration's standard deviation (the
+        # session's set-up free), so the calibration's error along a path is no evidence.
+        names = self.robot.param_names
+        fitted = [names.index(n) for n in self.doc.get("free", []) if n in names]
+        self.columns = sorted({c for change in self.changes for c in change.columns} | set(fitted))
+        std = {p["name"]: p.get("std") for p in self.doc["parameters"]}
+        private = set(setup_names(self.robot, self.measurement)) | {"cable_offset"}
+        self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
+        self.prior = np.array([0.0 if names[c] in private or not std.get(names[c]) else 1.0 / std[names[c]] ** 2 for c in self.columns])
+        self.threshold = {d: float(chi2.isf(1.0 / (self.mean_run_length * WINDOW * len(self.changes)), d)) for d in {len(c.columns) for c in self.changes}}
+        self.samples = 0
+        self.alarms: list[Alarm] = []
+        self.refused: list[str] = []
+        self._opening: list = []  # (q, y, row) until the opening is complete
+        self._buffers = _Buffers(len(self.columns), sorted({self.columns.index(c) for change in self.changes for c in change.columns}))
+        self.sigma: Optional[np.ndarray] = None
+        self.inflation = 1.0
+        self._delayed: deque = deque()
+        self.limits: dict = {}
+        self.refit: dict = {}
+
+    # -- what is watched -----------------------------------------------------------------------
+    def _changes(self) -> list[Change]:
+        r = self.robot
+        out = []
+        for j, joint in enumerate(r.joints):
+            name = f"theta{j + 1}" if joint.kind == "revolute" else f"d{j + 1}"
+            out.append(Change("joint_zero", j + 1, (r.index(name),), (name,)))
+        sensor = ("cable_offset",) if self.measurement == "cable" else ("base_x", "base_y", "base_z")
+        columns = tuple(r.index(n) for n in sensor)
+        out += [Change("step", None, columns, sensor), Change("drift", None, columns, sensor)]
+        return out
+
+    def _unit(self, change: Change) -> str:
+        return "deg" if change.kind == "joint_zero" and self.robot.joints[change.joint - 1].kind == "revolute" else ("mm/sample" if change.ramp else "mm")
+
+    # -- the model -----------------------------------------------------------------------------
+    def _links(self, q: np.ndarray) -> np.ndarray:
+        """The angles the links take at readings ``q`` (m, N)."""
+        q = structure.to_model(q, self.structures)
+        return q if self.offsets is None else q + self.offsets(q)
+
+    def _innovations(self, q: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        links = self._links(q)
+        e = self.robot.residuals(self.measurement, links, y, params=self.params).reshape(len(q), -1)
+        J = self.robot.jacobian(self.measurement, links, y=y, params=self.params, cols=self.columns)
+        return e, J.reshape(len(q), e.shape[1], len(self.columns))
+
+    # -- the stream ----------------------------------------------------------------------------
+    def _checked(self, q, y) -> tuple[np.ndarray, np.ndarray]:
+        q, y = as_float_array(q, "q"), as_float_array(y, "y")
+        q, y = np.atleast_2d(q), y.reshape(len(np.atleast_2d(q)), -1) if y.ndim < 2 else y
+        if q.shape[1] != self.robot.n_joints:
+            raise InvalidParameterError(f"a sample has {q.shape[1]} joint values; the result's robot {self.robot.name!r} has {self.robot.n_joints}")
+        return q, y
+
+    def _refuse(self, i: int, row, why: str) -> None:
+        note = f"sample {i} (row {row}) refused: {why}"
+        self.refused.append(note)
+        logger.warning("monitor: %s", note)
+
+    def update(self, q, y, rows=None) -> list[Alarm]:
+        """Takes one sample (``q`` (N,) rad — the controller's readings —, ``y`` (k,) mm) or a
+        block ((m, N), (m, k)) in acquisition order; returns the alarms raised. A sample that
+        is not finite or lies beyond the joint limits is refused with a note
+        (:attr:`refused`) and the stream goes on."""
+        q, y = self._checked(q, y)
+        rows = [None] * len(q) if rows is None else list(rows)
+        raised = []
+        lower, upper = (np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
+        for qi, yi, row in zip(q, y, rows):
+            i = self.samples
+            self.samples += 1
+            model_q = structure.to_model(qi[None, :], self.structures)[0]
+            if not (np.all(np.isfinite(qi)) and np.all(np.isfinite(yi))):
+                self._refuse(i, row, "a value is not a finite number")
+                continue
+            if np.any(model_q < lower - 1e-9) or np.any(model_q > upper + 1e-9):
+                self._refuse(i, row, "a joint lies beyond the robot's limits")
+                continue
+            if self.sigma is None:
+                self._opening.append((i, qi, yi, row))
+                if len(self._opening) == self.opening:
+                    self._start()
+                continue
+            alarm = self._step(i, qi[None, :], yi[None, :], row)
+            if alarm is not None:
+                raised.append(alarm)
+        return raised
+
+    def _start(self) -> None:
+        """The opening is complete: the set-up (``new_session``), the innovations' scale and
+        correlation, the detection limits; then the opening samples enter the window."""
+        index = [i for i, *_ in self._opening]
+        q = np.array([s[1] for s in self._opening])
+        y = np.array([s[2] for s in self._opening])
+        if self.new_session:
+            data = Dataset(q=self._links(q), y=y, measurement=self.measurement, robot=self.robot.name)
+            names = setup_names(self.robot, self.measurement)
+            problem = Problem.build(self.robot, data, mask=names, params=self.params)
+            fit = levenberg_marquardt(problem)
+            self.params = problem.full(fit.x)
+            self.refit = {"names": names, "samples": len(q)}
+        e, J = self._innovations(q, y)
+        centred = e - e.mean(axis=0)
+        fitted = len(self.refit.get("names", [])) + e.shape[1]  # the set-up re-fitted and the mean removed take degrees of freedom
+        opening_sigma = np.sqrt(np.sum(centred**2, axis=0) / max(len(q) - fitted / e.shape[1], 1.0))
+        # Never below what the calibration itself erred by on samples it did not fit: the model's
+        # error on new poses, which a short opening may not show.
+        figures = self.doc.get("metrics", {}).get("test") or self.doc.get("metrics", {}).get("train") or {}
+        floor = np.full(e.shape[1], (figures.get("rmse") or 0.0) / np.sqrt(3.0 if self.measurement != "cable" else 1.0))
+        if self.measurement == "pose":
+            floor[3:] = 0.0  # the rotation rows: the opening's figure alone
+        self.sigma = np.maximum(opening_sigma, floor).clip(1e-9)
+        Jw = J / self.sigma[None, :, None]
+        z = e / self.sigma
+        G = np.einsum("mkp,mkq->pq", Jw, Jw) + np.diag(self.prior)
+        level = np.linalg.pinv(G, rcond=1e-12, hermitian=True) @ np.einsum("mkp,mk->p", Jw, z)
+        self._variance = _LongRunVariance(z - Jw @ level)  # the opening less its constant, as the window will see it
+        self.inflation = self._variance.inflation
+        Jw = J / self.sigma[None, :, None]
+        per_sample = np.einsum("mkp,mkq->pq", Jw, Jw) / len(q)
+        window = WINDOW * per_sample + np.diag(self.prior)
+        window_inverse = np.linalg.inv(window + 1e-6 * np.trace(window) / len(window) * np.eye(len(window)))
+        for change in self.changes:
+            if change.ramp:
+                continue
+            cols = [self.columns.index(c) for c in change.columns]
+            # A full window, the change in its last LIMIT_SAMPLES samples, the constant profiled
+            # out: the smallest change (along its weakest direction) whose statistic then reaches
+            # the threshold.
+            cross = LIMIT_SAMPLES * per_sample[:, cols]
+            info = cross[cols] - cross.T @ window_inverse @ cross
+            weakest = np.linalg.eigvalsh(info)[0]
+            self.limits[(change.kind, change.joint)] = float(np.sqrt(self.threshold[len(cols)] * self.inflation / max(weakest, 1e-300)))
+        for (i, _, _, row), ei, Ji in zip(self._opening, e, J):
+            self._push(i, ei, Ji)
+        self._opening.clear()
+        logger.info("monitor: opening of %d samples: sigma %s, long-run inflation %.2f", len(index), self.sigma, self.inflation)
+
+    def _push(self, i: int, e: np.ndarray, J: np.ndarray) -> None:
+        z = e / self.sigma
+        Jw = J / self.sigma[:, None]
+        self._buffers.push(i, Jw.T @ z, Jw.T @ Jw)
+        self._delayed.append((z, Jw))
+        if len(self._delayed) == WINDOW:  # an innovation leaves the window: it now measures the yardstick, less the window's constant
+            z_old, J_old = self._delayed.popleft()
+            self._variance.add(z_old - J_old @ self._level)
+            self.inflation = self._variance.inflation
+
+    def _step(self, i: int, q: np.ndarray, y: np.ndarray, row) -> Optional[Alarm]:
+        e, J = self._innovations(q, y)
+        self._push(i, e[0], J[0])
+        found = self._test(i, row)
+        if found is None or i - found.since < CONFIRM:  # named once enough samples after its start show which change it is
+            return None
+        self._apply(found)
+        self.alarms.append(found)
+        self._buffers.clear()  # the window starts anew under the changed model
+        return found
+
+    def _test(self, now: int, row) -> Optional[Alarm]:
+        """The change with the strongest evidence over its threshold, or None."""
+        b = self._buffers
+        starts = b.n - MIN_AFTER + 1  # starts with at least MIN_AFTER samples from them on
+        if starts <= 1:
+            return None
+        hypotheses = [([self.columns.index(c) for c in change.columns], change.ramp) for change in self.changes]
+        evidence, self._level = b.evidence(hypotheses, starts, self.prior)
+        best = None
+        for change, (score, info) in zip(self.changes, evidence):
+            score, info = score[1:], info[1:]  # a start at the window's first sample leaves no level before it
+            d = score.shape[1]
+            delta = np.linalg.solve(info + 1e-12 * np.eye(d)[None], score[:, :, None])[:, :, 0]
+            stat = np.einsum("nd,nd->n", score, delta) / self.inflation
+            k = int(np.argmax(stat))
+            if stat[k] <= self.threshold[d]:
+                continue
+            surprise = -chi2.logsf(stat[k], d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
+            if best is None or surprise > best[0]:
+                best = (surprise, change, k + 1, delta[k], float(stat[k] / self.threshold[d]))
+        if best is None:
+            return None
+        _, change, k, delta, ratio = best
+        scale = np.degrees(delta) if self._unit(change) == "deg" else delta
+        return Alarm(now, row, b.index(k), change.kind, change.joint, [float(v) for v in scale], self._unit(change), list(change.names), ratio)
+
+    def _apply(self, alarm: Alarm) -> None:
+        change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)
+        size = np.radians(alarm.size) if alarm.unit == "deg" else np.asarray(alarm.size)
+        if change.ramp:  # the drift so far, as a step of the set-up: the model then holds where the sensor is now
+            size = size * (alarm.sample - alarm.since)
+        self.params[list(change.columns)] += size
+
+    # -- what it found -------------------------------------------------------------------------
+    def summary(self) -> dict:
+        return {
+            "samples": self.samples,
+            "alarms": [a.to_dict() for a in self.alarms],
+            "refused": list(self.refused),
+            "opening": {"samples": self.opening, "started": self.sigma is not None, "refit": self.refit or None},
+            "noise": None if self.sigma is None else [float(s) for s in self.sigma],
+            "inflation": self.inflation,
+            "mean_run_length": self.mean_run_length,
+            "thresholds": {str(d): h for d, h in self.threshold.items()},
+            "detection_limits": [
+                {
+                    "kind": kind,
+                    "joint": joint,
+                    "size": (np.degrees(v) if kind == "joint_zero" else v),
+                    "unit": "deg" if kind == "joint_zero" else "mm",
+                    "within": LIMIT_SAMPLES,
+                }
+                for (kind, joint), v in self.limits.items()
+            ],
+            "not_applied": self.not_applied,
+        }
+
+    def result_document(self) -> dict:
+        """The result with what changed applied: its parameters' values as the monitor holds them
+        now, and a ``monitor`` record of the alarms."""
+        doc = dict(self.doc)
+        doc["parameters"] = [{**p, "value": float(v), "deviation": float(v) - p["nominal"]} for p, v in zip(self.doc["parameters"], self.params)]
+        doc["monitor"] = self.summary()
+        return doc
