@@ -38,6 +38,7 @@ re-fit the session's set-up (as ``verify`` does).
 from __future__ import annotations
 
 import logging
+import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Optional
@@ -71,6 +72,12 @@ MEAN_RUN_LENGTH = 100_000
 MIN_AFTER = 3
 #: Samples after a change's estimated start before it is named: the kinds tell apart by then.
 CONFIRM = 6
+#: How much less likely under no change (natural log) the named change must be than any other
+#: kind, else the monitor waits for more samples ...
+DISTINCT = 5.0
+#: ... up to this many after the change's start; then it names the likelier and says which other
+#: it could be.
+MAX_WAIT = 25
 #: Samples at which each change's detection limit is stated.
 LIMIT_SAMPLES = 25
 
@@ -104,6 +111,8 @@ class Alarm:
     unit: str
     names: list
     evidence: float
+    margin: float = float("inf")
+    alternative: Optional[str] = None
 
     def to_dict(self) -> dict:
         return {
@@ -116,12 +125,24 @@ class Alarm:
             "unit": self.unit,
             "parameters": self.names,
             "evidence": self.evidence,
+            "distinct_by": self.margin,
+            "could_be": self.alternative if self.margin < DISTINCT else None,
         }
 
     def words(self) -> str:
         what = f"joint {self.joint}'s zero" if self.kind == "joint_zero" else f"the sensor's {'drift' if self.kind == 'drift' else 'set-up'}"
         size = ", ".join(f"{n} {v:+.4g}" for n, v in zip(self.names, self.size))
-        return f"sample {self.sample} (row {self.row}): {what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold)"
+        doubt = f"; it could also be {self.alternative} (likelihoods within e^{self.margin:.1f})" if self.margin < DISTINCT else ""
+        return f"sample {self.sample} (row {self.row}): {what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold{doubt})"
+
+
+def _surprise(stat: float, d: int) -> float:
+    """``−log P(χ²_d > stat)``; beyond floating point, its asymptotic form (a statistic of
+    thousands is no less a change than one of hundreds)."""
+    value = -chi2.logsf(stat, d)
+    if np.isfinite(value):
+        return float(value)
+    return stat / 2.0 - (d / 2.0 - 1.0) * math.log(stat / 2.0) + math.lgamma(d / 2.0)
 
 
 class _Buffers:
@@ -425,6 +446,8 @@ class Monitor:
         found = self._test(i, row)
         if found is None or i - found.since < CONFIRM:  # named once enough samples after its start show which change it is
             return None
+        if found.margin < DISTINCT and i - found.since < MAX_WAIT:  # two kinds explain it alike: more samples tell them apart
+            return None
         self._apply(found)
         self.alarms.append(found)
         self._buffers.clear()  # the window starts anew under the changed model
@@ -438,23 +461,26 @@ class Monitor:
             return None
         hypotheses = [([self.columns.index(c) for c in change.columns], change.ramp) for change in self.changes]
         evidence, self._level = b.evidence(hypotheses, starts, self.prior)
-        best = None
+        best, surprises = None, []
         for change, (score, info) in zip(self.changes, evidence):
             score, info = score[1:], info[1:]  # a start at the window's first sample leaves no level before it
             d = score.shape[1]
             delta = np.linalg.solve(info + 1e-12 * np.eye(d)[None], score[:, :, None])[:, :, 0]
             stat = np.einsum("nd,nd->n", score, delta) / self.inflation
             k = int(np.argmax(stat))
-            if stat[k] <= self.threshold[d]:
-                continue
-            surprise = -chi2.logsf(stat[k], d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
-            if best is None or surprise > best[0]:
+            surprise = _surprise(float(stat[k]), d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
+            surprises.append((surprise, change))
+            if stat[k] > self.threshold[d] and (best is None or surprise > best[0]):
                 best = (surprise, change, k + 1, delta[k], float(stat[k] / self.threshold[d]))
         if best is None:
             return None
-        _, change, k, delta, ratio = best
+        surprise, change, k, delta, ratio = best
+        runner = max(((v, c) for v, c in surprises if c is not change), key=lambda vc: vc[0], default=(0.0, None))
         scale = np.degrees(delta) if self._unit(change) == "deg" else delta
-        return Alarm(now, row, b.index(k), change.kind, change.joint, [float(v) for v in scale], self._unit(change), list(change.names), ratio)
+        alarm = Alarm(now, row, b.index(k), change.kind, change.joint, [float(v) for v in scale], self._unit(change), list(change.names), ratio)
+        alarm.margin = float(surprise - runner[0])
+        alarm.alternative = None if runner[1] is None else (runner[1].kind if runner[1].joint is None else f"joint {runner[1].joint}'s zero")
+        return alarm
 
     def _apply(self, alarm: Alarm) -> None:
         change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)

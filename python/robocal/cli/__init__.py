@@ -43,7 +43,10 @@ COMMANDS = {
     "compensate": ("joint commands that make the calibrated robot reach desired tool positions", Paths(("result", "targets"), ("out",))),
     "report": ("an HTML page with figures of a calibration result (and its diagnosis)", Paths(("result", "data", "diagnosis"), (), ("out",))),
     "export": ("write a calibrated robot as a DH / MDH table (CSV, JSON), URDF or UR kinematics YAML, checked by a round trip", Paths(("result",), ("out",))),
-    "monitor": ("watch a calibrated robot sample by sample: what changed since the calibration, when, how much", Paths(("result", "data"), ("json_lines", "out"))),
+    "monitor": (
+        "watch a calibrated robot sample by sample: what changed since the calibration, when, how much",
+        Paths(("result", "data"), ("json_lines", "out")),
+    ),
     "plan": ("the poses to measure next, and their order, that determine the model's parameters best", Paths(("robot", "source", "data"), ("out", "json"))),
 }
 

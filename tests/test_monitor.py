@@ -1,0 +1,134 @@
+"""In-line monitoring (issue 54): a change hidden in a simulated stream is alarmed as what it is,
+near where it began; clean streams, also with time-correlated sensor noise, raise none; bad
+samples are refused and the stream goes on; the command line writes JSON lines and the updated
+result."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal.cli import main
+from robocal.data import write_canonical
+from robocal.exceptions import InvalidParameterError
+from robocal.monitoring import OPENING, WINDOW, Monitor
+from robocal.results import load_result
+from robocal.simulation import simulate
+
+CHANGE_AT = 600
+
+
+@pytest.fixture(scope="module", params=[("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position")])
+def calibrated(request):
+    """A robot calibrated on one session, and a new session of the same robot (1,000 samples)."""
+    robot, measurement = request.param
+    data, _ = simulate(robot, measurement, samples=400, seed=2)
+    result = robocal.calibrate(data, robot=robot).to_dict()
+    stream, _ = simulate(robot, measurement, samples=1000, seed=2, session=1)
+    return result, stream
+
+
+def _replay(result, q, y, **options) -> tuple[Monitor, list]:
+    monitor = Monitor(result, new_session=True, **options)
+    alarms = []
+    for qi, yi in zip(q, y):
+        alarms += monitor.update(qi, yi)
+    return monitor, alarms
+
+
+def test_a_clean_stream_raises_no_alarm(calibrated):
+    result, stream = calibrated
+    monitor, alarms = _replay(result, stream.q, stream.y)
+    assert alarms == [], [a.words() for a in alarms]
+    assert monitor._buffers.rings["G"].shape[0] == WINDOW and len(monitor._delayed) < WINDOW  # memory bounded by the window
+
+
+def test_time_correlated_sensor_noise_raises_no_alarm(calibrated):
+    """The sensor's reading wanders as an AR(1) process (correlation 0.9 from sample to sample,
+    0.05 mm stationary): the long-run inflation, not the threshold, absorbs it."""
+    result, stream = calibrated
+    rng = np.random.default_rng(5)
+    wander = np.zeros_like(stream.y)
+    for t in range(1, len(wander)):
+        wander[t] = 0.9 * wander[t - 1] + 0.05 * np.sqrt(1 - 0.81) * rng.standard_normal(stream.y.shape[1])
+    _, alarms = _replay(result, stream.q, stream.y + wander)
+    assert [a for a in alarms if a.kind != "drift"] == [], [a.words() for a in alarms]
+
+
+def test_a_joint_zero_change_is_alarmed_as_that_joint_near_where_it_began(calibrated):
+    result, stream = calibrated
+    probe = Monitor(result, new_session=True)
+    probe.update(stream.q[:OPENING], stream.y[:OPENING])
+    limits = {entry["joint"]: entry["size"] for entry in probe.summary()["detection_limits"] if entry["kind"] == "joint_zero"}
+    for joint in (2, 3):
+        size = 5 * limits[joint]  # deg
+        q = stream.q.copy()
+        q[CHANGE_AT:, joint - 1] -= np.radians(size)  # re-mastered: the reading is that much below the angle from then on
+        _, alarms = _replay(result, q, stream.y)
+        assert alarms, f"joint {joint}: a zero change of {size:.4f} deg (5x its limit) was not alarmed"
+        first = alarms[0]
+        assert (first.kind, first.joint) == ("joint_zero", joint), first.words()
+        assert abs(first.since - CHANGE_AT) <= 5 and first.sample - CHANGE_AT <= 40, first.words()
+        assert first.size[0] == pytest.approx(size, rel=0.3)
+
+
+def test_a_sensor_step_is_alarmed_as_a_step(calibrated):
+    result, stream = calibrated
+    y = stream.y.copy()
+    y[CHANGE_AT:] += 0.5 if stream.measurement == "cable" else np.array([0.3, -0.2, 0.25])  # the cable re-zeroed, the tracker moved
+    _, alarms = _replay(result, stream.q, y)
+    assert alarms and alarms[0].kind == "step", [a.words() for a in alarms]
+    # A cable's one reading cannot tell its zero from a joint's for a few samples: the monitor waits until it can.
+    assert abs(alarms[0].since - CHANGE_AT) <= 3 and alarms[0].sample - CHANGE_AT <= (20 if stream.measurement == "cable" else 10)
+
+
+def test_a_slow_drift_raises_no_step(calibrated):
+    result, stream = calibrated
+    ramp = np.clip(np.arange(len(stream.y)) - CHANGE_AT, 0, None)[:, None] * 0.002  # mm per sample
+    _, alarms = _replay(result, stream.q, stream.y + ramp * (1.0 if stream.measurement == "cable" else np.array([0.6, -0.6, 0.5])))
+    assert all(a.kind == "drift" for a in alarms), [a.words() for a in alarms]
+
+
+def test_bad_samples_are_refused_and_the_stream_goes_on():
+    data, _ = simulate("ur10", "position", samples=300, seed=2)
+    result = robocal.calibrate(data, robot="ur10").to_dict()
+    monitor = Monitor(result)
+    q, y = data.q.copy(), data.y.copy()
+    q[150, 2] = np.nan
+    q[160, 0] = 10.0  # beyond the joint's range
+    monitor.update(q, y, rows=list(range(2, 302)))
+    assert monitor.samples == 300 and len(monitor.refused) == 2
+    assert "row 152" in monitor.refused[0] and "finite" in monitor.refused[0] and "limits" in monitor.refused[1]
+    with pytest.raises(InvalidParameterError, match="has 3 joint values; the result's robot 'ur10' has 6"):
+        monitor.update(q[:1, :3], y[:1])
+
+
+def test_the_command_line_writes_alarms_and_the_updated_result(tmp_path, capsys):
+    data, _ = simulate("ur10", "position", samples=400, seed=2)
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(robocal.calibrate(data, robot="ur10").to_dict()))
+    stream, _ = simulate("ur10", "position", samples=800, seed=2, session=1)
+    q = stream.q.copy()
+    q[CHANGE_AT:, 2] -= np.radians(0.05)
+    stream = replace(stream, q=q)
+    path = tmp_path / "stream.csv"
+    write_canonical(stream, path)
+    lines, updated = tmp_path / "alarms.jsonl", tmp_path / "updated.json"
+    assert main(["monitor", str(result), str(path), "--new-session", "--json-lines", str(lines), "--out", str(updated), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "joint 3's zero changed from sample" in printed and "detection limits" in printed
+    alarm = json.loads(lines.read_text().splitlines()[0])
+    assert alarm["kind"] == "joint_zero" and alarm["joint"] == 3 and abs(alarm["since"] - CHANGE_AT) <= 5
+    assert alarm["row"] == int(stream.rows[alarm["sample"]])
+    before, _ = load_result(result)
+    after, doc = load_result(updated)
+    moved = np.degrees(after.params[after.index("theta3")] - before.params[before.index("theta3")])
+    assert moved == pytest.approx(0.05, abs=0.01) and doc["monitor"]["alarms"][0]["joint"] == 3
+    other, _ = simulate("hsr-jr680", "cable", samples=200, seed=1)
+    write_canonical(other, tmp_path / "hsr.csv")
+    assert main(["monitor", str(result), str(tmp_path / "hsr.csv"), "--quiet"]) == 2
+    assert "robocal: error:" in capsys.readouterr().err
