@@ -38,3 +38,36 @@ def test_manual_builds_strictly(tmp_path):
     assert all(f'id="robocal-{name}"' in cli for name in COMMANDS)
     api = (tmp_path / "site/reference/api/index.html").read_text(encoding="utf-8")
     assert all(f"robocal.{name}" in api for name in robocal.__all__ if not name.startswith("__"))
+
+
+def _hook():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("mkdocs_reference", ROOT / "tools" / "mkdocs_reference.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_command_reference_lists_every_option_of_every_command():
+    from robocal.cli import build_parser
+
+    page = _hook().cli_page()
+    for name in COMMANDS:
+        parser = build_parser(name).command_parser
+        options = [s for a in parser._actions for s in a.option_strings if s not in ("-h", "--help")]
+        assert options, name
+        section = page.split(f"## robocal {name} ")[1].split("\n## ")[0]
+        assert all(f"`{o}" in section or f", {o}" in section for o in options), (name, [o for o in options if o not in section])
+
+
+def test_a_public_name_without_a_docstring_fails_the_build(monkeypatch):
+    from mkdocs.exceptions import PluginError
+
+    def undocumented():
+        pass
+
+    monkeypatch.setattr(robocal, "undocumented", undocumented, raising=False)
+    monkeypatch.setattr(robocal, "__all__", [*robocal.__all__, "undocumented"])
+    with pytest.raises(PluginError, match="undocumented"):
+        _hook().check_docstrings()
