@@ -27,7 +27,7 @@ from mkdocs.structure.files import File
 
 def _cell(text: str) -> str:
     # A table cell: one line, the Markdown table's bar and HTML escaped, code-like words kept readable.
-    text = html.escape(" ".join(str(text).split()))
+    text = html.escape(" ".join(str(text).split()), quote=False)
     # A bar would end the cell; brackets would read as a Markdown link (or an autorefs cross-reference).
     return text.replace("|", "\\|").replace("[", "\\[").replace("]", "\\]")
 
@@ -36,8 +36,8 @@ def _argument_rows(parser: argparse.ArgumentParser) -> list[str]:
     formatter = parser._get_formatter()
     rows = ["| argument | meaning |", "|---|---|"]
     for action in parser._actions:
-        if isinstance(action, argparse._HelpAction):
-            continue
+        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue  # help is on every command; the subcommands have a table of their own
         if action.option_strings:
             name = ", ".join(action.option_strings)
             if action.nargs != 0:
@@ -45,8 +45,6 @@ def _argument_rows(parser: argparse.ArgumentParser) -> list[str]:
         else:
             name = formatter._format_args(action, formatter._get_default_metavar_for_positional(action))
         meaning = formatter._expand_help(action) if action.help else ""
-        if action.choices is not None and not isinstance(action.choices, dict):
-            meaning += f" (one of: {', '.join(str(c) for c in action.choices)})"
         rows.append(f"| `{_cell(name)}` | {_cell(meaning)} |")
     return rows
 
@@ -94,6 +92,8 @@ def cli_page() -> str:
             "",
             *_argument_rows(parser),
         ]
+        if parser.epilog:
+            lines += ["", _cell(parser.epilog)]
     return "\n".join(lines) + "\n"
 
 
