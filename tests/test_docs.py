@@ -17,7 +17,6 @@ from robocal.cli import COMMANDS
 ROOT = Path(__file__).resolve().parents[1]
 
 pytest.importorskip("mkdocs", reason="the docs tools are not installed (the `test` and `docs` extras install them)")
-pytest.importorskip("mkdocstrings", reason="the docs tools are not installed (the `test` and `docs` extras install them)")
 
 
 def test_manual_builds_strictly(tmp_path):
