@@ -14,12 +14,21 @@ import pytest
 import robocal
 from robocal.cli import main
 from robocal.data import write_canonical
-from robocal.exceptions import InvalidParameterError
+from robocal.exceptions import RobocalError, ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from robocal.monitoring import OPENING, WINDOW, Monitor
 from robocal.results import load_result
 from robocal.simulation import simulate
 
 CHANGE_AT = 600
+
+
+@pytest.fixture(scope="module")
+def monitor_result():
+    data, _ = simulate("ur10", "position", samples=150, seed=3)
+    return robocal.calibrate(data, robot="ur10").to_dict()
 
 
 @pytest.fixture(scope="module", params=[("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position")])
@@ -103,8 +112,26 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
     monitor.update(q, y, rows=list(range(2, 302)))
     assert monitor.samples == 300 and len(monitor.refused) == 2
     assert "row 152" in monitor.refused[0] and "finite" in monitor.refused[0] and "limits" in monitor.refused[1]
-    with pytest.raises(InvalidParameterError, match="has 3 joint values; the result's robot 'ur10' has 6"):
+    with pytest.raises(ShapeError, match="has 3 joint values; the result's robot 'ur10' has 6"):
         monitor.update(q[:1, :3], y[:1])
+    with pytest.raises(ShapeError, match=r"`y` must hold 3 readings \(position\) for each of the 2 samples; got shape \(1, 6\)"):
+        monitor.update(q[:2], y[:2].ravel())
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    q=arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(1, 7)), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+    y=arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(1, 7)), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+)
+def test_malformed_samples_raise_a_robocal_error_or_are_refused(monitor_result, q, y):
+    """Any shape, NaN, infinity, huge values: a RobocalError naming the problem, or the sample
+    refused with a note; never another exception, never a crash."""
+    monitor = Monitor(monitor_result, opening=10)
+    try:
+        monitor.update(q, y)
+    except RobocalError:
+        return
+    assert monitor.samples == len(q)
 
 
 def test_the_command_line_writes_alarms_and_the_updated_result(tmp_path, capsys):

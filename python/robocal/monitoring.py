@@ -51,7 +51,8 @@ from .calibration.problem import Problem
 from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets
 from .data.dataset import Dataset
-from .exceptions import InvalidParameterError
+from .data.dataset import OBSERVATION_COLUMNS
+from .exceptions import InvalidParameterError, ShapeError
 from .kernels import as_float_array
 from .results import load_result
 from .serial_robot import setup_names
@@ -340,10 +341,12 @@ class Monitor:
 
     # -- the stream ----------------------------------------------------------------------------
     def _checked(self, q, y) -> tuple[np.ndarray, np.ndarray]:
-        q, y = as_float_array(q, "q"), as_float_array(y, "y")
-        q, y = np.atleast_2d(q), y.reshape(len(np.atleast_2d(q)), -1) if y.ndim < 2 else y
-        if q.shape[1] != self.robot.n_joints:
-            raise InvalidParameterError(f"a sample has {q.shape[1]} joint values; the result's robot {self.robot.name!r} has {self.robot.n_joints}")
+        q, y = np.atleast_2d(as_float_array(q, "q")), np.atleast_2d(as_float_array(y, "y"))
+        readings = len(OBSERVATION_COLUMNS[self.measurement])
+        if q.ndim != 2 or q.shape[1] != self.robot.n_joints:
+            raise ShapeError(f"a sample has {q.shape[-1]} joint values; the result's robot {self.robot.name!r} has {self.robot.n_joints}")
+        if y.ndim != 2 or y.shape != (len(q), readings):
+            raise ShapeError(f"`y` must hold {readings} readings ({self.measurement}) for each of the {len(q)} samples; got shape {y.shape}")
         return q, y
 
     def _refuse(self, i: int, row, why: str) -> None:
