@@ -250,3 +250,39 @@ def test_a_cable_results_base_frame_is_its_measurement_frame():
     base, session = robocal.compensate(doc, y), robocal.compensate(doc, y, frame="session")
     assert all(r["status"] == "ok" for r in base + session)
     assert np.array_equal([r["q"] for r in base], [r["q"] for r in session])
+
+
+def test_a_joint_program_is_filtered_to_commands_the_full_model_reaches(tmp_path, capsys):
+    """A robot program's joint targets in (q1..qN alone), corrected joint targets out: at the
+    commands the result's full model (geometry and joint causes) puts the tool where the nominal
+    model puts it at the program's joints, within 1e-6 mm, and the commands stay near the program."""
+    import json
+
+    import robocal
+    from robocal.causes.candidates import joint_offsets
+    from robocal.cli import main
+    from robocal.results import load_result
+    from robocal.simulation import simulate
+
+    data, _ = simulate("ur10", "position", samples=300, seed=2, effects=["joint_periodic:joint=2,amplitude=0.05"])
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(robocal.calibrate(data, robot="ur10", causes=["joint_periodic joint 2 harmonic=1"]).to_dict()))
+    program = np.random.default_rng(3).uniform(-150.0, 150.0, (12, 6))
+    path = tmp_path / "program.csv"
+    np.savetxt(path, program, delimiter=",", header=",".join(f"q{j}" for j in range(1, 7)), comments="")
+    out = tmp_path / "joints.csv"
+    assert main(["compensate", str(result), str(path), "--out", str(out), "--quiet"]) == 0
+    assert "12 of 12 targets reached" in capsys.readouterr().out
+    commands = np.radians(np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(1, 7)))
+    calibrated, doc = load_result(result)
+    nominal = robocal.Robot("ur10", calibrated.joints, np.array(doc["robot_model"]["nominal"]))
+    base = [calibrated.index(f"base_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]
+    tool = [calibrated.index(f"tool_{c}") for c in ("x", "y", "z", "rx", "ry", "rz")]
+    in_base = calibrated.params.copy()
+    in_base[base] = 0.0
+    nominal.params[base], nominal.params[tool] = 0.0, calibrated.params[tool]
+    offsets = joint_offsets(calibrated, doc["causes"])
+    reached = calibrated.fkine(commands + offsets(commands), params=in_base, tool=True)
+    wanted = nominal.fkine(np.radians(program), tool=True)
+    assert np.abs(reached[:, :3, 3] - wanted[:, :3, 3]).max() < 1e-6
+    assert np.abs(np.degrees(commands) - program).max() < 5.0  # corrections on the program's branch, not other branches

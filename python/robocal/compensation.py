@@ -1,5 +1,9 @@
 """Compensation: joint commands that make the calibrated robot reach desired tool positions.
 
+A robot program's joint targets (a file of ``q1 … qN`` alone, :class:`JointProgram`) are
+filtered too: each becomes the pose the nominal model reaches there, and the commands out reach
+it under the result's full model.
+
 ``robocal compensate RESULT TARGETS.csv [--frame F] [--user-frame X,Y,Z,RX,RY,RZ] --out joints.csv``
 reads a result file (:mod:`robocal.results`) and a CSV of targets.
 
@@ -107,12 +111,26 @@ class Targets:
                 raise ShapeError(f"`targets seeds` must have shape ({m}, N); got {self.seeds.shape}")
 
 
-def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targets:
+@dataclass
+class JointProgram:
+    """A robot program's joint targets ``q`` (m, N), rad, the controller's readings, taught or
+    planned on the nominal model, with their file ``rows``: :func:`compensate` gives the
+    commands with which the calibrated robot — its joint causes too — puts the tool where the
+    nominal model puts it at ``q`` (position and orientation)."""
+
+    q: np.ndarray
+    rows: np.ndarray
+
+
+def read_targets(path, n_joints: int, angle_unit: Optional[str] = None):
     """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in ``angle_unit``,
-    deg by default; seed joints implausible for the default unit are refused]."""
+    deg by default; seed joints implausible for the default unit are refused] — or, with
+    ``q1..qN`` alone, a robot program's joint targets (:class:`JointProgram`)."""
     header, body = split_delimited(read_text(path), ",", path)
-    require_columns(header, ["x", "y", "z"], path, "a targets file")
     quaternion, joints = ["qw", "qx", "qy", "qz"], [f"q{j}" for j in range(1, n_joints + 1)]
+    if not any(c in header for c in ("x", "y", "z")) and all(j in header for j in joints):
+        return JointProgram(*_seed_joints(header, body, joints, path, angle_unit))
+    require_columns(header, ["x", "y", "z"], path, "a targets file")
     expected = f"a targets file holds x,y,z, optionally qw,qx,qy,qz (pose targets) and q1..q{n_joints} (seed joints, {angle_unit or 'deg'})"
     unknown = [h for h in header if h not in ["x", "y", "z", *quaternion, *joints]]
     if unknown:  # a misnamed column would otherwise be solved without
@@ -128,12 +146,18 @@ def read_targets(path, n_joints: int, angle_unit: Optional[str] = None) -> Targe
     seeds = None
     if any(j in header for j in joints):
         require_columns(header, joints, path, "seed joints")
-        seeds, seed_rows, _ = numeric_columns(header, body, joints, path)
-        seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
-        check = angle_unit_check(seeds, angle_unit or "deg", seed_rows)
-        if not check["plausible"] and angle_unit is None:
-            raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", path)
+        seeds, _ = _seed_joints(header, body, joints, path, angle_unit)
     return Targets(values, seeds, rows)
+
+
+def _seed_joints(header, body, joints: list, path, angle_unit: Optional[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The joint columns (rad) and their rows; values implausible for the default unit refused."""
+    seeds, rows, _ = numeric_columns(header, body, joints, path)
+    seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
+    check = angle_unit_check(seeds, angle_unit or "deg", rows)
+    if not check["plausible"] and angle_unit is None:
+        raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", path)
+    return seeds, rows
 
 
 def joint_columns(robot: Robot) -> list[int]:
@@ -261,7 +285,7 @@ def solve_joints(
     robot: Robot,
     target: np.ndarray,
     seed: np.ndarray,
-    tol: float = 1e-4,
+    tol: float = 1e-6,
     max_iter: int = 100,
     offsets=None,
     restarts: Optional[int] = None,
@@ -454,9 +478,10 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Opti
     ----------
     result : path or dict
         A result file (:func:`robocal.results.load_result`).
-    targets : path, array_like (m, 3 | 7) or Targets
+    targets : path, array_like (m, 3 | 7), Targets or JointProgram
         A targets CSV (:func:`read_targets`), target rows ``x, y, z`` [``qw, qx, qy, qz``] (mm),
-        or :class:`Targets`.
+        :class:`Targets`, or a robot program's joint targets (:class:`JointProgram`; a CSV of
+        ``q1..qN`` alone): the poses the nominal model reaches there, the program's joints as seeds.
     angle_unit : {"deg", "rad"}, optional
         Unit of the seed joint columns of a targets file (deg by default).
     frame : {"base", "session", "session:K", "user"}, optional
@@ -485,10 +510,15 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Opti
     nominal.params[setup] = framed.params[setup]
     if isinstance(targets, (str, os.PathLike)):
         targets = read_targets(targets, calibrated.n_joints, angle_unit)
-    elif not isinstance(targets, Targets):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
+    elif not isinstance(targets, (Targets, JointProgram)):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
         y = as_float_array(targets, "targets")
         targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
     conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
+    if isinstance(targets, JointProgram):  # where the nominal model puts the tool at the program's joints: the poses to reach
+        program = as_float_array(targets.q, "program joints")
+        if program.ndim != 2 or program.shape[1] != calibrated.n_joints:
+            raise ShapeError(f"`program joints` must have shape (m, {calibrated.n_joints}); got {program.shape}")
+        targets = Targets(nominal.predict("pose", structure.to_model(program, conventions), nominal.params), program, targets.rows)
     causes = doc.get("causes", [])
     offsets = joint_offsets(calibrated, causes)  # the causes act on the joints whatever frame the targets are in
     covered = _map_cover(causes)
@@ -529,5 +559,8 @@ def write_joints(rows: list[dict], path, n_joints: int) -> Path:
         w = csv.writer(f)
         w.writerow(["row"] + [f"q{j}" for j in range(1, n_joints + 1)] + [f"dq{j}" for j in range(1, n_joints + 1)] + ["residual_mm", "frame", "status"])
         for r in rows:
-            w.writerow([r["row"]] + [f"{v:.6f}" for v in r["q"]] + [f"{v:.6f}" for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["frame"], r["status"]])
+            # Joints written to the last bit (repr): six decimals of a degree move a 1 m arm's tool by 2e-5 mm.
+            w.writerow(
+                [r["row"]] + [repr(float(v)) for v in r["q"]] + [repr(float(v)) for v in r["correction"]] + [f"{r['residual_mm']:.3g}", r["frame"], r["status"]]
+            )
     return stage.path
