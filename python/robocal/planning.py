@@ -49,7 +49,7 @@ from threadpoolctl import threadpool_limits
 
 from .calibration.api import another_robot, load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
-from .calibration.sessions import SESSION_KINDS, concatenate, is_private
+from .calibration.sessions import SESSION_KINDS, concatenate, is_private, session_problems
 from .causes import structure
 from .causes.candidates import map_coverage
 from .causes.extended import extended_problem, read_causes
@@ -637,12 +637,15 @@ def _design(
 ) -> _Design:
     """The model over the measured samples and the candidates (model angles, (n, N)), linearised
     at ``params``; ``fitted``: label -> detail of the joint maps a result fitted (they keep its
-    range and knots); ``mask``: the parameters considered (default the robot's)."""
+    range and knots); ``mask``: the parameters of a result, considered with the set-up kept
+    first (a parameter redundant with a new session's set-up, as ``a6`` with ``tool_x``, is the
+    set-up's: :func:`~robocal.calibration.sessions.session_problems`); default the robot's, the
+    identifiable subset as a calibration on the data decides it."""
     k = RESIDUAL_WIDTH[measurement]
     expected = Dataset(q=pool, y=robot.predict(measurement, pool, params), measurement=measurement, robot=robot.name)
     both = expected if data is None else concatenate([replace(data, extra={}), expected])
     m = 0 if data is None else len(data)
-    problem = Problem.build(robot, both, params=params, mask=mask)
+    problem = Problem.build(robot, both, params=params) if mask is None else session_problems(robot, [both], mask)[0]
     problem.start = params.copy()  # linearised at the set-up given or fitted before, not re-fitted on expected readings
     model = problem if not labels else extended_problem(problem, both, np.arange(len(both)), labels, noise=sigma, fitted=fitted)
     J = model.jacobian(model.x0)
@@ -1240,6 +1243,7 @@ def plan(
         "constraints": constraints.describe(robot, measurement, params, structures),
         "not_checked": list(NOT_CHECKED),
         "fixed": design.fixed,
+        "model": _counted(design, robot, measurement, known, measured),
         "structure": [s.label for s in structures],
         "causes_not_by_poses": [{"label": label, "reason": _why_not(kind)} for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + structure.KINDS],
         "data": {"samples": 0 if measured is None else len(measured), "files": [d.source for d in datasets]},
@@ -1249,6 +1253,43 @@ def plan(
     note = "a measurement plan: the observation columns hold the readings the model expects"
     expected = Dataset(q=planned, y=expected_readings, measurement=measurement, robot=robot.name, prismatic=robot.prismatic, notes=[note])
     return Plan(q=planned, expected=expected, report=report)
+
+
+def _counted(design: _Design, robot: Robot, measurement: str, known: Optional[_Known], measured: Optional[Dataset]) -> dict:
+    """What the plan counts (the report's ``model``): its entries — the robot's (parameters,
+    causes' coefficients; each joint map's coefficients over its range, and where that range
+    comes from) and the new session's set-up — and what is known before the poses."""
+    setup = [n for n in design.names if n in setup_names(robot, measurement)]
+    maps = [
+        {
+            "label": c.label,
+            "coefficients": c.size,
+            "range_deg": [float(c.detail["lo"]), float(c.detail["hi"])],
+            "gaps_deg": [list(g) for g in c.detail.get("gaps", [])],
+            "range_from": "the result's fit" if c.label in design.fitted else "the candidates' (and the data's) angles",
+        }
+        for c in design.causes
+        if c.kind == "joint_map"
+    ]
+    causes = sum(c.size for c in design.causes if c.stage != "parameters")
+    before = []
+    if known is not None and known.M is not None:
+        before.append(
+            f"the result's {known.samples:,} training samples re-linearised, each of its sessions' set-up and sensor terms eliminated, "
+            f"weighed by its training residual ({known.noise:.3g} mm per reading)"
+        )
+    if measured is not None:
+        before.append(f"the {len(measured):,} samples measured with the sensor in place")
+    if any(c.penalty is not None for c in design.causes):
+        before.append("the joint maps' roughness")
+    return {
+        "entries": len(design.names),
+        "robot_parameters": len(design.names) - len(setup) - causes,
+        "cause_coefficients": causes,
+        "setup": setup,
+        "maps": maps,
+        "known_before": before,
+    }
 
 
 def _per_degree(robot: Robot) -> np.ndarray:
