@@ -131,14 +131,14 @@ def _model_line(report: dict) -> str:
     maps = model["maps"]
     counted = f"  model: {model['entries']} entries: {model['robot_parameters']} parameters of the robot"
     if model["cause_coefficients"]:
-        counted += f", {model['cause_coefficients']} coefficients of the causes {', '.join(c['label'] for c in report['causes'])}"
-    if maps:
-        ranges = "; ".join(f"joint map {m['label'].split()[2]}: {m['coefficients']} over {m['range_deg'][0]:.0f}..{m['range_deg'][1]:.0f} deg" for m in maps)
-        counted += f" ({ranges}; the ranges of {' and '.join(sorted({m['range_from'] for m in maps}))})"
+        others = [c["label"] for c in report["causes"] if not c["label"].startswith("joint_map ")]
+        spans = ", ".join(f"joint {m['label'].split()[2]} {m['coefficients']} over {m['range_deg'][0]:.0f}..{m['range_deg'][1]:.0f} deg" for m in maps)
+        where = " and ".join(sorted({m["range_from"] for m in maps}))
+        parts = ([", ".join(others)] if others else []) + ([f"joint maps over the ranges of {where}: {spans}"] if maps else [])
+        counted += f", {model['cause_coefficients']} coefficients of its causes ({'; '.join(parts)})"
     counted += f", {len(model['setup'])} of the new session's set-up"
     counted += f"; left out (redundant or no effect here): {', '.join(report['fixed'])}" if report["fixed"] else ""
-    known = "; ".join(model["known_before"])
-    return counted + "\n  known before the poses: " + (known or "nothing (the nominal robot)")
+    return counted + "\n  known before the poses: " + ("; ".join(model["known_before"]) or "nothing (the nominal robot, no data)")
 
 
 def summary(report: dict, out: str, seconds: float) -> str:
