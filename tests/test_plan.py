@@ -347,6 +347,10 @@ def test_the_cli_plans_from_a_result_or_a_diagnosis_and_data(tmp_path, capsys):
         printed = capsys.readouterr().out
         assert code == 0, printed
         assert robocal.load(out).q.shape == (15, 6)
+        known = (
+            "known before the poses: the result's 64 training samples re-linearised" if source == "result.json" else "known before the poses: the 80 samples"
+        )
+        assert known in printed, printed
     report = __import__("json").loads((tmp_path / "diag.json.plan.json").read_text())
     assert report["data"]["samples"] == 80 and [c["label"] for c in report["causes"]] == ["joint_scale joint 3"]
     assert report["causes_not_by_poses"][0]["label"] == "drift" and "drift" in printed

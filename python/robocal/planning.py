@@ -851,8 +851,8 @@ class _Uncertainty:
     @classmethod
     def of(cls, design: _Design, M: np.ndarray, sigma: float, W: np.ndarray) -> "_Uncertainty":
         """Also the error predicted on a new session over the workspace, ``σ·√tr(W M⁺)`` (mm;
-        None where ``W`` needs a direction ``M`` leaves undetermined): one eigendecomposition
-        serves every figure."""
+        None where ``W`` needs a direction ``M`` leaves undetermined): one factorisation
+        (:func:`_inverse_half`) serves every figure."""
         half, null = _inverse_half(M)
         cov = half @ half.T
         w, k, p = design.position.shape
@@ -889,7 +889,9 @@ class _Uncertainty:
 
 
 def _inverse_half(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``H`` with ``M⁺ = H·Hᵀ`` and a basis (unit columns) of the directions ``M`` leaves
+    """``H`` with ``G = H·Hᵀ`` a generalised inverse of ``M`` (``M G M = M``: every determined
+    quantity's variance is the same with any; ``M⁻¹`` on the entries ``M`` holds something on,
+    when those determine each other) and a basis (unit columns) of the directions ``M`` leaves
     undetermined: those weaker than :data:`UNDETERMINED` of the largest once ``M`` is scaled to a
     unit diagonal (a result's prior holds map coefficients ten decades better than a weakly seen
     length: unscaled, that length looked undetermined), and the entries ``M`` holds nothing on
