@@ -351,6 +351,7 @@ def test_the_cli_plans_from_a_result_or_a_diagnosis_and_data(tmp_path, capsys):
             "known before the poses: the result's 64 training samples re-linearised" if source == "result.json" else "known before the poses: the 80 samples"
         )
         assert known in printed, printed
+        assert ("d.csv is the result's training data and the data measured with the sensor in place" in printed) == (source == "result.json")
     report = __import__("json").loads((tmp_path / "diag.json.plan.json").read_text())
     assert report["data"]["samples"] == 80 and [c["label"] for c in report["causes"]] == ["joint_scale joint 3"]
     assert report["causes_not_by_poses"][0]["label"] == "drift" and "drift" in printed

@@ -1202,6 +1202,10 @@ def plan(
     known = None if doc is None else _result_information(doc, robot, params, design, structures, sigma, angle_unit)
     if known is not None and known.why:
         notes.append(known.why)
+    trained = {s.get("sha256") for s in _training_sessions(doc)} - {None} if doc is not None else set()
+    twice = [d.source for d in datasets if d.source and file_sha256(d.source) in trained]
+    if twice:
+        notes.append(f"{twice[0]} is the result's training data and the data measured with the sensor in place: its information is counted twice")
     from_result = known is not None and known.M is not None
     before_info = design.M_data + design.M_prior + (known.M if from_result else 0.0)
     start = before_info + RIDGE * np.eye(len(design.names))
