@@ -407,7 +407,7 @@ def test_the_results_information_is_its_covariance_of_the_robots_parameters(tmp_
     assert len(kinematic) > 10
     for name in kinematic:
         expected = std[name] if not name.startswith(("alpha", "theta", "beta")) else np.degrees(std[name])
-        assert before[name] == pytest.approx(expected, rel=0.05), name
+        assert before[name] == pytest.approx(expected, rel=0.01), name
     assert all(before[n] is None for n in before if n.startswith(("base_", "tool_")))
 
 

@@ -756,7 +756,8 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
     (each session at its own set-up) with the design's model — the same entries, the maps on the
     result's knots —, each session's own columns (its set-up, its sensor terms) eliminated by the
     Schur complement ``G_rr − G_rs G_ss⁺ G_sr`` (a new session places its sensor anew), summed and
-    weighed by ``(σ / s)²``: ``s`` the result's training residual per reading, so that
+    weighed by ``(σ / s)²``: ``s`` the result's training residual per reading (its weighted
+    residuals' ``√(Σr² / (rows − entries))``, as its covariance; else from its RMSE), so that
     ``σ² M⁻¹`` is the result's own covariance of those entries (its residuals, larger than the
     sensor's noise where the model misses something, are what its figures rest on)."""
     measurement = doc["measurement"]
@@ -768,8 +769,9 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
     at = {n: i for i, n in enumerate(design.names)}
     cols = np.array(sorted(set(design.base_free.tolist()) | {robot.index(n) for n in setup_names(robot, measurement)}), dtype=int)
     M = np.zeros((len(design.names),) * 2)
-    angles = []
-    for s in sessions:
+    angles, squares, rows = [], 0.0, 0
+    fitted = {(c.get("label"), c.get("session")): c.get("coefficients") for c in doc.get("causes", [])}
+    for number, s in enumerate(sessions, start=1):
         data, _ = load_inputs(s["source"], robot, measurement, angle_unit)
         data = structure.apply_all(data, structures)  # the readings in the model's angles, as the fit read them
         idx = np.flatnonzero(np.isin(data.rows, s["rows_used"]))
@@ -791,9 +793,32 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
         to = [at[names[i]] for i in r]
         M[np.ix_(to, to)] += (S + S.T) / 2
         angles.append(data.q[idx])
+        x = _result_x(model, fitted, number)
+        if x is not None and squares is not None:
+            weighted = model.data_residuals(x) * model.row_weights  # as the fit weighs them (pose data's rotation rows)
+            squares, rows = squares + float(weighted @ weighted), rows + weighted.size
+        else:
+            squares = None
+    if squares is not None and rows > len(doc.get("free", [])):  # the result's own residual variance (its covariance's)
+        noise = math.sqrt(squares / (rows - len(doc["free"])))
     M *= (sigma / noise) ** 2 / np.outer(design.scale, design.scale)
     q = np.vstack(angles)
     return _Known(M, q, len(q), noise)
+
+
+def _result_x(model, fitted: dict, session: int) -> Optional[np.ndarray]:
+    """The result's values of ``model``'s entries (its parameters at the model's start, each
+    cause's coefficients from ``fitted``: ``(label, session or None) -> coefficients``), or None
+    where the result lacks one."""
+    x = model.x0
+    for cause, at in zip(getattr(model, "causes", []), getattr(model, "slices", [])):
+        if cause.stage == "parameters":
+            continue
+        values = fitted.get((cause.label, session), fitted.get((cause.label, None)))
+        if values is None or len(values) != at.stop - at.start:
+            return None
+        x[at] = values
+    return x
 
 
 def _working(entries: int, candidates: int, poses: int, rng: np.random.Generator, notes: list) -> np.ndarray:
