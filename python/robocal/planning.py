@@ -1130,7 +1130,9 @@ def plan(
         How many poses to plan, at most :data:`MAX_POSES`.
     result : path or dict, optional
         A calibration result: the plan is linearised at its calibrated robot and set-up (the
-        cable's anchor, the tracker's frame) and its model includes the result's causes.
+        cable's anchor, the tracker's frame), its model has the result's entries (its joint maps on
+        their fitted ranges) and a new session's set-up, and what the result's training data
+        measured is the prior (see the module notes; files gone or changed: a note, no prior).
     causes : list of str, dict or path, optional
         Causes the model will include: labels as ``robocal diagnose`` prints them, or a diagnose
         report (dict or JSON file). Causes acting on the joints and parameters shape the poses
@@ -1191,7 +1193,10 @@ def plan(
         the set-up re-fitted, mm: ``before``, ``after``, ``random``; None where undetermined), ``order``
         (``passes``, ``travel_deg`` beside a single tour's and a random order's, each joint's
         ``correlation`` with the acquisition order), ``constraints`` and ``not_checked``,
-        ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
+        ``fixed`` (parameters left out, and why), ``model`` (what is counted: ``entries``,
+        ``robot_parameters``, ``cause_coefficients``, ``setup``, each joint map's ``coefficients``,
+        ``range_deg``, ``gaps_deg`` and ``range_from``; ``known_before``), ``causes_not_by_poses``
+        and ``notes``.
     """
     poses = as_count(poses, "poses", least=1, most=MAX_POSES)  # before any file is read
     candidates = as_count(candidates, "candidates", least=poses, most=MAX_CANDIDATES)
