@@ -347,6 +347,102 @@ def test_the_cli_plans_from_a_result_or_a_diagnosis_and_data(tmp_path, capsys):
         printed = capsys.readouterr().out
         assert code == 0, printed
         assert robocal.load(out).q.shape == (15, 6)
+        known = (
+            "known before the poses: the result's 64 training samples re-linearised" if source == "result.json" else "known before the poses: the 80 samples"
+        )
+        assert known in printed, printed
+        assert ("d.csv is the result's training data and the data measured with the sensor in place" in printed) == (source == "result.json")
     report = __import__("json").loads((tmp_path / "diag.json.plan.json").read_text())
     assert report["data"]["samples"] == 80 and [c["label"] for c in report["causes"]] == ["joint_scale joint 3"]
     assert report["causes_not_by_poses"][0]["label"] == "drift" and "drift" in printed
+
+
+# -- a plan for a new session of a calibrated robot (issue 55) -----------------------------------
+MAP = "joint_map joint 2 spacing=10.0 roughness=0.01"
+
+
+def _calibrated(tmp_path, causes=(), samples=150):
+    """A UR10 tracker session with joint 2 within -100..-40 deg, written to a file, calibrated with ``causes``."""
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-np.pi, np.pi, (samples, 6))
+    q[:, 1] = np.radians(rng.uniform(-100.0, -40.0, samples))
+    data, truth = simulate("ur10", "position", seed=7, poses=q)
+    path, _ = robocal.simulation.write_simulation(data, truth, tmp_path / "session.csv")
+    return path, robocal.calibrate(str(path), robot="ur10", measurement="position", causes=list(causes) or None).to_dict()
+
+
+def test_a_plan_from_a_result_with_a_joint_map_counts_the_results_map_and_knows_what_it_knows(tmp_path):
+    """Issue 55: a result's joint map spanned the candidates' whole range (±360 deg: 73 coefficients
+    for the result's 7, 100 entries for its 34; on the UR10 of series A+B 1 763 for 709) and the
+    figures were undetermined or meaningless (here 2.02 mm after, 0.21 mm random)."""
+    _, result = _calibrated(tmp_path, [MAP])
+    fitted = next(c for c in result["causes"] if c["label"] == MAP)
+    report = plan(poses=20, result=result, candidates=1500, seed=1).report
+    counted = report["model"]
+    assert counted["maps"] == [
+        {
+            "label": MAP,
+            "coefficients": len(fitted["coefficients"]),
+            "range_deg": [fitted["detail"]["lo"], fitted["detail"]["hi"]],
+            "gaps_deg": fitted["detail"]["gaps"],
+            "range_from": "the result's fit",
+        }
+    ]
+    assert counted["entries"] == len(result["free"])  # the result's entries: its robot and one session's set-up
+    assert "training samples re-linearised" in counted["known_before"][0]
+    prediction = report["prediction"]
+    assert None not in (prediction["before"], prediction["after"], prediction["random"])
+    assert prediction["after"] <= prediction["random"]
+    assert prediction["after"] < prediction["before"]  # 20 more poses add to what the result knew
+
+
+def test_the_results_information_is_its_covariance_of_the_robots_parameters(tmp_path):
+    """Before any pose, a plan from a result knows the robot's parameters as the result does: the
+    Schur complement of its training information, its set-up eliminated, is the inverse of its
+    covariance of them; the new session's set-up is undetermined."""
+    _, result = _calibrated(tmp_path)
+    report = plan(poses=12, result=result, candidates=600, seed=1).report
+    std = {p["name"]: p["std"] for p in result["parameters"]}
+    before = {e["name"]: e["before"] for e in report["parameters"]}
+    kinematic = [n for n in before if n in result["free"] and not n.startswith(("base_", "tool_"))]
+    assert len(kinematic) > 10
+    for name in kinematic:
+        expected = std[name] if not name.startswith(("alpha", "theta", "beta")) else np.degrees(std[name])
+        assert before[name] == pytest.approx(expected, rel=0.01), name
+    assert all(before[n] is None for n in before if n.startswith(("base_", "tool_")))
+
+
+def test_a_result_whose_training_data_are_gone_is_planned_without_them_and_says_so(tmp_path):
+    path, result = _calibrated(tmp_path)
+    path.unlink()
+    report = plan(poses=12, result=result, candidates=600, seed=1).report
+    assert any(f"its training data {path} are not found" in n for n in report["notes"])
+    assert report["model"]["known_before"] == [] and report["prediction"]["before"] is None
+    assert report["prediction"]["after"] is not None
+
+
+def test_a_coverage_that_takes_more_poses_than_planned_is_left_to_the_criterion():
+    report = plan("hsr-jr680", "cable", 12, causes=["joint_map joint 2 spacing=2.0 roughness=0.01"], **SMALL).report
+    assert any("more than the 12 planned: the criterion places them all" in n for n in report["notes"])
+    assert report["model"]["maps"][0]["range_from"] == "the candidates' (and the data's) angles"
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(p=st.integers(1, 7), rows=st.integers(0, 12), empty=st.integers(0, 3), seed=st.integers(0, 2**16))
+def test_the_inverse_half_is_a_generalised_inverse_and_the_pseudo_inverse_where_only_empty_entries_are_undetermined(p, rows, empty, seed):
+    """``G = H·Hᵀ`` satisfies ``M G M = M`` (what a determined quantity's variance needs: the same
+    for every generalised inverse), is ``M⁺`` when only entries nothing is known of are
+    undetermined, and the undetermined directions span M's null space — by Cholesky or eigenvalues."""
+    from robocal.planning import _inverse_half
+
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(rows, p)) * np.exp(rng.uniform(-3, 3, p))
+    B[:, :empty] = 0.0  # entries nothing is known of (a new session's set-up)
+    M = B.T @ B
+    H, null = _inverse_half(M)
+    G = H @ H.T
+    assert H.shape[1] + null.shape[1] == p == H.shape[1] + p - np.linalg.matrix_rank(M)
+    np.testing.assert_allclose(M @ G @ M, M, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(M).max()))
+    assert np.allclose(M @ null, 0.0, atol=1e-8 * max(1.0, np.abs(M).max()))
+    if np.linalg.matrix_rank(M) == p - min(empty, p):
+        np.testing.assert_allclose(G, np.linalg.pinv(M, hermitian=True), rtol=1e-6, atol=1e-9 * max(1.0, np.abs(G).max()))

@@ -25,6 +25,20 @@ grows). Design libraries (pyDOE, dexpy, OApackage, pyoptex) build designs for po
 of factors; none takes a user's Jacobian blocks of k rows per pose with a prior information
 matrix, and the two algorithms are a few lines on NumPy.
 
+A new session of a calibrated robot (``result=``, ``--from RESULT``): a result with causes is a
+model of hundreds of entries (the UR10 of series A and B with joint maps on every joint: 700 of
+the robot), which a session of 60 poses cannot fit anew. Its entries are the result's — its
+estimated parameters, its causes, each joint map on the range, knots and gaps it was fitted on
+(the cause's ``detail``), a parameter redundant with a new session's set-up left to the set-up —
+and what the result knows is the prior ``M_0`` (:func:`_result_information`): its training
+samples read again (each session's file and rows, as the result records them), re-linearised
+with the plan's model, each old session's set-up and sensor terms eliminated (a Schur
+complement: the new session places its sensor anew), weighed by the result's training residual
+so that ``σ² M_0⁻¹`` is the result's covariance of the robot's entries. The plan then chooses
+the poses by what they add to it. A model of more than :data:`LARGE_MODEL` entries is planned
+among :data:`WORKING` of the candidates drawn at random (each exchange step reads every
+candidate's rows); the report's ``model`` says what is counted and what is known before.
+
 Order: a short tour through the poses (nearest neighbour, then 2-opt on the sum of joint moves)
 is dealt into ``passes`` interleaved passes — pass ``b`` takes every ``passes``-th pose of the
 tour, alternate passes run backwards — so each pass sweeps the whole workspace and a sensor that
@@ -44,12 +58,14 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
 from .calibration.api import another_robot, load_inputs
 from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
-from .calibration.sessions import SESSION_KINDS, concatenate
+from .calibration.sessions import SESSION_KINDS, concatenate, is_private, session_problems
 from .causes import structure
+from .causes.candidates import map_coverage
 from .causes.extended import extended_problem, read_causes
 from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
 from .data.canonical import write_canonical
@@ -57,7 +73,7 @@ from .data.dataset import Dataset
 from .exceptions import DataError, InvalidParameterError
 from .outputs import Staged
 from .physics import DEG
-from .results import load_result
+from .results import file_sha256, load_result
 from .robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, robot as load_robot, setup_names
 from .sensors import DEFAULT_NOISE
 from .simulation import CABLE_RANGE, RANGE_MARGIN, setup
@@ -82,10 +98,15 @@ CRITERIA = {
     "I": "I-optimal: the least mean variance of a new session's readings over the workspace, its set-up re-fitted; Fedorov exchange from the D-optimal design",
     "D": "D-optimal: log det of the parameters' information; greedy selection, Fedorov exchange",
 }
+#: A model of more entries than this is planned among :data:`WORKING` of the candidates (:func:`_working`).
+LARGE_MODEL = 200
+WORKING = 2000
 #: Fedorov exchange passes over the chosen poses (each stops early once no swap helps).
 EXCHANGE_PASSES = 3
 #: Iterations of the multiplicative algorithm behind :func:`i_bound` (its bound is valid after any number).
 BOUND_ITERATIONS = 300
+#: ... for a model of more than :data:`LARGE_MODEL` entries: each iteration reads every candidate's rows thrice.
+LARGE_BOUND_ITERATIONS = 20
 #: Poses on which the predicted position's standard deviation over the workspace is averaged.
 WORKSPACE_POSES = 500
 #: A direction of the information matrix weaker than this (relative to its largest) is undetermined.
@@ -268,7 +289,9 @@ def _whitened(A: np.ndarray, M0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     coordinates, the blocks drifted below −1)."""
     L = np.linalg.cholesky(M0)
     n, k, p = A.shape
-    return np.linalg.solve(L, A.reshape(n * k, p).T).T.reshape(n, k, p), np.eye(p)
+    # C order: every rank-k update reshapes it to (n·k, p), which copies a transposed array (a
+    # copy of 200 MB per update at 10 000 candidates of 700 entries).
+    return np.ascontiguousarray(solve_triangular(L, A.reshape(n * k, p).T, lower=True).T).reshape(n, k, p), np.eye(p)
 
 
 def _greedy(A: np.ndarray, Minv: np.ndarray, chosen: list, size: int) -> list:
@@ -380,9 +403,8 @@ def _i_update(A: np.ndarray, Minv: np.ndarray, W: np.ndarray, S: np.ndarray, T: 
     n, k, p = A.shape
     U = Minv @ A[i].T
     R = np.linalg.inv(np.eye(k) + sign * S[i])
-    flat = A.reshape(n * k, p)
-    C = (flat @ U).reshape(n, k, k)
-    E = (flat @ (Minv @ (W @ U))).reshape(n, k, k)
+    CE = A.reshape(n * k, p) @ np.hstack([U, Minv @ (W @ U)])  # one pass over the candidates' rows, the time it takes
+    C, E = CE[:, :k].reshape(n, k, k), CE[:, k:].reshape(n, k, k)
     CR = C @ R
     cross = np.matmul(CR, E.transpose(0, 2, 1))
     T = T - sign * (cross + cross.transpose(0, 2, 1)) + np.matmul(CR @ (U.T @ W @ U), CR.transpose(0, 2, 1))
@@ -421,7 +443,7 @@ def i_criterion(A: np.ndarray, M0: np.ndarray, W: np.ndarray, chosen) -> float:
     """``tr(W M⁻¹)``, ``M = M0 + Σ A_iᵀA_i`` over ``chosen``: the average prediction variance
     (in units of the reading's variance) over the poses ``W`` averages."""
     idx = np.asarray(chosen, dtype=int)
-    M = M0 + np.einsum("nkp,nkq->pq", A[idx], A[idx])
+    M = M0 + _information(A[idx])
     return float(np.trace(np.linalg.solve(M, W)))
 
 
@@ -498,20 +520,10 @@ def workspace_weights(A: np.ndarray, names: Sequence[str], setup: Sequence[str])
 
 
 def _information(A: np.ndarray) -> np.ndarray:
-    """``Σ A_iᵀA_i`` of the candidates' rows ``A`` (n, k, p)."""
-    return np.einsum("nkp,nkq->pq", A, A)
-
-
-def _prediction_rms(M: np.ndarray, W: np.ndarray, sigma: float) -> Optional[float]:
-    """The RMS over the workspace of the error (mm; the norm of a pose's readings, as
-    ``robocal verify``'s RMSE) predicted on a new session, ``σ·√tr(W M⁺)``; None where ``W``
-    needs a direction ``M`` leaves undetermined."""
-    values, V = np.linalg.eigh(M)
-    keep = values > UNDETERMINED * max(float(values[-1]), 0.0) if values[-1] > 0 else np.zeros(len(values), dtype=bool)
-    null = V[:, ~keep]
-    if null.size and np.linalg.norm(W @ null) > 1e-9 * max(np.linalg.norm(W), 1e-300):
-        return None
-    return float(sigma * math.sqrt(max(np.trace(W @ (V[:, keep] / values[keep]) @ V[:, keep].T), 0.0)))
+    """``Σ A_iᵀA_i`` of the candidates' rows ``A`` (n, k, p), by one BLAS product (an einsum
+    over ten thousand candidates of a thousand entries takes a minute)."""
+    flat = A.reshape(-1, A.shape[2])
+    return flat.T @ flat
 
 
 def map_bins(q: np.ndarray, lower: float, upper: float, spacing: float) -> np.ndarray:
@@ -622,19 +634,36 @@ class _Design:
     causes: list
     slices: list
     fixed: dict
+    base_free: np.ndarray
+    labels: list
+    fitted: dict
 
 
 def _design(
-    robot: Robot, measurement: str, params: np.ndarray, data: Optional[Dataset], pool: np.ndarray, labels: list, sigma: float, rng: np.random.Generator
+    robot: Robot,
+    measurement: str,
+    params: np.ndarray,
+    data: Optional[Dataset],
+    pool: np.ndarray,
+    labels: list,
+    sigma: float,
+    rng: np.random.Generator,
+    fitted: Optional[dict] = None,
+    mask: Optional[list] = None,
 ) -> _Design:
-    """The model over the measured samples and the candidates (model angles, (n, N)), linearised at ``params``."""
+    """The model over the measured samples and the candidates (model angles, (n, N)), linearised
+    at ``params``; ``fitted``: label -> detail of the joint maps a result fitted (they keep its
+    range and knots); ``mask``: the parameters of a result, considered with the set-up kept
+    first (a parameter redundant with a new session's set-up, as ``a6`` with ``tool_x``, is the
+    set-up's: :func:`~robocal.calibration.sessions.session_problems`); default the robot's, the
+    identifiable subset as a calibration on the data decides it."""
     k = RESIDUAL_WIDTH[measurement]
     expected = Dataset(q=pool, y=robot.predict(measurement, pool, params), measurement=measurement, robot=robot.name)
     both = expected if data is None else concatenate([replace(data, extra={}), expected])
     m = 0 if data is None else len(data)
-    problem = Problem.build(robot, both, params=params)
+    problem = Problem.build(robot, both, params=params) if mask is None else session_problems(robot, [both], mask)[0]
     problem.start = params.copy()  # linearised at the set-up given or fitted before, not re-fitted on expected readings
-    model = problem if not labels else extended_problem(problem, both, np.arange(len(both)), labels, noise=sigma)
+    model = problem if not labels else extended_problem(problem, both, np.arange(len(both)), labels, noise=sigma, fitted=fitted)
     J = model.jacobian(model.x0)
     J = J.toarray() if is_sparse(J) else np.asarray(J)
     data_rows, pool_rows, prior_rows = J[: m * k], J[m * k : (m + len(pool)) * k], J[(m + len(pool)) * k :]
@@ -670,7 +699,165 @@ def _design(
         causes=causes,
         slices=slices,
         fixed=dict(problem.fixed),
+        base_free=np.asarray(problem.free),
+        labels=list(labels),
+        fitted=dict(fitted or {}),
     )
+
+
+@dataclass
+class _Known:
+    """What a calibration result already knows of the robot (:func:`_result_information`): the
+    information of its training data on the design's entries (scaled columns; the set-up's and
+    the old sessions' own terms eliminated: zero there), their joint angles (model's), how many,
+    and a note on why it is not used (then ``M`` is None)."""
+
+    M: Optional[np.ndarray]
+    q: Optional[np.ndarray]
+    samples: int
+    noise: float
+    why: Optional[str] = None
+
+
+def _result_mask(doc: dict, robot: Robot, measurement: str) -> list[str]:
+    """The parameters a result estimated (its ``free``, each session's set-up once) and the whole
+    set-up: the robot's parameters it held fixed as redundant with its sessions' set-ups stay
+    fixed, so that a new session's set-up is free and the robot's entries are the result's."""
+    free = {name.split(" [session")[0] for name in doc.get("free", [])}
+    return [n for n in robot.param_names if n in free or n in setup_names(robot, measurement)]
+
+
+def _training_sessions(doc: dict) -> list[dict]:
+    """A result's training sessions as its ``sessions`` lists them (a fit on several), or its one
+    ``dataset`` with the session terms among its causes."""
+    if doc.get("sessions"):
+        return doc["sessions"]
+    d = doc.get("dataset") or {}
+    terms = [c.get("label", c.get("kind")) for c in doc.get("causes", []) if c.get("kind") in SESSION_KINDS]
+    return [{"source": d.get("source"), "sha256": d.get("sha256"), "rows_used": d.get("rows_used"), "setup": None, "terms": terms}]
+
+
+def _unread(sessions: list[dict]) -> Optional[str]:
+    """Why a result's training data cannot be read again, or None."""
+    for s in sessions:
+        source, rows = s.get("source"), s.get("rows_used")
+        if source is None or rows is None:
+            return "the result names no training data file (it was calibrated on data in memory)"
+        if not Path(source).is_file():
+            return f"its training data {source} are not found"
+        if s.get("sha256") and file_sha256(source) != s["sha256"]:
+            return f"its training data {source} changed since the calibration (another SHA-256)"
+    return None
+
+
+def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _Design, structures: list, sigma: float, angle_unit) -> _Known:
+    """What the result ``doc`` knows of the robot's entries of ``design``, in the plan's units:
+    its training samples (each session's file and rows) re-linearised at the calibrated robot
+    (each session at its own set-up) with the design's model — the same entries, the maps on the
+    result's knots —, each session's own columns (its set-up, its sensor terms) eliminated by the
+    Schur complement ``G_rr − G_rs G_ss⁺ G_sr`` (a new session places its sensor anew), summed and
+    weighed by ``(σ / s)²``: ``s`` the result's training residual per reading (its weighted
+    residuals' ``√(Σr² / (rows − entries))``, as its covariance; else from its RMSE), so that
+    ``σ² M⁻¹`` is the result's own covariance of those entries (its residuals, larger than the
+    sensor's noise where the model misses something, are what its figures rest on)."""
+    measurement = doc["measurement"]
+    sessions = _training_sessions(doc)
+    noise = float(doc["metrics"]["train"]["rmse"]) / math.sqrt(min(RESIDUAL_WIDTH[measurement], 3))  # the RMSE is a position's norm: 3 readings
+    why = _unread(sessions)
+    if why is not None:
+        return _Known(None, None, 0, noise, f"the result's information is not used — {why}: the plan counts only what its poses (and the data) measure")
+    at = {n: i for i, n in enumerate(design.names)}
+    cols = np.array(sorted(set(design.base_free.tolist()) | {robot.index(n) for n in setup_names(robot, measurement)}), dtype=int)
+    M = np.zeros((len(design.names),) * 2)
+    angles, squares, rows = [], 0.0, 0
+    fitted = {(c.get("label"), c.get("session")): c.get("coefficients") for c in doc.get("causes", [])}
+    for number, s in enumerate(sessions, start=1):
+        data, _ = load_inputs(s["source"], robot, measurement, angle_unit)
+        data = structure.apply_all(data, structures)  # the readings in the model's angles, as the fit read them
+        idx = np.flatnonzero(np.isin(data.rows, s["rows_used"]))
+        if len(idx) != len(s["rows_used"]):
+            lost = f"{len(s['rows_used']) - len(idx)} of its training rows are not in {s['source']}"
+            return _Known(None, None, 0, noise, f"the result's information is not used — {lost}: the plan counts only what its poses (and the data) measure")
+        p = params.copy()
+        for name, value in (s.get("setup") or {}).items():
+            p[robot.index(name)] = value
+        base = Problem(robot, data.subset(idx), free=cols, start=p)
+        model = extended_problem(base, data, idx, design.labels + list(s.get("terms", [])), every=False, noise=sigma, fitted=design.fitted)
+        J = model.jacobian(model.x0)[: len(idx) * model.k]  # the data rows: the maps' roughness is the design's prior, counted once
+        G = J.T @ J
+        G = G.toarray() if is_sparse(G) else np.asarray(G)
+        names = model.names
+        own = np.array([n in at and not is_private(n, measurement) for n in names])  # the rest is this session's: eliminated
+        r, e = np.flatnonzero(own), np.flatnonzero(~own)
+        S = G[np.ix_(r, r)] - G[np.ix_(r, e)] @ np.linalg.pinv(G[np.ix_(e, e)]) @ G[np.ix_(e, r)] if e.size else G[np.ix_(r, r)]
+        to = [at[names[i]] for i in r]
+        M[np.ix_(to, to)] += (S + S.T) / 2
+        angles.append(data.q[idx])
+        x = _result_x(model, fitted, number)
+        if x is not None and squares is not None:
+            weighted = model.data_residuals(x) * model.row_weights  # as the fit weighs them (pose data's rotation rows)
+            squares, rows = squares + float(weighted @ weighted), rows + weighted.size
+        else:
+            squares = None
+    if squares is not None and rows > len(doc.get("free", [])):  # the result's own residual variance (its covariance's)
+        noise = math.sqrt(squares / (rows - len(doc["free"])))
+    M *= (sigma / noise) ** 2 / np.outer(design.scale, design.scale)
+    q = np.vstack(angles)
+    return _Known(M, q, len(q), noise)
+
+
+def _result_x(model, fitted: dict, session: int) -> Optional[np.ndarray]:
+    """The result's values of ``model``'s entries (its parameters at the model's start, each
+    cause's coefficients from ``fitted``: ``(label, session or None) -> coefficients``), or None
+    where the result lacks one."""
+    x = model.x0
+    for cause, at in zip(getattr(model, "causes", []), getattr(model, "slices", [])):
+        if cause.stage == "parameters":
+            continue
+        values = fitted.get((cause.label, session), fitted.get((cause.label, None)))
+        if values is None or len(values) != at.stop - at.start:
+            return None
+        x[at] = values
+    return x
+
+
+def _working(entries: int, candidates: int, poses: int, rng: np.random.Generator, notes: list) -> np.ndarray:
+    """The candidates the design is chosen among: all of them, or for a model of more than
+    :data:`LARGE_MODEL` entries (a result's joint maps) :data:`WORKING` (at least 11 per pose)
+    drawn at random from them, and a note. Each exchange step reads every candidate's rows, a
+    time ∝ entries: 700 entries over 10 000 candidates took minutes."""
+    size = max(WORKING, 11 * poses)
+    if entries <= LARGE_MODEL or candidates <= size:
+        return np.arange(candidates)
+    notes.append(
+        f"the model has {entries} entries: the poses are chosen among {size:,} of the {candidates:,} candidates, drawn at random "
+        "(the random poses compared with and the workspace are drawn from all of them)"
+    )
+    return np.sort(rng.choice(candidates, size=size, replace=False))
+
+
+def _required(design: _Design, A: np.ndarray, pool: np.ndarray, seen: Optional[np.ndarray], start: np.ndarray, poses: int, notes: list) -> list[int]:
+    """Candidates (of ``A``, ``pool``) that put a pose in every knot spacing of a joint map's range that no pose
+    already measured (``seen``: the data's and a result's training angles, model's) covers
+    (:func:`_coverage`) — if that takes at most ``poses``; else none, and a note: the criterion
+    then places every pose (filling the first maps' bins and none of the others' is worse). A
+    result's map has no bins beyond its range or in the gaps of its data: it has no
+    coefficients there."""
+    bins, covered = [], []
+    for c in design.causes:
+        if c.kind == "joint_map":
+            span = (float(c.detail["lo"]) * DEG, float(c.detail["hi"]) * DEG, float(c.detail["spacing"]) * DEG)
+            b = map_bins(pool[:, c.joint], *span)
+            bins.append(np.where(map_coverage(pool[:, c.joint], c.detail), b, -1) if c.label in design.fitted else b)
+            covered.append(np.unique(np.concatenate([[-1], [] if seen is None else map_bins(seen[:, c.joint], *span)])))
+    needed = sum(np.setdiff1d(b, done).size for b, done in zip(bins, covered))
+    if needed > poses:
+        notes.append(
+            f"a pose every knot spacing along the joint maps' ranges would take {needed} poses, more than the {poses} planned: the criterion places "
+            "them all, and a map's correction fades out within a few knot spacings where its joint's range is left without poses"
+        )
+        return []
+    return _coverage(A, start, bins, covered) if needed else []
 
 
 @dataclass
@@ -684,19 +871,32 @@ class _Uncertainty:
     position: np.ndarray
     undetermined: int
     logdet: float
+    prediction: Optional[float]
 
     @classmethod
-    def of(cls, design: _Design, M: np.ndarray, sigma: float) -> "_Uncertainty":
-        values, V = np.linalg.eigh(M)
-        keep = values > UNDETERMINED * max(float(values[-1]), 0.0) if values[-1] > 0 else np.zeros(len(values), dtype=bool)
-        cov, null = (V[:, keep] / values[keep]) @ V[:, keep].T, V[:, ~keep]
-        P = design.position
-        spread = np.sqrt(np.maximum(np.einsum("wap,pq,waq->w", P, cov, P), 0.0)) * sigma
+    def of(cls, design: _Design, M: np.ndarray, sigma: float, W: np.ndarray) -> "_Uncertainty":
+        """Also the error predicted on a new session over the workspace, ``σ·√tr(W M⁺)`` (mm;
+        None where ``W`` needs a direction ``M`` leaves undetermined): one factorisation
+        (:func:`_inverse_half`) serves every figure."""
+        half, null = _inverse_half(M)
+        cov = half @ half.T
+        w, k, p = design.position.shape
+        P = design.position.reshape(w * k, p)
+        spread = np.sqrt(np.sum((P @ half) ** 2, axis=1).reshape(w, k).sum(axis=1)) * sigma  # products, not an einsum over p²: 1 000 entries take a second
         loose = np.linalg.norm(null, axis=1) > 1e-6
-        unsure = np.linalg.norm(np.einsum("wap,pr->war", P, null), axis=(1, 2)) > 1e-6 * np.linalg.norm(P, axis=(1, 2))
+        unsure = np.linalg.norm((P @ null).reshape(w, -1), axis=1) > 1e-6 * np.linalg.norm(P.reshape(w, -1), axis=1)
         covariance = sigma**2 * cov / np.outer(design.scale, design.scale)  # back in the parameters' own units
         logdet = float(np.linalg.slogdet(M + RIDGE * np.eye(len(M)))[1])
-        return cls(cov=covariance, loose=loose, position=np.where(unsure, np.nan, spread), undetermined=int(null.shape[1]), logdet=logdet)
+        needs = null.size and np.linalg.norm(W @ null) > 1e-9 * max(np.linalg.norm(W), 1e-300)
+        prediction = None if needs else float(sigma * math.sqrt(max(float(np.sum((W @ half) * half)), 0.0)))
+        return cls(
+            cov=covariance,
+            loose=loose,
+            position=np.where(unsure, np.nan, spread),
+            undetermined=int(null.shape[1]),
+            logdet=logdet,
+            prediction=prediction,
+        )
 
     def std(self, i) -> Optional[np.ndarray]:
         """Standard deviations of the entries ``i`` (mm, rad, ...), None if any is undetermined."""
@@ -711,6 +911,39 @@ class _Uncertainty:
             "max_mm": float(known.max()) if known.size else None,
             "undetermined_share": float(np.mean(~np.isfinite(self.position))),
         }
+
+
+def _inverse_half(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``H`` with ``G = H·Hᵀ`` a generalised inverse of ``M`` (``M G M = M``: every determined
+    quantity's variance is the same with any; ``M⁻¹`` on the entries ``M`` holds something on,
+    when those determine each other) and a basis (unit columns) of the directions ``M`` leaves
+    undetermined: those weaker than :data:`UNDETERMINED` of the largest once ``M`` is scaled to a
+    unit diagonal (a result's prior holds map coefficients ten decades better than a weakly seen
+    length: unscaled, that length looked undetermined), and the entries ``M`` holds nothing on
+    (zero rows: a new session's set-up before it is measured). By Cholesky (a tenth of an
+    eigendecomposition's time) where no direction can be that weak (``λ_min/λ_max ≥ 1/(tr M⁻¹·tr
+    M)``); else by eigenvalues."""
+    p = len(M)
+    live = np.flatnonzero(np.diag(M) > 0.0)
+    root = np.sqrt(np.diag(M)[live])
+    Ms = M[np.ix_(live, live)] / np.outer(root, root)
+    half, null = np.zeros((p, live.size)), np.eye(p)[:, np.setdiff1d(np.arange(p), live)]
+    try:
+        if not live.size:
+            return half, null
+        inverse = solve_triangular(np.linalg.cholesky(Ms), np.eye(live.size), lower=True).T  # L⁻ᵀ
+        if float(np.sum(inverse**2)) * float(np.trace(Ms)) > 1.0 / UNDETERMINED:
+            raise np.linalg.LinAlgError("perhaps undetermined")
+    except np.linalg.LinAlgError:
+        values, V = np.linalg.eigh(Ms)
+        keep = values > UNDETERMINED * max(float(values[-1]), 0.0)
+        inverse = V[:, keep] / np.sqrt(values[keep])
+        weak = np.zeros((p, int((~keep).sum())))
+        weak[live] = V[:, ~keep] / root[:, None]
+        null = np.hstack([null, weak / np.linalg.norm(weak, axis=0)])
+        half = np.zeros((p, inverse.shape[1]))
+    half[live] = inverse / root[:, None]
+    return half, null
 
 
 def _shown(std: Optional[np.ndarray], unit: str) -> Optional[float]:
@@ -773,8 +1006,9 @@ class Plan:
 
 def _sources(robot, measurement, result, causes, data, angle_unit):
     """The robot, the measurement, the parameters a result gives (or None), the cause labels,
-    the reading conventions and the measured data (in the model's angles, or None)."""
-    params, labels = None, []
+    the reading conventions, the measured data (in the model's angles, or None) and the result's
+    document (or None)."""
+    params, labels, doc = None, [], None
     if result is not None:
         calibrated, doc = load_result(result)
         named = None if robot is None else (robot if isinstance(robot, Robot) else load_robot(robot)).name
@@ -801,7 +1035,7 @@ def _sources(robot, measurement, result, causes, data, angle_unit):
         raise InvalidParameterError(f"`measurement` must be one of {MEASUREMENTS}; got {measurement!r}")
     structures = [s for s in (structure.parse(label, robot.n_joints) for label in labels) if s is not None]
     datasets = [structure.apply_all(d, structures) for d in datasets]
-    return robot, measurement, params, labels, structures, datasets
+    return robot, measurement, params, labels, structures, datasets, doc
 
 
 def _check_setups(robot: Robot, datasets: list[Dataset], params: np.ndarray) -> None:
@@ -859,6 +1093,7 @@ def _checked_setup(robot: Robot, measurement: str, params, tool, anchor, tracker
     return params, (cable, tracker, distances, box)
 
 
+@threadpool_limits.wrap(limits=1, user_api="blas")  # see d_optimal: two BLAS threads on a loaded 2-core machine ran an eigh 15x slower
 def plan(
     robot: Union[str, Robot, None] = None,
     measurement: Optional[str] = None,
@@ -895,7 +1130,9 @@ def plan(
         How many poses to plan, at most :data:`MAX_POSES`.
     result : path or dict, optional
         A calibration result: the plan is linearised at its calibrated robot and set-up (the
-        cable's anchor, the tracker's frame) and its model includes the result's causes.
+        cable's anchor, the tracker's frame), its model has the result's entries (its joint maps on
+        their fitted ranges) and a new session's set-up, and what the result's training data
+        measured is the prior (see the module notes; files gone or changed: a note, no prior).
     causes : list of str, dict or path, optional
         Causes the model will include: labels as ``robocal diagnose`` prints them, or a diagnose
         report (dict or JSON file). Causes acting on the joints and parameters shape the poses
@@ -956,11 +1193,14 @@ def plan(
         the set-up re-fitted, mm: ``before``, ``after``, ``random``; None where undetermined), ``order``
         (``passes``, ``travel_deg`` beside a single tour's and a random order's, each joint's
         ``correlation`` with the acquisition order), ``constraints`` and ``not_checked``,
-        ``fixed`` (parameters left out, and why), ``causes_not_by_poses`` and ``notes``.
+        ``fixed`` (parameters left out, and why), ``model`` (what is counted: ``entries``,
+        ``robot_parameters``, ``cause_coefficients``, ``setup``, each joint map's ``coefficients``,
+        ``range_deg``, ``gaps_deg`` and ``range_from``; ``known_before``), ``causes_not_by_poses``
+        and ``notes``.
     """
     poses = as_count(poses, "poses", least=1, most=MAX_POSES)  # before any file is read
     candidates = as_count(candidates, "candidates", least=poses, most=MAX_CANDIDATES)
-    robot, measurement, params, labels, structures, datasets = _sources(robot, measurement, result, causes, data, angle_unit)
+    robot, measurement, params, labels, structures, datasets, doc = _sources(robot, measurement, result, causes, data, angle_unit)
     kinds = [label.split()[0] if label.strip() else "" for label in labels]
     unknown = [label for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + SESSION_KINDS + structure.KINDS + ("backlash",)]
     if unknown:
@@ -987,35 +1227,37 @@ def plan(
     pool = structure.to_model(readings, structures)
 
     used = [label for label, kind in zip(labels, kinds) if kind in POSE_KINDS]
-    design = _design(robot, measurement, params, measured, pool, used, sigma, rng)
-    before_info = design.M_data + design.M_prior
+    fitted = {c["label"]: c["detail"] for c in ([] if doc is None else doc.get("causes", [])) if c.get("kind") == "joint_map" and c.get("label") in used}
+    design = _design(robot, measurement, params, measured, pool, used, sigma, rng, fitted, None if doc is None else _result_mask(doc, robot, measurement))
+    known = None if doc is None else _result_information(doc, robot, params, design, structures, sigma, angle_unit)
+    if known is not None and known.why:
+        notes.append(known.why)
+    trained = {s.get("sha256") for s in _training_sessions(doc)} - {None} if doc is not None else set()
+    twice = [d.source for d in datasets if d.source and file_sha256(d.source) in trained]
+    if twice:
+        notes.append(f"{twice[0]} is the result's training data and the data measured with the sensor in place: its information is counted twice")
+    from_result = known is not None and known.M is not None
+    before_info = design.M_data + design.M_prior + (known.M if from_result else 0.0)
     start = before_info + RIDGE * np.eye(len(design.names))
-    bins, covered = [], []
-    for c in design.causes:
-        if c.kind == "joint_map":  # its range as the map's support: the candidates' and the data's angles
-            span = (float(c.detail["lo"]) * DEG, float(c.detail["hi"]) * DEG, float(c.detail["spacing"]) * DEG)
-            bins.append(map_bins(pool[:, c.joint], *span))
-            covered.append(np.unique([] if measured is None else map_bins(measured.q[:, c.joint], *span)))
-    required = _coverage(design.A, start, bins, covered) if bins else []
-    if len(required) > poses:
-        needed = f"a pose every knot spacing along the joint maps' ranges takes {len(required)} poses, more than the {poses} planned"
-        notes.append(f"{needed}: a map's correction fades out within a few knot spacings where its joint's range is left without poses")
+    seen = [] if measured is None else [measured.q]
+    seen += [known.q] if from_result else []
+    work = _working(len(design.names), len(pool), poses, rng, notes)
+    A = design.A[work]  # the candidates the design is chosen among
+    required = _required(design, A, pool[work], np.vstack(seen) if seen else None, start, poses, notes)
     readings_per_pose = RESIDUAL_WIDTH[measurement]
-    if measured is None and poses * readings_per_pose <= len(design.names):
+    if measured is None and not from_result and poses * readings_per_pose <= len(design.names):
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
     weights = workspace_weights(design.A, design.names, setup_names(robot, measurement))
-    chosen = d_optimal(design.A, start, poses, required=required)
+    chosen = d_optimal(A, start, poses, required=required)
     if criterion == "I":
-        chosen = i_optimal(design.A, start, weights, poses, required=required, start=chosen)
+        chosen = i_optimal(A, start, weights, poses, required=required, start=chosen)
+    chosen = work[chosen]
     chosen = chosen[measuring_order(readings[chosen] / _per_degree(robot), passes)]
     planned = readings[chosen]
     random_pick = rng.choice(len(pool), size=poses, replace=False)
 
-    def with_poses(idx) -> _Uncertainty:
-        A = design.A[idx]
-        return _Uncertainty.of(design, before_info + np.einsum("nkp,nkq->pq", A, A), sigma)
-
-    states = {"before": _Uncertainty.of(design, before_info, sigma), "after": with_poses(chosen), "random": with_poses(random_pick)}
+    picks = {"before": [], "after": chosen, "random": random_pick}
+    states = {key: _Uncertainty.of(design, before_info + _information(design.A[idx]), sigma, weights) for key, idx in picks.items()}
     entries = []
     for i, (name, unit) in enumerate(zip(design.names, design.units)):
         if unit is not None:
@@ -1023,11 +1265,12 @@ def plan(
             within = None if std["after"] is None or unit not in TOLERANCE else bool(states["after"].std([i])[0] <= TOLERANCE[unit])
             entries.append({"name": name, "unit": "deg" if unit == "rad" else unit, **std, "within_tolerance": within})
     cause_std = {key: _cause_std(design, u, robot) for key, u in states.items()}
-    picks = (("before", None), ("after", chosen), ("random", random_pick))
-    information = {key: before_info + (0.0 if idx is None else _information(design.A[idx])) for key, idx in picks}
-    prediction = {key: _prediction_rms(M, weights, sigma) for key, M in information.items()}
+    prediction = {key: u.prediction for key, u in states.items()}
     if bound:
-        prediction["least_possible"] = float(sigma * math.sqrt(max(i_bound(design.A, start, weights, poses), 0.0)))
+        iterations = BOUND_ITERATIONS if len(design.names) <= LARGE_MODEL else LARGE_BOUND_ITERATIONS
+        if iterations < BOUND_ITERATIONS:
+            notes.append(f"the least possible error is bounded after {iterations} iterations (a model of {len(design.names)} entries): a valid, looser bound")
+        prediction["least_possible"] = float(sigma * math.sqrt(max(i_bound(A, start, weights, poses, iterations), 0.0)))
     shown_causes = [c for c in design.causes if c.stage != "parameters"]
     in_degrees = planned / _per_degree(robot)
     report = {
@@ -1055,6 +1298,7 @@ def plan(
         "constraints": constraints.describe(robot, measurement, params, structures),
         "not_checked": list(NOT_CHECKED),
         "fixed": design.fixed,
+        "model": _counted(design, robot, measurement, known, measured),
         "structure": [s.label for s in structures],
         "causes_not_by_poses": [{"label": label, "reason": _why_not(kind)} for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + structure.KINDS],
         "data": {"samples": 0 if measured is None else len(measured), "files": [d.source for d in datasets]},
@@ -1064,6 +1308,43 @@ def plan(
     note = "a measurement plan: the observation columns hold the readings the model expects"
     expected = Dataset(q=planned, y=expected_readings, measurement=measurement, robot=robot.name, prismatic=robot.prismatic, notes=[note])
     return Plan(q=planned, expected=expected, report=report)
+
+
+def _counted(design: _Design, robot: Robot, measurement: str, known: Optional[_Known], measured: Optional[Dataset]) -> dict:
+    """What the plan counts (the report's ``model``): its entries — the robot's (parameters,
+    causes' coefficients; each joint map's coefficients over its range, and where that range
+    comes from) and the new session's set-up — and what is known before the poses."""
+    setup = [n for n in design.names if n in setup_names(robot, measurement)]
+    maps = [
+        {
+            "label": c.label,
+            "coefficients": c.size,
+            "range_deg": [float(c.detail["lo"]), float(c.detail["hi"])],
+            "gaps_deg": [list(g) for g in c.detail.get("gaps", [])],
+            "range_from": "the result's fit" if c.label in design.fitted else "the candidates' (and the data's) angles",
+        }
+        for c in design.causes
+        if c.kind == "joint_map"
+    ]
+    causes = sum(c.size for c in design.causes if c.stage != "parameters")
+    before = []
+    if known is not None and known.M is not None:
+        before.append(
+            f"the result's {known.samples:,} training samples re-linearised, each of its sessions' set-up and sensor terms eliminated, "
+            f"weighed by its training residual ({known.noise:.3g} mm per reading)"
+        )
+    if measured is not None:
+        before.append(f"the {len(measured):,} samples measured with the sensor in place")
+    if any(c.penalty is not None for c in design.causes):
+        before.append("the joint maps' roughness")
+    return {
+        "entries": len(design.names),
+        "robot_parameters": len(design.names) - len(setup) - causes,
+        "cause_coefficients": causes,
+        "setup": setup,
+        "maps": maps,
+        "known_before": before,
+    }
 
 
 def _per_degree(robot: Robot) -> np.ndarray:

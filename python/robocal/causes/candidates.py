@@ -494,6 +494,15 @@ def map_candidate(data: Dataset, joint: int, spacing: float, roughness: float, n
     return Candidate("joint_map", joint, "joints", basis, detail=detail, penalty=map_penalty(detail, detail["weight"]))
 
 
+def fitted_map(data: Dataset, joint: int, detail: dict, noise: float) -> Candidate:
+    """The joint map of ``joint`` (0-based) fitted before (a result's ``detail``: its knots over
+    the range ``lo..hi`` and the gaps of its data, as the result holds them) on ``data``, its
+    roughness weighed against ``noise`` mm: the same coefficients as the result's map, whatever
+    angles ``data`` reach (beyond its range a row fades out, :func:`map_reach`)."""
+    detail = {**detail, "weight": noise / (float(detail["roughness"]) * DEG)}
+    return Candidate("joint_map", joint, "joints", map_basis(data.q[:, joint], detail), detail=detail, penalty=map_penalty(detail, detail["weight"]))
+
+
 #: A joint map's label, as :attr:`Candidate.label` writes it.
 MAP_LABEL = re.compile(r"joint_map joint (\d+) spacing=([0-9.]+) roughness=([0-9.eE+-]+)")
 

@@ -34,6 +34,7 @@ from .candidates import (
     MAP_LABEL,
     cable_directions,
     drift_candidate,
+    fitted_map,
     free_mass_candidate,
     has_mass_model,
     library,
@@ -373,13 +374,15 @@ def extended_problem(
     map_angles: Optional[np.ndarray] = None,
     every: bool = True,
     noise: Optional[float] = None,
+    fitted: Optional[dict] = None,
 ):
     """``problem`` extended by the causes labelled ``causes`` on the samples ``idx`` of
     ``dataset`` (bases such as backlash and drift need the whole sequence). A joint map covers
     the joint angles ``map_angles`` (rows of joint values; default the samples ``idx``), its
     roughness weighed against ``noise`` (mm; default the geometric fit's residuals: a plan has
     none). With ``every=False`` a cause the data cannot show (its joint does not move) is left
-    out, not refused."""
+    out, not refused. ``fitted``: label -> ``detail`` of joint maps fitted before (a result's):
+    such a map keeps its range and knots (:func:`~robocal.causes.candidates.fitted_map`)."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+( frame=rigid)?", label)
@@ -409,6 +412,9 @@ def extended_problem(
                 geometric = levenberg_marquardt(problem)
                 noise = map_noise(problem.data_residuals(geometric.x).reshape(len(problem.data), -1))
             j = int(joint_map.group(1)) - 1
+            if fitted and label in fitted:
+                pool[label] = fitted_map(dataset, j, fitted[label], noise)
+                continue
             angles = dataset.q[idx, j] if map_angles is None else map_angles[:, j]
             pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, angles)
     unknown = [c for c in causes if c not in pool]

@@ -125,6 +125,22 @@ def _mm(value) -> str:
     return "undetermined" if value is None else f"{value:.4f} mm RMS"
 
 
+def _model_line(report: dict) -> str:
+    """What the plan counts: its entries, the joint maps' coefficients and where their ranges come from, what is known before."""
+    model = report["model"]
+    maps = model["maps"]
+    counted = f"  model: {model['entries']} entries: {model['robot_parameters']} parameters of the robot"
+    if model["cause_coefficients"]:
+        others = [c["label"] for c in report["causes"] if not c["label"].startswith("joint_map ")]
+        spans = ", ".join(f"joint {m['label'].split()[2]} {m['coefficients']} over {m['range_deg'][0]:.0f}..{m['range_deg'][1]:.0f} deg" for m in maps)
+        where = " and ".join(sorted({m["range_from"] for m in maps}))
+        parts = ([", ".join(others)] if others else []) + ([f"joint maps over the ranges of {where}: {spans}"] if maps else [])
+        counted += f", {model['cause_coefficients']} coefficients of its causes ({'; '.join(parts)})"
+    counted += f", {len(model['setup'])} of the new session's set-up"
+    counted += f"; left out (redundant or no effect here): {', '.join(report['fixed'])}" if report["fixed"] else ""
+    return counted + "\n  known before the poses: " + ("; ".join(model["known_before"]) or "nothing (the nominal robot, no data)")
+
+
 def summary(report: dict, out: str, seconds: float) -> str:
     """A few lines for the terminal."""
     position = report["position"]
@@ -146,9 +162,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
     lines = [
         f"plan: {report['poses']} poses of {printable(report['robot'], one_line=True)} for {report['measurement']} measurements, "
         f"chosen among {report['candidates']:,} candidates ({report['criterion']}), {seconds:.1f} s",
-        f"  model: {len(params)} parameters"
-        + (f" and the causes {', '.join(c['label'] for c in report['causes'])}" if report["causes"] else "")
-        + (f"; left out (redundant or no effect here): {', '.join(report['fixed'])}" if report["fixed"] else ""),
+        _model_line(report),
         f"  the tool point's standard deviation over the workspace: {mm('before')} before, {mm('after')} after; {report['poses']} random poses: {mm('random')}",
         f"  predicted error of a new session over the workspace (its set-up re-fitted): {_mm(prediction['before'])} before, "
         f"{_mm(prediction['after'])} after; {report['poses']} random poses: {_mm(prediction['random'])}"
