@@ -209,3 +209,13 @@ def test_calibrate_verify_and_report_open_with_one_verdict_and_agree_on_the_nomi
     capsys.readouterr()
     assert main(["verify", str(periodic), str(new), "--quiet"]) == 0
     assert capsys.readouterr().out.startswith("verdict: not determined: on these new data it predicts worse than the nominal robot")
+
+
+def test_the_nominal_robot_of_a_tracker_with_a_turned_probe_has_its_tool_orientation_fitted(datasets):
+    """UR10 series A as poses, the probe mounted a quarter turn off the flange: the nominal
+    figure beside a calibration fits the tool's orientation too (it was 90 deg off)."""
+    series = datasets / "ipa-robot-accuracy-ur10"
+    result = robocal.calibrate(str(series / "Series_A" / "measurements_grid.csv"), robot="ur10", measurement="pose").to_dict()
+    report = robocal.verify(result, str(series / "Series_B" / "measurements_joint_configurations.csv"), measurement="pose")
+    assert report["nominal"]["metrics"]["rotation_rmse_deg"] < 1.0
+    assert report["nominal"]["metrics"]["rmse"] > report["metrics"]["rmse"]

@@ -8,7 +8,7 @@ only what belongs to the new *session* (:func:`~robocal.robot.setup_names`): the
 tracker's base frame and the tool point, or the cable's anchor and zero. The old session's own
 terms (a step of its sensor's zero, its drift, its outliers) are not carried. Beside the
 calibrated model's eq. (28) metrics it reports the nominal model's on the same data, set-up
-and tool point fitted (:func:`~robocal.calibration.problem.nominal_residuals`, the figure the report
+and tool point fitted (:func:`~robocal.calibration.api.nominal_residuals`, the figure the report
 shows too): what the calibration gains where it was not fitted; and the acceptance
 figures of ISO 9283 (:mod:`robocal.acceptance`). The model is the one ``robocal report`` draws
 (:func:`~robocal.causes.result_model.result_model`).
@@ -24,10 +24,10 @@ from typing import Optional, Union
 import numpy as np
 
 from .acceptance import iso9283
-from .calibration.api import load_inputs
+from .calibration.api import load_inputs, nominal_residuals
 from .calibration.lm import levenberg_marquardt
 from .calibration.metrics import metrics
-from .calibration.problem import Problem, nominal_residuals
+from .calibration.problem import Problem
 from .calibration.result import VERDICTS, verdict
 from .causes.result_model import result_model
 from .data.dataset import Dataset

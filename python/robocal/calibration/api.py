@@ -16,10 +16,10 @@ from ..data.dataset import Dataset
 from ..data.public import load
 from ..data.splits import configuration_groups, random_split
 from ..exceptions import DataError, InvalidParameterError
-from ..robot import Robot, robot as load_robot
+from ..robot import Robot, robot as load_robot, setup_names
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
-from .problem import TOLERANCE, Problem, check_observations
+from .problem import TOLERANCE, Problem, check_observations, start_parameters
 from .result import CalibrationResult, describe_implausible, grossly_implausible
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
@@ -169,3 +169,14 @@ def checked_options(function: Callable, method: str, options: dict) -> dict:
     except TypeError as exc:
         raise InvalidParameterError(f"method {method!r} does not take these options: {exc}") from None
     return options
+
+
+def nominal_residuals(robot: Robot, data: Dataset) -> np.ndarray:
+    """Residuals (m, k) of ``robot``'s kinematics as they stand on ``data``, with the session's
+    set-up and the tool point fitted (:func:`~robocal.calibration.problem.start_parameters`,
+    then a least-squares fit of those alone — a pose's tool orientation too): the "nominal"
+    figure ``verify`` and the report give beside a calibration's (a nominal robot knows no tool
+    point to keep)."""
+    names = list(dict.fromkeys(setup_names(robot, data.measurement) + [n for n in ("tool_x", "tool_y", "tool_z") if n in robot.param_names]))
+    problem = Problem.build(robot, data, mask=names, params=start_parameters(robot, data))
+    return problem.data_residuals(levenberg_marquardt(problem).x).reshape(len(data), -1)

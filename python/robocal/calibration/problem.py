@@ -138,13 +138,6 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
     return p
 
 
-def nominal_residuals(robot: Robot, data: Dataset) -> np.ndarray:
-    """Residuals (m, k) of ``robot``'s kinematics as they stand on ``data``, with the measurement
-    set-up and the tool point fitted (:func:`start_parameters`): the "nominal" figure every
-    command reports beside a calibration's (a nominal robot knows no tool point to keep)."""
-    return robot.residuals(data.measurement, data.q, data.y, params=start_parameters(robot, data)).reshape(len(data), -1)
-
-
 def _spread(points: np.ndarray) -> np.ndarray:
     """Distances of ``points`` (m, k) from their median point."""
     return np.linalg.norm(points - np.median(points, axis=0), axis=1)

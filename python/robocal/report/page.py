@@ -7,7 +7,7 @@ The page, the inputs it reads and their evaluation; the figures are in
 ``robocal calibrate --out``) and writes ``DIR/index.html`` with PNG figures beside it:
 
 1. the per-sample error before calibration (nominal kinematics, measurement set-up and tool point
-   refitted: :func:`~robocal.calibration.problem.nominal_residuals`, the figure ``verify`` reports) and after it, as histograms and along
+   refitted: :func:`~robocal.calibration.api.nominal_residuals`, the figure ``verify`` reports) and after it, as histograms and along
    the samples, held-out samples marked. "After" is the model ``verify`` evaluates
    (:func:`~robocal.causes.result_model.result_model`: the result's reading conventions and
    joint causes), so an extended result's figures include its causes; beside them the ISO 9283
@@ -38,9 +38,9 @@ import numpy as np
 
 from .._robocal import __version__
 from ..acceptance import iso9283, summary_rows
-from ..calibration.api import load_inputs
+from ..calibration.api import load_inputs, nominal_residuals
 from ..calibration.metrics import sample_errors
-from ..calibration.problem import implausible_parameters, nominal_residuals
+from ..calibration.problem import implausible_parameters
 from ..calibration.result import describe_implausible, implausible_meaning, verdict
 from ..causes import structure
 from ..causes.result_model import ResultModel, result_model
