@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+from scipy.special import gammaincc
 from scipy.stats import chi2
 
 from .calibration.lm import levenberg_marquardt
@@ -140,9 +141,9 @@ class Alarm:
 def _surprise(stat: float, d: int) -> float:
     """``−log P(χ²_d > stat)``; beyond floating point, its asymptotic form (a statistic of
     thousands is no less a change than one of hundreds)."""
-    value = -chi2.logsf(stat, d)
-    if np.isfinite(value):
-        return float(value)
+    tail = gammaincc(d / 2.0, stat / 2.0)  # the χ² survival function (scipy.stats' logsf costs half a millisecond a call)
+    if tail > 1e-300:
+        return float(-math.log(tail))
     return stat / 2.0 - (d / 2.0 - 1.0) * math.log(stat / 2.0) + math.lgamma(d / 2.0)
 
 
@@ -213,8 +214,21 @@ class _Buffers:
         tau = self.times[rows]
         after = {n: self.total[n] - self.rings[n][rows] for n in self.rings}
         at = {c: i for i, c in enumerate(self.tested)}
-        out = []
-        for cols, ramp in hypotheses:
+        out: list = [None] * len(hypotheses)
+        # Every one-column step (each joint's zero) at once: its information is the diagonal of one product.
+        single = [k for k, (cols, ramp) in enumerate(hypotheses) if len(cols) == 1 and not ramp]
+        if single:
+            cols = [hypotheses[k][0][0] for k in single]
+            h = [at[c] for c in cols]
+            g, cross = after["g"][:, h], after["G"][:, :, h]
+            F = cross[:, cols, np.arange(len(cols))]
+            score = g - np.einsum("npd,p->nd", cross, level)
+            info = F - np.einsum("npd,npd->nd", cross, np.matmul(inverse, cross))
+            for i, k in enumerate(single):
+                out[k] = (score[:, i : i + 1], info[:, i : i + 1, None])
+        for k, (cols, ramp) in enumerate(hypotheses):
+            if out[k] is not None:
+                continue
             h = [at[c] for c in cols]
             if ramp:  # Σ (t−τ) g_t, Σ (t−τ) G_t and Σ (t−τ)² G_t after τ
                 g = after["tg"][:, h] - tau[:, None] * after["g"][:, h]
@@ -226,7 +240,7 @@ class _Buffers:
                 F = cross[:, cols]
             score = g - np.einsum("npd,p->nd", cross, level)
             info = F - np.matmul(cross.transpose(0, 2, 1), inverse @ cross)
-            out.append((score, info))
+            out[k] = (score, info)
         return out, level
 
 
@@ -361,6 +375,7 @@ class Monitor:
         (:attr:`refused`) and the stream goes on."""
         q, y = self._checked(q, y)
         rows = [None] * len(q) if rows is None else list(rows)
+
         raised = []
         lower, upper = (np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
         for qi, yi, row in zip(q, y, rows):
@@ -468,7 +483,10 @@ class Monitor:
         for change, (score, info) in zip(self.changes, evidence):
             score, info = score[1:], info[1:]  # a start at the window's first sample leaves no level before it
             d = score.shape[1]
-            delta = np.linalg.solve(info + 1e-12 * np.eye(d)[None], score[:, :, None])[:, :, 0]
+            if d == 1:
+                delta = score / (info[:, 0] + 1e-12)
+            else:
+                delta = np.linalg.solve(info + 1e-12 * np.eye(d)[None], score[:, :, None])[:, :, 0]
             stat = np.einsum("nd,nd->n", score, delta) / self.inflation
             k = int(np.argmax(stat))
             surprise = _surprise(float(stat[k]), d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
