@@ -61,22 +61,22 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
-from .calibration.api import another_robot, load_inputs
-from .calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
-from .calibration.sessions import SESSION_KINDS, concatenate, is_private, session_problems
-from .causes import structure
-from .causes.candidates import map_coverage
-from .causes.extended import extended_problem, read_causes
-from .kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
-from .data.canonical import write_canonical
-from .data.dataset import Dataset
-from .exceptions import DataError, InvalidParameterError
-from .outputs import Staged
-from .physics import DEG
-from .results import file_sha256, load_result
-from .robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, robot as load_robot, setup_names
-from .sensors import DEFAULT_NOISE
-from .simulation import CABLE_RANGE, RANGE_MARGIN, setup
+from ..calibration.api import another_robot, load_inputs
+from ..calibration.problem import TOLERANCE, Problem, is_kinematic, start_parameters
+from ..calibration.sessions import SESSION_KINDS, concatenate, is_private, session_problems
+from ..causes import structure
+from ..causes.candidates import map_coverage
+from ..causes.extended import extended_problem, read_causes
+from ..kernels import as_count, as_float_array, as_positive, is_sparse, seeded_rng
+from ..data.canonical import write_canonical
+from ..data.dataset import Dataset
+from ..exceptions import DataError, InvalidParameterError
+from ..outputs import Staged
+from ..physics import DEG
+from ..results import file_sha256, load_result
+from ..robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, robot as load_robot, setup_names
+from ..sensors import DEFAULT_NOISE
+from ..simulation import CABLE_RANGE, RANGE_MARGIN, setup
 
 logger = logging.getLogger(__name__)
 
@@ -954,7 +954,7 @@ def _shown(std: Optional[np.ndarray], unit: str) -> Optional[float]:
 def _cause_std(design: _Design, u: _Uncertainty, robot: Robot) -> list:
     """Per cause acting on the joints or the readings, its physical quantities' standard
     deviations (a joint map: its largest over the range), None where undetermined."""
-    from .causes.candidates import map_curve
+    from ..causes.candidates import map_curve
 
     out = []
     for c, s in zip(design.causes, design.slices):
