@@ -99,6 +99,7 @@ from .criteria import (
 from .design import WORKSPACE_POSES, _Design, _design
 from .prior import _Known, _result_information, _result_mask, _training_sessions
 from .uncertainty import UNDETERMINED, _cause_std, _inverse_half, _shown, _Uncertainty
+from .coverage import _coverage, _required, map_bins
 from .order import _per_degree, _tour, default_passes, measuring_order, order_correlations, travel
 
 SCHEMA = "robocal.plan/1"
@@ -117,33 +118,6 @@ LARGE_BOUND_ITERATIONS = 20
 POSE_KINDS = ("joint_compliance", "joint_periodic", "joint_scale", "joint_coupling", "joint_map", "cable_scale", "axis_misalignment", "frame")
 
 
-def map_bins(q: np.ndarray, lower: float, upper: float, spacing: float) -> np.ndarray:
-    """Bin (0-based) of each angle ``q`` (rad) in ``lower..upper`` cut into bins of ``spacing``
-    (rad): a pose in every bin leaves no stretch longer than two spacings without one (what a
-    joint map needs, :data:`~robocal.causes.candidates.MAP_GAP_SPACINGS`)."""
-    bins = max(1, int(math.ceil((upper - lower) / spacing - 1e-9)))
-    return np.clip(((q - lower) / spacing).astype(int), 0, bins - 1)
-
-
-def _coverage(A: np.ndarray, M0: np.ndarray, bins: list[np.ndarray], covered: list[np.ndarray]) -> list[int]:
-    """Candidates that put a pose in every bin no measured pose covers, each the best by the
-    D-criterion among its bin's candidates (``bins``: per map, each candidate's bin;
-    ``covered``: per map, the bins the data already cover)."""
-    required = []
-    A, Minv = _whitened(A, M0)
-    S = _blocks(A, Minv)
-    for bin_of, done in zip(bins, covered):
-        for b in np.setdiff1d(np.unique(bin_of), done):
-            members = np.flatnonzero(bin_of == b)
-            members = members[~np.isin(members, required)]
-            if not members.size:
-                continue
-            i = int(members[np.argmax(_gains(S[members]))])
-            required.append(i)
-            Minv, S = _update(A, Minv, S, i, 1.0)
-    return required
-
-
 def _working(entries: int, candidates: int, poses: int, rng: np.random.Generator, notes: list) -> np.ndarray:
     """The candidates the design is chosen among: all of them, or for a model of more than
     :data:`LARGE_MODEL` entries (a result's joint maps) :data:`WORKING` (at least 11 per pose)
@@ -157,30 +131,6 @@ def _working(entries: int, candidates: int, poses: int, rng: np.random.Generator
         "(the random poses compared with and the workspace are drawn from all of them)"
     )
     return np.sort(rng.choice(candidates, size=size, replace=False))
-
-
-def _required(design: _Design, A: np.ndarray, pool: np.ndarray, seen: Optional[np.ndarray], start: np.ndarray, poses: int, notes: list) -> list[int]:
-    """Candidates (of ``A``, ``pool``) that put a pose in every knot spacing of a joint map's range that no pose
-    already measured (``seen``: the data's and a result's training angles, model's) covers
-    (:func:`_coverage`) — if that takes at most ``poses``; else none, and a note: the criterion
-    then places every pose (filling the first maps' bins and none of the others' is worse). A
-    result's map has no bins beyond its range or in the gaps of its data: it has no
-    coefficients there."""
-    bins, covered = [], []
-    for c in design.causes:
-        if c.kind == "joint_map":
-            span = (float(c.detail["lo"]) * DEG, float(c.detail["hi"]) * DEG, float(c.detail["spacing"]) * DEG)
-            b = map_bins(pool[:, c.joint], *span)
-            bins.append(np.where(map_coverage(pool[:, c.joint], c.detail), b, -1) if c.label in design.fitted else b)
-            covered.append(np.unique(np.concatenate([[-1], [] if seen is None else map_bins(seen[:, c.joint], *span)])))
-    needed = sum(np.setdiff1d(b, done).size for b, done in zip(bins, covered))
-    if needed > poses:
-        notes.append(
-            f"a pose every knot spacing along the joint maps' ranges would take {needed} poses, more than the {poses} planned: the criterion places "
-            "them all, and a map's correction fades out within a few knot spacings where its joint's range is left without poses"
-        )
-        return []
-    return _coverage(A, start, bins, covered) if needed else []
 
 
 # -- the plan --------------------------------------------------------------------------------------
