@@ -170,7 +170,7 @@ def _check_setups(robot: Robot, datasets: list[Dataset], params: np.ndarray) -> 
             )
 
 
-@threadpool_limits.wrap(limits=1, user_api="blas")  # see d_optimal: two BLAS threads on a loaded 2-core machine ran an eigh 15x slower
+@threadpool_limits.wrap(limits=1, user_api="blas")  # see criteria.d_optimal: two BLAS threads on a loaded 2-core machine ran an eigh 15x slower
 def plan(
     robot: Union[str, Robot, None] = None,
     measurement: Optional[str] = None,
