@@ -517,8 +517,15 @@ SPECS = {
     ),
     "compensate": (["result", "targets"], {"--out": "out", "--angle-unit": "text", "--frame": "text", "--user-frame": "text"}),
     "verify": (["result", "data"], {"--measurement": "text", "--angle-unit": "text", "--json": "out"}),
+    "monitor": (
+        ["result", "data"],
+        {"--json-lines": "out", "--out": "out", "--new-session": None, "--mean-run-length": "float", "--opening": "int", "--angle-unit": "text"},
+    ),
     "report": (["result"], {"--out": "folder", "--data": "data", "--diagnosis": "diagnosis", "--force": None, "--angle-unit": "text"}),
-    "export": (["result"], {"--format": "text", "--table-format": "text", "--out": "out", "--name": "text", "--samples": "int", "--seed": "int"}),
+    "export": (
+        ["result"],
+        {"--format": "text", "--table-format": "text", "--out": "out", "--name": "text", "--samples": "int", "--seed": "int", "--angles": "text"},
+    ),
     "plan": (
         [],
         {
@@ -538,7 +545,7 @@ SPECS = {
 }
 #: Values of the options that take a word: the valid ones and some that are not.
 CHOICES = {
-    "--format": ["dh", "mdh", "urdf", "canonical", "sdf"],
+    "--format": ["dh", "mdh", "urdf", "ur-yaml", "canonical", "sdf"],
     "--angle-unit": ["deg", "rad", "grad"],
     "--measurement": ["cable", "position", "pose"],
     "--method": ["lm", "vslm", "nope"],
@@ -548,6 +555,7 @@ CHOICES = {
     "--effect": ["backlash:joint=2", "wobble", "joint_periodic:joint=9"],
     "--name": ["r", "<b>&"],
     "--frame": ["base", "session", "session:1", "session:2", "user", "tool", "session:0"],
+    "--angles": ["readings", "model", "raw"],
     "--user-frame": ["0,0,0,0,0,0", "100,0,500,0,0,90", "1,2,3", "a,b,c,d,e,f", "nan,0,0,0,0,0"],
 }
 #: Options always drawn (required, or without which the canonical file cannot be calibrated).
