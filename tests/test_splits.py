@@ -96,3 +96,17 @@ def test_a_sweep_in_steps_under_the_tolerance_is_not_one_configuration():
     # ISO 9283: no pose of the path is commanded twice, so no repeatability (it was 17.9 mm for 0.02 mm of noise)
     iso = robocal.verify(result.to_dict(), data)["iso9283"]
     assert iso["n_targets"] == 1500 and iso["repeatability_mm"] is None
+
+
+def test_a_wide_component_among_thousands_of_distinct_configurations_is_still_cut():
+    """Issue 53: only components of two or more samples are looked at (20 000 distinct samples
+    were split one array each); a sweep among them is still cut, a revisit still joined."""
+    rng = np.random.default_rng(5)
+    distinct = rng.uniform(-3.0, 3.0, size=(5000, 6))
+    sweep = _sweep(300) + 10.0  # away from the distinct samples: a component of its own
+    q = np.vstack([distinct[:2500], sweep, distinct[2500:], distinct[7][None, :] + 1e-4])
+    labels = configuration_groups(q)
+    assert chained_groups(q, CONFIGURATION_TOLERANCE).max() + 1 == 5000 + 1  # the sweep one chained component, the revisit in sample 7's
+    assert labels[-1] == labels[7] and len(np.unique(labels[:2500])) == 2500 and len(np.unique(labels[2800:-1])) == 2500
+    assert len(np.unique(labels[2500:2800])) >= 300 // 2  # the sweep cut, as on its own
+    np.testing.assert_array_equal(np.unique(labels[2500:2800], return_inverse=True)[1], np.unique(configuration_groups(sweep), return_inverse=True)[1])
