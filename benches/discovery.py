@@ -611,8 +611,8 @@ def run_mismatch_file(f: dict) -> dict:
     score_alike(named, hidden)
     leftover = report["final"].get("residuals") or {}
     sensor_verdict = bool((leftover.get("sensor") or {}).get("verdict"))
-    for h in hidden:  # the sensor's own error is no cause of the robot: found as the leftover's verdict
-        if h["kind"] == "sensor_error" and sensor_verdict:
+    for h in hidden:  # the sensor's own error is no cause of the robot: named as the sensor's, or found as the leftover's verdict
+        if h["kind"] == "sensor_error" and sensor_verdict and h["found_by"] is None:
             h["found_by"] = FOUND_IN_LEFTOVER
     final = report["final"].get("rmse_heldout")
     floor = mismatch.NOISE[f["measurement"]][0] * math.sqrt(1 if f["measurement"] == "cable" else 3)

@@ -360,7 +360,7 @@ FAMILIES = {
     "wave_drift": Family("drift with a wave", ("drift", "wander", "temperature"), unit=0.1, cap=5.0),
     "lost_motion": Family("lost motion (tanh)", ("backlash", "lost_motion"), joint=True, unit=0.01, cap=0.9, sign=True),
     "periodic_shape": Family("periodic, other wave forms", ("joint_periodic", "joint_map", "joint_scale"), joint=True, unit=0.005, cap=0.9),
-    "sensor_error": Family("the sensor's own error", (), unit=0.01, cap=1.0),
+    "sensor_error": Family("the sensor's own error", ("sensor_periodic", "tracker_azimuth"), unit=0.01, cap=1.0),
     "heavy_tails": Family("heavy-tailed noise (t, 3 dof)", ("outliers",), unit=None, optional=True),
     "ar1_noise": Family("AR(1) noise", ("wander",), unit=None, optional=True),
 }

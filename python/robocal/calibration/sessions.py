@@ -27,7 +27,7 @@ from .api import load_inputs
 from .problem import Problem, kinematic_prior_pairs, kinematic_prior_sigmas
 
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
-SESSION_KINDS = ("drift", "step", "wander", "temperature", "outliers")
+SESSION_KINDS = ("drift", "step", "wander", "temperature", "outliers", "sensor_periodic", "tracker_azimuth")
 
 
 def is_private(name: str, measurement: str) -> bool:

@@ -7,7 +7,8 @@ Every candidate is linear in its coefficients ``c`` and acts at one stage of the
     scale, coupling, backlash, a joint error map). Its Jacobian columns are ``∂h/∂q_j · B`` — and ``∂h/∂q_j`` is the
     ``theta_j`` column of the identification Jacobian, since ``theta_j`` adds to ``q_j``.
 ``observations``
-    the reading, ``h + B·c`` (drift, temperature, a step of the sensor's zero).
+    the reading, ``h + B·c`` (drift, temperature, a step of the sensor's zero, the sensor's own
+    error: a cable drum's once-a-turn error, a tracker's azimuth encoder).
 ``parameters``
     parameters of the robot's own vector that the baseline leaves out (``cable_scale``, Hayati
     ``beta_j`` on a plain-DH baseline, base / tool / anchor terms).
@@ -38,11 +39,13 @@ from ..stats import robust_sigma
 #: Compliance: joint stiffness above 1e3 N·m/rad; gear errors, backlash and misalignments below
 #: 1 deg; scale and coupling below 1 %; drift below 10 mm/h; expansion coefficients
 #: 0-100e-6/K (steel 12, aluminium 23, plastics up to ~100).
-LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h": 10.0, "alpha": 100e-6}
+#: A sensor's own error: a cable sensor's periodic error below 1 mm (a 2 m drawstring sensor's
+#: linearity is 0.05 % of its range), a tracker's angle encoder's below 1 mrad (200 arcsec).
+LIMITS = {"compliance": 1e-3, "angle": 1.0 * DEG, "ratio": 1e-2, "drift_mm_per_h": 10.0, "alpha": 100e-6, "sensor_mm": 1.0, "sensor_rad": 1e-3}
 
 #: Detail keys shown in a cause's label (the others — units, axes, a map's range and weight —
 #: only describe it).
-LABELLED = ("harmonic", "source", "target", "sample", "row", "frame", "spacing", "roughness", "trend", "degree", "settling", "masses")
+LABELLED = ("harmonic", "source", "target", "sample", "row", "frame", "spacing", "roughness", "trend", "degree", "settling", "masses", "period", "station")
 
 
 def _order(data: Dataset) -> tuple[np.ndarray, str]:
@@ -184,6 +187,22 @@ class Candidate:
             out["sample"] = q(self.detail["sample"], np.nan, "")
             out["row"] = q(self.detail["row"], np.nan, "")
             return out, None
+        if kind in SENSOR_KINDS:  # a sine and a cosine: the amplitude, its phase
+            amp, phase = math.hypot(c[0], c[1]), math.atan2(c[1], c[0])
+            sd = math.hypot(s[0], s[1]) / math.sqrt(2.0) if np.all(np.isfinite(s)) else np.nan
+            if kind == "sensor_periodic":
+                out = {"amplitude": q(amp, sd, "mm"), "phase": q(phase / DEG, np.nan, "deg"), "period": q(self.detail["period"], np.nan, "mm")}
+                return out, (f"amplitude {amp:.3g} mm exceeds {LIMITS['sensor_mm']:g} mm" if amp > LIMITS["sensor_mm"] else None)
+            arcsec = 1e-6 / DEG * 3600.0  # the coefficients are µrad
+            out = {
+                "amplitude": q(amp * arcsec, sd * arcsec, "arcsec"),
+                "phase": q(phase / DEG, np.nan, "deg"),
+                "harmonic": q(self.detail["harmonic"], np.nan, "cycles/rev"),
+                "station_x": q(self.detail["station_xy"][0], np.nan, "mm"),
+                "station_y": q(self.detail["station_xy"][1], np.nan, "mm"),
+            }
+            bad = amp * 1e-6 > LIMITS["sensor_rad"]
+            return out, (f"amplitude {amp * arcsec:.3g} arcsec exceeds {LIMITS['sensor_rad'] / DEG * 3600:.3g} arcsec" if bad else None)
         if kind == "temperature":
             out = {"alpha": q(c[0] * 1e6, s[0] * 1e6, "1e-6/K"), "target": q(np.nan, np.nan, self.detail["target"])}
             bad = not 0.0 < c[0] < LIMITS["alpha"]
@@ -565,6 +584,38 @@ def drift_candidate(data: Dataset, degree: int = 1, settling: Optional[float] = 
     shape = {"settling": settling} if settling is not None else {"degree": degree} if degree > 1 else None
     detail = {"unit": unit, "axes": axes, **({**shape, **ends} if shape else {})}
     return Candidate("drift", None, "observations", drift, detail=detail)
+
+
+#: The sensor's own errors (:func:`sensor_periodic_candidate`, :func:`tracker_azimuth_candidate`):
+#: of the instrument, not of the robot, fitted per session.
+SENSOR_KINDS = ("sensor_periodic", "tracker_azimuth")
+
+
+def sensor_periodic_candidate(data: Dataset, period: float) -> Candidate:
+    """A cable sensor's own error, periodic in the length it reads: ``a·sin(2πL/P) + b·cos(2πL/P)``
+    (mm) of period ``P = period`` (mm) — a drawstring sensor's drum, whose error repeats once a
+    turn of the drum whatever the robot does."""
+    period = round(float(period), 1)  # as labelled: a basis rebuilt from the label is this one
+    phase = 2.0 * np.pi * data.y[:, 0] / period
+    basis = np.stack([np.sin(phase), np.cos(phase)], axis=-1)[:, None, :]
+    return Candidate("sensor_periodic", None, "observations", basis, detail={"period": period})
+
+
+def tracker_azimuth_candidate(data: Dataset, station: np.ndarray, harmonic: int) -> Candidate:
+    """A laser tracker's azimuth encoder error about a standing axis through ``station`` (x, y in
+    the readings' frame, mm; the frame's z standing, as a levelled tracker's): the azimuth ``φ``
+    of each reading off by ``a·sin(hφ) + b·cos(hφ)`` (µrad), which moves the reading sideways
+    by that angle times its horizontal distance from the station. A pose's orientation rows are
+    the probe's own (no columns)."""
+    station = np.round(np.asarray(station, dtype=np.float64))  # as labelled (mm): a basis rebuilt from the label is this one
+    rel = data.y[:, :2] - station
+    azimuth, reach = np.arctan2(rel[:, 1], rel[:, 0]), np.hypot(rel[:, 0], rel[:, 1])
+    sideways = np.column_stack([-np.sin(azimuth), np.cos(azimuth), np.zeros(len(data))]) * (reach * 1e-6)[:, None]  # mm per µrad
+    basis = np.zeros((len(data), RESIDUAL_WIDTH[data.measurement], 2))
+    basis[:, :3, 0] = sideways * np.sin(harmonic * azimuth)[:, None]
+    basis[:, :3, 1] = sideways * np.cos(harmonic * azimuth)[:, None]
+    x, y = (int(v) for v in station)
+    return Candidate("tracker_azimuth", None, "observations", basis, detail={"harmonic": harmonic, "station": f"{x},{y}", "station_xy": (x, y)})
 
 
 def periodic_candidate(robot: Robot, data: Dataset, joint: int, harmonic: int) -> Candidate:

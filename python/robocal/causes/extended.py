@@ -41,7 +41,9 @@ from .candidates import (
     map_candidate,
     map_noise,
     periodic_candidate,
+    sensor_periodic_candidate,
     step_candidate,
+    tracker_azimuth_candidate,
 )
 from .problem import ExtendedProblem, stack
 from .wander import ROUGHNESS, wander_candidate
@@ -400,6 +402,12 @@ def extended_problem(
         settling = re.fullmatch(r"drift settling=([0-9.]+)", label)
         if settling:
             pool[label] = drift_candidate(dataset, settling=float(settling.group(1)))
+        drum = re.fullmatch(r"sensor_periodic period=([0-9.]+)", label)
+        if drum and float(drum.group(1)) > 0:  # the sensor's own error, refitted on these data
+            pool[label] = sensor_periodic_candidate(dataset, float(drum.group(1)))
+        azimuth = re.fullmatch(r"tracker_azimuth harmonic=(\d+) station=(-?\d+),(-?\d+)", label)
+        if azimuth and dataset.measurement != "cable":
+            pool[label] = tracker_azimuth_candidate(dataset, np.array([float(azimuth.group(2)), float(azimuth.group(3))]), int(azimuth.group(1)))
         periodic = re.fullmatch(r"joint_periodic joint (\d+) harmonic=(\d+)", label)
         if periodic and 1 <= int(periodic.group(1)) <= problem.robot.n_joints and label not in pool:  # a harmonic found in the place of several
             pool[label] = periodic_candidate(problem.robot, dataset, int(periodic.group(1)) - 1, int(periodic.group(2)))

@@ -63,6 +63,7 @@ from ..causes import structure
 from ..causes.candidates import (
     CURVED_DRIFT_DEGREE,
     PHYSICAL_KINDS,
+    SENSOR_KINDS,
     SETTLING_TIMES,
     Candidate,
     compliance_candidate,
@@ -89,6 +90,7 @@ from .maps import map_stage, merge_harmonics
 from .outliers import gross_outliers, name_outliers
 from .physical import physical_model
 from .screening import Screen
+from .sensor_field import sensor_candidates
 from .state import Baseline, Decided, Pass, refusal_record, retraction
 from .validation import GAIN_LEVEL, GAIN_Z, coefficient_std, cross_validate, fit_problem, fold_schemes, judgeable, weak_gain
 from .wander import CHANCE_ORDERS, residual_correlation, serial_inflation, time_inflation, trend_beyond_chance
@@ -559,8 +561,9 @@ class Round:
         # Bonferroni over the whole search, not one round: every candidate of every round the
         # selection may run (max_effects). A step's position was chosen from the data among
         # every sample: Bonferroni over those positions as well (its p-value is that of the
-        # best of them).
-        return (self.candidates + (len(self.residual) // self.k if c.kind == "step" else 0)) * max(1, self.max_effects)
+        # best of them). The sensor's own error likewise over the shapes it was chosen among.
+        chosen_among = len(self.residual) // self.k if c.kind == "step" else c.detail.get("scanned", 0)
+        return (self.candidates + chosen_among) * max(1, self.max_effects)
 
     def significant(self, gain: float, c: Candidate, p_value: float, gains: dict) -> bool:
         """Whether a screened candidate passes the F test at ``alpha`` / :meth:`tests`, gains at
@@ -601,7 +604,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     # Residuals alike in joint space and not beyond it in time are evidence for the robot's
     # causes: a wander would take them along the path (UR10 series B: docs/findings.md, D3).
     in_joints = bool(round_test) and round_test.get("verdict") == "joints"
-    pool = round_candidates(state, pool, r, round_test, wander_offered, replay)
+    pool = round_candidates(state, pool, J, r, round_test, wander_offered, replay)
     params = sorted({n for c in pool if c.stage == "parameters" for n in c.params})
     _, p, parts = ext.jacobian_parts(x, [state.robot.index(n) for n in params])
     screen = Screen(J, r, schemes, k)
@@ -695,10 +698,12 @@ def bent_drift(screening: Round, scored: list, causes: list) -> bool:
     return False
 
 
-def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_test: Optional[dict], wander_offered: bool, replay: Optional[Decided]) -> list:
+def round_candidates(state: Pass, pool: list, J, residual: np.ndarray, residual_test: Optional[dict], wander_offered: bool, replay: Optional[Decided]) -> list:
     """``pool`` with a round's own candidates (a replay's pool as it is): steps where the current
-    model's ``residual`` changes level, and wanders on the ``residual_test``'s correlation length
-    while they are ``wander_offered`` and the model has none."""
+    model's ``residual`` changes level, the sensor's own error in the shape the residuals follow
+    best with the model's Jacobian ``J`` beside it (:func:`~.sensor_field.sensor_candidates`), and
+    wanders on the ``residual_test``'s correlation length while they are ``wander_offered`` and
+    the model has none."""
     if replay is not None:
         return pool
     causes, keep, k = state.model.causes, state.keep, state.k
@@ -709,6 +714,9 @@ def round_candidates(state: Pass, pool: list, residual: np.ndarray, residual_tes
     pool = [c for c in pool if c.kind != "step"] + [
         c for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k), state.robot) if c.detail["sample"] not in taken
     ]
+    pool = [c for c in pool if c.kind not in SENSOR_KINDS] + sensor_candidates(
+        state.dataset, keep, J, residual, state.model.row_weights, [c for c in causes if c.kind in SENSOR_KINDS]
+    )
     # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
     # cause hid shows once that cause is in). Its knots at half the correlation length and
     # coarser, and its roughness penalty as set and stronger: noise and unmodelled causes
