@@ -193,7 +193,7 @@ class Candidate:
             if kind == "sensor_periodic":
                 out = {"amplitude": q(amp, sd, "mm"), "phase": q(phase / DEG, np.nan, "deg"), "period": q(self.detail["period"], np.nan, "mm")}
                 return out, (f"amplitude {amp:.3g} mm exceeds {LIMITS['sensor_mm']:g} mm" if amp > LIMITS["sensor_mm"] else None)
-            arcsec = 1e-6 / DEG * 3600.0  # the coefficients are µrad
+            arcsec = 1e-3 / DEG * 3600.0  # the coefficients are mrad
             out = {
                 "amplitude": q(amp * arcsec, sd * arcsec, "arcsec"),
                 "phase": q(phase / DEG, np.nan, "deg"),
@@ -201,7 +201,7 @@ class Candidate:
                 "station_x": q(self.detail["station_xy"][0], np.nan, "mm"),
                 "station_y": q(self.detail["station_xy"][1], np.nan, "mm"),
             }
-            bad = amp * 1e-6 > LIMITS["sensor_rad"]
+            bad = amp * 1e-3 > LIMITS["sensor_rad"]
             return out, (f"amplitude {amp * arcsec:.3g} arcsec exceeds {LIMITS['sensor_rad'] / DEG * 3600:.3g} arcsec" if bad else None)
         if kind == "temperature":
             out = {"alpha": q(c[0] * 1e6, s[0] * 1e6, "1e-6/K"), "target": q(np.nan, np.nan, self.detail["target"])}
@@ -604,13 +604,14 @@ def sensor_periodic_candidate(data: Dataset, period: float) -> Candidate:
 def tracker_azimuth_candidate(data: Dataset, station: np.ndarray, harmonic: int) -> Candidate:
     """A laser tracker's azimuth encoder error about a standing axis through ``station`` (x, y in
     the readings' frame, mm; the frame's z standing, as a levelled tracker's): the azimuth ``φ``
-    of each reading off by ``a·sin(hφ) + b·cos(hφ)`` (µrad), which moves the reading sideways
+    of each reading off by ``a·sin(hφ) + b·cos(hφ)`` (mrad: a coefficient's plausible limit is
+    one, as :meth:`~robocal.calibration.result.CalibrationResult.undetermined` scales them), which moves the reading sideways
     by that angle times its horizontal distance from the station. A pose's orientation rows are
     the probe's own (no columns)."""
     station = np.round(np.asarray(station, dtype=np.float64))  # as labelled (mm): a basis rebuilt from the label is this one
     rel = data.y[:, :2] - station
     azimuth, reach = np.arctan2(rel[:, 1], rel[:, 0]), np.hypot(rel[:, 0], rel[:, 1])
-    sideways = np.column_stack([-np.sin(azimuth), np.cos(azimuth), np.zeros(len(data))]) * (reach * 1e-6)[:, None]  # mm per µrad
+    sideways = np.column_stack([-np.sin(azimuth), np.cos(azimuth), np.zeros(len(data))]) * (reach * 1e-3)[:, None]  # mm per mrad
     basis = np.zeros((len(data), RESIDUAL_WIDTH[data.measurement], 2))
     basis[:, :3, 0] = sideways * np.sin(harmonic * azimuth)[:, None]
     basis[:, :3, 1] = sideways * np.cos(harmonic * azimuth)[:, None]
