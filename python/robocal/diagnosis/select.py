@@ -714,9 +714,7 @@ def round_candidates(state: Pass, pool: list, J, residual: np.ndarray, residual_
     pool = [c for c in pool if c.kind != "step"] + [
         c for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k), state.robot) if c.detail["sample"] not in taken
     ]
-    pool = [c for c in pool if c.kind not in SENSOR_KINDS] + sensor_candidates(
-        state.dataset, keep, J, residual, state.model.row_weights, [c for c in causes if c.kind in SENSOR_KINDS]
-    )
+    pool = [c for c in pool if c.kind not in SENSOR_KINDS] + sensor_candidates(state.dataset, keep, J, residual, [c for c in causes if c.kind in SENSOR_KINDS])
     # Residuals alike from one sample to the next: the sensor may wander (a wander a larger
     # cause hid shows once that cause is in). Its knots at half the correlation length and
     # coarser, and its roughness penalty as set and stronger: noise and unmodelled causes

@@ -35,10 +35,10 @@ STATION_DIRECTIONS = 24
 #: The nearest a tracker stands to a point it measures (mm): the readings' own origin (a
 #: tracker's frame) is scanned only beyond it.
 NEAREST_READING_MM = 1000.0
+#: Samples a scan chooses the shape on, at most.
+SCANNED_SAMPLES = 3000
 #: Azimuth harmonics scanned (cycles a turn).
 AZIMUTH_HARMONICS = (1, 2, 3)
-#: Candidates scored at once (their columns side by side).
-CHUNK = 16
 
 
 def drum_periods(lengths: np.ndarray) -> tuple[np.ndarray, int]:
@@ -70,58 +70,82 @@ def tracker_stations(points: np.ndarray) -> np.ndarray:
     return np.vstack(stations)
 
 
-def sensor_shapes(data: Dataset, named: list[Candidate]) -> tuple[list, int]:
-    """Every shape of the sensor's own error scanned on ``data`` (builders of candidates, each
-    called with nothing) and the count the chosen one's test is corrected for. Beside the
-    sensor's errors ``named`` already, only what the same instrument can add: a session has one
-    drum and one station, so the drum's harmonics (half, a third of its period) and the
-    station's other harmonics."""
-    if data.measurement == "cable":
-        if named:
-            periods = np.array([c.detail["period"] / h for c in named[:1] for h in (2, 3)])
-            return [lambda P=P: sensor_periodic_candidate(data, P) for P in periods], len(periods)
-        periods, independent = drum_periods(data.y[:, 0])
-        return [lambda P=P: sensor_periodic_candidate(data, P) for P in periods], independent
-    stations = [np.array(named[0].detail["station_xy"], dtype=float)] if named else tracker_stations(data.y[:, :3])
-    taken = {c.detail["harmonic"] for c in named}
-    shapes = [lambda s=s, h=h: tracker_azimuth_candidate(data, s, h) for s in stations for h in AZIMUTH_HARMONICS if h not in taken]
-    return shapes, len(shapes)
-
-
-def sensor_candidates(data: Dataset, idx: np.ndarray, J, residual: np.ndarray, weights: np.ndarray, named: list[Candidate]) -> list[Candidate]:
+def sensor_candidates(data: Dataset, idx: np.ndarray, J, residual: np.ndarray, named: list[Candidate]) -> list[Candidate]:
     """The sensor's own error most like the current model's residuals: of every shape scanned
-    (:func:`sensor_shapes`; ``named``: the sensor's errors the model has) the one whose columns, with the model's Jacobian ``J`` (data rows of
-    the samples ``idx``, weighted by ``weights``) refitted beside them, remove most of
-    ``residual`` — as one candidate whose ``detail["scanned"]`` says how many shapes it was
-    chosen among. Empty if nothing is scanned."""
-    shapes, scanned = sensor_shapes(data, named)
-    if not shapes:
-        return []
-    gram = J.T @ J
-    gram = np.asarray(gram.toarray() if is_sparse(gram) else gram)
-    inverse = np.linalg.pinv(gram)  # the model's own columns projected off each candidate's
-    best, best_gain = None, -np.inf
-    for start in range(0, len(shapes), CHUNK):
-        built = [make() for make in shapes[start : start + CHUNK]]
-        C = np.concatenate([c.basis[idx].reshape(len(residual), -1) for c in built], axis=1) * weights[:, None]
-        JC = np.asarray(J.T @ C)
-        CC = C.T @ C - JC.T @ inverse @ JC
-        Cr = C.T @ residual
-        for i, c in enumerate(built):
-            block = slice(2 * i, 2 * i + 2)
-            gain = _explained(CC[block, block], Cr[block])
-            if gain is not None and gain > best_gain:
-                best, best_gain = c, gain
-    if best is None:
-        return []
-    best.detail["scanned"] = scanned
-    return [best]
+    (``named``: the sensor's errors the model has; beside them only what the same instrument can
+    add: a session has one drum and one station, so the drum's harmonics — half, a third of its
+    period — and the station's other harmonics) the one whose two columns, with the model's
+    Jacobian ``J`` (its data rows of the samples ``idx``, weighted as a fit weighs them: a
+    reading's position rows by one) refitted beside them, remove most of ``residual`` — as one
+    candidate whose ``detail["scanned"]`` says how many shapes it was chosen among. Empty if
+    nothing is scanned."""
+    J = np.asarray(J.toarray() if is_sparse(J) else J)
+    rows = J.reshape(len(idx), -1, J.shape[1])  # (samples, rows of a sample, parameters)
+    left = residual.reshape(len(idx), -1)
+    # The scan only proposes (the screening then tests the shape on every sample): on a long
+    # session, an even share of its samples choose as well.
+    every = slice(None, None, -(-len(idx) // SCANNED_SAMPLES))
+    idx, rows, left = idx[every], rows[every], left[every]
+    flat = rows.reshape(-1, rows.shape[2])
+    inverse = np.linalg.pinv(flat.T @ flat)  # the model's own columns projected off each candidate's
+    if data.measurement == "cable":
+        lengths = data.y[idx, 0]
+        if named:
+            periods, scanned = np.array([named[0].detail["period"] / h for h in (2, 3)]), 2
+        else:
+            periods, scanned = drum_periods(data.y[:, 0])
+        periods = np.round(periods, 1)  # as the candidate labels them
+        phase = 2.0 * np.pi * lengths[:, None] / periods[None, :]
+        W = np.stack([np.sin(phase), np.cos(phase)], axis=-1)  # (m, shapes, 2): a column pair per period
+        gains = _gains(W, rows[:, 0, :], left[:, 0], inverse)
+        best = int(np.argmax(gains)) if len(gains) else -1
+        if best < 0 or not np.isfinite(gains[best]):
+            return []
+        chosen = sensor_periodic_candidate(data, periods[best])
+    else:
+        stations = [np.array(named[0].detail["station_xy"], dtype=float)] if named else list(np.round(tracker_stations(data.y[:, :3])))
+        taken = {c.detail["harmonic"] for c in named}
+        harmonics = [h for h in AZIMUTH_HARMONICS if h not in taken]
+        scanned = len(stations) * len(harmonics)
+        # The sideways unit times the reach, (−(y − s_y), x − s_x, 0), is linear in the station:
+        # each station's products with the Jacobian and the residuals from three fixed ones.
+        points = data.y[idx, :2]
+        Jx, Jy = rows[:, 0, :], rows[:, 1, :]
+        rx, ry = left[:, 0], left[:, 1]
+        best, best_gain = None, -np.inf
+        for station in stations:
+            rel = points - station
+            azimuth = np.arctan2(rel[:, 1], rel[:, 0])
+            # J·(reach·sideways) per sample, and (reach·sideways)·residual, in mm per mrad
+            moved = (Jy * rel[:, :1] - Jx * rel[:, 1:]) * 1e-3
+            along = (ry * rel[:, 0] - rx * rel[:, 1]) * 1e-3
+            W = np.stack([np.stack([np.sin(h * azimuth), np.cos(h * azimuth)], axis=-1) for h in harmonics], axis=1)  # (m, harmonics, 2)
+            reach2 = np.sum(rel**2, axis=1) * 1e-6
+            gains = _gains(W, moved, along, inverse, reach2)
+            h = int(np.argmax(gains))
+            if np.isfinite(gains[h]) and gains[h] > best_gain:
+                best, best_gain = (station, harmonics[h]), gains[h]
+        if best is None:
+            return []
+        chosen = tracker_azimuth_candidate(data, best[0], best[1])
+    chosen.detail["scanned"] = scanned
+    return [chosen]
 
 
-def _explained(CC: np.ndarray, Cr: np.ndarray) -> Optional[float]:
-    """The residual sum of squares two columns remove (``CC`` their projected Gram matrix,
-    ``Cr`` their products with the residuals); None where they are degenerate."""
-    values = np.linalg.eigvalsh(CC)
-    if values[0] <= 1e-9 * max(values[-1], 1e-300):  # the model's columns take one of them whole
-        return None
-    return float(Cr @ np.linalg.solve(CC, Cr))
+def _gains(W: np.ndarray, JB: np.ndarray, rB: np.ndarray, inverse: np.ndarray, scale: Optional[np.ndarray] = None) -> np.ndarray:
+    """The residual sum of squares each column pair removes, the model's columns refitted beside
+    it: ``W`` (m, shapes, 2) the pairs' per-sample factors of a basis ``B`` (its rows per sample
+    ``JB`` (m, p) as they meet the Jacobian, ``rB`` (m,) as they meet the residuals and
+    ``scale`` (m,) their squared norm, default one). −inf where the pair is degenerate."""
+    m, shapes = W.shape[:2]
+    scale = np.ones(m) if scale is None else scale
+    JC = (JB.T @ W.reshape(m, -1)).reshape(-1, shapes, 2)  # (p, shapes, 2): one product for every shape
+    projected = (inverse @ JC.reshape(len(JC), -1)).reshape(JC.shape)
+    CC = np.einsum("msc,msd->scd", W * scale[:, None, None], W, optimize=True) - np.einsum("psc,psd->scd", JC, projected, optimize=True)
+    Cr = (rB @ W.reshape(m, -1)).reshape(shapes, 2)
+    out = np.full(W.shape[1], -np.inf)
+    for i in range(W.shape[1]):  # a 2x2 solve each
+        values = np.linalg.eigvalsh(CC[i])
+        if values[0] > 1e-9 * max(values[-1], 1e-300):  # else the model's columns take one of them whole
+            out[i] = float(Cr[i] @ np.linalg.solve(CC[i], Cr[i]))
+    return out
