@@ -36,6 +36,7 @@ from scipy.stats import chi2
 from .calibration.api import load_inputs
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem
+from .calibration.sessions import setup_eliminated
 from .causes.result_model import result_model
 from .data.dataset import Dataset
 from .data.identity import Fingerprint
@@ -49,9 +50,6 @@ logger = logging.getLogger(__name__)
 
 #: Default chance of naming any joint whose zero did not move (family-wise, over the joints).
 ALPHA = 0.05
-#: A zero's Jacobian column whose part the set-up's columns do not reproduce is below this fraction
-#: of its norm: the set-up absorbs that zero's change on these points.
-INDISTINGUISHABLE = 1e-6
 
 
 @dataclass
@@ -105,19 +103,16 @@ def _fit(base: Problem, columns: list) -> tuple[np.ndarray, float, object]:
 
 
 def _separable(base: Problem, zeros: list) -> tuple[dict, dict]:
-    """Each zero's column against the set-up's at the set-up's fit: the information left once the
-    set-up is eliminated (the Schur complement's diagonal, in the weighted residuals' units), and
-    for those the set-up reproduces the set-up parameters that do."""
+    """Each zero's information once the set-up is eliminated, at the set-up's fit (the Schur
+    complement's diagonal, in the weighted residuals' units), and for the zeros the set-up
+    reproduces the set-up parameters that do (largest first)."""
     J = base.robot.jacobian(base.data.measurement, base.data.q, y=base.data.y, params=base.start, cols=list(base.free) + zeros) * base.row_weights[:, None]
     S, Z = J[:, : len(base.free)], J[:, len(base.free) :]
-    coef, *_ = np.linalg.lstsq(S, Z, rcond=None)
-    rest = Z - S @ coef
+    rest, absorbed = setup_eliminated(S, Z)
     info, redundant = {}, {}
     for i, c in enumerate(zeros):
-        norm = float(np.linalg.norm(Z[:, i]))
-        if norm == 0.0 or np.linalg.norm(rest[:, i]) <= INDISTINGUISHABLE * norm:
-            weights = np.abs(coef[:, i]) * np.linalg.norm(S, axis=0) / max(norm, 1e-300)
-            redundant[c] = [base.names[k] for k in np.argsort(-weights)[:3] if weights[k] > 1e-3]
+        if i in absorbed:
+            redundant[c] = [base.names[k] for k in absorbed[i]]
         else:
             info[c] = float(rest[:, i] @ rest[:, i])
     return info, redundant
