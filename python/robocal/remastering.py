@@ -84,6 +84,7 @@ class Remastering:
     report: dict
 
     def to_dict(self) -> dict:
+        """The re-mastered result document (:attr:`document`), as ``CalibrationResult.to_dict`` gives a result's."""
         return self.document
 
 
