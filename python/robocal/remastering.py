@@ -48,6 +48,7 @@ from .calibration.problem import Problem, fit_row_weights
 from .calibration.sessions import setup_eliminated
 from .causes.result_model import result_model
 from .data.dataset import Dataset
+from .data.identity import Fingerprint
 from .exceptions import InvalidParameterError
 from .kernels import as_positive
 from .physics import DEG
@@ -77,7 +78,7 @@ class Remastering:
         pass), ``alpha``, ``noise_mm`` (the reading's standard deviation used) and where it comes
         from, ``result_error_counted`` (whether the result's own covariance entered), ``setup`` (the set-up fitted), ``rmse`` (the set-up alone, and with the changes, mm),
         ``fit`` (the residuals' χ² against their degrees of freedom, and its p-value), ``samples``,
-        ``data``, ``notes``.
+        ``data``, ``sha256`` and ``fingerprint`` (``verify`` recognises the points), ``notes``.
     """
 
     document: dict
@@ -124,7 +125,11 @@ def _result_covariance(doc: dict, robot: Robot, angle_unit) -> tuple[list, Optio
     G = J.T @ J
     n = len(own)
     schur = G[:n, :n] - G[:n, n:] @ np.linalg.pinv(G[n:, n:], hermitian=True) @ G[n:, :n]
-    return own, s2 * np.linalg.pinv(schur, hermitian=True), None
+    # Inverted on its positive eigenvalues: a covariance must be positive semi-definite, or σ²I + J C Jᵀ
+    # may not be (pose data's rotation rows, weighed 200 mm/rad, made rounding errors of C count).
+    lam, U = np.linalg.eigh((schur + schur.T) / 2)
+    keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
+    return own, s2 * (U[:, keep] / lam[keep]) @ U[:, keep].T, None
 
 
 @dataclass
@@ -221,7 +226,8 @@ def remaster(
     if dataset.measurement != doc["measurement"]:
         raise InvalidParameterError(f"the result is a {doc['measurement']} calibration; the data hold {dataset.measurement} measurements")
     sigma, sigma_from = _noise(doc, dataset.measurement, noise)
-    links = result_model(robot, doc, dataset).links
+    modelled = result_model(robot, doc, dataset)
+    links = modelled.links
     # The set-up fitted with the result's robot, as verify does; a cable's hook on the tool is the robot's, kept.
     base = Problem.build(robot, links, mask=setup_names(robot, links.measurement), params=robot.params)
     held = [robot.index(n) for n in ("tool_x", "tool_y", "tool_z") if n not in base.names]
@@ -292,6 +298,7 @@ def remaster(
         "samples": len(links),
         "data": dataset.source,
         "sha256": file_sha256(dataset.source) if dataset.source else None,
+        "fingerprint": Fingerprint.of(modelled.read).to_dict(),  # verify recognises these points: they are no held-out data
         "result": None if isinstance(result, dict) else str(result),
         "notes": notes,
     }
