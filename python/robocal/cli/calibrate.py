@@ -20,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_data_arguments(parser, sessions=True)
     parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
     parser.add_argument("--test-fraction", type=float, help="held-out share, seeded random split (default 0.2)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, help="seed of the held-out split (default 0)")
     add_kinematic_prior_argument(parser)
     parser.add_argument(
         "--loss", choices=["linear", "huber", "cauchy"], default="linear", help="robust loss of method lm; outlying rows are reported (default linear)"
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 #: Options of a full calibration that a re-mastering (``--prior``) does not take: option -> its value when not given.
-NOT_WITH_PRIOR = {"method": "lm", "test_fraction": None, "kinematic_prior": None, "loss": "linear", "causes": None}
+NOT_WITH_PRIOR = {"method": "lm", "test_fraction": None, "seed": None, "kinematic_prior": None, "loss": "linear", "causes": None}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         measurement=args.measurement,
         method=args.method,
         test_fraction=0.2 if args.test_fraction is None else args.test_fraction,
-        seed=args.seed,
+        seed=0 if args.seed is None else args.seed,
         kinematic_prior=args.kinematic_prior,
         angle_unit=args.angle_unit,
         causes=report or args.causes or None,
