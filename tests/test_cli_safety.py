@@ -468,6 +468,7 @@ SPECS = {
             "--kinematic-prior": "text",
             "--loss": "text",
             "--causes": "diagnosis",
+            "--prior": "result",
             "--out": "out",
             "--json": None,
             "--angle-unit": "text",
@@ -539,6 +540,7 @@ SPECS = {
             "--seed": "int",
             "--noise": "float",
             "--passes": "int",
+            "--criterion": "text",
             "--angle-unit": "text",
         },
     ),
@@ -556,6 +558,7 @@ CHOICES = {
     "--name": ["r", "<b>&"],
     "--frame": ["base", "session", "session:1", "session:2", "user", "tool", "session:0"],
     "--angles": ["readings", "model", "raw"],
+    "--criterion": ["I", "D", "Ds", "ds"],
     "--user-frame": ["0,0,0,0,0,0", "100,0,500,0,0,90", "1,2,3", "a,b,c,d,e,f", "nan,0,0,0,0,0"],
 }
 #: Options always drawn (required, or without which the canonical file cannot be calibrated).

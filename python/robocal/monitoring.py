@@ -56,7 +56,7 @@ from .data.dataset import OBSERVATION_COLUMNS
 from .exceptions import InvalidParameterError, ShapeError
 from .kernels import as_float_array
 from .results import load_result
-from .serial_robot import setup_names
+from .serial_robot import setup_names, zero_names
 
 logger = logging.getLogger(__name__)
 
@@ -330,9 +330,8 @@ class Monitor:
     def _changes(self) -> list[Change]:
         r = self.robot
         out = []
-        for j, joint in enumerate(r.joints):
-            name = f"theta{j + 1}" if joint.kind == "revolute" else f"d{j + 1}"
-            out.append(Change("joint_zero", j + 1, (r.index(name),), (name,)))
+        for j, name in enumerate(zero_names(r), start=1):
+            out.append(Change("joint_zero", j, (r.index(name),), (name,)))
         sensor = ("cable_offset",) if self.measurement == "cable" else ("base_x", "base_y", "base_z")
         columns = tuple(r.index(n) for n in sensor)
         out += [Change("step", None, columns, sensor), Change("drift", None, columns, sensor)]

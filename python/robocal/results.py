@@ -110,6 +110,20 @@ def session_robot(robot: Robot, doc: dict, s: int) -> Robot:
     return Robot(robot.name, robot.joints, params, mass_model=robot.mass_model)
 
 
+def unread_training(sessions: list[dict]) -> Optional[str]:
+    """Why the training data of a result's ``sessions`` (each with ``source``, ``rows_used`` and
+    ``sha256``, as a result records them) cannot be read again, or None."""
+    for s in sessions:
+        source, rows = s.get("source"), s.get("rows_used")
+        if source is None or rows is None:
+            return "the result names no training data file (it was calibrated on data in memory)"
+        if not Path(source).is_file():
+            return f"its training data {source} are not found"
+        if s.get("sha256") and file_sha256(source) != s["sha256"]:
+            return f"its training data {source} changed since the calibration (another SHA-256)"
+    return None
+
+
 def save_result(document: dict, path) -> Path:
     return write_json(path, document)
 

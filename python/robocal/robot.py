@@ -17,10 +17,10 @@ from . import robot_table
 from .catalog import BUILTIN
 from .exceptions import InvalidParameterError
 from .robot_file import read_robot_file, write_robot_file
-from .serial_robot import MEASUREMENTS, RESIDUAL_WIDTH, Joint, MassModel, Robot, setup_names
+from .serial_robot import MEASUREMENTS, RESIDUAL_WIDTH, Joint, MassModel, Robot, setup_names, zero_names
 from .urdf import read_urdf
 
-__all__ = ["MEASUREMENTS", "RESIDUAL_WIDTH", "Joint", "MassModel", "Robot", "robot", "setup_names", "write_robot"]
+__all__ = ["MEASUREMENTS", "RESIDUAL_WIDTH", "Joint", "MassModel", "Robot", "robot", "setup_names", "write_robot", "zero_names"]
 
 
 def robot(name: str | Path) -> Robot:

@@ -40,6 +40,12 @@ def setup_names(robot: "Robot", measurement: str) -> list[str]:
     return [n for n in names if n in robot.param_names]
 
 
+def zero_names(robot: "Robot") -> list[str]:
+    """Each joint's zero offset, the parameter a re-mastering moves: ``theta{j}`` of a revolute
+    joint, ``d{j}`` of a prismatic one (1-based)."""
+    return [f"theta{j}" if joint.kind == "revolute" else f"d{j}" for j, joint in enumerate(robot.joints, start=1)]
+
+
 def _chain(joints: Sequence["Joint"]):
     """The core's compiled chain of ``joints`` (their conventions and kinds are all it holds)."""
     return _robocal.Chain([j.convention for j in joints], [j.kind for j in joints])

@@ -55,15 +55,16 @@ def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[st
 
 def _seen_by_fit(doc: dict, dataset: Dataset, read: Dataset) -> tuple[bool, list[str]]:
     """Whether ``dataset`` is new samples, and notes when it is not or in part: samples a fit of
-    ``doc`` was trained on (in its ``dataset`` or one of its ``sessions``), recognised by their
+    ``doc`` was trained on (in its ``dataset``, one of its ``sessions`` or a re-mastering's points), recognised by their
     content in any order or encoding (the recorded :class:`~robocal.data.identity.Fingerprint`,
     compared with ``read``, the samples in the model's reading convention as the fit saw them);
     for a result without a fingerprint, by the file's SHA-256."""
     digest = file_sha256(dataset.source) if dataset.source else None
     partly = []
-    for k, fitted in enumerate([doc.get("dataset") or {}] + list(doc.get("sessions") or [])):
+    sessions = [(f"session {k} of the calibration", s) for k, s in enumerate(doc.get("sessions") or [], start=1)]
+    # A re-mastered result's points (robocal.remastering) fitted its zeros and set-up: no held-out figure either.
+    for which, fitted in [("the calibration's data", doc.get("dataset")), *sessions, ("the re-mastering's points", doc.get("remaster"))]:
         fitted = fitted if isinstance(fitted, dict) else {}
-        which = f"session {k} of the calibration" if k else "the calibration's data"
         recorded = Fingerprint.from_dict(fitted.get("fingerprint"))
         if recorded is not None:
             overlap = recorded.overlap(read)

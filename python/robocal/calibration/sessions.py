@@ -138,6 +138,28 @@ def _independent(A: np.ndarray) -> np.ndarray:
     return kept
 
 
+#: A column whose part the set-up's columns do not reproduce is below this fraction of its norm:
+#: the set-up absorbs it on these poses (joint 1's zero and a tracker's rotation about the base's z).
+INDISTINGUISHABLE = 1e-6
+
+
+def setup_eliminated(S: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, dict]:
+    """The columns ``Z`` (rows, p) with a session's set-up columns ``S`` (rows, s) eliminated:
+    ``Z − S S⁺ Z``, whose Gram matrix is the Schur complement of the set-up in ``[S Z]ᵀ[S Z]``
+    (what ``Z``'s entries are determined by once the set-up is fitted anew); and the columns the
+    set-up reproduces (their rest below :data:`INDISTINGUISHABLE` of their norm), each with the
+    set-up columns that do (up to three, largest share first)."""
+    coef, *_ = np.linalg.lstsq(S, Z, rcond=None)
+    rest = Z - S @ coef
+    norm = np.linalg.norm(Z, axis=0)
+    share = np.abs(coef) * np.linalg.norm(S, axis=0)[:, None] / np.maximum(norm, 1e-300)
+    absorbed = {
+        int(i): [int(k) for k in np.argsort(-share[:, i])[:3] if share[k, i] > 1e-3]
+        for i in np.flatnonzero(np.linalg.norm(rest, axis=0) <= INDISTINGUISHABLE * norm)
+    }
+    return rest, absorbed
+
+
 def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A problem's residuals at ``x`` as (data rows, prior rows)."""
     r = problem.residuals(x)

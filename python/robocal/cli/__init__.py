@@ -35,7 +35,10 @@ class Paths:
 COMMANDS = {
     "demo": ("run the core on a built-in simulated robot (no files needed)", Paths(folders=("out",))),
     "inspect": ("validate a measurement file (canonical CSV or a public dataset)", Paths(("path", "robot"), ("json",))),
-    "calibrate": ("identify a robot's kinematic parameters from measurements", Paths(("data", "robot", "causes"), ("out",))),
+    "calibrate": (
+        "identify a robot's kinematic parameters from measurements (with --prior RESULT: which joints' zeros moved since)",
+        Paths(("data", "robot", "causes", "prior"), ("out",)),
+    ),
     "simulate": ("simulate measurements of a robot with known truth and injectable effects", Paths(("robot",), ("out", "truth"))),
     "compare": ("run the paper's comparison of calibrators and write its tables and figures", Paths(("data", "robot"), (), ("out",))),
     "diagnose": ("show what the geometric model gets wrong, name the cause, measure the held-out gain", Paths(("data", "robot"), ("json",), ("out",))),

@@ -9,7 +9,9 @@ from ..calibration.api import METHODS
 from ..calibration.result import describe_implausible, verdict
 from ..causes.extended import calibrate
 from ..diagnosis_file import load_diagnosis
+from ..exceptions import InvalidParameterError
 from ..outputs import printable
+from ..remastering import remaster
 from ..results import save_result
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
@@ -17,8 +19,8 @@ from .arguments import add_data_arguments, add_kinematic_prior_argument
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_data_arguments(parser, sessions=True)
     parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
-    parser.add_argument("--test-fraction", type=float, default=0.2, help="held-out share, seeded random split (default 0.2)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--test-fraction", type=float, help="held-out share, seeded random split (default 0.2)")
+    parser.add_argument("--seed", type=int, help="seed of the held-out split (default 0)")
     add_kinematic_prior_argument(parser)
     parser.add_argument(
         "--loss", choices=["linear", "huber", "cauchy"], default="linear", help="robust loss of method lm; outlying rows are reported (default linear)"
@@ -26,11 +28,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--causes", nargs="+", metavar="CAUSE", help="fit an extended model (method lm): a diagnose report JSON, or cause labels as diagnose prints them"
     )
+    parser.add_argument(
+        "--prior",
+        metavar="RESULT",
+        help="re-master: a calibration result held as it is but for each joint's zero; find from a few new points whose zero moved, and by how much",
+    )
     parser.add_argument("--out", help="write the result JSON here")
     parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
 
 
+#: Options of a full calibration that a re-mastering (``--prior``) does not take: option -> its value when not given.
+NOT_WITH_PRIOR = {"method": "lm", "test_fraction": None, "seed": None, "kinematic_prior": None, "loss": "linear", "causes": None}
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.prior is not None:
+        return _remaster(args)
     report = args.causes[0] if args.causes and len(args.causes) == 1 and args.causes[0].endswith(".json") else None
     if report is not None:
         report = load_diagnosis(report)  # a corrupt or malformed report is refused naming the file, before the data are read
@@ -40,8 +53,8 @@ def run(args: argparse.Namespace) -> int:
         robot=args.robot,
         measurement=args.measurement,
         method=args.method,
-        test_fraction=args.test_fraction,
-        seed=args.seed,
+        test_fraction=0.2 if args.test_fraction is None else args.test_fraction,
+        seed=0 if args.seed is None else args.seed,
         kinematic_prior=args.kinematic_prior,
         angle_unit=args.angle_unit,
         causes=report or args.causes or None,
@@ -106,3 +119,55 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         print(f"  result written to {args.out}")
     return 0
+
+
+def _remaster(args: argparse.Namespace) -> int:
+    """``--prior RESULT``: :func:`robocal.remastering.remaster` on one file, its summary or the re-mastered result JSON."""
+    given = [f"--{name.replace('_', '-')}" for name, default in NOT_WITH_PRIOR.items() if getattr(args, name) != default]
+    if given:
+        raise InvalidParameterError(f"{', '.join(given)}: a re-mastering (--prior) fits only the set-up and the joints' zeros; it takes none of these")
+    if len(args.data) != 1:
+        raise InvalidParameterError(f"a re-mastering (--prior) reads one session's file; got {len(args.data)}")
+    if args.robot is not None:
+        raise InvalidParameterError("--robot: a re-mastering (--prior) is of the result's robot")
+    found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=args.angle_unit)
+    if args.out:
+        save_result(found.document, args.out)
+    if args.json:
+        print(json.dumps(found.document, indent=2))
+        return 0
+    print(remaster_summary(found.report, found.document))
+    if args.out:
+        print(f"  result written to {args.out}")
+    return 0
+
+
+def remaster_summary(report: dict, doc: dict) -> str:
+    """A few lines for the terminal: what moved, what held, what these points cannot tell."""
+    joints = report["joints"]
+    lines = [
+        (
+            f"re-mastering {printable(doc['robot'], one_line=True)} from {report['samples']} {doc['measurement']} samples: the new session's set-up fitted "
+            f"({', '.join(report['setup'])}), every other parameter held at the result's"
+        ),
+        (
+            f"  noise {report['noise_mm']:.4g} mm per reading ({report['noise_from']}); a joint is named when its change passes χ² {report['threshold']:.3g} "
+            f"(Bonferroni, {report['alpha']:.0%} over the {sum(j['status'] != 'indistinguishable' for j in joints)} joints these points tell apart)"
+        ),
+    ]
+    for j in joints:
+        if j["status"] == "moved":
+            lines.append(f"  joint {j['joint']}: zero moved {j['change']:+.4f} ± {j['std']:.4f} {j['unit']} ({j['name']}; χ² {j['statistic']:.1f})")
+    held = [j for j in joints if j["status"] == "held"]
+    if held:
+        lines.append("  no change found: " + ", ".join(f"joint {j['joint']} (± {j['detectable_std']:.2g} {j['unit']} were it the only change)" for j in held))
+    for j in joints:
+        if j["status"] == "indistinguishable":
+            lines.append(
+                f"  joint {j['joint']}: cannot be told apart from the set-up with these points"
+                + (f" (the set-up's {', '.join(j['redundant_with'])} does the same)" if j["redundant_with"] else "")
+            )
+    rmse = report["rmse"]
+    lines.append(f"  RMSE {rmse['setup_alone']:.4f} mm with the set-up alone, {rmse['remastered']:.4f} mm re-mastered")
+    lines += [f"  note: {n}" for n in report["notes"]]
+    return "\n".join(lines)

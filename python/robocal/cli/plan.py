@@ -94,7 +94,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--passes", type=int, help="interleaved passes over the workspace (default about sqrt(N)/2)")
     i_help = "I: the least mean error predicted over the workspace on a new session (default)"
     d_help = "D: the least volume of the parameters' confidence ellipsoid (log det)"
-    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="I", help=f"{i_help}; {d_help}")
+    ds_help = "Ds: the poses of a re-mastering (calibrate --prior): the joints' zeros apart from each other and from a new set-up"
+    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="I", help=f"{i_help}; {d_help}; {ds_help}")
     parser.add_argument("--bound", action="store_true", help="also state the least predicted error any N poses among the candidates could reach (seconds more)")
     add_angle_unit_argument(parser, "q columns of canonical --data files")
 
@@ -141,6 +142,27 @@ def _model_line(report: dict) -> str:
     return counted + "\n  known before the poses: " + ("; ".join(model["known_before"]) or "nothing (the nominal robot, no data)")
 
 
+def _zeros_lines(report: dict) -> list[str]:
+    """What a re-mastering on these poses would determine (criterion Ds)."""
+    if not report.get("zeros"):
+        return []
+    n = report["poses"]
+    apart = [z for z in report["zeros"] if z["after"] is not None]
+    lines = [
+        f"  a re-mastering on these poses: each zero's change ± "
+        + ", ".join(f"joint {z['joint']} {z['after']:.2g}" for z in apart)
+        + f" {apart[0]['unit'] if apart else 'deg'} ({n} random poses: "
+        + ", ".join(f"{z['random']:.2g}" for z in apart)
+        + ")"
+    ]
+    lines += [
+        f"  joint {z['joint']}: no pose tells its zero from the set-up ({', '.join(z['absorbed_by']) or 'the set-up'} does the same)"
+        for z in report["zeros"]
+        if z["after"] is None
+    ]
+    return lines
+
+
 def summary(report: dict, out: str, seconds: float) -> str:
     """A few lines for the terminal."""
     position = report["position"]
@@ -176,6 +198,7 @@ def summary(report: dict, out: str, seconds: float) -> str:
         "  not checked: " + "; ".join(report["not_checked"]),
     ]
     lines += [f"  {c['label']}: {c['reason']}" for c in report["causes_not_by_poses"]]
+    lines += _zeros_lines(report)
     lines += [f"  note: {n}" for n in report["notes"]]
     columns = OBSERVATION_COLUMNS[report["measurement"]]
     named = f"its {', '.join(columns)} column{'s' * (len(columns) > 1)}"

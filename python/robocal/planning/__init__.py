@@ -8,7 +8,8 @@ One module per concept, each importing only those listed before it:
 - ``criteria``: the design criteria on the candidates' Jacobian rows — I-optimal (the default:
   the least mean variance of a new session's readings over the workspace) and D-optimal (the
   least volume of the parameters' confidence ellipsoid), by greedy selection with Woodbury
-  updates and Fedorov exchange (:func:`i_optimal`, :func:`d_optimal`), and the least any ``N``
+  updates and Fedorov exchange (:func:`i_optimal`, :func:`d_optimal`), Ds-optimal for a re-mastering (the joints'
+  zeros with a new session's set-up eliminated, :func:`ds_optimal`), and the least any ``N``
   poses could reach (:func:`i_bound`);
 - ``order``: the order of measuring — a short tour dealt into interleaved passes, so that a
   sensor drifting in time cannot pass for a joint cause (:func:`measuring_order`);
@@ -35,6 +36,7 @@ from .criteria import (
     RIDGE,
     SHORTLIST,
     d_optimal,
+    ds_optimal,
     i_bound,
     i_criterion,
     i_optimal,
@@ -70,6 +72,7 @@ __all__ = [
     "NOT_CHECKED",
     # criteria
     "d_optimal",
+    "ds_optimal",
     "i_optimal",
     "i_criterion",
     "i_bound",

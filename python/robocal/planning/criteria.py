@@ -43,6 +43,7 @@ RIDGE = 1e-6
 CRITERIA = {
     "I": "I-optimal: the least mean variance of a new session's readings over the workspace, its set-up re-fitted; Fedorov exchange from the D-optimal design",
     "D": "D-optimal: log det of the parameters' information; greedy selection, Fedorov exchange",
+    "Ds": "Ds-optimal: log det of the joints' zero offsets' information, a new session's set-up eliminated (re-mastering); greedy selection, Fedorov exchange",
 }
 
 
@@ -178,6 +179,62 @@ def d_optimal(A: np.ndarray, M0: np.ndarray, size: int, required: Sequence[int] 
     for _ in range(passes):
         swaps = _exchange(A, identity, chosen, min(len(required), size))
         logger.debug("exchange pass: %d swaps", swaps)
+        if not swaps:
+            break
+    return np.array(chosen, dtype=int)
+
+
+# -- the Ds-optimal design --------------------------------------------------------------------------
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def ds_optimal(A: np.ndarray, M0: np.ndarray, size: int, of: Sequence[int], required: Sequence[int] = (), passes: int = EXCHANGE_PASSES) -> np.ndarray:
+    """Indices of ``size`` distinct candidates that (nearly) maximise the log det of the information
+    on the columns ``of`` with the others (nuisance: a session's set-up) eliminated, the Schur
+    complement ``M_ss − M_sn M_nn⁻¹ M_ns`` of ``M = M0 + Σ A_iᵀA_i``: its log det is
+    ``log det M − log det M_nn``, so a pose's gain is its D-gain on the whole model less its D-gain on
+    the nuisance alone (:func:`_gains`, both kept current by :func:`_update`). Greedy selection,
+    then up to ``passes`` Fedorov exchange passes (each chosen pose after ``required`` swapped for
+    the candidate of largest gain once it is taken out, if that gains more)."""
+    of = set(int(i) for i in of)
+    nuisance = [i for i in range(A.shape[2]) if i not in of]
+    models = [_whitened(A, M0)[0]] + ([_whitened(A[:, :, nuisance], M0[np.ix_(nuisance, nuisance)])[0]] if nuisance else [])
+
+    def state(B, chosen):
+        Minv = np.linalg.inv(np.eye(B.shape[2]) + sum(B[i].T @ B[i] for i in chosen))
+        return [Minv, _blocks(B, Minv)]
+
+    def gains(states):
+        g = _gains(states[0][1])
+        return g - _gains(states[1][1]) if len(states) > 1 else g
+
+    def move(states, i, sign):
+        for B, st in zip(models, states):
+            st[:] = _update(B, st[0], st[1], i, sign)
+
+    chosen = [int(i) for i in list(required)[:size]]
+    states = [state(B, chosen) for B in models]
+    free = np.ones(len(A), dtype=bool)
+    free[chosen] = False
+    while len(chosen) < size:
+        i = int(np.argmax(np.where(free, gains(states), -np.inf)))
+        chosen.append(i)
+        free[i] = False
+        move(states, i, 1.0)
+    for _ in range(passes):
+        swaps = 0
+        for slot in range(min(len(required), size), size):
+            i = chosen[slot]
+            move(states, i, -1.0)
+            free[i] = True
+            g = gains(states)
+            j = int(np.argmax(np.where(free, g, -np.inf)))
+            if g[j] <= g[i] + 1e-9:
+                j = i
+            else:
+                swaps += 1
+            chosen[slot] = j
+            free[j] = False
+            move(states, j, 1.0)
+        logger.debug("Ds exchange pass: %d swaps", swaps)
         if not swaps:
             break
     return np.array(chosen, dtype=int)

@@ -13,12 +13,12 @@ from typing import Optional
 
 import numpy as np
 
-from ..calibration.problem import Problem, is_kinematic
-from ..calibration.sessions import concatenate, session_problems
+from ..calibration.problem import Problem, fit_row_weights, is_kinematic
+from ..calibration.sessions import concatenate, session_problems, setup_eliminated
 from ..causes.extended import extended_problem
 from ..data.dataset import Dataset
 from ..kernels import is_sparse
-from ..robot import RESIDUAL_WIDTH, Robot
+from ..robot import RESIDUAL_WIDTH, Robot, setup_names, zero_names
 
 #: Poses on which the predicted position's standard deviation over the workspace is averaged.
 WORKSPACE_POSES = 500
@@ -111,4 +111,44 @@ def _design(
         base_free=np.asarray(problem.free),
         labels=list(labels),
         fitted=dict(fitted or {}),
+    )
+
+
+@dataclass
+class _ZeroDesign:
+    """A re-mastering's model linearised on the candidates (criterion ``"Ds"``): the new session's
+    set-up and the joints' zero offsets, the rest of the robot held. Its entries' names, the column
+    scales (RMS over the candidates), every candidate's rows (scaled, (n, k, p)), the positions of
+    the zeros the candidates can tell from the set-up, and for the others the set-up entries that
+    reproduce them."""
+
+    names: list
+    scale: np.ndarray
+    A: np.ndarray
+    of: list
+    absorbed: dict
+
+
+def _zero_design(robot: Robot, measurement: str, params: np.ndarray, pool: np.ndarray) -> _ZeroDesign:
+    """The set-up's and the zeros' columns of the identification Jacobian on the candidates
+    ``pool`` (model angles) at ``params``, weighted as a fit weighs them; a zero the set-up
+    reproduces on every candidate (:func:`~robocal.calibration.sessions.setup_eliminated`: joint 1's
+    zero against a tracker's frame or a cable's anchor) is left out — no pose separates it."""
+    k = RESIDUAL_WIDTH[measurement]
+    setup, zeros = setup_names(robot, measurement), zero_names(robot)
+    expected = Dataset(q=pool, y=robot.predict(measurement, pool, params), measurement=measurement, robot=robot.name)
+    J = robot.jacobian(measurement, pool, y=expected.y, params=params, cols=setup + zeros) * fit_row_weights(expected)[:, None]
+    S, Z = J[:, : len(setup)], J[:, len(setup) :]
+    _, absorbed = setup_eliminated(S, Z)
+    apart = np.array([z not in absorbed for z in range(len(zeros))], dtype=bool)
+    kept = setup + [n for n, a in zip(zeros, apart) if a]
+    J = np.hstack([S, Z[:, apart]])
+    scale = np.sqrt(np.sum(J**2, axis=0) / len(pool))
+    scale = np.where(scale > 0, scale, 1.0)
+    return _ZeroDesign(
+        names=kept,
+        scale=scale,
+        A=(J / scale).reshape(len(pool), k, -1),
+        of=list(range(len(setup), len(kept))),
+        absorbed={zeros[z]: [setup[i] for i in by] for z, by in absorbed.items()},
     )

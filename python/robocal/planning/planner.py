@@ -31,7 +31,7 @@ from ..kernels import as_count, as_positive, seeded_rng
 from ..outputs import Staged
 from ..physics import DEG
 from ..results import file_sha256, load_result
-from ..robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, setup_names
+from ..robot import MEASUREMENTS, RESIDUAL_WIDTH, Robot, setup_names, zero_names
 from ..robot import robot as load_robot
 from ..sensors import DEFAULT_NOISE
 from ..simulation import CABLE_RANGE
@@ -43,11 +43,12 @@ from .criteria import (
     RIDGE,
     _information,
     d_optimal,
+    ds_optimal,
     i_bound,
     i_optimal,
     workspace_weights,
 )
-from .design import _Design, _design
+from .design import _Design, _design, _zero_design, _ZeroDesign
 from .order import _per_degree, _tour, default_passes, measuring_order, order_correlations, travel
 from .prior import _Known, _result_information, _result_mask, _training_sessions
 from .uncertainty import _cause_std, _shown, _Uncertainty
@@ -249,10 +250,13 @@ def plan(
         Interleaved passes over the workspace (default :func:`default_passes`).
     angle_unit : {"deg", "rad"}, optional
         Unit of the joint columns of canonical ``data`` files.
-    criterion : {"I", "D"}
+    criterion : {"I", "D", "Ds"}
         ``"I"`` (default): the I-optimal design, the least average variance of a new session's
         readings over the workspace (the set-up re-fitted), started from the D-optimal one;
-        ``"D"``: the D-optimal design, the least volume of the parameters' confidence ellipsoid.
+        ``"D"``: the D-optimal design, the least volume of the parameters' confidence ellipsoid;
+        ``"Ds"``: the poses of a re-mastering (``robocal calibrate NEW --prior RESULT``), the least
+        volume of the joints' zero offsets' confidence ellipsoid with a new session's set-up fitted
+        anew and the rest of the robot held (:func:`~robocal.planning.criteria.ds_optimal`).
     bound : bool
         Also state the least predicted error any ``poses`` poses among the candidates could reach
         (``prediction["least_possible"]``, :func:`i_bound`; seconds more).
@@ -273,7 +277,9 @@ def plan(
         ``fixed`` (parameters left out, and why), ``model`` (what is counted: ``entries``,
         ``robot_parameters``, ``cause_coefficients``, ``setup``, each joint map's ``coefficients``,
         ``range_deg``, ``gaps_deg`` and ``range_from``; ``known_before``), ``causes_not_by_poses``
-        and ``notes``.
+        ``zeros`` (criterion ``"Ds"``, else None: per joint the standard deviation of its zero's change
+        a re-mastering would have on the planned and on random poses, ``after`` and ``random``, deg or
+        mm, None with ``absorbed_by`` the set-up entries where no pose tells it from the set-up) and ``notes``.
     """
     poses = as_count(poses, "poses", least=1, most=MAX_POSES)  # before any file is read
     candidates = as_count(candidates, "candidates", least=poses, most=MAX_CANDIDATES)
@@ -325,7 +331,11 @@ def plan(
     if measured is None and not from_result and poses * readings_per_pose <= len(design.names):
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
     weights = workspace_weights(design.A, design.names, setup_names(robot, measurement))
-    chosen = d_optimal(A, start, poses, required=required)
+    zeros = _zero_design(robot, measurement, params, pool) if criterion == "Ds" else None
+    if zeros is not None:  # the re-mastering's model: the set-up and the zeros alone, the rest of the robot held
+        chosen = ds_optimal(zeros.A[work], RIDGE * np.eye(len(zeros.names)), poses, zeros.of, required=required)
+    else:
+        chosen = d_optimal(A, start, poses, required=required)
     if criterion == "I":
         chosen = i_optimal(A, start, weights, poses, required=required, start=chosen)
     chosen = work[chosen]
@@ -379,6 +389,7 @@ def plan(
         "structure": [s.label for s in structures],
         "causes_not_by_poses": [{"label": label, "reason": _why_not(kind)} for label, kind in zip(labels, kinds) if kind not in POSE_KINDS + structure.KINDS],
         "data": {"samples": 0 if measured is None else len(measured), "files": [d.source for d in datasets]},
+        "zeros": None if zeros is None else _zeros_report(zeros, robot, sigma, picks),
         "notes": notes,
     }
     expected_readings = robot.predict(measurement, pool[chosen], params)
@@ -422,6 +433,32 @@ def _counted(design: _Design, robot: Robot, measurement: str, known: Optional[_K
         "maps": maps,
         "known_before": before,
     }
+
+
+def _zeros_report(zeros: _ZeroDesign, robot: Robot, sigma: float, picks: dict) -> list[dict]:
+    """Per joint, the standard deviation of its zero's change a re-mastering on the planned and on
+    as many random poses would have (deg; mm for a prismatic joint), the set-up fitted anew: the
+    zeros' diagonal of ``σ² M⁻¹`` (the inverse of the set-up's Schur complement); None and the set-up
+    entries that reproduce it for a zero no pose tells from the set-up."""
+    std = {}
+    for key in ("after", "random"):
+        M = RIDGE * np.eye(len(zeros.names)) + _information(zeros.A[picks[key]])
+        std[key] = sigma * np.sqrt(np.diag(np.linalg.inv(M))) / zeros.scale
+    entries = []
+    for j, name in enumerate(zero_names(robot), start=1):
+        unit = robot.param_units[robot.index(name)]
+        f = 1.0 / DEG if unit == "rad" else 1.0
+        at = zeros.names.index(name) if name in zeros.names else None
+        entries.append(
+            {
+                "joint": j,
+                "name": name,
+                "unit": "deg" if unit == "rad" else unit,
+                **{key: None if at is None else float(std[key][at] * f) for key in std},
+                "absorbed_by": zeros.absorbed.get(name, []),
+            }
+        )
+    return entries
 
 
 def _why_not(kind: str) -> str:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -27,7 +26,7 @@ from ..calibration.sessions import SESSION_KINDS, is_private
 from ..causes import structure
 from ..causes.extended import extended_problem
 from ..kernels import is_sparse
-from ..results import file_sha256
+from ..results import unread_training
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names
 from .design import _Design
 
@@ -64,19 +63,6 @@ def _training_sessions(doc: dict) -> list[dict]:
     return [{"source": d.get("source"), "sha256": d.get("sha256"), "rows_used": d.get("rows_used"), "setup": None, "terms": terms}]
 
 
-def _unread(sessions: list[dict]) -> Optional[str]:
-    """Why a result's training data cannot be read again, or None."""
-    for s in sessions:
-        source, rows = s.get("source"), s.get("rows_used")
-        if source is None or rows is None:
-            return "the result names no training data file (it was calibrated on data in memory)"
-        if not Path(source).is_file():
-            return f"its training data {source} are not found"
-        if s.get("sha256") and file_sha256(source) != s["sha256"]:
-            return f"its training data {source} changed since the calibration (another SHA-256)"
-    return None
-
-
 def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _Design, structures: list, sigma: float, angle_unit) -> _Known:
     """What the result ``doc`` knows of the robot's entries of ``design``, in the plan's units:
     its training samples (each session's file and rows) re-linearised at the calibrated robot
@@ -90,7 +76,7 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
     measurement = doc["measurement"]
     sessions = _training_sessions(doc)
     noise = float(doc["metrics"]["train"]["rmse"]) / math.sqrt(min(RESIDUAL_WIDTH[measurement], 3))  # the RMSE is a position's norm: 3 readings
-    why = _unread(sessions)
+    why = unread_training(sessions)
     if why is not None:
         return _Known(None, None, 0, noise, f"the result's information is not used — {why}: the plan counts only what its poses (and the data) measure")
     at = {n: i for i, n in enumerate(design.names)}
