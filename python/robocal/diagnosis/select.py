@@ -555,6 +555,10 @@ class Round:
     #: folds beat those of the shift at the same sample (:func:`paired_z`): the turn (or the
     #: anchor's move) it claims beyond a shift must show, as a step's jump must.
     turn_z: dict = field(default_factory=dict)
+    #: Per sensor's field (label): by how many standard errors its held-out errors on the random
+    #: folds beat those of the best smooth function of time (the round's drift, a drift's curves),
+    #: sample by sample: it must show that it follows where, not when.
+    where_z: dict = field(default_factory=dict)
 
     def tests(self, c: Candidate) -> int:
         """How many tests ``c``'s p-value is corrected for (Bonferroni)."""
@@ -609,7 +613,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     _, p, parts = ext.jacobian_parts(x, [state.robot.index(n) for n in params])
     screen = Screen(J, r, schemes, k)
     model_err = screen.errors(np.zeros((len(r), 0)))
-    scored, step_errs, shape_errs = [], {}, {}
+    scored, step_errs, shape_errs, time_errs = [], {}, {}, {}
 
     def score(c: Candidate) -> None:
         # weighted as the screen's Jacobian and residuals are (pose: the rotation rows)
@@ -626,6 +630,8 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         gains = {name: rmse_of_squares(model_err[name][on[name]]) - rmse_of_squares(errs[name][on[name]]) for name in schemes}
         if c.kind == "step":
             step_errs[c.label] = errs["random"]
+        elif c.kind in SENSOR_KINDS or c.kind == "drift":
+            time_errs[c.label] = errs["random"]
         elif c.kind in READING_SHAPES or c.kind in PHYSICAL_KINDS:
             shape_errs[c.label] = errs["random"]
         scored.append((gains["random"], c, p_value, gains))
@@ -673,6 +679,19 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         shift = c.label.replace(" frame=rigid", "")
         if shift != c.label and shift in step_errs:
             screening.turn_z[c.label] = paired_z(step_errs[shift][on], step_errs[c.label][on])
+    # The sensor's field is a function of where each reading was, a time term of when: along a
+    # path that wanders through the workspace the two correlate, and the field must predict the
+    # held-out samples better than a drift and its curves (a knock and a wave of a tracker, a
+    # warm-up, were taken as an azimuth error: the mismatch section). Not better than a wander,
+    # which follows any slow change along the path, the field's too (3 of 12 azimuth errors at
+    # 3x their limit were then refused).
+    sensors = [c for _, c, _, _ in scored if c.kind in SENSOR_KINDS]
+    if sensors:
+        alternatives = [e for label, e in time_errs.items() if not label.startswith(SENSOR_KINDS)]
+        alternatives += [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curved_drifts(state.dataset)]
+        best = min(alternatives, key=lambda e: float(np.mean(e)))
+        for c in sensors:
+            screening.where_z[c.label] = paired_z(best, time_errs[c.label])
     screening.ranked = confirmation_order(
         scored, screening.significant, inflation, established=any(c.kind in PHYSICAL_KINDS for c in ext.causes), told_apart=screening.told_apart
     )
@@ -813,6 +832,16 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
                 )
                 gradual_level = c.label
             rejected.append(screening.refusal(item, None, why))
+            continue
+        if screening.where_z.get(c.label, np.inf) < JUMP_Z:
+            rejected.append(
+                screening.refusal(
+                    item,
+                    None,
+                    f"a function of time (a drift or its curves) predicts as well: the sensor's field beats it by "
+                    f"{screening.where_z[c.label]:.2f} standard errors, below {JUMP_Z:.2f}: not shown to follow where the readings were",
+                )
+            )
             continue
         if screening.turn_z.get(c.label, np.inf) < JUMP_Z:
             # The sensor's rigid move claims a turn (or the anchor's move) beyond a shift of its
