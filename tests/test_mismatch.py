@@ -178,3 +178,26 @@ def test_a_sensors_error_named_is_refitted_from_its_label():
     y[:, 0] += 0.12 * np.sin(2 * np.pi * y[:, 0] / 173.0)
     drum = robocal.Dataset(q=cable.q, y=y, measurement="cable", robot=cable.robot, t=cable.t)
     assert robocal.calibrate(drum, causes=["sensor_periodic period=173.0"]).metrics["test"]["rmse"] < 0.8 * robocal.calibrate(drum).metrics["test"]["rmse"]
+
+
+@pytest.mark.parametrize("seed, v0, size", [(25058, 0.77, -0.0476141), (25059, 0.88, 0.0228547)])
+def test_lost_motion_whose_transition_is_no_switch_leaves_no_outliers(seed, v0, size):
+    """Lost motion with a friction-like transition (tanh over moves of ``v0``): the switch model
+    of the backlash candidate misses the small moves, and under the final model those samples
+    lie beyond the outlier bound — 4 and 14 of them, named outliers before (files 213 and 80 of
+    the mismatch section, seed 25). They gather at the small moves of joint 4, as no gross
+    readings would: the lost motion is named, no outliers, and what is left says where it errs."""
+    acq = mismatch.acquisition("hsr-jr680", "pose", 300, seed)
+    report = diagnose(dataset(acq, [{"family": "lost_motion", "keys": {"joint": 4, "v0_deg": v0}, "size": size}])).to_dict()
+    assert [(e["kind"], e["joint"]) for e in report["effects"]] == [("backlash", 4)]
+    findings = report["final"]["residuals"]["findings"]
+    assert any("gather at joint 4's move" in f for f in findings), findings
+
+
+def test_heavy_tailed_noise_keeps_its_outliers():
+    """The converse: Student-t noise puts samples beyond the bound whatever the robot does — they
+    gather at no joint's angle or move, and stay named outliers."""
+    acq = mismatch.acquisition("ur10", "position", 300, seed=12)
+    report = diagnose(dataset(acq, [{"family": "heavy_tails", "keys": {"dof": 3.0}, "size": None}])).to_dict()
+    assert "outliers" in [e["kind"] for e in report["effects"]]
+    assert not any("gather at" in f for f in report["final"]["residuals"]["findings"])

@@ -14,7 +14,7 @@ from typing import Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import chi2
+from scipy.stats import chi2, ks_2samp
 
 from ..calibration.problem import Problem
 from ..causes.candidates import acquisition_order
@@ -97,13 +97,14 @@ def isolated(q: np.ndarray, z: np.ndarray, suspects: np.ndarray, keep: np.ndarra
 
 def name_outliers(
     state: Pass, z: np.ndarray, revealed: np.ndarray, *, folds: int, seed: int, geometric_cv: Optional[tuple] = None
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, Optional[str]]:
     """The baseline's outliers re-decided with the final model (``z``: every sample's residual in
     robust sigmas, :func:`~.entries.final_residuals`), and their report entry put first among the
     effects (``revealed``: those an earlier pass's final model named). The geometric model's
     held-out error with them is ``geometric_cv``'s (:func:`~.conventions.reading_conventions`'s)
-    where its folds are the same. Returns the outliers, and the kept samples the final model puts
-    beyond the bound on their own (:func:`isolated`)."""
+    where its folds are the same. Returns the outliers, the kept samples the final model puts
+    beyond the bound on their own (:func:`isolated`) — none where they gather at some value of the
+    robot's state (:func:`gathered_in_state`) — and that finding in words, or None."""
     dataset, keep, outliers, z_bound = state.dataset, state.keep, state.baseline.outliers, state.baseline.bound
     beyond = np.sqrt(np.sum(z**2, axis=1)) > z_bound
     if len(outliers) and state.model.causes:
@@ -135,7 +136,47 @@ def name_outliers(
         }
         state.effects.insert(0, outliers_entry)
     suspects = np.setdiff1d(keep[beyond[keep]], map_ends(state.model.causes, dataset.q, keep))
-    return outliers, isolated(dataset.q, z, suspects, keep, z_bound)
+    revealed_now = isolated(dataset.q, z, suspects, keep, z_bound)
+    gathered = gathered_in_state(dataset, revealed_now, keep)
+    if gathered is not None:  # structure the model still misses: not gross errors, and kept in the fit
+        return outliers, revealed_now[:0], gathered
+    return outliers, revealed_now, None
+
+
+#: Samples beyond the bound under the final model that gather at some value of the robot's state
+#: are no independent gross errors, when there are at least this many to tell.
+GATHERED_MIN = 4
+#: Family-wise level of the test that they gather (Bonferroni over the joints' angles and moves).
+GATHERED_LEVEL = 0.01
+
+
+def gathered_in_state(dataset: Dataset, suspects: np.ndarray, keep: np.ndarray) -> Optional[str]:
+    """Why the ``suspects`` (kept samples the final model puts beyond the bound) are error the
+    model still makes rather than gross readings: a slipped cable or a broken beam strikes
+    whatever the robot does, so gross errors are a random draw of the samples, while a shape the
+    model misses strikes at some angle or some move of a joint — lost motion whose transition is
+    not a switch errs at the small moves of its joint (the mismatch section named 4-14 such
+    samples outliers). Two-sample Kolmogorov-Smirnov tests of each joint's angle and of the size
+    of its move from the sample before (acquisition order), the suspects against the other kept
+    samples, Bonferroni over them at :data:`GATHERED_LEVEL`; None with fewer than
+    :data:`GATHERED_MIN` suspects or where none separates them."""
+    if len(suspects) < GATHERED_MIN:
+        return None
+    order = acquisition_order(dataset)
+    moves = np.zeros_like(dataset.q)
+    moves[order[1:]] = np.abs(np.diff(dataset.q[order], axis=0))
+    others = np.setdiff1d(keep, suspects)
+    tests = [(f"joint {j + 1}'s {what}", values) for j in range(dataset.q.shape[1]) for what, values in (("angle", dataset.q[:, j]), ("move", moves[:, j]))]
+    tests = [(name, values) for name, values in tests if np.ptp(values[keep]) > 0]
+    if not tests:
+        return None
+    p, name = min((ks_2samp(values[suspects], values[others]).pvalue, name) for name, values in tests)
+    if p * len(tests) >= GATHERED_LEVEL:
+        return None
+    return (
+        f"{len(suspects)} samples beyond the outlier bound under the final model gather at {name} (Kolmogorov-Smirnov p {p:.2g} "
+        f"over {len(tests)} tested): error the model still makes there, not gross readings — kept in the fit, not named outliers"
+    )
 
 
 def map_ends(causes: list, q: np.ndarray, keep: np.ndarray) -> np.ndarray:

@@ -430,7 +430,10 @@ def _select(
     final_fit, prior = physical_model(state)
     describe_causes(state)
     budget, leftover, z = final_residuals(state)
-    outliers, beyond_bound = name_outliers(state, z, revealed, folds=folds, seed=seed, geometric_cv=geometric_cv)
+    outliers, beyond_bound, gathered = name_outliers(state, z, revealed, folds=folds, seed=seed, geometric_cv=geometric_cv)
+    if gathered is not None:  # what is left is not noise there
+        leftover["findings"].append(gathered)
+        leftover["noise"] = leftover["unexplained"] = False
     if replay is not None:  # the earlier pass's other refusals and alike shapes, as that pass measured them
         for e in state.effects:
             if e["label"] in replay.alike and e.get("significance") is not None:
