@@ -81,6 +81,12 @@ def test_a_deflection_by_masses_elsewhere_is_one_compliance_and_nothing_else():
     assert [e["label"] for e in report["effects"]] == ["joint_compliance joint 2 masses=free"]
     params = report["effects"][0]["params"]
     assert 0.5 < params["model_torque_share"]["value"] < 1.0
+    # each stiffness with its uncertainty (from the coefficients' covariance), and the moments found with theirs
+    compliance, stiffness = params["compliance"], params["stiffness"]
+    assert 0.0 < compliance["std"] < 0.2 * compliance["value"]
+    assert stiffness["std"] == pytest.approx(compliance["std"] / compliance["value"] * stiffness["value"], rel=1e-6)
+    moments = [v for name, v in params.items() if name[:2] in ("mx", "my", "mz") or name[:1] == "m" and name[1:].isdigit()]
+    assert moments and all(v["std"] is not None and v["std"] > 0 for v in moments)
     fit = robocal.calibrate(data, causes=["joint_compliance joint 2 masses=free"])
     assert fit.metrics["train"]["rmse"] < report["baseline"]["rmse_train"]
 

@@ -224,31 +224,40 @@ class Candidate:
         return out, why
 
 
-def free_mass_compliance(robot: Robot, joint: int, c: np.ndarray) -> tuple[dict, Optional[str]]:
+def free_mass_compliance(robot: Robot, joint: int, c: np.ndarray, cov: Optional[np.ndarray] = None) -> tuple[dict, Optional[str]]:
     """A compliance fitted on the static gravity regressor (``masses=free``: the deflection
     ``Δq = Y·c`` for any masses, ``c`` the compliance times the base parameters of the links'
     masses and first moments) as physical quantities, on :func:`~robocal.physics.standard_poses`:
     the compliance that the mass model's torque gives the deflection (least squares), the share
     of the deflection that torque explains, and the base parameters (kg, kg·m) the deflection
-    implies at that compliance. Implausible as any compliance is, and where the mass model's
-    torque explains less than :data:`MIN_MODEL_TORQUE_SHARE` of it. (The coefficients' covariance
-    is not kept, so the compliance comes without its standard deviation.)"""
+    implies at that compliance. With the coefficients' covariance ``cov``, the compliance, the
+    stiffness and the base parameters carry their standard deviations (first order: the
+    compliance is linear in ``c``, the rest its ratios). Implausible as any compliance is, and
+    where the mass model's torque explains less than :data:`MIN_MODEL_TORQUE_SHARE` of it."""
     poses = standard_poses(robot)
-    deflection = joint_basis(robot, poses, "joint_compliance", joint, {"masses": "free"}) @ c
+    Y = joint_basis(robot, poses, "joint_compliance", joint, {"masses": "free"})
+    deflection = Y @ c
     torque = gravity_torques(robot, poses)[:, joint]
-    compliance = float(torque @ deflection) / max(float(torque @ torque), 1e-300)
+    along = Y.T @ torque / max(float(torque @ torque), 1e-300)  # the compliance is along · c
+    compliance = float(along @ c)
     left = deflection - compliance * torque
     share = 1.0 - float(left @ left) / max(float(deflection @ deflection), 1e-300)
+    sd = None if cov is None else math.sqrt(max(float(along @ cov @ along), 0.0))
     out = {
-        "compliance": {"value": compliance / DEG * 1000.0, "std": None, "unit": "deg/(kN·m)"},
+        "compliance": {"value": compliance / DEG * 1000.0, "std": None if sd is None else sd / DEG * 1000.0, "unit": "deg/(kN·m)"},
         "model_torque_share": {"value": share, "std": None, "unit": "1"},
         "deflection_rms": {"value": float(np.sqrt(np.mean(deflection**2))) / DEG, "std": None, "unit": "deg"},
     }
     if compliance > 0:
-        out["stiffness"] = {"value": 1.0 / compliance, "std": None, "unit": "N·m/rad"}
-        for i, value in zip(gravity_base_columns(robot, joint), c / compliance):  # base parameters: combinations of the links'
-            link, part = joint + 1 + i // 4, ("m", "mx", "my", "mz")[i % 4]
-            out[f"{part}{link}"] = {"value": float(value), "std": None, "unit": "kg" if part == "m" else "kg·m"}
+        out["stiffness"] = {"value": 1.0 / compliance, "std": None if sd is None else sd / compliance**2, "unit": "N·m/rad"}
+        base = c / compliance
+        spread = None
+        if cov is not None:  # d(c/κ)/dc = I/κ − c·alongᵀ/κ²
+            D = np.eye(len(c)) / compliance - np.outer(c, along) / compliance**2
+            spread = np.sqrt(np.maximum(np.diag(D @ cov @ D.T), 0.0))
+        for i, (k, value) in enumerate(zip(gravity_base_columns(robot, joint), base)):  # base parameters: combinations of the links'
+            link, part = joint + 1 + k // 4, ("m", "mx", "my", "mz")[k % 4]
+            out[f"{part}{link}"] = {"value": float(value), "std": None if spread is None else float(spread[i]), "unit": "kg" if part == "m" else "kg·m"}
     if not 0.0 < compliance < LIMITS["compliance"]:
         return out, f"compliance {compliance:.3g} rad/(N·m) is not within (0, {LIMITS['compliance']:g})"
     if share < MIN_MODEL_TORQUE_SHARE:
