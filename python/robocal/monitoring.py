@@ -154,8 +154,9 @@ class _Buffers:
     out) are kept by adding each sample and subtracting the one that leaves; the sums *from a
     start on* are needed only against the ``h`` columns a change acts on (and, weighted by ``t``
     and ``t²``, the ``r`` columns a ramp acts on): running totals, and per sample of the window
-    the totals before it (a ring), so the sums from any start ``τ`` to now are one subtraction.
-    Memory: the window's samples, whatever the stream's length.
+    the totals before it (a ring), so the sums from any start ``τ`` to now are one subtraction;
+    the totals restart from the window's first sample every ``WINDOW`` samples. Memory and
+    accuracy: the window's, whatever the stream's length.
 
     ``hypotheses`` are the changes tested, ``(cols, ramp)`` with ``cols`` indices into the
     monitored columns."""
@@ -169,13 +170,12 @@ class _Buffers:
         # which the profile-out multiplies in one product.
         shapes = {"g": (h,), "tg": (r,), "G": (h, p), "tG": (r, p), "ttG": (r, r)}
         # All the running totals in one vector, and the ring in one array, so that the sums from
-        # every start are one subtraction; ``total`` and ``rings`` name views of their parts. The
+        # every start are one subtraction (``rings`` names views of its parts). The
         # last element stays zero: what a step's information gathers for a ramp's ``τ`` terms.
         base = dict(zip(shapes, np.cumsum([0] + [int(np.prod(s)) for s in shapes.values()])))
         zero = base["ttG"] + r * r
         self._total, self._ring = np.zeros(zero + 1), np.zeros((WINDOW, zero + 1))
         self._parts = [(slice(base[n], base[n] + int(np.prod(s))), s) for n, s in shapes.items()]
-        self.total = {n: self._total[cut].reshape(s) for n, (cut, s) in zip(shapes, self._parts)}
         self.rings = {n: self._ring[:, cut].reshape((WINDOW,) + s) for n, (cut, s) in zip(shapes, self._parts)}
         self.each_g, self.each_G = np.zeros((WINDOW, p)), np.zeros((WINDOW, p, p))
         self.times = np.zeros(WINDOW)
@@ -211,9 +211,17 @@ class _Buffers:
         self.clear()
 
     def clear(self) -> None:
-        self.n, self.head = 0, 0
-        self._total[:] = 0.0  # in place: ``total`` holds views of it
+        self.n, self.head, self.origin = 0, 0, None
+        self._total[:] = 0.0
         self.window_g, self.window_G = np.zeros(self.p), np.zeros((self.p, self.p))
+
+    def _packed(self, t: np.ndarray, g: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """What samples at times ``t`` (n,) (from :attr:`origin`) with ``g`` (n, p) and ``G``
+        (n, p, p) add to the running totals, packed as they are: (n, K)."""
+        n, R = len(t), self.ramped
+        Gr = G[:, R]
+        parts = (g[:, self.tested], t[:, None] * g[:, R], G[:, self.tested], t[:, None, None] * Gr, (t * t)[:, None, None] * Gr[:, :, R], np.zeros(n))
+        return np.concatenate([part.reshape(n, -1) for part in parts], axis=1)
 
     def push(self, t: int, g: np.ndarray, G: np.ndarray) -> None:
         if self.n == WINDOW:  # the oldest leaves
@@ -223,17 +231,29 @@ class _Buffers:
         else:
             at = (self.head + self.n) % WINDOW
             self.n += 1
+        if self.origin is None:
+            self.origin = t
         self._ring[at] = self._total
         self.times[at], self.each_g[at], self.each_G[at] = t, g, G
         self.window_g += g
         self.window_G += G
-        total, R = self.total, self.ramped
-        Gr = G[R]
-        total["g"] += g[self.tested]
-        total["tg"] += t * g[R]
-        total["G"] += G[self.tested]
-        total["tG"] += t * Gr
-        total["ttG"] += (t * t) * Gr[:, R]
+        self._total += self._packed(np.array([t - self.origin], dtype=float), g[None], G[None])[0]
+        if self.n == WINDOW and self.head == 0:
+            self._rebase()
+
+    def _rebase(self) -> None:
+        """Every ``WINDOW`` samples, the totals from the window's first sample on, times from it.
+        Kept from the stream's start they grow with its length (``Σ t² G_t`` as its cube), and a
+        ramp's ``Σ (t−τ)² G_t`` — their difference — loses the digits it needs: 3e-7 relative a
+        hundred thousand samples in. Also sheds the rounding the window's adds and subtractions
+        gather."""
+        order = self.order
+        self.origin = self.times[order[0]]
+        added = self._packed(self.times[order] - self.origin, self.each_g[order], self.each_G[order])
+        sums = np.cumsum(added, axis=0)
+        self._ring[order] = sums - added
+        self._total[:] = sums[-1]
+        self.window_g, self.window_G = self.each_g[order].sum(axis=0), self.each_G[order].sum(axis=0)
 
     @property
     def order(self) -> np.ndarray:
@@ -258,7 +278,7 @@ class _Buffers:
         # stays at the calibration's value instead of making the inverse blow up.
         inverse = np.linalg.inv(G + 1e-6 * np.trace(G) / len(G) * np.eye(len(G)))
         level = inverse @ self.window_g
-        tau = self.times[rows]
+        tau = self.times[rows] - self.origin
         after = np.take(self._ring, rows, axis=0, out=self._after[:n])
         np.subtract(self._total, after, out=after)
         g, tg, Gs, tG, _ = (after[:, cut].reshape((n,) + s) for cut, s in self._parts)
