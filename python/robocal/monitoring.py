@@ -44,8 +44,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from scipy.special import gammaincc
-from scipy.stats import chi2
+from scipy.special import chdtri, gammaincc
 
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem
@@ -368,7 +367,7 @@ class Monitor:
         private = set(setup_names(self.robot, self.measurement)) | {"cable_offset"}
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.prior = np.array([0.0 if names[c] in private or not std.get(names[c]) else 1.0 / std[names[c]] ** 2 for c in self.columns])
-        self.threshold = {d: float(chi2.isf(1.0 / (self.mean_run_length * WINDOW * len(self.changes)), d)) for d in {len(c.columns) for c in self.changes}}
+        self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
         self.samples = 0
         self.alarms: list[Alarm] = []
         self.refused: list[str] = []
