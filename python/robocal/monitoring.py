@@ -368,6 +368,7 @@ class Monitor:
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.prior = np.array([0.0 if names[c] in private or not std.get(names[c]) else 1.0 / std[names[c]] ** 2 for c in self.columns])
         self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
+        self._limits = tuple(np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
         self.samples = 0
         self.alarms: list[Alarm] = []
         self.refused: list[str] = []
@@ -430,7 +431,7 @@ class Monitor:
         rows = [None] * len(q) if rows is None else list(rows)
 
         raised = []
-        lower, upper = (np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
+        lower, upper = self._limits
         for qi, yi, row in zip(q, y, rows):
             i = self.samples
             self.samples += 1
