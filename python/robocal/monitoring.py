@@ -173,6 +173,12 @@ class _Buffers:
         # last element stays zero: what a step's information gathers for a ramp's ``τ`` terms.
         base = dict(zip(shapes, np.cumsum([0] + [int(np.prod(s)) for s in shapes.values()])))
         zero = base["ttG"] + r * r
+        # Each packed element is one element of (g_t, G_t) flattened, times 1, t or t² (or 0: the
+        # last): a sample's share of every total is one gather and one product.
+        H, R = self.tested, self.ramped
+        packed = [(c, 0) for c in H] + [(c, 1) for c in R] + [(p + c * p + j, 0) for c in H for j in range(p)]
+        packed += [(p + c * p + j, 1) for c in R for j in range(p)] + [(p + ci * p + cj, 2) for ci in R for cj in R] + [(0, 3)]
+        self._source, self._power = (np.array(column) for column in zip(*packed))
         self._total, self._ring = np.zeros(zero + 1), np.zeros((WINDOW, zero + 1))
         self._parts = [(slice(base[n], base[n] + int(np.prod(s))), s) for n, s in shapes.items()]
         self.rings = {n: self._ring[:, cut].reshape((WINDOW,) + s) for n, (cut, s) in zip(shapes, self._parts)}
@@ -217,10 +223,9 @@ class _Buffers:
     def _packed(self, t: np.ndarray, g: np.ndarray, G: np.ndarray) -> np.ndarray:
         """What samples at times ``t`` (n,) (from :attr:`origin`) with ``g`` (n, p) and ``G``
         (n, p, p) add to the running totals, packed as they are: (n, K)."""
-        n, R = len(t), self.ramped
-        Gr = G[:, R]
-        parts = (g[:, self.tested], t[:, None] * g[:, R], G[:, self.tested], t[:, None, None] * Gr, (t * t)[:, None, None] * Gr[:, :, R], np.zeros(n))
-        return np.concatenate([part.reshape(n, -1) for part in parts], axis=1)
+        n = len(t)
+        flat = np.concatenate([g, G.reshape(n, -1)], axis=1)
+        return flat[:, self._source] * np.stack([np.ones(n), t, t * t, np.zeros(n)], axis=1)[:, self._power]
 
     def push(self, t: int, g: np.ndarray, G: np.ndarray) -> None:
         if self.n == WINDOW:  # the oldest leaves
