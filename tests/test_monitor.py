@@ -10,14 +10,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 import robocal
-from robocal.cli import main
-from robocal.data import write_canonical
-from robocal.exceptions import RobocalError, ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from robocal.cli import main
+from robocal.data import write_canonical
+from robocal.exceptions import RobocalError, ShapeError
 from robocal.monitoring import OPENING, WINDOW, Monitor
 from robocal.results import load_result
 from robocal.simulation import simulate
@@ -159,3 +158,52 @@ def test_the_command_line_writes_alarms_and_the_updated_result(tmp_path, capsys)
     write_canonical(other, tmp_path / "hsr.csv")
     assert main(["monitor", str(result), str(tmp_path / "hsr.csv"), "--quiet"]) == 2
     assert "robocal: error:" in capsys.readouterr().err
+
+
+def _window_evidence(samples, cols, ramp, prior, start):
+    """The score and information of a change on ``cols`` from window sample ``start`` on, every
+    column profiled out, straight from the window's samples ``(t, Jw, z)``: the Schur complement
+    of the normal equations of ``z_t = Jw_t θ + x_t δ`` (``x_t`` the change's regressor)."""
+    t0 = samples[start][0]
+    X = np.concatenate([Jw[:, cols] * (t - t0 if ramp else 1.0) * (k >= start) for k, (t, Jw, _) in enumerate(samples)])
+    J = np.concatenate([Jw for _, Jw, _ in samples])
+    z = np.concatenate([z for _, _, z in samples])
+    G = J.T @ J + np.diag(prior)
+    G += 1e-6 * np.trace(G) / len(G) * np.eye(len(G))  # the monitor's ridge
+    score = X.T @ z - X.T @ J @ np.linalg.solve(G, J.T @ z)
+    info = X.T @ X - X.T @ J @ np.linalg.solve(G, J.T @ X)
+    return score, info
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), k=st.integers(1, 3), extra=st.integers(0, 2 * WINDOW), clear_at=st.none() | st.integers(0, 3 * WINDOW))
+def test_the_window_sums_are_the_windows_own(seed, k, extra, clear_at):
+    """The running totals, the ring and the packed sums give every change's score and
+    information from every start as the window's own samples do, after the window has wrapped
+    round any number of times and after a clear (an alarm)."""
+    from robocal.monitoring import MIN_AFTER, _Buffers
+
+    rng = np.random.default_rng(seed)
+    p = 7
+    hypotheses = [([0], False), ([3], False), ([5], False), ([1, 2, 6], False), ([1, 2, 6], True), ([4, 6], True)]
+    buffers, prior = _Buffers(p, hypotheses), rng.uniform(0.0, 2.0, p)
+    window, t = [], int(rng.integers(0, 10**5))
+    for step in range(WINDOW // 2 + extra):
+        t += int(rng.integers(1, 3))  # refused samples leave gaps in the times
+        Jw, z = rng.standard_normal((k, p)), rng.standard_normal(k)
+        if step == clear_at:
+            buffers.clear()
+            window.clear()
+        buffers.push(t, Jw.T @ z, Jw.T @ Jw)
+        window = (window + [(t, Jw, z)])[-WINDOW:]
+    starts = buffers.n - MIN_AFTER + 1
+    groups, _ = buffers.evidence(starts, prior)
+    assert sorted(k for which, _, _ in groups for k in which) == list(range(len(hypotheses)))
+    for which, score, info in groups:
+        assert score.shape[0] == starts - 1
+        for j, h in enumerate(which):
+            for n, start in enumerate(range(1, starts)):
+                s, F = _window_evidence(window, *hypotheses[h], prior, start)
+                scale = np.abs(F).max()
+                np.testing.assert_allclose(score[n, j], s, rtol=1e-7, atol=1e-7 * np.sqrt(scale))
+                np.testing.assert_allclose(info[n, j], F, rtol=1e-7, atol=1e-7 * scale)

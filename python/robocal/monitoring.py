@@ -44,15 +44,13 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from scipy.special import gammaincc
-from scipy.stats import chi2
+from scipy.special import chdtri, gammaincc
 
 from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem
 from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets
-from .data.dataset import Dataset
-from .data.dataset import OBSERVATION_COLUMNS
+from .data.dataset import OBSERVATION_COLUMNS, Dataset
 from .exceptions import InvalidParameterError, ShapeError
 from .kernels import as_float_array
 from .results import load_result
@@ -153,24 +151,81 @@ class _Buffers:
     Per sample ``t`` the monitor adds ``g_t = J_tᵀ W e_t`` and ``G_t = J_tᵀ W J_t`` over all
     ``p`` monitored columns. The window's own sums ``Σ g_t``, ``Σ G_t`` (for the constant profiled
     out) are kept by adding each sample and subtracting the one that leaves; the sums *from a
-    start on* are needed only against the ``h`` columns a change acts on (also weighted by ``t``
-    and ``t²`` for a ramp): running totals, and per sample of the window the totals before it (a
-    ring), so the sums from any start ``τ`` to now are one subtraction. Memory: the window's
-    samples, whatever the stream's length."""
+    start on* are needed only against the ``h`` columns a change acts on (and, weighted by ``t``
+    and ``t²``, the ``r`` columns a ramp acts on): running totals, and per sample of the window
+    the totals before it (a ring), so the sums from any start ``τ`` to now are one subtraction;
+    the totals restart from the window's first sample every ``WINDOW`` samples. Memory and
+    accuracy: the window's, whatever the stream's length.
 
-    def __init__(self, p: int, tested: list):
-        self.p, self.tested = p, list(tested)
-        h = len(self.tested)
-        self.shapes = {"g": (h,), "tg": (h,), "G": (p, h), "tG": (p, h), "ttG": (h, h)}
-        self.rings = {n: np.zeros((WINDOW,) + shape) for n, shape in self.shapes.items()}
+    ``hypotheses`` are the changes tested, ``(cols, ramp)`` with ``cols`` indices into the
+    monitored columns."""
+
+    def __init__(self, p: int, hypotheses: list):
+        self.p = p
+        self.tested = sorted({c for cols, _ in hypotheses for c in cols})
+        self.ramped = sorted({c for cols, ramp in hypotheses if ramp for c in cols})
+        h, r = len(self.tested), len(self.ramped)
+        # Rows of G_t (symmetric) rather than columns: the sums then come out as (start, column, p),
+        # which the profile-out multiplies in one product.
+        shapes = {"g": (h,), "tg": (r,), "G": (h, p), "tG": (r, p), "ttG": (r, r)}
+        # All the running totals in one vector, and the ring in one array, so that the sums from
+        # every start are one subtraction (``rings`` names views of its parts). The
+        # last element stays zero: what a step's information gathers for a ramp's ``τ`` terms.
+        base = dict(zip(shapes, np.cumsum([0] + [int(np.prod(s)) for s in shapes.values()])))
+        zero = base["ttG"] + r * r
+        # Each packed element is one element of (g_t, G_t) flattened, times 1, t or t² (or 0: the
+        # last): a sample's share of every total is one gather and one product.
+        H, R = self.tested, self.ramped
+        packed = [(c, 0) for c in H] + [(c, 1) for c in R] + [(p + c * p + j, 0) for c in H for j in range(p)]
+        packed += [(p + c * p + j, 1) for c in R for j in range(p)] + [(p + ci * p + cj, 2) for ci in R for cj in R] + [(0, 3)]
+        self._source, self._power = (np.array(column) for column in zip(*packed))
+        self._total, self._ring = np.zeros(zero + 1), np.zeros((WINDOW, zero + 1))
+        self._parts = [(slice(base[n], base[n] + int(np.prod(s))), s) for n, s in shapes.items()]
+        self.rings = {n: self._ring[:, cut].reshape((WINDOW,) + s) for n, (cut, s) in zip(shapes, self._parts)}
         self.each_g, self.each_G = np.zeros((WINDOW, p)), np.zeros((WINDOW, p, p))
         self.times = np.zeros(WINDOW)
+        # Every hypothesis is a set of the m = h + r "extended" columns: a step on a tested column
+        # or a ramp on a ramped one. ``_ramp_at``: where each ramped column sits among the tested.
+        pos, rpos = {c: i for i, c in enumerate(self.tested)}, {c: i for i, c in enumerate(self.ramped)}
+        self._ramp_at = [pos[c] for c in self.ramped]
+        ext = {**{(c, False): pos[c] for c in self.tested}, **{(c, True): h + rpos[c] for c in self.ramped}}
+        # Only the information within each hypothesis is needed, not between them: per pair of its
+        # extended columns, where its sums sit in the packed vector (Σ G_t for a step; Σ t² G_t,
+        # Σ t G_t and Σ G_t for a ramp's Σ (t−τ)² G_t), hypotheses of d columns together.
+        self.groups, pairs = [], []
+        for d in sorted({len(cols) for cols, _ in hypotheses}):
+            which = [k for k, (cols, _) in enumerate(hypotheses) if len(cols) == d]
+            first = len(pairs)
+            for k in which:
+                cols, ramp = hypotheses[k]
+                for ci in cols:
+                    for cj in cols:
+                        if ramp:
+                            sums = (base["ttG"] + rpos[ci] * r + rpos[cj], base["tG"] + rpos[ci] * p + cj, base["G"] + pos[ci] * p + cj)
+                        else:
+                            sums = (base["G"] + pos[ci] * p + cj, zero, zero)
+                        pairs.append((ext[ci, ramp], ext[cj, ramp]) + sums)
+            idx = np.array([[ext[c, hypotheses[k][1]] for c in hypotheses[k][0]] for k in which])
+            self.groups.append((which, idx, slice(first, len(pairs))))
+        a, b, *sums = (np.array(column) for column in zip(*pairs))
+        self._pairs = [a * (h + r) + b] + sums  # a pair's place in the (m, m) product
+        # Work arrays for the largest window: arrays of this size, allocated anew per update, cost
+        # more in page faults than their arithmetic.
+        self._after, self._C = np.empty((WINDOW, zero + 1)), np.empty((WINDOW, h + r, p))
+        self._profiled, self._Q = np.empty((WINDOW, h + r, p)), np.empty((WINDOW, h + r, h + r))
         self.clear()
 
     def clear(self) -> None:
-        self.n, self.head = 0, 0
-        self.total = {n: np.zeros(shape) for n, shape in self.shapes.items()}
+        self.n, self.head, self.origin = 0, 0, None
+        self._total[:] = 0.0
         self.window_g, self.window_G = np.zeros(self.p), np.zeros((self.p, self.p))
+
+    def _packed(self, t: np.ndarray, g: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """What samples at times ``t`` (n,) (from :attr:`origin`) with ``g`` (n, p) and ``G``
+        (n, p, p) add to the running totals, packed as they are: (n, K)."""
+        n = len(t)
+        flat = np.concatenate([g, G.reshape(n, -1)], axis=1)
+        return flat[:, self._source] * np.stack([np.ones(n), t, t * t, np.zeros(n)], axis=1)[:, self._power]
 
     def push(self, t: int, g: np.ndarray, G: np.ndarray) -> None:
         if self.n == WINDOW:  # the oldest leaves
@@ -180,15 +235,29 @@ class _Buffers:
         else:
             at = (self.head + self.n) % WINDOW
             self.n += 1
-        for name, ring in self.rings.items():
-            ring[at] = self.total[name]
+        if self.origin is None:
+            self.origin = t
+        self._ring[at] = self._total
         self.times[at], self.each_g[at], self.each_G[at] = t, g, G
         self.window_g += g
         self.window_G += G
-        H = self.tested
-        Gh = G[:, H]
-        for name, add in (("g", g[H]), ("tg", t * g[H]), ("G", Gh), ("tG", t * Gh), ("ttG", t * t * Gh[H])):
-            self.total[name] += add
+        self._total += self._packed(np.array([t - self.origin], dtype=float), g[None], G[None])[0]
+        if self.n == WINDOW and self.head == 0:
+            self._rebase()
+
+    def _rebase(self) -> None:
+        """Every ``WINDOW`` samples, the totals from the window's first sample on, times from it.
+        Kept from the stream's start they grow with its length (``Σ t² G_t`` as its cube), and a
+        ramp's ``Σ (t−τ)² G_t`` — their difference — loses the digits it needs: 3e-7 relative a
+        hundred thousand samples in. Also sheds the rounding the window's adds and subtractions
+        gather."""
+        order = self.order
+        self.origin = self.times[order[0]]
+        added = self._packed(self.times[order] - self.origin, self.each_g[order], self.each_G[order])
+        sums = np.cumsum(added, axis=0)
+        self._ring[order] = sums - added
+        self._total[:] = sums[-1]
+        self.window_g, self.window_G = self.each_g[order].sum(axis=0), self.each_G[order].sum(axis=0)
 
     @property
     def order(self) -> np.ndarray:
@@ -197,51 +266,40 @@ class _Buffers:
     def index(self, k: int) -> int:
         return int(self.times[self.order[k]])
 
-    def evidence(self, hypotheses: list, starts: int, prior: np.ndarray) -> tuple[list, np.ndarray]:
-        """Per hypothesis ``(cols, ramp)`` (``cols``: indices into the monitored columns), the
-        score and information ``(s, F)`` of a change on ``cols`` begun at each of the first
-        ``starts`` samples of the window, every monitored column held constant over the window
-        and profiled out (``prior``: their information from the calibration): what the
-        calibration left, or a change already in force, is no evidence; only a change *within*
-        the window is. Also the window's constant ``G_w⁻¹ g_w`` (the calibration's error as the
-        window sees it)."""
-        rows = self.order[:starts]
+    def evidence(self, starts: int, prior: np.ndarray) -> tuple[list, np.ndarray]:
+        """The score and information of each hypothesis begun at each of the window's samples
+        ``1 … starts − 1`` (a start at its first sample leaves no level before it), every
+        monitored column held constant over the window and profiled out (``prior``: their
+        information from the calibration): what the calibration left, or a change already in
+        force, is no evidence; only a change *within* the window is. Returns per group of
+        hypotheses of ``d`` columns ``(which, score, info)`` — ``which`` their indices, ``score``
+        (n, k, d), ``info`` (n, k, d, d) — and the window's constant ``G_w⁻¹ g_w`` (the
+        calibration's error as the window sees it)."""
+        rows = self.order[1:starts]
+        n, p, h = len(rows), self.p, len(self.tested)
         G = self.window_G + np.diag(prior)
         # A ridge a millionth of the mean information: a direction the window does not determine
         # stays at the calibration's value instead of making the inverse blow up.
         inverse = np.linalg.inv(G + 1e-6 * np.trace(G) / len(G) * np.eye(len(G)))
         level = inverse @ self.window_g
-        tau = self.times[rows]
-        after = {n: self.total[n] - self.rings[n][rows] for n in self.rings}
-        at = {c: i for i, c in enumerate(self.tested)}
-        out: list = [None] * len(hypotheses)
-        # Every one-column step (each joint's zero) at once: its information is the diagonal of one product.
-        single = [k for k, (cols, ramp) in enumerate(hypotheses) if len(cols) == 1 and not ramp]
-        if single:
-            cols = [hypotheses[k][0][0] for k in single]
-            h = [at[c] for c in cols]
-            g, cross = after["g"][:, h], after["G"][:, :, h]
-            F = cross[:, cols, np.arange(len(cols))]
-            score = g - np.einsum("npd,p->nd", cross, level)
-            info = F - np.einsum("npd,npd->nd", cross, np.matmul(inverse, cross))
-            for i, k in enumerate(single):
-                out[k] = (score[:, i : i + 1], info[:, i : i + 1, None])
-        for k, (cols, ramp) in enumerate(hypotheses):
-            if out[k] is not None:
-                continue
-            h = [at[c] for c in cols]
-            if ramp:  # Σ (t−τ) g_t, Σ (t−τ) G_t and Σ (t−τ)² G_t after τ
-                g = after["tg"][:, h] - tau[:, None] * after["g"][:, h]
-                cross = after["tG"][:, :, h] - tau[:, None, None] * after["G"][:, :, h]
-                tt = after["ttG"][:, h][:, :, h]
-                F = tt - 2.0 * tau[:, None, None] * after["tG"][:, cols][:, :, h] + tau[:, None, None] ** 2 * after["G"][:, cols][:, :, h]
-            else:
-                g, cross = after["g"][:, h], after["G"][:, :, h]
-                F = cross[:, cols]
-            score = g - np.einsum("npd,p->nd", cross, level)
-            info = F - np.matmul(cross.transpose(0, 2, 1), inverse @ cross)
-            out[k] = (score, info)
-        return out, level
+        tau = self.times[rows] - self.origin
+        after = np.take(self._ring, rows, axis=0, out=self._after[:n])
+        np.subtract(self._total, after, out=after)
+        g, tg, Gs, tG, _ = (after[:, cut].reshape((n,) + s) for cut, s in self._parts)
+        at = self._ramp_at
+        # The extended columns' scores (Σ (t−τ) g_t for a ramp) and cross-information with the
+        # window's constant C (n, m, p), profiled out for all of them in one product.
+        C = self._C[:n]
+        C[:, :h] = Gs
+        np.subtract(tG, tau[:, None, None] * Gs[:, at], out=C[:, h:])
+        score = np.concatenate([g, tg - tau[:, None] * g[:, at]], axis=1) - C @ level
+        profiled = self._profiled[:n]
+        np.matmul(C.reshape(-1, p), inverse.T, out=profiled.reshape(-1, p))
+        Q = np.matmul(C, profiled.transpose(0, 2, 1), out=self._Q[:n]).reshape(n, -1)
+        pair, i0, i1, i2 = self._pairs
+        info = after[:, i0] - 2.0 * tau[:, None] * after[:, i1] + tau[:, None] ** 2 * after[:, i2] - Q[:, pair]
+        groups = [(which, score[:, idx], info[:, pairs].reshape(n, len(which), idx.shape[1], idx.shape[1])) for which, idx, pairs in self.groups]
+        return groups, level
 
 
 class _LongRunVariance:
@@ -314,12 +372,13 @@ class Monitor:
         private = set(setup_names(self.robot, self.measurement)) | {"cable_offset"}
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.prior = np.array([0.0 if names[c] in private or not std.get(names[c]) else 1.0 / std[names[c]] ** 2 for c in self.columns])
-        self.threshold = {d: float(chi2.isf(1.0 / (self.mean_run_length * WINDOW * len(self.changes)), d)) for d in {len(c.columns) for c in self.changes}}
+        self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
+        self._limits = tuple(np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
         self.samples = 0
         self.alarms: list[Alarm] = []
         self.refused: list[str] = []
         self._opening: list = []  # (q, y, row) until the opening is complete
-        self._buffers = _Buffers(len(self.columns), sorted({self.columns.index(c) for change in self.changes for c in change.columns}))
+        self._buffers = _Buffers(len(self.columns), [([self.columns.index(c) for c in change.columns], change.ramp) for change in self.changes])
         self.sigma: Optional[np.ndarray] = None
         self.inflation = 1.0
         self._delayed: deque = deque()
@@ -376,7 +435,7 @@ class Monitor:
         rows = [None] * len(q) if rows is None else list(rows)
 
         raised = []
-        lower, upper = (np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
+        lower, upper = self._limits
         for qi, yi, row in zip(q, y, rows):
             i = self.samples
             self.samples += 1
@@ -476,22 +535,25 @@ class Monitor:
         starts = b.n - MIN_AFTER + 1  # starts with at least MIN_AFTER samples from them on
         if starts <= 1:
             return None
-        hypotheses = [([self.columns.index(c) for c in change.columns], change.ramp) for change in self.changes]
-        evidence, self._level = b.evidence(hypotheses, starts, self.prior)
-        best, surprises = None, []
-        for change, (score, info) in zip(self.changes, evidence):
-            score, info = score[1:], info[1:]  # a start at the window's first sample leaves no level before it
-            d = score.shape[1]
+        groups, self._level = b.evidence(starts, self.prior)
+        # Per change: its largest statistic, at which start (1-based in the window), and its estimate there.
+        strongest: list = [None] * len(self.changes)
+        for which, score, info in groups:  # the changes of d parameters each, all starts at once
+            d = score.shape[2]
             if d == 1:
-                delta = score / (info[:, 0] + 1e-12)
+                delta = score / (info[..., 0] + 1e-12)
             else:
-                delta = np.linalg.solve(info + 1e-12 * np.eye(d)[None], score[:, :, None])[:, :, 0]
-            stat = np.einsum("nd,nd->n", score, delta) / self.inflation
-            k = int(np.argmax(stat))
-            surprise = _surprise(float(stat[k]), d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
+                delta = np.linalg.solve(info + 1e-12 * np.eye(d), score[..., None])[..., 0]
+            stat = np.einsum("nkd,nkd->nk", score, delta) / self.inflation
+            for j, k in enumerate(np.argmax(stat, axis=0)):
+                strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[k, j])
+        best, surprises = None, []
+        for change, (stat, k, delta) in zip(self.changes, strongest):
+            d = len(change.columns)
+            surprise = _surprise(stat, d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
             surprises.append((surprise, change))
-            if stat[k] > self.threshold[d] and (best is None or surprise > best[0]):
-                best = (surprise, change, k + 1, delta[k], float(stat[k] / self.threshold[d]))
+            if stat > self.threshold[d] and (best is None or surprise > best[0]):
+                best = (surprise, change, k, delta, stat / self.threshold[d])
         if best is None:
             return None
         surprise, change, k, delta, ratio = best

@@ -9,7 +9,6 @@ that recipe over-states σ about 2.3 times (and "2.5 robust sigmas" becomes ≈ 
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import median_abs_deviation
 
 from .exceptions import ShapeError
 
@@ -35,6 +34,8 @@ def robust_sigma(residuals, floor: float = 1e-12) -> np.ndarray:
         r = r[:, None]
     if r.ndim != 2 or len(r) == 0:
         raise ShapeError(f"`residuals` must have shape (m, k) with m >= 1; got {r.shape}")
+    from scipy.stats import median_abs_deviation  # here: scipy.stats takes 0.6 s to import, which every command importing robocal.stats paid
+
     return np.maximum(median_abs_deviation(r, axis=0, scale="normal"), floor)
 
 

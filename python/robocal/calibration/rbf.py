@@ -26,8 +26,6 @@ from dataclasses import dataclass
 from typing import Optional, Union
 
 import numpy as np
-from scipy.cluster.vq import kmeans2
-from scipy.spatial.distance import cdist, pdist
 
 from ..kernels import as_count, as_tolerance, seeded_rng
 from ..data.dataset import Dataset
@@ -86,6 +84,8 @@ class RBFResult(CalibrationResult):
 
 def _features(q: np.ndarray, centers: np.ndarray, width: float) -> np.ndarray:
     """Gaussian kernels plus a constant column, (m, n_centers + 1)."""
+    from scipy.spatial.distance import cdist  # here, as in rbf(): every command imports this module
+
     phi = np.exp(-cdist(q, centers, "sqeuclidean") / (2.0 * width**2))
     return np.hstack([phi, np.ones((len(q), 1))])
 
@@ -111,6 +111,10 @@ def rbf(problem: Problem, n_centers: Optional[int] = None, ridge: float = 1e-6, 
     -------
     RBFResult
     """
+    # scipy.cluster and scipy.spatial take half a second to import; every command imports this module, few fit an RBF.
+    from scipy.cluster.vq import kmeans2
+    from scipy.spatial.distance import pdist
+
     t0 = time.perf_counter()
     data = problem.data
     q = np.asarray(data.q, dtype=np.float64)
