@@ -252,13 +252,20 @@ def test_an_error_of_many_cycles_a_turn_is_found_in_what_is_left():
 
 @pytest.mark.parametrize("robot, measurement, period", [("hsr-jr680", "cable", 100.0), ("ur10", "position", 300.0)])
 def test_an_error_of_the_sensor_is_told_from_the_robots(robot, measurement, period):
-    """A sensor's own error, 0.1 mm periodic in what it reads (a drawstring's linearity along its
-    length; a tracker's, across its field): no cause of the robot explains it and none is named,
-    and what is left is said to follow the sensor's reading — pairs of samples alike in reading
-    in configurations far apart agree, neighbours in joint space do not."""
+    """A sensor's own error, 0.1 mm periodic in what it reads (a drawstring's along its length; a
+    tracker's across its field, each axis periodic in another — no azimuth encoder's shape): no
+    cause of the robot is named. The drawstring's is named as the sensor's own periodic error of
+    its period; the tracker's, which no candidate describes, is left, and what is left is said to
+    follow the sensor's reading — pairs of samples alike in reading in configurations far apart
+    agree, neighbours in joint space do not."""
     data, _ = simulate(robot, measurement, samples=1000, seed=5)
     report = diagnose(with_sensor_error(data, 0.1, period)).to_dict()
     verdict = report["final"]["residuals"]
+    if measurement == "cable":
+        assert [e["kind"] for e in report["effects"]] == ["sensor_periodic"]
+        assert report["effects"][0]["params"]["period"]["value"] == pytest.approx(period, rel=0.02)
+        assert report["effects"][0]["params"]["amplitude"]["value"] == pytest.approx(0.1, rel=0.1)
+        return
     assert [e["label"] for e in report["effects"]] == []
     assert verdict["noise"] is False
     assert verdict["sensor"]["verdict"] is True
