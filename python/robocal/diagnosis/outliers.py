@@ -23,7 +23,7 @@ from ..data.dataset import Dataset
 from ..data.splits import configuration_groups, kfold
 from ..robot import RESIDUAL_WIDTH
 from ..stats import robust_sigma
-from .settling import after_long_moves
+from .settling import after_long_moves, preceding_moves
 from .state import Pass
 from .validation import cross_validate, fit_problem, same_folds
 
@@ -162,9 +162,7 @@ def gathered_in_state(dataset: Dataset, suspects: np.ndarray, keep: np.ndarray) 
     :data:`GATHERED_MIN` suspects or where none separates them."""
     if len(suspects) < GATHERED_MIN:
         return None
-    order = acquisition_order(dataset)
-    moves = np.zeros_like(dataset.q)
-    moves[order[1:]] = np.abs(np.diff(dataset.q[order], axis=0))
+    moves = preceding_moves(dataset)
     others = np.setdiff1d(keep, suspects)
     tests = [(f"joint {j + 1}'s {what}", values) for j in range(dataset.q.shape[1]) for what, values in (("angle", dataset.q[:, j]), ("move", moves[:, j]))]
     tests = [(name, values) for name, values in tests if np.ptp(values[keep]) > 0]

@@ -655,10 +655,20 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     # What a gradual change gains, for each step: a ramp from its sample, and the curves of a
     # linear drift the model has (a drift that is not linear leaves bends a step would take).
     steps = [c for _, c, _, _ in scored if c.kind == "step"]
-    curves = []
+    screened_curves: dict = {}
+
+    def curve_errs() -> dict:
+        """The drift's curves' held-out errors on the random folds (label -> errors), screened
+        once a round for the steps and the sensor's field alike (a bent drift's were already)."""
+        if not screened_curves:
+            for curve in curved_drifts(state.dataset):
+                screened = time_errs.get(curve.label)
+                screened_curves[curve.label] = screened if screened is not None else screen.errors(ext.weighted_columns(x, curve, parts, p))["random"]
+        return screened_curves
+
+    shared_errs = []  # every step's alternatives
     if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
-        curves = curved_drifts(state.dataset)
-    shared_errs = [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curves]  # every step's alternatives
+        shared_errs = list(curve_errs().values())
     if steps and not any(c.kind == "wander" for c in pool + ext.causes):
         # No wander offered (the residual test measured no correlation length): where no wander can
         # be named, the arcs of a wandering reading must not be taken for a jump. (Where wanders
@@ -690,9 +700,8 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     # 3x their limit were then refused).
     sensors = [c for _, c, _, _ in scored if c.kind in SENSOR_KINDS]
     if sensors:
-        alternatives = [e for label, e in time_errs.items() if not label.startswith(SENSOR_KINDS)]
-        alternatives += [screen.errors(ext.weighted_columns(x, curve, parts, p))["random"] for curve in curved_drifts(state.dataset)]
-        best = min(alternatives, key=lambda e: float(np.mean(e)))
+        alternatives = {label: e for label, e in time_errs.items() if not label.startswith(SENSOR_KINDS)} | curve_errs()
+        best = min(alternatives.values(), key=lambda e: float(np.mean(e)))
         for c in sensors:
             screening.where_z[c.label] = paired_z(best, time_errs[c.label])
     screening.ranked = confirmation_order(

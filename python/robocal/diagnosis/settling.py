@@ -23,13 +23,19 @@ LONG_MOVE_DEG = 90.0
 LEVEL = 0.01
 
 
+def preceding_moves(data: Dataset) -> np.ndarray:
+    """Per sample and joint, the size of the joint's move (rad) from the sample before it in
+    acquisition order (0 for the first), (m, n)."""
+    order = acquisition_order(data)
+    moves = np.zeros_like(data.q)
+    moves[order[1:]] = np.abs(np.diff(data.q[order], axis=0))
+    return moves
+
+
 def preceding_move_deg(data: Dataset) -> np.ndarray:
     """Per sample, the largest joint move (deg) from the sample before it in acquisition order
     (0 for the first), (m,)."""
-    order = acquisition_order(data)
-    move = np.zeros(len(data))
-    move[order[1:]] = np.degrees(np.max(np.abs(np.diff(data.q[order], axis=0)), axis=1))
-    return move
+    return np.degrees(np.max(preceding_moves(data), axis=1))
 
 
 def after_long_moves(data: Dataset, outliers: np.ndarray) -> Optional[dict]:
