@@ -156,21 +156,23 @@ def gathered_in_state(dataset: Dataset, suspects: np.ndarray, keep: np.ndarray) 
     whatever the robot does, so gross errors are a random draw of the samples, while a shape the
     model misses strikes at some angle or some move of a joint — lost motion whose transition is
     not a switch errs at the small moves of its joint (the mismatch section named 4-14 such
-    samples outliers); suspects after longer moves than the others' are unsettled readings, not
-    structure. Two-sample Kolmogorov-Smirnov tests of each joint's angle and of the size
+    samples outliers); suspects that follow long moves beyond chance are unsettled readings
+    (:func:`~.settling.after_long_moves`), not structure. Two-sample Kolmogorov-Smirnov tests of each joint's angle and of the size
     of its move from the sample before (acquisition order), the suspects against the other kept
     samples, Bonferroni over them at :data:`GATHERED_LEVEL`; None with fewer than
     :data:`GATHERED_MIN` suspects or where none separates them."""
     if len(suspects) < GATHERED_MIN:
         return None
+    settling = after_long_moves(dataset, suspects)
+    if settling is not None and settling["settling"]:
+        # readings taken before the arm settled (:mod:`.settling`): gross readings of the
+        # acquisition wherever its path puts them, and named (UR10 series A's gather at joint 3's
+        # angle along its grid; kept in, its held-out error rose from 0.077 to 0.081 mm)
+        return None
     moves = preceding_moves(dataset)
     others = np.setdiff1d(keep, suspects)
     tests = [(f"joint {j + 1}'s {what}", values) for j in range(dataset.q.shape[1]) for what, values in (("angle", dataset.q[:, j]), ("move", moves[:, j]))]
-    # Readings after long moves are readings taken before the arm settled (:mod:`.settling`):
-    # gross readings of the acquisition, which stay named (UR10 series A: kept in, they raised its
-    # held-out error from 0.077 to 0.081 mm). Only moves smaller than the others' say structure.
-    shorter = lambda values: np.median(values[suspects]) < np.median(values[others])  # noqa: E731
-    tests = [(name, values) for name, values in tests if np.ptp(values[keep]) > 0 and (name.endswith("angle") or shorter(values))]
+    tests = [(name, values) for name, values in tests if np.ptp(values[keep]) > 0]
     if not tests:
         return None
     p, name = min((ks_2samp(values[suspects], values[others]).pvalue, name) for name, values in tests)
