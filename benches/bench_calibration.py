@@ -397,7 +397,7 @@ def m9_setup(d1_path, sweeps: int):
     from robocal.calibration.problem import Problem
     from robocal.calibration.vslm import LAMBDA
     from robocal.data import random_split
-    from robocal.data.public import load
+    from robocal.data import load
 
     r = robocal.robot("hsr-jr680")
     d1 = load(d1_path)

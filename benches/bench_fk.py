@@ -85,7 +85,7 @@ def worker(sizes, repeats: int, d1: str | None) -> dict:
         out["fk"][m] = {"robocal": t_rust, "numpy": t_numpy, "max_abs_diff": float(err)}
     if d1:
         from robocal.calibration.problem import Problem
-        from robocal.data.public import load
+        from robocal.data import load
 
         data = load(d1)
         problem = Problem.build(r, data)

@@ -74,7 +74,7 @@ def test_debug_shows_the_diagnostic_log_and_quiet_nothing(workdir):
     debug = subprocess.run(run + ["--debug"], capture_output=True, text=True, timeout=600)
     assert quiet.returncode == debug.returncode == 0 and quiet.stderr == ""
     assert debug.stdout == quiet.stdout
-    assert "robocal: INFO: robocal.data.public: load: " in debug.stderr and "60 position samples" in debug.stderr
+    assert "robocal: INFO: robocal.data.loader: load: " in debug.stderr and "60 position samples" in debug.stderr
 
 
 @pytest.mark.parametrize(

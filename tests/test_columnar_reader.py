@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from robocal.data import load, read_canonical, read_ipa, table
-from robocal.data.canonical import write_canonical
+from robocal.data import write_canonical
 from robocal.data.dataset import Dataset
 from robocal.exceptions import DataError
 
@@ -292,7 +292,7 @@ def test_clock_matches_strptime(stamps):
     """The UR10 ``Timestamp`` clock read by array arithmetic equals strptime's, or defers."""
     from datetime import datetime
 
-    from robocal.data.public import _clock
+    from robocal.data.formats.ipa import _clock
 
     fast = _clock(stamps)
     try:

@@ -10,7 +10,7 @@ from scipy import sparse
 
 import robocal
 from robocal.cli import main
-from robocal.data.canonical import write_canonical
+from robocal.data import write_canonical
 from robocal.results import save_result
 import robocal.exceptions
 from robocal import _robocal

@@ -13,7 +13,7 @@ from robocal.calibration.lm import levenberg_marquardt
 from robocal.calibration.sessions import Partial, Sessions, is_private, session_problems
 from robocal.cli import main
 from robocal.cli.diagnose import sessions_summary
-from robocal.data.canonical import write_canonical
+from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import simulate
 

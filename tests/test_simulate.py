@@ -14,7 +14,7 @@ import robocal
 from robocal import kernels
 from robocal import simulation as sim
 from robocal.cli import simulate as simulate_cli
-from robocal.data.canonical import read_canonical
+from robocal.data import read_canonical
 from robocal.effects import parse_effect
 from robocal.physics import GRAVITY, MASS_MODELS, gravity_torques
 from robocal.exceptions import InvalidParameterError

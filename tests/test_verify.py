@@ -86,7 +86,7 @@ def test_reading_conventions_are_applied(sessions):
 
 def test_cli_writes_the_report_and_refuses_bad_results(tmp_path, sessions, capsys):
     first, second = sessions
-    from robocal.data.canonical import write_canonical
+    from robocal.data import write_canonical
 
     data = tmp_path / "second.csv"
     write_canonical(second, data)

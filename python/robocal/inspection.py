@@ -20,7 +20,7 @@ from .calibration.lm import levenberg_marquardt
 from .calibration.problem import Problem, start_parameters
 from .kernels import as_float
 from .data.dataset import Dataset, angle_unit_check
-from .data.public import detect_format, load
+from .data.loader import detect_format, load
 from .exceptions import DataError, InvalidParameterError, RobocalError
 from .geometry import frame_params, homogeneous, matrix_from_quaternion
 from .robot import robot as load_robot

@@ -21,7 +21,7 @@ from typing import Iterable, Mapping, Optional, Sequence, Union
 import numpy as np
 
 from .kernels import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed, identifiability
-from .data.canonical import write_canonical
+from .data.formats.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
 from .exceptions import InvalidParameterError

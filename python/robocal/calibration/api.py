@@ -13,7 +13,7 @@ import numpy as np
 from ..catalog import BUILTIN
 from ..kernels import as_float
 from ..data.dataset import Dataset
-from ..data.public import load
+from ..data.loader import load
 from ..data.splits import configuration_groups, random_split
 from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot, setup_names

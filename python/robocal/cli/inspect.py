@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from ..data.public import FORMATS
+from ..data.loader import FORMATS
 from ..inspection import OUTLIER_SIGMAS, inspect
 from ..outputs import printable, write_json
 

@@ -16,7 +16,8 @@ import sys
 
 from ..calibration.api import load_inputs
 from ..causes.candidates import acquisition_order
-from ..data.canonical import canonical_dataset
+from ..data.formats.canonical import canonical_dataset
+from ..data.table import Table
 from ..exceptions import DataError
 from ..monitoring import MEAN_RUN_LENGTH, OPENING, Monitor
 from ..outputs import Staged, printable
@@ -49,7 +50,7 @@ def _stdin_samples(monitor: Monitor, angle_unit):
             header = cells
             continue
         try:
-            sample = canonical_dataset(header, [(number, cells)], "<stdin>", angle_unit or "deg", monitor.measurement, None, False)
+            sample = canonical_dataset(Table(header, [(number, cells)], "<stdin>"), angle_unit or "deg", monitor.measurement, None, False)
         except DataError as exc:
             monitor.refused.append(f"row {number} refused: {exc}")
             print(f"  row {number} refused: {printable(str(exc), one_line=True)}", file=sys.stderr)

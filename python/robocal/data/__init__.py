@@ -1,11 +1,14 @@
-"""Measured data in: the :class:`Dataset`, the canonical CSV format, the readers of the public
-datasets (:func:`load` detects the format) and splits. The validation report of a file, which
+"""Measured data in: the :class:`Dataset`, one reader per file format (:mod:`.formats`: the
+canonical CSV, DataFrames, the public datasets) over one parsed table (:mod:`.table`), :func:`load`
+which detects the format (:mod:`.loader`), and splits. The validation report of a file, which
 fits the set-up, sits above the calibration: :mod:`robocal.inspection`."""
 
-from .canonical import read_canonical, write_canonical
 from .dataset import OBSERVATION_COLUMNS, Dataset
-from .frame import read_frame
-from .public import FORMATS, detect_format, load, read_hsr, read_ipa, read_robotcali
+from .formats.cable import read_hsr, read_robotcali
+from .formats.canonical import read_canonical, write_canonical
+from .formats.frame import read_frame
+from .formats.ipa import read_ipa
+from .loader import FORMATS, detect_format, load
 from .splits import chronological, configuration_groups, kfold, paper_split, random_split
 
 __all__ = [

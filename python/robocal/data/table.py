@@ -1,10 +1,12 @@
-"""Cells to numbers: the row-by-row parsing shared by every reader.
+"""Any file to one parsed table, and cells to numbers: what every format reader stands on.
 
-A *table* is a header (list of column names) and a body of ``(row_number, cells)`` records, row
-numbers 1-based with the header as row 1. Cells are strings (CSV) or numbers / ``None``
+A :class:`Table` is a header (list of column names) and a body of ``(row_number, cells)`` records,
+row numbers 1-based with the header as row 1, read by :func:`read_table` from an .xlsx workbook
+(recognised by its signature) or a delimited text. Cells are strings (CSV) or numbers / ``None``
 (spreadsheets). Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and
 column — or, when the caller asks for it, an entry of the excluded-rows list. Nothing is dropped
-silently.
+silently. This module knows no file format: the readers in :mod:`robocal.data.formats` build a
+:class:`~robocal.data.Dataset` from a table, and nothing here calls them.
 
 Delimited text is read twice over only when it must be: :func:`split_delimited` hands out a
 :class:`DelimitedBody`, whose numeric columns come from pyarrow's columnar CSV reader (all cells
@@ -21,9 +23,11 @@ from __future__ import annotations
 
 import csv
 import difflib
+import io
 import math
 import re
 import sys
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Iterable, Optional, Sequence
@@ -544,3 +548,166 @@ def check_unit_quaternions(quaternions: np.ndarray, rows: np.ndarray, path) -> N
         more = f" ({bad.size} rows like it)" if bad.size > 1 else ""
         message = f"the quaternion (qw,qx,qy,qz) = {quaternion} must have unit norm (within {QUATERNION_NORM_TOL:g}); got norm {norms[k]:.6g}{more}"
         raise DataError(message, path, int(rows[k]))
+
+
+# -- workbooks ---------------------------------------------------------------------------------
+XLSX_SIGNATURE = b"PK\x03\x04"
+
+
+def is_workbook(path) -> bool:
+    """Whether ``path`` starts with the .xlsx (zip) signature: a workbook is judged by its
+    content, never by its extension."""
+    with open_data(path) as f:
+        try:
+            return f.read(4) == XLSX_SIGNATURE
+        except OSError as exc:
+            raise DataError(f"cannot read the file ({exc.strerror or exc})", path) from None
+
+
+def _open_workbook(path: Path, data_only: bool = True):
+    """The workbook at ``path``: cell values as last computed (``data_only``) or as typed (formulas)."""
+    import openpyxl
+
+    content = read_data(path)
+    try:  # from bytes: openpyxl would judge a path by its extension, we judge by content
+        return openpyxl.load_workbook(io.BytesIO(content), read_only=True, data_only=data_only)
+    except Exception as exc:  # openpyxl raises many types (zipfile, KeyError, XML errors) on corrupt files
+        raise DataError(f"not a readable .xlsx workbook ({type(exc).__name__}: {exc})", path) from None
+
+
+def _sheet_rows(sheet) -> list[tuple]:
+    """The rows of a worksheet without trailing empty columns and empty rows (as
+    ``(row_number, cells)``) plus the header, or ``([], [])`` for an empty sheet."""
+    rows = list(sheet.iter_rows(values_only=True))
+    if not rows:
+        return [], []
+    head = list(rows[0])
+    while head and (head[-1] is None or str(head[-1]).strip() == ""):
+        head.pop()
+    header = ["" if h is None else str(h).strip() for h in head]
+    body = []
+    for number, cells in enumerate(rows[1:], start=2):
+        cells = list(cells)
+        if all(c is None or (isinstance(c, str) and not c.strip()) for c in cells):
+            continue
+        if any(c is not None for c in cells[len(header) :]):
+            # a value beyond the header: keep the row's full width so that the cell count check names it
+            body.append((number, cells))
+        else:
+            body.append((number, (cells + [None] * len(header))[: len(header)]))
+    return header, body
+
+
+def _read_xlsx(path: Path, sheet: Optional[str] = None):
+    """Header, body and notes (other non-empty sheets) of one worksheet."""
+    book = _open_workbook(path)
+    try:
+        names = book.sheetnames
+        if sheet is not None and sheet not in names:
+            raise DataError(f"no sheet {sheet!r}; the workbook has {names}", path)
+        chosen = sheet or names[0]
+        header, body = _sheet_rows(book[chosen])
+        notes = [f"read sheet {chosen!r}"] if len(names) > 1 else []
+        where = {tuple(cells): number for number, cells in body}
+        for name in names:
+            if name != chosen:
+                other_header, other_body = _sheet_rows(book[name])
+                if other_body:
+                    repeats = [where[tuple(cells)] for _, cells in other_body if tuple(cells) in where]
+                    same = f"; {len(repeats)} of its rows repeat rows {row_ranges(sorted(set(repeats)))} of this sheet" if repeats else ""
+                    notes.append(f"sheet {name!r} ({len(other_body)} rows, columns {other_header}) not read{same}; pass sheet={name!r} to read it")
+    finally:
+        book.close()
+    if not header:
+        raise DataError(f"sheet {chosen!r} is empty (a header row is expected)", path, 1)
+    check_header(header, path)
+    if any(c is None for _, cells in body for c in cells):
+        body = _mark_uncached_formulas(path, chosen, body)
+    return header, body, notes
+
+
+def _mark_uncached_formulas(path: Path, sheet: str, body: list) -> list:
+    """``body`` with each empty cell that holds a formula as an :class:`UncachedFormula`: a
+    workbook written by a program that computes nothing (openpyxl, pandas) has formulas without
+    values, which are not empty cells and need another remedy."""
+    book = _open_workbook(path, data_only=False)
+    try:
+        typed = list(book[sheet].iter_rows(values_only=True))
+    finally:
+        book.close()
+    marked = []
+    for number, cells in body:
+        row = typed[number - 1] if number - 1 < len(typed) else ()
+        formulas = [v if isinstance(v, str) and v.startswith("=") else None for v in row]
+        marked.append((number, [UncachedFormula(formulas[k]) if c is None and k < len(formulas) and formulas[k] else c for k, c in enumerate(cells)]))
+    return marked
+
+
+# -- the table ---------------------------------------------------------------------------------
+#: A joint column's name: ``q1``, ``q2``, ...
+_JOINT = re.compile(r"q\d+")
+
+
+@dataclass
+class Table:
+    """One parsed table: what every format reader builds its :class:`~robocal.data.Dataset` from.
+
+    Attributes
+    ----------
+    header : list of str
+        Column names (stripped; no name twice).
+    body : sequence of (int, sequence)
+        ``(row_number, cells)`` records (a :class:`ColumnarBody` where a columnar reading exists).
+    path
+        Where the table came from, as the caller named it: the readers' errors name it.
+    notes : list of str
+        What reading the table noticed (the sheet read, other sheets left unread).
+    """
+
+    header: list
+    body: Sequence
+    path: object
+    notes: list = field(default_factory=list)
+
+    def joint_columns(self) -> list[str]:
+        """The header's joint columns ``q1``, ``q2``, ... in joint order (gaps and all)."""
+        return sorted((h for h in self.header if _JOINT.fullmatch(h)), key=lambda h: int(h[1:]))
+
+    def require(self, expected: Iterable[str], what: str) -> None:
+        """See :func:`require_columns`."""
+        require_columns(self.header, expected, self.path, what)
+
+    def numeric(self, wanted: Sequence[str], *, decimal_comma: bool = False, allow_nonfinite: Sequence[str] = (), exclude_bad_rows: bool = False):
+        """``values, rows, excluded`` of the ``wanted`` columns: see :func:`numeric_columns`."""
+        return numeric_columns(self.header, self.body, wanted, self.path, decimal_comma, allow_nonfinite, exclude_bad_rows)
+
+    def text(self, name: str, rows: np.ndarray) -> list[str]:
+        """The stripped cells of column ``name`` in the records numbered ``rows`` (see :func:`text_column`)."""
+        return text_column(self.body, self.header.index(name), rows)
+
+    def ignored_note(self, used: Iterable[str]) -> list[str]:
+        """The note naming the header's columns outside ``used``, if any."""
+        used = set(used)
+        ignored = [h for h in self.header if h not in used]
+        return [f"ignored columns {ignored}"] if ignored else []
+
+
+def read_delimited(path, delimiter: str = ",") -> Table:
+    """The :class:`Table` of a delimited text file (UTF-8; see :func:`split_delimited`)."""
+    header, body = split_delimited(read_text(path), delimiter, path)
+    return Table(header, body, path)
+
+
+def read_table(path, *, sheet: Optional[str] = None, delimiter: str = ",") -> Table:
+    """The :class:`Table` of an .xlsx workbook's sheet (by signature: the first sheet unless
+    ``sheet``; the other sheets named in its notes) or of a ``delimiter``-separated text file.
+    ``Table.path`` is ``path`` as given."""
+    file = Path(path)
+    if is_workbook(file):
+        header, body, notes = _read_xlsx(file, sheet)
+        return Table(header, body, path, notes)
+    if sheet is not None:
+        raise DataError(f"`sheet` applies to .xlsx workbooks; this is a text file (sheet={sheet!r})", file)
+    table = read_delimited(file, delimiter)
+    table.path = path
+    return table

@@ -24,7 +24,7 @@ from ..calibration.problem import TOLERANCE, start_parameters
 from ..calibration.sessions import SESSION_KINDS, concatenate
 from ..causes import structure
 from ..causes.extended import read_causes
-from ..data.canonical import write_canonical
+from ..data.formats.canonical import write_canonical
 from ..data.dataset import Dataset
 from ..exceptions import DataError, InvalidParameterError
 from ..kernels import as_count, as_positive, seeded_rng

@@ -12,10 +12,10 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..exceptions import DataError
+from ...exceptions import DataError
+from ..dataset import ANGLE_UNITS, Dataset, require_pandas
+from ..table import MAX_ABS, ColumnarBody, Table, check_header
 from .canonical import canonical_dataset
-from .dataset import ANGLE_UNITS, Dataset, require_pandas
-from .table import MAX_ABS, ColumnarBody, check_header
 
 #: How a frame is named in errors and in ``Dataset.source``.
 SOURCE = "DataFrame"
@@ -104,4 +104,4 @@ def read_frame(
         raise DataError("the DataFrame has no rows", SOURCE)
     header = [str(name).strip() for name in frame.columns]
     check_header(header, SOURCE)
-    return canonical_dataset(header, FrameBody(frame), SOURCE, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
+    return canonical_dataset(Table(header, FrameBody(frame), SOURCE), angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)

@@ -9,15 +9,14 @@ Every problem is a :class:`~robocal.exceptions.DataError` naming file, row and c
 from __future__ import annotations
 
 import csv
-import re
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
-from ..exceptions import DataError
-from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset, time_order_notes
-from .table import check_unit_quaternions, excluded_notes, numeric_columns, read_text, require_columns, split_delimited
+from ...exceptions import DataError
+from ..dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, OPTIONAL_COLUMNS, Dataset, time_order_notes
+from ..table import Table, check_unit_quaternions, excluded_notes, read_delimited
 
 NUMERIC_OPTIONAL = ("t", "temp")
 
@@ -56,17 +55,17 @@ def read_canonical(
     path = Path(path)
     if angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
-    header, body = split_delimited(read_text(path), ",", path)
-    return canonical_dataset(header, body, path, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
+    return canonical_dataset(read_delimited(path), angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
 
 
 def canonical_dataset(
-    header, body, path, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool, *, prismatic: tuple = ()
+    table: Table, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool, *, prismatic: tuple = ()
 ) -> Dataset:
-    """The :class:`Dataset` of a canonical table, its ``header`` and ``(row, cells)`` ``body``
-    (from a file or a DataFrame); ``path`` names the source in errors; the ``prismatic`` joints'
-    columns (0-based) are mm, never converted from degrees."""
-    joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
+    """The :class:`Dataset` of a canonical :class:`~robocal.data.table.Table` (from a file, a
+    DataFrame or a line of a stream; its ``path`` names the source in errors); the ``prismatic``
+    joints' columns (0-based) are mm, never converted from degrees."""
+    header, path = table.header, table.path
+    joints = table.joint_columns()
     expected = [f"q{i}" for i in range(1, len(joints) + 1)]
     if not joints or joints != expected:
         raise DataError(f"joint columns must be q1..qN without gaps; got {joints or 'none'}", path, 1)
@@ -74,11 +73,11 @@ def canonical_dataset(
     if not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS:
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     obs = OBSERVATION_COLUMNS[measurement]
-    require_columns(header, obs, path, f"a {measurement} file")
+    table.require(obs, f"a {measurement} file")
     wanted = joints + list(obs) + [c for c in NUMERIC_OPTIONAL if c in header]
     known = set(wanted) | set(OPTIONAL_COLUMNS)  # the sample label is text, documented and not used
     ignored = [h for h in header if h not in known]
-    values, rows, excluded = numeric_columns(header, body, wanted, path, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
+    values, rows, excluded = table.numeric(wanted, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
     n = len(joints)
     if measurement == "pose":
         check_unit_quaternions(values[:, n + 3 : n + 7], rows, path)
