@@ -19,16 +19,27 @@ HSR_COLUMNS = JOINTS6 + ["L"]
 ROBOTCALI_COLUMNS = ["x", "y", "z"] + JOINTS6 + ["L"]
 
 
-def _cable_columns(path, sheet: Optional[str], robot: str, columns: list, what: str, exclude_bad_rows: bool):
-    """``values, rows, excluded, notes`` of the ``columns`` of a D1 / D2 file whose joint columns
-    must be the six of ``robot``."""
+def _cable_dataset(path, sheet: Optional[str], robot: str, columns: list, what: str, exclude_bad_rows: bool, extra: Optional[str] = None) -> Dataset:
+    """The cable :class:`Dataset` of a D1 / D2 file whose joint columns must be the six of
+    ``robot``: ``columns`` end with ``q1..q6, L``; those before them (D2's x, y, z) go to ``extra[extra]``."""
     table = read_table(path, sheet=sheet)
     joints = table.joint_columns()
     if joints and joints != JOINTS6:
         raise DataError(f"the {robot} has 6 joints (columns q1..q6); the header has joint columns {joints}", path, 1)
     table.require(columns, what)
     values, rows, excluded = table.numeric(columns, exclude_bad_rows=exclude_bad_rows)
-    return values, rows, excluded, table.notes + table.ignored_note(columns) + excluded_notes(excluded)
+    lead = len(columns) - 7
+    return Dataset(
+        q=np.radians(values[:, lead : lead + 6]),
+        y=values[:, lead + 6],
+        measurement="cable",
+        robot=robot,
+        rows=rows,
+        source=str(path),
+        excluded=excluded,
+        notes=table.notes + table.ignored_note(columns) + excluded_notes(excluded),
+        extra={extra: values[:, :lead]} if extra else {},
+    )
 
 
 def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
@@ -48,17 +59,7 @@ def read_hsr(path, exclude_bad_rows: bool = False) -> Dataset:
     Dataset
         ``robot="hsr-jr680"``, ``measurement="cable"``, q in rad.
     """
-    values, rows, excluded, notes = _cable_columns(path, None, "hsr-jr680", HSR_COLUMNS, "an HSR-RobotCali (D1) file", exclude_bad_rows)
-    return Dataset(
-        q=np.radians(values[:, :6]),
-        y=values[:, 6],
-        measurement="cable",
-        robot="hsr-jr680",
-        rows=rows,
-        source=str(path),
-        excluded=excluded,
-        notes=notes,
-    )
+    return _cable_dataset(path, None, "hsr-jr680", HSR_COLUMNS, "an HSR-RobotCali (D1) file", exclude_bad_rows)
 
 
 def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = False) -> Dataset:
@@ -83,15 +84,4 @@ def read_robotcali(path, sheet: Optional[str] = None, exclude_bad_rows: bool = F
         ``robot="abb-irb120"``, ``measurement="cable"``; ``extra["controller_xyz"]`` (m, 3) holds
         the controller's x, y, z for the cross-check in :func:`robocal.inspection.inspect`.
     """
-    values, rows, excluded, notes = _cable_columns(path, sheet, "abb-irb120", ROBOTCALI_COLUMNS, "a RobotCali (D2) file", exclude_bad_rows)
-    return Dataset(
-        q=np.radians(values[:, 3:9]),
-        y=values[:, 9],
-        measurement="cable",
-        robot="abb-irb120",
-        rows=rows,
-        source=str(path),
-        excluded=excluded,
-        notes=notes,
-        extra={"controller_xyz": values[:, :3]},
-    )
+    return _cable_dataset(path, sheet, "abb-irb120", ROBOTCALI_COLUMNS, "a RobotCali (D2) file", exclude_bad_rows, "controller_xyz")
