@@ -78,7 +78,7 @@ import numpy as np
 from .kernels import as_float_array, solve_damped
 from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets, map_coverage, map_coverage_report, uncovered_words
-from .data.table import check_unit_quaternions, numeric_columns, read_text, require_columns, split_delimited
+from .data.table import Table, check_unit_quaternions, read_delimited
 from .data.dataset import angle_unit_check
 from .exceptions import DataError, InvalidParameterError, ShapeError
 from .outputs import Staged
@@ -126,11 +126,12 @@ def read_targets(path, n_joints: int, angle_unit: Optional[str] = None):
     """Targets from a CSV with ``x, y, z`` [``qw, qx, qy, qz``] [``q1..qN`` in ``angle_unit``,
     deg by default; seed joints implausible for the default unit are refused] — or, with
     ``q1..qN`` alone, a robot program's joint targets (:class:`JointProgram`)."""
-    header, body = split_delimited(read_text(path), ",", path)
+    table = read_delimited(path)
+    header = table.header
     quaternion, joints = ["qw", "qx", "qy", "qz"], [f"q{j}" for j in range(1, n_joints + 1)]
     if not any(c in header for c in ("x", "y", "z")) and all(j in header for j in joints):
-        return JointProgram(*_seed_joints(header, body, joints, path, angle_unit))
-    require_columns(header, ["x", "y", "z"], path, "a targets file")
+        return JointProgram(*_seed_joints(table, joints, angle_unit))
+    table.require(["x", "y", "z"], "a targets file")
     expected = f"a targets file holds x,y,z, optionally qw,qx,qy,qz (pose targets) and q1..q{n_joints} (seed joints, {angle_unit or 'deg'})"
     unknown = [h for h in header if h not in ["x", "y", "z", *quaternion, *joints]]
     if unknown:  # a misnamed column would otherwise be solved without
@@ -140,23 +141,23 @@ def read_targets(path, n_joints: int, angle_unit: Optional[str] = None):
         raise DataError(f"only {present} of the quaternion columns: pose targets need all of qw,qx,qy,qz, position targets none; {expected}", path, 1)
     pose = len(present) == 4
     columns = ["x", "y", "z"] + (quaternion if pose else [])
-    values, rows, _ = numeric_columns(header, body, columns, path)
+    values, rows, _ = table.numeric(columns)
     if pose:
         check_unit_quaternions(values[:, 3:], rows, path)
     seeds = None
     if any(j in header for j in joints):
-        require_columns(header, joints, path, "seed joints")
-        seeds, _ = _seed_joints(header, body, joints, path, angle_unit)
+        table.require(joints, "seed joints")
+        seeds, _ = _seed_joints(table, joints, angle_unit)
     return Targets(values, seeds, rows)
 
 
-def _seed_joints(header, body, joints: list, path, angle_unit: Optional[str]) -> tuple[np.ndarray, np.ndarray]:
+def _seed_joints(table: Table, joints: list, angle_unit: Optional[str]) -> tuple[np.ndarray, np.ndarray]:
     """The joint columns (rad) and their rows; values implausible for the default unit refused."""
-    seeds, rows, _ = numeric_columns(header, body, joints, path)
+    seeds, rows, _ = table.numeric(joints)
     seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
     check = angle_unit_check(seeds, angle_unit or "deg", rows)
     if not check["plausible"] and angle_unit is None:
-        raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", path)
+        raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", table.path)
     return seeds, rows
 
 
