@@ -145,6 +145,27 @@ impl PyChain {
         matrix(py, out, inp.m * inp.measurement.res_width(), cols.len())
     }
 
+    /// Residuals `y − h` (m, res_width) and the Jacobian of `jacobian` from one pass over the samples.
+    #[pyo3(signature = (measurement, params, q, y, cols = None))]
+    fn residuals_and_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        cols: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(Arr2<'py>, Arr2<'py>)> {
+        let inp = self.owned(measurement, params, q, Some(y))?;
+        let cols = match cols {
+            Some(c) => index_list(c, "cols")?,
+            None => (0..inp.params.len()).collect(),
+        };
+        let (r, j) = py.detach(|| inp.batch(&self.inner)?.residuals_and_jacobian(&cols)).map_err(core_err)?;
+        let k = inp.measurement.res_width();
+        Ok((matrix(py, r, inp.m, k)?, matrix(py, j, inp.m * k, cols.len())?))
+    }
+
     /// Residuals of every sigma point, (S, m·res_width); `sigmas` (S, len(cols)) are absolute
     /// values of `params[cols]`.
     #[allow(clippy::too_many_arguments)] // the arguments are the Python method's signature
@@ -303,6 +324,13 @@ impl PyDampedQr {
         let c = array1(c, "c", Some(self.inner.ncols()))?;
         let step = py.detach(|| self.inner.solve(&c, lam)).map_err(core_err)?;
         Ok(PyArray1::from_vec(py, step))
+    }
+
+    /// The triangular factor `R` (n, n) of `J = Q·R`.
+    #[getter]
+    fn r<'py>(&self, py: Python<'py>) -> PyResult<Arr2<'py>> {
+        let n = self.inner.ncols();
+        matrix(py, self.inner.r().to_vec(), n, n)
     }
 }
 
