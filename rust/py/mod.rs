@@ -42,6 +42,11 @@ struct Owned {
 }
 
 impl Owned {
+    /// The parameter columns `cols` names, all of them by default.
+    fn columns(&self, cols: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<usize>> {
+        cols.map_or_else(|| Ok((0..self.params.len()).collect()), |c| index_list(c, "cols"))
+    }
+
     fn batch<'a>(&'a self, chain: &'a Chain) -> crate::error::CoreResult<Batch<'a>> {
         Batch::new(chain, self.measurement, &self.params, &self.q, self.y.as_deref())
     }
@@ -137,10 +142,7 @@ impl PyChain {
         cols: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Arr2<'py>> {
         let inp = self.owned(measurement, params, q, y)?;
-        let cols = match cols {
-            Some(c) => index_list(c, "cols")?,
-            None => (0..inp.params.len()).collect(),
-        };
+        let cols = inp.columns(cols)?;
         let out = py.detach(|| inp.batch(&self.inner)?.jacobian(&cols)).map_err(core_err)?;
         matrix(py, out, inp.m * inp.measurement.res_width(), cols.len())
     }
@@ -157,10 +159,7 @@ impl PyChain {
         cols: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Arr2<'py>, Arr2<'py>)> {
         let inp = self.owned(measurement, params, q, Some(y))?;
-        let cols = match cols {
-            Some(c) => index_list(c, "cols")?,
-            None => (0..inp.params.len()).collect(),
-        };
+        let cols = inp.columns(cols)?;
         let (r, j) = py.detach(|| inp.batch(&self.inner)?.residuals_and_jacobian(&cols)).map_err(core_err)?;
         let k = inp.measurement.res_width();
         Ok((matrix(py, r, inp.m, k)?, matrix(py, j, inp.m * k, cols.len())?))
