@@ -43,6 +43,31 @@ where
     }
 }
 
+/// [`for_each_group`] filling two outputs at once: `fill(first, count, rows, extra, scratch)`
+/// writes `count·width` values of `out` and `count·extra_width` of `extra` (both > 0 wide), so
+/// that one pass over the samples yields two per-sample results (a Jacobian and its residuals).
+/// Groups of `G` samples, SSE2 only (what the Jacobian's 4-lane groups use).
+pub fn for_each_group_pair<const G: usize, S, M, F>(out: &mut [f64], width: usize, extra: &mut [f64], extra_width: usize, make: M, fill: F)
+where
+    M: Fn() -> S + Sync,
+    F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S) + Sync,
+{
+    let run = |(c, (chunk, more)): (usize, (&mut [f64], &mut [f64]))| {
+        let mut scratch = make();
+        let samples = chunk.len() / width;
+        for g in (0..samples).step_by(G) {
+            let count = G.min(samples - g);
+            let (a, b) = (&mut chunk[g * width..(g + count) * width], &mut more[g * extra_width..(g + count) * extra_width]);
+            fill(c * CHUNK + g, count, a, b, &mut scratch);
+        }
+    };
+    if out.len() <= CHUNK * width {
+        run((0, (out, extra)));
+    } else {
+        out.par_chunks_mut(CHUNK * width).zip(extra.par_chunks_mut(CHUNK * extra_width)).enumerate().for_each(run);
+    }
+}
+
 /// Groups of one task's chunk, in order; the body of both builds below.
 #[inline(always)]
 pub(crate) fn fill_chunk<const G: usize, S, F>(first: usize, chunk: &mut [f64], width: usize, scratch: &mut S, fill: &F)

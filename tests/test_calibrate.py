@@ -12,6 +12,7 @@ from scipy.optimize import least_squares
 import robocal
 from robocal.data import Dataset
 from robocal.calibration import Problem, metrics
+from robocal.calibration.problem import PLAUSIBLE
 from robocal.calibration.lm import levenberg_marquardt
 from robocal.exceptions import InvalidParameterError
 from robocal.simulation import simulate
@@ -95,6 +96,40 @@ def test_lm_converges_on_a_deliberately_flat_direction():
     assert fit.success and full.success, (fit.message, full.message)
     assert fit.nfev <= 300
     assert fit.metrics["train"]["rmse"] <= 1.001 * full.metrics["train"]["rmse"]
+
+
+def test_the_residuals_build_evaluated_at_the_start_are_the_starts_and_taken_once(cable_data):
+    """``Problem.build`` evaluates the residuals with the start's Jacobian; the fit's first
+    ``residuals`` takes them (bit for bit what an evaluation gives), once."""
+    p = Problem.build(robocal.robot("hsr-jr680"), cable_data[0])
+    first = p.residuals(p.x0)
+    assert "_start_residuals" not in vars(p)
+    np.testing.assert_array_equal(first, p.residuals(p.x0))
+    moved = Problem.build(robocal.robot("hsr-jr680"), cable_data[0])
+    x = moved.x0 + 1e-3
+    np.testing.assert_array_equal(moved.residuals(x), p.residuals(x))  # elsewhere: not the start's
+
+
+def test_undetermined_gives_the_directions_of_an_svd_of_the_scaled_jacobian_itself():
+    """``undetermined`` takes the SVD of ``J``'s triangular factor (n, n): the same singular
+    values and directions (up to sign) as the SVD of ``J·diag(limits)`` (m, n), on narrow joint
+    ranges that leave some combinations undetermined."""
+    robot = robocal.robot("hsr-jr680")
+    rng = np.random.default_rng(5)
+    q = np.radians([5, -60, 200, -160, 40, 60]) + np.radians(rng.uniform(-3, 3, (400, 6))) * [1, 1, 1, 1, 1, 0]
+    L = robot.with_params(anchor_x=1500.0, anchor_y=300.0, anchor_z=-200.0, cable_offset=950.0).predict("cable", q)[:, 0] + rng.normal(0.0, 0.05, 400)
+    fit = levenberg_marquardt(Problem.build(robot, Dataset(q=q, y=L[:, None], measurement="cable", robot="hsr-jr680")))
+    names = fit.problem.names
+    got = fit.undetermined(shown=len(names))
+    J, r = fit.problem.jacobian(fit.x), fit.problem.residuals(fit.x)
+    limits = np.array([PLAUSIBLE.get(robot.param_units[k], 0.01) for k in fit.problem.free])
+    _, s, Vt = np.linalg.svd(J * limits, full_matrices=False)
+    std = np.sqrt(r @ r / (J.shape[0] - J.shape[1])) / s
+    assert len(got) == int(np.sum(std > 1.0)) > 0
+    for entry, want_std, v in zip(got, std[std > 1.0], Vt[std > 1.0]):
+        assert entry["std"] == pytest.approx(want_std, rel=1e-8)
+        w = np.array([entry["combination"][n] for n in names])
+        np.testing.assert_allclose(np.sign(w @ v) * w, v, atol=1e-8)
 
 
 def test_calibrate_api_result_json(cable_data, tmp_path):

@@ -119,6 +119,28 @@ def test_measurement_models_on_large_batches(case, measurement, seed, m):
     assert_jacobian_close(got, want, measurement, what="jacobian")
 
 
+@given(cases(max_samples=1), st.sampled_from(MEASUREMENTS), seeds, st.sampled_from([1, 5, 17, 261, 1031]), st.booleans())
+def test_residuals_and_jacobian_in_one_pass_are_the_two_calls_bit_for_bit(case, measurement, seed, m, subset):
+    """One pass gives what ``residuals`` (its own, wider lane groups) and ``jacobian`` give, bit
+    for bit, across the lane (4), small-batch (16) and task (256) boundaries; no column, one
+    residual per sample still."""
+    rng = np.random.default_rng(seed)
+    case = Case(case.conventions, case.kinds, case.params, random_q(rng, case.kinds, m), rng)
+    chain, y = compiled(case), observations(case, measurement, max_angle=0.3)
+    cols = rng.choice(case.params.size, size=rng.integers(0, 10)).tolist() if subset else None
+    r, J = chain.residuals_and_jacobian(measurement, case.params, case.q, y, cols)
+    np.testing.assert_array_equal(r, chain.residuals(measurement, case.params, case.q, y))
+    np.testing.assert_array_equal(J, chain.jacobian(measurement, case.params, case.q, y, cols))
+    assert J.shape == (r.size, case.params.size if cols is None else len(cols))
+
+
+def test_residuals_and_jacobian_check_their_columns():
+    chain = core.Chain(["dh"] * 2, ["revolute"] * 2)
+    params, q, y = np.zeros(chain.n_params), np.zeros((3, 2)), np.ones((3, 3))
+    with pytest.raises(InvalidParameterError, match="column index 99 out of range"):
+        chain.residuals_and_jacobian("position", params, q, y, [0, 99])
+
+
 @given(cases(max_samples=5), st.sampled_from(MEASUREMENTS), st.integers(1, 9))
 def test_sigma_residuals(case, measurement, n_sigmas):
     y = observations(case, measurement)

@@ -107,7 +107,8 @@ def factor_damped(J):
     through its normal equations in the LM: :func:`robocal.calibration.lm.levenberg_marquardt`).
 
     Returns a ``DampedQr`` with ``project(b)`` → ``c = Qᵀb`` (n,) — ``‖c‖`` is the norm of
-    ``b``'s part that ``J`` explains — and ``solve(c, lam)`` → the step ``δ`` (n,). Scale the
+    ``b``'s part that ``J`` explains — and ``solve(c, lam)`` → the step ``δ`` (n,); its ``r`` is
+    ``R`` (n, n), whose singular values and right singular vectors are ``J``'s. Scale the
     columns of ``J`` beforehand for Marquardt's damping.
     """
     return _robocal.DampedQr(as_float_array(J, "J"))

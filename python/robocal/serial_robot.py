@@ -336,6 +336,13 @@ class Robot:
         p, qa, ya = self._measurement_inputs(measurement, q, y, params)
         return self.chain.jacobian(measurement, p, qa, ya, None if cols is None else self.columns(cols, "cols").tolist())
 
+    def residuals_and_jacobian(self, measurement: str, q, y, params=None, cols=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residuals` and :meth:`jacobian` at the same parameters from one pass over the
+        samples (the residuals bit for bit :meth:`residuals`'): a Gauss–Newton step needs both,
+        and the Jacobian's forward kinematics already gives the residuals' tool frames."""
+        p, qa, ya = self._measurement_inputs(measurement, q, y, params)
+        return self.chain.residuals_and_jacobian(measurement, p, qa, ya, None if cols is None else self.columns(cols, "cols").tolist())
+
     def to_mdh(self) -> "Robot":
         """The same robot in modified DH, with identical tool-frame kinematics.
 

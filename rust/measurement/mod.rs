@@ -18,9 +18,12 @@ pub use cable_init::cable_initial_guess;
 
 use crate::error::{check_kinematic_input, CoreError, CoreResult};
 use crate::kinematics::{gather_lanes, lane_vec, splat, Chain, Frame, Frames, Lane, Prepared, Vec3L, BLOCK, LANES, SMALL_BATCH};
-use crate::parallel::for_each_group;
+use crate::parallel::{for_each_group, for_each_group_pair};
 use nalgebra::Vector3;
 use rayon::prelude::*;
+
+/// Scratch of one Jacobian task: joint lanes, the ops' axes and origins, `dp`, `dw`.
+type JacobianScratch = (Vec<Lane>, Vec<(Vec3L, Vec3L)>, Vec<Vec3L>, Vec<Vec3L>);
 
 /// What a sample observes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -217,6 +220,52 @@ impl<'a> Batch<'a> {
         if self.measurement == Measurement::Pose {
             self.observed()?;
         }
+        let wanted = self.wanted(cols)?;
+        let mut out = vec![0.0; self.m * self.measurement.res_width() * cols.len()];
+        for_each_group::<LANES, _, _, _>(
+            &mut out,
+            self.measurement.res_width() * cols.len(),
+            || self.jacobian_scratch(),
+            |first, count, rows, scratch| {
+                let f = self.frames_with_derivatives(first, count, &wanted, scratch);
+                self.jacobian_group(first, count, &f, &scratch.2, &scratch.3, cols, rows);
+            },
+        );
+        Ok(out)
+    }
+
+    /// Residuals `y − h` (m·res_width) and the Jacobian of [`Self::jacobian`] in one pass over the
+    /// samples: the Jacobian's forward kinematics gives the tool frames the residuals are made of
+    /// (the same operations in the same order as [`Self::residuals`]: bit for bit its values).
+    ///
+    /// Errors: those of [`Self::residuals`] and [`Self::jacobian`].
+    pub fn residuals_and_jacobian(&self, cols: &[usize]) -> CoreResult<(Vec<f64>, Vec<f64>)> {
+        self.observed()?;
+        let wanted = self.wanted(cols)?;
+        let k = self.measurement.res_width();
+        if cols.is_empty() {
+            return Ok((self.residuals()?, Vec::new()));
+        }
+        let (mut r, mut out) = (vec![0.0; self.m * k], vec![0.0; self.m * k * cols.len()]);
+        for_each_group_pair::<LANES, _, _, _>(
+            &mut out,
+            k * cols.len(),
+            &mut r,
+            k,
+            || self.jacobian_scratch(),
+            |first, count, rows, res, scratch| {
+                let f = self.frames_with_derivatives(first, count, &wanted, scratch);
+                self.jacobian_group(first, count, &f, &scratch.2, &scratch.3, cols, rows);
+                for (l, row) in res.chunks_exact_mut(k).enumerate() {
+                    self.residual_row(first + l, &f.lane(l), row);
+                }
+            },
+        );
+        Ok((r, out))
+    }
+
+    /// Which parameters `cols` asks for (length `n_params`), or an error naming a column out of range.
+    fn wanted(&self, cols: &[usize]) -> CoreResult<Vec<bool>> {
         let n_params = self.chain.layout().n_params();
         if let Some(&bad) = cols.iter().find(|&&c| c >= n_params) {
             return Err(CoreError::InvalidParameter {
@@ -224,21 +273,26 @@ impl<'a> Batch<'a> {
                 reason: format!("column index {bad} out of range for {n_params} parameters"),
             });
         }
-        let width = self.measurement.res_width() * cols.len();
-        let mut out = vec![0.0; self.m * width];
         let mut wanted = vec![false; n_params];
         cols.iter().for_each(|&c| wanted[c] = true);
-        let scratch = || {
-            let zero: Vec3L = [splat(0.0); 3];
-            (self.q_scratch::<LANES>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
-        };
-        for_each_group::<LANES, _, _, _>(&mut out, width, scratch, |first, count, rows, (ql, axes, dp, dw)| {
-            gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
-            let orientation = self.measurement == Measurement::Pose;
-            let f = self.chain.forward_with_jacobian(&self.prepared, ql, &wanted, orientation, axes, dp, dw);
-            self.jacobian_group(first, count, &f, dp, dw, cols, rows);
-        });
-        Ok(out)
+        Ok(wanted)
+    }
+
+    /// Scratch of [`Self::frames_with_derivatives`]: joint lanes, the ops' axes, `dp`, `dw`.
+    fn jacobian_scratch(&self) -> JacobianScratch {
+        let zero: Vec3L = [splat(0.0); 3];
+        let n_params = self.chain.layout().n_params();
+        (self.q_scratch::<LANES>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
+    }
+
+    /// Tool frames of samples `first .. first+count` with the derivatives of the `wanted`
+    /// parameters in `scratch.2` (`dp`) and `scratch.3` (`dw`).
+    #[inline(always)]
+    fn frames_with_derivatives(&self, first: usize, count: usize, wanted: &[bool], scratch: &mut JacobianScratch) -> Frames {
+        let (ql, axes, dp, dw) = scratch;
+        gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
+        let orientation = self.measurement == Measurement::Pose;
+        self.chain.forward_with_jacobian(&self.prepared, ql, wanted, orientation, axes, dp, dw)
     }
 
     /// The Jacobian rows of samples `first .. first+count` (lanes of `f`, `dp`, `dw`) into

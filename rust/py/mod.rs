@@ -42,6 +42,11 @@ struct Owned {
 }
 
 impl Owned {
+    /// The parameter columns `cols` names, all of them by default.
+    fn columns(&self, cols: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<usize>> {
+        cols.map_or_else(|| Ok((0..self.params.len()).collect()), |c| index_list(c, "cols"))
+    }
+
     fn batch<'a>(&'a self, chain: &'a Chain) -> crate::error::CoreResult<Batch<'a>> {
         Batch::new(chain, self.measurement, &self.params, &self.q, self.y.as_deref())
     }
@@ -137,12 +142,27 @@ impl PyChain {
         cols: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Arr2<'py>> {
         let inp = self.owned(measurement, params, q, y)?;
-        let cols = match cols {
-            Some(c) => index_list(c, "cols")?,
-            None => (0..inp.params.len()).collect(),
-        };
+        let cols = inp.columns(cols)?;
         let out = py.detach(|| inp.batch(&self.inner)?.jacobian(&cols)).map_err(core_err)?;
         matrix(py, out, inp.m * inp.measurement.res_width(), cols.len())
+    }
+
+    /// Residuals `y − h` (m, res_width) and the Jacobian of `jacobian` from one pass over the samples.
+    #[pyo3(signature = (measurement, params, q, y, cols = None))]
+    fn residuals_and_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        measurement: &str,
+        params: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        cols: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(Arr2<'py>, Arr2<'py>)> {
+        let inp = self.owned(measurement, params, q, Some(y))?;
+        let cols = inp.columns(cols)?;
+        let (r, j) = py.detach(|| inp.batch(&self.inner)?.residuals_and_jacobian(&cols)).map_err(core_err)?;
+        let k = inp.measurement.res_width();
+        Ok((matrix(py, r, inp.m, k)?, matrix(py, j, inp.m * k, cols.len())?))
     }
 
     /// Residuals of every sigma point, (S, m·res_width); `sigmas` (S, len(cols)) are absolute
@@ -303,6 +323,13 @@ impl PyDampedQr {
         let c = array1(c, "c", Some(self.inner.ncols()))?;
         let step = py.detach(|| self.inner.solve(&c, lam)).map_err(core_err)?;
         Ok(PyArray1::from_vec(py, step))
+    }
+
+    /// The triangular factor `R` (n, n) of `J = Q·R`.
+    #[getter]
+    fn r<'py>(&self, py: Python<'py>) -> PyResult<Arr2<'py>> {
+        let n = self.inner.ncols();
+        matrix(py, self.inner.r().to_vec(), n, n)
     }
 }
 

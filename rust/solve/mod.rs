@@ -216,6 +216,12 @@ impl DampedQr {
         self.qr.ncols()
     }
 
+    /// `R` (n × n, upper triangular, row-major): `JᵀJ = RᵀR`, so `J`'s singular values and right
+    /// singular vectors are `R`'s (an SVD of n × n instead of m × n).
+    pub fn r(&self) -> &[f64] {
+        self.qr.r()
+    }
+
     /// `Qᵀb` (n) for `b` (m): `‖Qᵀr‖` is the norm of `r`'s projection on the columns of `J`.
     /// Errors: `Shape`, `NonFinite`, `OutOfRange`.
     pub fn project(&self, b: &[f64]) -> CoreResult<Vec<f64>> {
@@ -374,6 +380,22 @@ mod tests {
         let f = DampedQr::new(&[1.0, 1.0, 0.0], 1, 3).unwrap();
         let step = f.solve(&f.project(&[2.0]).unwrap(), 0.0).unwrap();
         assert!((step[0] - 1.0).abs() < 1e-12 && (step[1] - 1.0).abs() < 1e-12 && step[2].abs() < 1e-12, "{step:?}");
+    }
+
+    #[test]
+    fn damped_qr_r_is_a_triangular_factor_of_jtj() {
+        // 4 x 3, and 1 x 3 (padded with zero rows): RᵀR = JᵀJ, R upper triangular.
+        for (j, m) in [(vec![1.0, 2.0, 0.0, 1.0, 2.5, 1.0, 0.0, 1.0, 3.0, 2.0, 4.0, 0.5], 4), (vec![1.0, 1.0, 0.0], 1)] {
+            let r = DampedQr::new(&j, m, 3).unwrap().r().to_vec();
+            for a in 0..3 {
+                for b in 0..3 {
+                    let rtr: f64 = (0..3).map(|k| r[k * 3 + a] * r[k * 3 + b]).sum();
+                    let jtj: f64 = (0..m).map(|i| j[i * 3 + a] * j[i * 3 + b]).sum();
+                    assert!((rtr - jtj).abs() < 1e-12 * (1.0 + jtj.abs()), "({a},{b}) of {m}x3: {rtr} vs {jtj}");
+                    assert!(a <= b || r[a * 3 + b] == 0.0, "R[{a},{b}] below the diagonal of {m}x3");
+                }
+            }
+        }
     }
 
     #[test]

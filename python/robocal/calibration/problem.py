@@ -127,8 +127,8 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
     every = max(len(data) // START_SAMPLES, 1)
     q, y = (data.q[::every], data.y[::every]) if every > 1 else (data.q, data.y)
     for _ in range(20):
-        r = robot.residuals(data.measurement, q, y, params=p).ravel()
-        step, _ = solve_damped(robot.jacobian(data.measurement, q, y=y, params=p, cols=cols), r, 1e-9)
+        r, J = robot.residuals_and_jacobian(data.measurement, q, y, params=p, cols=cols)
+        step, _ = solve_damped(J, r.ravel(), 1e-9)
         p[cols] += step
         size = np.max(np.abs(step))
         if size < 1e-9 or every > 1 and size < START_SWITCH:
@@ -323,7 +323,7 @@ class Problem:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
         start = start_parameters(robot, data, params)
-        J = robot.jacobian(data.measurement, data.q, y=data.y, params=start, cols=cols)
+        r, J = robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
         names = [robot.param_names[c] for c in cols]
         fixed = {names[j]: "no effect on the measurements" for j in ident["no_effect"]}
@@ -340,7 +340,8 @@ class Problem:
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
-        if not problem.bounds:  # the start is where J was evaluated: the fit's first Jacobian is its free columns (if nothing changes)
+        if not problem.bounds:  # the start is where r and J were evaluated: the fit's first residuals, and J's free columns (if nothing changes)
+            problem._start_residuals = (data, free.copy(), start.copy(), r.ravel())
             problem._start_jacobian = (data, free.copy(), start.copy(), np.ascontiguousarray(J[:, np.searchsorted(cols, free)]))
         return problem
 
@@ -420,8 +421,19 @@ class Problem:
         return idx, mean, sigma
 
     def data_residuals(self, x: np.ndarray) -> np.ndarray:
-        """``y − h`` of every sample, flattened to (m·k,): what the metrics are computed on."""
-        return self.robot.residuals(self.data.measurement, self.data.q, self.data.y, params=self.full(x)).ravel()
+        """``y − h`` of every sample, flattened to (m·k,): what the metrics are computed on (at the
+        start point, once, those :meth:`build` evaluated there with the Jacobian)."""
+        params = self.full(x)
+        r = self._evaluated_at_start("_start_residuals", params)
+        return self.robot.residuals(self.data.measurement, self.data.q, self.data.y, params=params).ravel() if r is None else r
+
+    def _evaluated_at_start(self, name: str, params: np.ndarray) -> Optional[np.ndarray]:
+        """What :meth:`build` left under ``name`` (``(data, free, start, value)``), taken once: the
+        value if ``params``, the data and the free set are still the start's, else None."""
+        cached = self.__dict__.pop(name, None)
+        if cached is not None and cached[0] is self.data and np.array_equal(cached[1], self.free) and np.array_equal(cached[2], params):
+            return cached[3]
+        return None
 
     @cached_property
     def _unit_weights(self) -> bool:
@@ -431,11 +443,9 @@ class Problem:
     def _data_jacobian(self, x: np.ndarray) -> np.ndarray:
         """The weighted data rows of :meth:`jacobian`; at the start point, the columns of the
         Jacobian :meth:`build` evaluated there for the identifiability analysis, once."""
-        cached, self._start_jacobian = getattr(self, "_start_jacobian", None), None
         params = self.full(x)
-        if cached is not None and cached[0] is self.data and np.array_equal(cached[1], self.free) and np.array_equal(cached[2], params):
-            J = cached[3]
-        else:
+        J = self._evaluated_at_start("_start_jacobian", params)
+        if J is None:
             J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=params, cols=self.free)
         return J if self._unit_weights else J * self.row_weights[:, None]
 

@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..kernels import covariance, is_sparse, sparse_gram, truncated_svd
+from ..kernels import covariance, factor_damped, is_sparse, sparse_gram
 from .metrics import metrics
 from ..data.dataset import Dataset, require_pandas
 from ..results import result_document
@@ -288,8 +288,8 @@ class CalibrationResult:
         if is_sparse(J):  # a model with joint maps: the singular values from the normal equations
             s2, V = np.linalg.eigh(sparse_gram(J) * np.outer(limits, limits))
             sv, Vt = np.sqrt(np.maximum(s2[::-1], 0.0)), V[:, ::-1].T  # largest first, as an SVD gives them
-        else:
-            _, sv, Vt = truncated_svd(J * limits, rcond=None)  # every direction: a null one is the most undetermined
+        else:  # every direction (a null one is the most undetermined), from the SVD of J's triangular factor (n, n) rather than of J (m, n)
+            _, sv, Vt = np.linalg.svd(factor_damped(J * limits).r)
         noise = float(np.sqrt(r @ r / (J.shape[0] - J.shape[1])))
         names = list(self.problem.names)
         out = []
