@@ -66,6 +66,8 @@ OPENING = 200
 BATCH = 50
 #: Batches over which the long-run variance forgets (exponential weights).
 MEMORY_BATCHES = 100
+#: The long-run variance is taken at its upper confidence bound: P(χ² below it) = 1 − this.
+CONFIDENCE = 0.95
 #: Default mean number of samples between false alarms.
 MEAN_RUN_LENGTH = 100_000
 #: Fewest samples after a change's start before it may be tested (one bad sample is no change).
@@ -314,11 +316,15 @@ class _LongRunVariance:
         means = z[: batches * BATCH].reshape(batches, BATCH, -1).mean(axis=1)
         self.mean = means.mean(axis=0)
         self.square = np.mean((means - self.mean) ** 2, axis=0)
+        self.batches = batches  # the opening's few batches weigh as many, not as the full memory
         self.pending: list = []
 
     @property
     def inflation(self) -> float:
-        return float(max(1.0, BATCH * np.max(self.square)))
+        # The upper bound of the batch-means variance at CONFIDENCE, given the batches it rests on:
+        # an opening of a few batches cannot show a correlation it happened not to visit.
+        dof = max(self.batches - 1, 1)
+        return float(max(1.0, BATCH * np.max(self.square) * dof / chdtri(dof, CONFIDENCE)))
 
     def add(self, z: np.ndarray) -> None:
         self.pending.append(z)
@@ -326,7 +332,11 @@ class _LongRunVariance:
             return
         m = np.mean(self.pending, axis=0)
         self.pending.clear()
-        w = 1.0 / MEMORY_BATCHES
+        # An average over the batches so far, then forgetting: a yardstick from the opening's
+        # four batches held as if from a hundred kept the inflation at 1 for a thousand samples
+        # of innovations correlated 3.5x (a cable stream leaving the opening's region).
+        self.batches = min(self.batches + 1, MEMORY_BATCHES)
+        w = 1.0 / self.batches
         self.mean = (1 - w) * self.mean + w * m
         self.square = (1 - w) * self.square + w * (m - self.mean) ** 2
 
@@ -355,6 +365,7 @@ class Monitor:
         self.robot, self.doc = load_result(result)
         self.measurement = self.doc["measurement"]
         self.params = self.robot.params.copy()
+        self._drift = np.zeros_like(self.params)  # per sample, of the drifts found
         self.structures = structure.parse_all(self.doc.get("structure", []), self.robot.n_joints)
         causes = self.doc.get("causes", [])
         self.offsets = joint_offsets(self.robot, causes, kinds=COMPENSABLE)
@@ -500,7 +511,8 @@ class Monitor:
             cross = LIMIT_SAMPLES * per_sample[:, cols]
             info = cross[cols] - cross.T @ window_inverse @ cross
             weakest = np.linalg.eigvalsh(info)[0]
-            self.limits[(change.kind, change.joint)] = float(np.sqrt(self.threshold[len(cols)] * self.inflation / max(weakest, 1e-300)))
+            # at unit inflation: the summary states it at the correlation last measured
+            self.limits[(change.kind, change.joint)] = float(np.sqrt(self.threshold[len(cols)] / max(weakest, 1e-300)))
         for (i, _, _, row), ei, Ji in zip(self._opening, e, J):
             self._push(i, ei, Ji)
         self._opening.clear()
@@ -517,6 +529,7 @@ class Monitor:
             self.inflation = self._variance.inflation
 
     def _step(self, i: int, q: np.ndarray, y: np.ndarray, row) -> Optional[Alarm]:
+        self.params += self._drift  # a drift found goes on: the model follows it sample by sample
         e, J = self._innovations(q, y)
         self._push(i, e[0], J[0])
         found = self._test(i, row)
@@ -567,7 +580,8 @@ class Monitor:
     def _apply(self, alarm: Alarm) -> None:
         change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)
         size = np.radians(alarm.size) if alarm.unit == "deg" else np.asarray(alarm.size)
-        if change.ramp:  # the drift so far, as a step of the set-up: the model then holds where the sensor is now
+        if change.ramp:  # the drift so far, as a step of the set-up, and from now on its rate: the sensor keeps drifting
+            self._drift[list(change.columns)] += size
             size = size * (alarm.sample - alarm.since)
         self.params[list(change.columns)] += size
 
@@ -586,7 +600,7 @@ class Monitor:
                 {
                     "kind": kind,
                     "joint": joint,
-                    "size": (np.degrees(v) if kind == "joint_zero" else v),
+                    "size": (np.degrees(v) if kind == "joint_zero" else v) * math.sqrt(self.inflation),
                     "unit": "deg" if kind == "joint_zero" else "mm",
                     "within": LIMIT_SAMPLES,
                 }
