@@ -105,3 +105,9 @@ def test_recording_writes_a_record_the_pages_accept(tmp_path, monkeypatch, capsy
     assert written["tables"] == [{"heading": "Part 1", "columns": ["kernel", "time"], "rows": [["fk", "1.0 ms"], ["jacobian \\| cable", "2.0 ms"]]}]
     assert len(written["load"]["start"]) == 3 and written["machine"]["cores"]
     assert "### Part 1" in pages.render(written, "bench_x")
+
+
+def test_plain_text_output_is_kept_as_printed():
+    record = json.loads(RECORDS[0].read_text(encoding="utf-8"))
+    text = pages.render({**record, "output": "solver   reached\nrobocal  200/200\n", "tables": []}, "plain")
+    assert "```text\nsolver   reached\nrobocal  200/200\n```" in text

@@ -77,6 +77,9 @@ def render(record: dict, name: str) -> str:
     """A record as Markdown: its provenance, then what the bench printed, headings moved under the page's section."""
     check(record, name)
     output = record["output"].strip("\n")
+    if not record.get("tables"):
+        # A bench that prints aligned plain text, not Markdown: kept as printed.
+        return f"{provenance(record)}\n\n```text\n{output}\n```\n"
     levels = [len(h) for h in re.findall(r"^(#+) ", output, re.MULTILINE)]
     shift = LEVEL - min(levels) if levels else 0
     output = re.sub(r"^(#+) ", lambda h: "#" * min(6, len(h.group(1)) + shift) + " ", output, flags=re.MULTILINE)
