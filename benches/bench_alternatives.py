@@ -44,6 +44,7 @@ import tracemalloc
 
 from bench_calibration import D1_DEFAULT, UKF_OPTIONS, best_of, load_avg, m9_setup, numpy_twin, numpy_ukf_vslm, rmse
 from machine import cpu_model
+from record import add_argument, recording
 
 D3_DEFAULT = D1_DEFAULT.parents[1] / "ipa-robot-accuracy-ur10" / "Series_B" / "measurements_joint_configurations.csv"
 TOL = 1e-10
@@ -438,110 +439,112 @@ def main() -> None:
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--problem", help=argparse.SUPPRESS)
     parser.add_argument("--solver", help=argparse.SUPPRESS)
+    add_argument(parser)
     args = parser.parse_args()
-    if args.quick:
-        args.sim_samples, args.ukf_sweeps = min(args.sim_samples, 2000), 1
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.blas_threads)
-    if args.worker:
-        worker(args)
-        return
-    args.passthrough = [
-        f"--sim-samples={args.sim_samples}",
-        f"--ukf-sweeps={args.ukf_sweeps}",
-        f"--repeats={args.repeats}",
-        f"--repeat-below-s={args.repeat_below_s}",
-        f"--tracemalloc-max-s={args.tracemalloc_max_s}",
-        f"--budget-s={args.budget_s}",
-        f"--pybotics-budget-s={args.pybotics_budget_s}",
-        f"--blas-threads={args.blas_threads}",
-        f"--d1={args.d1}",
-        f"--d3={args.d3}",
-    ]
+    with recording(args.record):
+        if args.quick:
+            args.sim_samples, args.ukf_sweeps = min(args.sim_samples, 2000), 1
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ[var] = str(args.blas_threads)
+        if args.worker:
+            worker(args)
+            return
+        args.passthrough = [
+            f"--sim-samples={args.sim_samples}",
+            f"--ukf-sweeps={args.ukf_sweeps}",
+            f"--repeats={args.repeats}",
+            f"--repeat-below-s={args.repeat_below_s}",
+            f"--tracemalloc-max-s={args.tracemalloc_max_s}",
+            f"--budget-s={args.budget_s}",
+            f"--pybotics-budget-s={args.pybotics_budget_s}",
+            f"--blas-threads={args.blas_threads}",
+            f"--d1={args.d1}",
+            f"--d3={args.d3}",
+        ]
 
-    import filterpy
-    import numpy as np
-    import scipy
+        import filterpy
+        import numpy as np
+        import scipy
 
-    import robocal
+        import robocal
 
-    try:
-        from importlib.metadata import version
+        try:
+            from importlib.metadata import version
 
-        pyb = version("pybotics")
-    except Exception:  # noqa: BLE001 - not installed
-        pyb = "not installed"
-    print("## robocal vs the alternatives\n")
-    print(
-        f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; "
-        f"NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
-    )
-    print(
-        f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, "
-        f"filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}"
-    )
-    print(f"* command: `python benches/bench_alternatives.py {' '.join(sys.argv[1:])}`".rstrip())
-    print(
-        "* each solver in a fresh subprocess, one after another; wall time of the solve only (best of "
-        f"{args.repeats} when under {args.repeat_below_s:g} s); ftol = xtol = gtol = {TOL:g} for every least-squares solver; "
-        "peak RSS = VmHWM − VmRSS around the solve after resetting the peak (all allocations); tracemalloc peak = "
-        "Python-visible allocations of a second run (NumPy buffers, Python objects; not Rust's)\n"
-    )
-    start = time.perf_counter()
-    lm = ["robocal-lm", "scipy-lm-fd", "scipy-lm-jac", "pybotics-lm"]
-    d1 = table(
-        "D1 (HSR-RobotCali, cable), least squares",
-        "HSR JR680, D1 training split (1614 samples), robocal's default mask → 24 free parameters, start `problem.x0`.",
-        "D1",
-        lm,
-        args,
-        "robocal-lm",
-    )
-    target("robocal's production LM ≥ 100× faster than scipy with finite differences on D1, at equal final RMSE", d1, "robocal-lm", "scipy-lm-fd", 100)
-    table(
-        "D3 (UR10 Series B, laser-tracker position), least squares",
-        "UR10, 1495 samples, default mask → 27 free parameters; pybotics fits its own MDH model "
-        "(20 link + 3 tool + 6 world = 29 parameters, redundant ones included) from its own start; "
-        "its solve is stopped at a wall-time budget (`--pybotics-budget-s`), so its row is a time per evaluation "
-        "and the RMSE reached by then, not a converged fit.",
-        "D3",
-        lm,
-        args,
-        "robocal-lm",
-    )
-    table(
-        f"Simulated HSR JR680 cable, {args.sim_samples:,} samples, least squares",
-        f"`robocal.simulate('hsr-jr680', 'cable', samples={args.sim_samples}, seed=1)`, default mask → 25 free parameters.",
-        "SIM",
-        lm,
-        args,
-        "robocal-lm",
-    )
-    table(
-        f"D1, the UKF stage of M9 ({args.ukf_stage_sweeps} sweep{'s' if args.ukf_stage_sweeps > 1 else ''}, the same for each implementation)",
-        "Same P0, Q, R, Merwe sigma points (alpha 0.1, beta 2, kappa 0), P reset to P0 at each sweep (Algorithm 1).",
-        "D1",
-        ["robocal-ukf", "filterpy-ukf", "numpy-ukf"],
-        args,
-        "robocal-ukf",
-        [f"--ukf-sweeps={args.ukf_stage_sweeps}"],
-    )
-    m9 = table(
-        f"D1, the whole M9 cascade ({args.ukf_sweeps} UKF sweeps + VSLM ≤ 200 iterations)",
-        "As in `bench_calibration.py` part 2 (the VSLM stage diverges on D1 with the default damping: compare speed, not RMSE).",
-        "D1",
-        ["robocal-m9", "numpy-m9"],
-        args,
-        "robocal-m9",
-    )
-    if "time_s" in m9.get("robocal-m9", {}) and "time_s" in m9.get("numpy-m9", {}):
-        ratio = m9["numpy-m9"]["time_s"] / m9["robocal-m9"]["time_s"]
+            pyb = version("pybotics")
+        except Exception:  # noqa: BLE001 - not installed
+            pyb = "not installed"
+        print("## robocal vs the alternatives\n")
         print(
-            f"**Target M9 ≥ 20× faster than its NumPy twin: {'MET' if ratio >= 20 else 'MISSED'}** — "
-            f"{m9['numpy-m9']['time_s']:.3f} s / {m9['robocal-m9']['time_s']:.3f} s = {ratio:.1f}× "
-            f"({'by ' + format(ratio / 20, '.2f') + '×' if ratio >= 20 else 'short by ' + format(20 / ratio, '.2f') + '×'}).\n"
+            f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {os.environ.get('RAYON_NUM_THREADS', 'all')}; "
+            f"NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}"
         )
-    print(f"total {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}\n")
+        print(
+            f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, "
+            f"filterpy {filterpy.__version__}, pybotics {pyb}, robocal {robocal.__version__}"
+        )
+        print(f"* command: `python benches/bench_alternatives.py {' '.join(sys.argv[1:])}`".rstrip())
+        print(
+            "* each solver in a fresh subprocess, one after another; wall time of the solve only (best of "
+            f"{args.repeats} when under {args.repeat_below_s:g} s); ftol = xtol = gtol = {TOL:g} for every least-squares solver; "
+            "peak RSS = VmHWM − VmRSS around the solve after resetting the peak (all allocations); tracemalloc peak = "
+            "Python-visible allocations of a second run (NumPy buffers, Python objects; not Rust's)\n"
+        )
+        start = time.perf_counter()
+        lm = ["robocal-lm", "scipy-lm-fd", "scipy-lm-jac", "pybotics-lm"]
+        d1 = table(
+            "D1 (HSR-RobotCali, cable), least squares",
+            "HSR JR680, D1 training split (1614 samples), robocal's default mask → 24 free parameters, start `problem.x0`.",
+            "D1",
+            lm,
+            args,
+            "robocal-lm",
+        )
+        target("robocal's production LM ≥ 100× faster than scipy with finite differences on D1, at equal final RMSE", d1, "robocal-lm", "scipy-lm-fd", 100)
+        table(
+            "D3 (UR10 Series B, laser-tracker position), least squares",
+            "UR10, 1495 samples, default mask → 27 free parameters; pybotics fits its own MDH model "
+            "(20 link + 3 tool + 6 world = 29 parameters, redundant ones included) from its own start; "
+            "its solve is stopped at a wall-time budget (`--pybotics-budget-s`), so its row is a time per evaluation "
+            "and the RMSE reached by then, not a converged fit.",
+            "D3",
+            lm,
+            args,
+            "robocal-lm",
+        )
+        table(
+            f"Simulated HSR JR680 cable, {args.sim_samples:,} samples, least squares",
+            f"`robocal.simulate('hsr-jr680', 'cable', samples={args.sim_samples}, seed=1)`, default mask → 25 free parameters.",
+            "SIM",
+            lm,
+            args,
+            "robocal-lm",
+        )
+        table(
+            f"D1, the UKF stage of M9 ({args.ukf_stage_sweeps} sweep{'s' if args.ukf_stage_sweeps > 1 else ''}, the same for each implementation)",
+            "Same P0, Q, R, Merwe sigma points (alpha 0.1, beta 2, kappa 0), P reset to P0 at each sweep (Algorithm 1).",
+            "D1",
+            ["robocal-ukf", "filterpy-ukf", "numpy-ukf"],
+            args,
+            "robocal-ukf",
+            [f"--ukf-sweeps={args.ukf_stage_sweeps}"],
+        )
+        m9 = table(
+            f"D1, the whole M9 cascade ({args.ukf_sweeps} UKF sweeps + VSLM ≤ 200 iterations)",
+            "As in `bench_calibration.py` part 2 (the VSLM stage diverges on D1 with the default damping: compare speed, not RMSE).",
+            "D1",
+            ["robocal-m9", "numpy-m9"],
+            args,
+            "robocal-m9",
+        )
+        if "time_s" in m9.get("robocal-m9", {}) and "time_s" in m9.get("numpy-m9", {}):
+            ratio = m9["numpy-m9"]["time_s"] / m9["robocal-m9"]["time_s"]
+            print(
+                f"**Target M9 ≥ 20× faster than its NumPy twin: {'MET' if ratio >= 20 else 'MISSED'}** — "
+                f"{m9['numpy-m9']['time_s']:.3f} s / {m9['robocal-m9']['time_s']:.3f} s = {ratio:.1f}× "
+                f"({'by ' + format(ratio / 20, '.2f') + '×' if ratio >= 20 else 'short by ' + format(20 / ratio, '.2f') + '×'}).\n"
+            )
+        print(f"total {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}\n")
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ import sys
 import time
 
 from machine import cpu_model
+from record import add_argument, recording
 from pathlib import Path
 
 D1_DEFAULT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets")) / "hsr-robotcali" / "HSR-RobotCali.xlsx"
@@ -554,33 +555,35 @@ def main() -> None:
     parser.add_argument("--e2e-repeats", type=int, default=5, help="robocal.calibrate runs per round of part 0")
     parser.add_argument("--scipy-repeats", type=int, default=3, help="rounds of part 0 (one scipy run per method each)")
     parser.add_argument("--quick", action="store_true", help="part 0 without scipy")
+    add_argument(parser)
     args = parser.parse_args()
-    if args.threads:
-        os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.blas_threads)  # read when NumPy's BLAS loads
+    with recording(args.record):
+        if args.threads:
+            os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ[var] = str(args.blas_threads)  # read when NumPy's BLAS loads
 
-    import numpy as np
-    import scipy
+        import numpy as np
+        import scipy
 
-    import robocal
+        import robocal
 
-    threads = args.threads or os.cpu_count()
-    print("# robocal calibration benchmark\n")
-    machine = f"{cpu_model()}, {os.cpu_count()} cores"
-    print(f"* machine: {machine}; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
-    print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
-    print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
-    start = time.perf_counter()
-    if args.only_end_to_end:
-        args.skip_lm = args.skip_m9 = True
-    if not args.skip_end_to_end:
-        part_end_to_end(args)
-    if not args.skip_lm:
-        part_lm(args)
-    if not args.skip_m9:
-        part_m9(args)
-    print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}")
+        threads = args.threads or os.cpu_count()
+        print("# robocal calibration benchmark\n")
+        machine = f"{cpu_model()}, {os.cpu_count()} cores"
+        print(f"* machine: {machine}; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
+        print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
+        print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
+        start = time.perf_counter()
+        if args.only_end_to_end:
+            args.skip_lm = args.skip_m9 = True
+        if not args.skip_end_to_end:
+            part_end_to_end(args)
+        if not args.skip_lm:
+            part_lm(args)
+        if not args.skip_m9:
+            part_m9(args)
+        print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}")
 
 
 if __name__ == "__main__":

@@ -19,6 +19,8 @@ import argparse
 import os
 import time
 
+from record import add_argument, recording
+
 os.environ.setdefault("RAYON_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
@@ -56,51 +58,52 @@ def main() -> None:
     parser.add_argument("--robot", default="abb-irb120")
     parser.add_argument("--targets", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
+    add_argument(parser)
     args = parser.parse_args()
+    with recording(args.record):
+        data, _ = simulate(args.robot, "position", samples=300, seed=args.seed + 1)
+        result = robocal.calibrate(data, robot=args.robot, test_fraction=0.0)
+        doc = result.to_dict()
+        calibrated, _ = robocal.load_result(doc)
+        nominal = robocal.Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])
+        setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
+        nominal.params[setup] = calibrated.params[setup]  # as compensate() builds it
+        lower, upper = joint_limits(calibrated)
+        rng = np.random.default_rng(args.seed)
+        q_true = lower + (upper - lower) * rng.random((args.targets, calibrated.n_joints))
+        with open("/proc/loadavg") as f:
+            load = f.read().split()[:3]
+        print(f"{args.robot}, {args.targets} targets from configurations inside the joint limits (seed {args.seed}); load {' '.join(load)}")
+        for measurement in ("position", "pose"):
+            targets = calibrated.predict(measurement, q_true)
 
-    data, _ = simulate(args.robot, "position", samples=300, seed=args.seed + 1)
-    result = robocal.calibrate(data, robot=args.robot, test_fraction=0.0)
-    doc = result.to_dict()
-    calibrated, _ = robocal.load_result(doc)
-    nominal = robocal.Robot(calibrated.name, calibrated.joints, doc["robot_model"]["nominal"])
-    setup = [k for k, n in enumerate(calibrated.param_names) if n.startswith(("base_", "tool_"))]
-    nominal.params[setup] = calibrated.params[setup]  # as compensate() builds it
-    lower, upper = joint_limits(calibrated)
-    rng = np.random.default_rng(args.seed)
-    q_true = lower + (upper - lower) * rng.random((args.targets, calibrated.n_joints))
-    with open("/proc/loadavg") as f:
-        load = f.read().split()[:3]
-    print(f"{args.robot}, {args.targets} targets from configurations inside the joint limits (seed {args.seed}); load {' '.join(load)}")
-    for measurement in ("position", "pose"):
-        targets = calibrated.predict(measurement, q_true)
+            t0 = time.perf_counter()
+            rows = compensate(doc, Targets(targets, None, np.arange(2, args.targets + 2)), frame="session")  # the calibrated set-up's frame
+            t_robocal = (time.perf_counter() - t0) / args.targets
+            ok_robocal = sum(_reached(calibrated, measurement, np.radians(r["q"]), y, lower, upper) for r, y in zip(rows, targets))
 
-        t0 = time.perf_counter()
-        rows = compensate(doc, Targets(targets, None, np.arange(2, args.targets + 2)), frame="session")  # the calibrated set-up's frame
-        t_robocal = (time.perf_counter() - t0) / args.targets
-        ok_robocal = sum(_reached(calibrated, measurement, np.radians(r["q"]), y, lower, upper) for r, y in zip(rows, targets))
+            t0 = time.perf_counter()
+            ok_first = 0
+            for target in targets:  # robocal from the nominal seed alone: the bounded LM without restarts
+                q, _, _ = solve_joints(calibrated, target, nominal_seed(nominal, target), restarts=0)
+                ok_first += _reached(calibrated, measurement, q, target, lower, upper)
+            t_first = (time.perf_counter() - t0) / args.targets
 
-        t0 = time.perf_counter()
-        ok_first = 0
-        for target in targets:  # robocal from the nominal seed alone: the bounded LM without restarts
-            q, _, _ = solve_joints(calibrated, target, nominal_seed(nominal, target), restarts=0)
-            ok_first += _reached(calibrated, measurement, q, target, lower, upper)
-        t_first = (time.perf_counter() - t0) / args.targets
+            t0 = time.perf_counter()
+            ok_scipy = 0
+            for target in targets:
+                q = scipy_solve(calibrated, measurement, target, nominal_seed(nominal, target), lower, upper)
+                ok_scipy += _reached(calibrated, measurement, q, target, lower, upper)
+            t_scipy = (time.perf_counter() - t0) / args.targets
 
-        t0 = time.perf_counter()
-        ok_scipy = 0
-        for target in targets:
-            q = scipy_solve(calibrated, measurement, target, nominal_seed(nominal, target), lower, upper)
-            ok_scipy += _reached(calibrated, measurement, q, target, lower, upper)
-        t_scipy = (time.perf_counter() - t0) / args.targets
-
-        print(f"\n{measurement} targets")
-        print(f"{'solver':58s} {'reached':>9s} {'rate':>7s} {'ms/target':>10s}")
-        for name, ok, t in (
-            ("robocal compensate (bounded LM, nominal seed + restarts)", ok_robocal, t_robocal),
-            ("robocal bounded LM, no restarts on the calibrated model", ok_first, t_first),
-            ("scipy least_squares(bounds=..., trf), nominal seed", ok_scipy, t_scipy),
-        ):
-            print(f"{name:58s} {ok:>5d}/{args.targets:<3d} {ok / args.targets:>7.1%} {t * 1e3:>10.2f}")
+            print(f"\n{measurement} targets")
+            print(f"{'solver':58s} {'reached':>9s} {'rate':>7s} {'ms/target':>10s}")
+            for name, ok, t in (
+                ("robocal compensate (bounded LM, nominal seed + restarts)", ok_robocal, t_robocal),
+                ("robocal bounded LM, no restarts on the calibrated model", ok_first, t_first),
+                ("scipy least_squares(bounds=..., trf), nominal seed", ok_scipy, t_scipy),
+            ):
+                print(f"{name:58s} {ok:>5d}/{args.targets:<3d} {ok / args.targets:>7.1%} {t * 1e3:>10.2f}")
 
 
 if __name__ == "__main__":

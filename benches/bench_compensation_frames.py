@@ -24,6 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from record import add_argument, recording
+
 os.environ.setdefault("RAYON_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
@@ -41,34 +43,35 @@ def main() -> None:
     parser.add_argument("--measurement", choices=("position", "pose"), default="position")
     parser.add_argument("--targets", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
+    add_argument(parser)
     args = parser.parse_args()
-
-    robot, doc = robocal.load_result(args.result)
-    model = framed_robot(robot, doc, parse_frame(args.frame, args.user_frame))
-    lower, upper = joint_limits(robot)
-    q = lower + (upper - lower) * np.random.default_rng(args.seed).random((args.targets, robot.n_joints))
-    y = model.predict(args.measurement, q)
-    columns = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if args.measurement == "pose" else [])
-    with tempfile.TemporaryDirectory() as folder:
-        targets, joints = Path(folder) / "targets.csv", Path(folder) / "joints.csv"
-        targets.write_text(",".join(columns) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in y) + "\n")
-        argv = ["--quiet", "compensate", args.result, str(targets), "--out", str(joints), "--frame", args.frame]
-        argv += ["--user-frame", args.user_frame] if args.user_frame else []
-        t0, c0 = time.perf_counter(), time.process_time()
-        with contextlib.redirect_stdout(io.StringIO()) as out:
-            code = cli(argv)
-        elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
-        rows = list(csv.DictReader(joints.open()))
-    commands = np.radians([[float(r[f"q{j}"]) for j in range(1, robot.n_joints + 1)] for r in rows])
-    error = np.linalg.norm(model.residuals(args.measurement, commands, y)[:, :3], axis=1)
-    reached = int(np.count_nonzero((error < 2e-4) & np.array([r["status"].startswith("ok") for r in rows])))
-    largest_dq = max(abs(float(r[f"dq{j}"])) for r in rows for j in range(1, robot.n_joints + 1))
-    load = " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
-    print(out.getvalue().strip())
-    print(
-        f"{args.measurement} targets in frame {args.frame}: {reached}/{args.targets} reached in {elapsed:.2f} s ({cpu:.2f} s CPU; exit {code}); "
-        f"largest |dq| {largest_dq:.3g} deg; load {load}"
-    )
+    with recording(args.record):
+        robot, doc = robocal.load_result(args.result)
+        model = framed_robot(robot, doc, parse_frame(args.frame, args.user_frame))
+        lower, upper = joint_limits(robot)
+        q = lower + (upper - lower) * np.random.default_rng(args.seed).random((args.targets, robot.n_joints))
+        y = model.predict(args.measurement, q)
+        columns = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if args.measurement == "pose" else [])
+        with tempfile.TemporaryDirectory() as folder:
+            targets, joints = Path(folder) / "targets.csv", Path(folder) / "joints.csv"
+            targets.write_text(",".join(columns) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in y) + "\n")
+            argv = ["--quiet", "compensate", args.result, str(targets), "--out", str(joints), "--frame", args.frame]
+            argv += ["--user-frame", args.user_frame] if args.user_frame else []
+            t0, c0 = time.perf_counter(), time.process_time()
+            with contextlib.redirect_stdout(io.StringIO()) as out:
+                code = cli(argv)
+            elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
+            rows = list(csv.DictReader(joints.open()))
+        commands = np.radians([[float(r[f"q{j}"]) for j in range(1, robot.n_joints + 1)] for r in rows])
+        error = np.linalg.norm(model.residuals(args.measurement, commands, y)[:, :3], axis=1)
+        reached = int(np.count_nonzero((error < 2e-4) & np.array([r["status"].startswith("ok") for r in rows])))
+        largest_dq = max(abs(float(r[f"dq{j}"])) for r in rows for j in range(1, robot.n_joints + 1))
+        load = " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
+        print(out.getvalue().strip())
+        print(
+            f"{args.measurement} targets in frame {args.frame}: {reached}/{args.targets} reached in {elapsed:.2f} s ({cpu:.2f} s CPU; exit {code}); "
+            f"largest |dq| {largest_dq:.3g} deg; load {load}"
+        )
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from machine import cpu_model
+from record import add_argument, recording
 from scipy.optimize import least_squares
 
 import robocal
@@ -87,23 +88,25 @@ SOLVERS = {
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=20000, help="simulated samples (default 20000)")
+    add_argument(parser)
     args = parser.parse_args()
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {os.getloadavg()[0]:.2f} at the start; robocal {robocal.__version__}\n")
-    print("| problem | solver | residual evals | Jacobian evals | time (s) | converged | training RMSE (mm) | held-out RMSE (mm) |")
-    print("|---|---|---:|---:|---:|---|---:|---:|")
-    for name, data in problems(args.samples):
-        train, test = random_split(len(data), 0.2, seed=0)
-        problem = Problem.build(robocal.robot(data.robot), data.subset(train))
-        held_out = problem.with_data(data.subset(test))
-        for solver, solve in SOLVERS.items():
-            t0 = time.perf_counter()
-            x, nfev, njev, converged, _ = solve(problem)
-            elapsed = time.perf_counter() - t0
-            print(
-                f"| {name} | {solver} | {nfev} | {njev} | {elapsed:.2f} | {'yes' if converged else 'no'} | {rmse(problem, x):.6f} | {rmse(held_out, x):.6f} |",
-                flush=True,
-            )
-    print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+    with recording(args.record):
+        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {os.getloadavg()[0]:.2f} at the start; robocal {robocal.__version__}\n")
+        print("| problem | solver | residual evals | Jacobian evals | time (s) | converged | training RMSE (mm) | held-out RMSE (mm) |")
+        print("|---|---|---:|---:|---:|---|---:|---:|")
+        for name, data in problems(args.samples):
+            train, test = random_split(len(data), 0.2, seed=0)
+            problem = Problem.build(robocal.robot(data.robot), data.subset(train))
+            held_out = problem.with_data(data.subset(test))
+            for solver, solve in SOLVERS.items():
+                t0 = time.perf_counter()
+                x, nfev, njev, converged, _ = solve(problem)
+                elapsed = time.perf_counter() - t0
+                print(
+                    f"| {name} | {solver} | {nfev} | {njev} | {elapsed:.2f} | {'yes' if converged else 'no'} | {rmse(problem, x):.6f} | {rmse(held_out, x):.6f} |",
+                    flush=True,
+                )
+        print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import robocal
 from machine import cpu_model
+from record import add_argument, recording
 from robocal.diagnosis import diagnose
 from robocal.simulation import simulate
 
@@ -118,35 +119,37 @@ def main() -> None:
     )
     parser.add_argument("--figure", help="also draw time against samples into this PNG")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # a single case, in a process of its own
+    add_argument(parser)
     args = parser.parse_args()
-    if args.one:
-        run_one(args.one)
-        return
-    print(
-        f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
-        f"load average {os.getloadavg()[0]:.2f} at the start"
-    )
-    print(
-        f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n"
-    )
-    print("| data | samples | candidates screened (first round) | found | held-out RMSE (mm) | median time (s) | runs (s) | peak memory (MB) |")
-    print("|---|---|---|---|---|---|---|---|")
-    measured: list = []
-    for measurement, _ in CASES:
-        print(row(f"simulated HSR JR680 {measurement}", f"simulated:{measurement},{args.samples}", args.repeats, measured), flush=True)
-    if not args.no_scaling:
-        for samples in SCALING:
-            print(row("simulated UR10 position, gear mesh on joints 2 and 3", f"scaling:{samples}", 1, measured), flush=True)
-    if args.six_maps:
-        print(row("six maps: simulated UR10 position, gear mesh on every joint", f"six_maps:{SIX_MAPS[0]}", 1, measured), flush=True)
-    if not args.no_public:
-        for name in PUBLIC:
-            print(row(name, f"public:{name}", 1, measured), flush=True)
-        if not args.no_sessions:
-            print(row("D3 Series A + B + C UR10 position, as sessions", "sessions:", 1, measured), flush=True)
-    print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
-    if args.figure:
-        draw(measured, args.figure)
+    with recording(args.record):
+        if args.one:
+            run_one(args.one)
+            return
+        print(
+            f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
+            f"load average {os.getloadavg()[0]:.2f} at the start"
+        )
+        print(
+            f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n"
+        )
+        print("| data | samples | candidates screened (first round) | found | held-out RMSE (mm) | median time (s) | runs (s) | peak memory (MB) |")
+        print("|---|---|---|---|---|---|---|---|")
+        measured: list = []
+        for measurement, _ in CASES:
+            print(row(f"simulated HSR JR680 {measurement}", f"simulated:{measurement},{args.samples}", args.repeats, measured), flush=True)
+        if not args.no_scaling:
+            for samples in SCALING:
+                print(row("simulated UR10 position, gear mesh on joints 2 and 3", f"scaling:{samples}", 1, measured), flush=True)
+        if args.six_maps:
+            print(row("six maps: simulated UR10 position, gear mesh on every joint", f"six_maps:{SIX_MAPS[0]}", 1, measured), flush=True)
+        if not args.no_public:
+            for name in PUBLIC:
+                print(row(name, f"public:{name}", 1, measured), flush=True)
+            if not args.no_sessions:
+                print(row("D3 Series A + B + C UR10 position, as sessions", "sessions:", 1, measured), flush=True)
+        print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+        if args.figure:
+            draw(measured, args.figure)
 
 
 def draw(measured: list, path: str) -> None:

@@ -30,6 +30,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from record import add_argument, recording
+
 D1 = "/work/shared/datasets/hsr-robotcali/HSR-RobotCali.xlsx"
 
 
@@ -128,62 +130,64 @@ def main() -> None:
     parser.add_argument("--label-baseline", default="baseline")
     parser.add_argument("--d1", default=D1 if Path(D1).exists() else None, help="HSR-RobotCali workbook (D1)")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    add_argument(parser)
     args = parser.parse_args()
-    if args.worker:
-        print(json.dumps(worker(args.sizes, args.repeats, args.d1)))
-        return
+    with recording(args.record):
+        if args.worker:
+            print(json.dumps(worker(args.sizes, args.repeats, args.d1)))
+            return
 
-    from machine import cpu_model
+        from machine import cpu_model
 
-    with tempfile.TemporaryDirectory() as tmp:
-        builds = {"this build": os.environ.get("PYTHONPATH")}
-        if args.baseline_so:
-            builds = {args.label_baseline: str(build_tree(args.baseline_so, Path(tmp))), **builds}
-        load_start = os.getloadavg()[0]
-        rounds = {label: [] for label in builds}
-        for _ in range(args.rounds):
-            for label, path in builds.items():
-                rounds[label].append(run_round(path, args))
-        load_end = os.getloadavg()[0]
+        with tempfile.TemporaryDirectory() as tmp:
+            builds = {"this build": os.environ.get("PYTHONPATH")}
+            if args.baseline_so:
+                builds = {args.label_baseline: str(build_tree(args.baseline_so, Path(tmp))), **builds}
+            load_start = os.getloadavg()[0]
+            rounds = {label: [] for label in builds}
+            for _ in range(args.rounds):
+                for label, path in builds.items():
+                    rounds[label].append(run_round(path, args))
+            load_end = os.getloadavg()[0]
 
-    threads = os.environ.get("RAYON_NUM_THREADS", "all")
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {load_start:.2f} at the start, {load_end:.2f} at the end")
-    print(f"rayon threads: {threads}; {args.rounds} alternating rounds per build, {args.repeats} calls per figure; medians\n")
-    for label, rs in rounds.items():
-        print(f"- {label}: {rs[0]['module']}")
-    print()
+        threads = os.environ.get("RAYON_NUM_THREADS", "all")
+        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {load_start:.2f} at the start, {load_end:.2f} at the end")
+        print(f"rayon threads: {threads}; {args.rounds} alternating rounds per build, {args.repeats} calls per figure; medians\n")
+        for label, rs in rounds.items():
+            print(f"- {label}: {rs[0]['module']}")
+        print()
 
-    def med(label, *keys):
-        values = []
-        for r in rounds[label]:
-            v = r
-            for k in keys:
-                v = v[k]
-            values.append(v)
-        return statistics.median(values)
+        def med(label, *keys):
+            values = []
+            for r in rounds[label]:
+                v = r
+                for k in keys:
+                    v = v[k]
+                values.append(v)
+            return statistics.median(values)
 
-    labels = list(builds)
-    head = "| poses | NumPy FK | " + " | ".join(f"robocal {lab}" for lab in labels) + " | " + " | ".join(f"NumPy / {lab}" for lab in labels)
-    head += " | M poses/s (" + labels[-1] + ") |" + (f" {labels[-1]} vs {labels[0]} |" if len(labels) > 1 else "")
-    print(head)
-    print("|" + "---:|" * (head.count("|") - 1))
-    for m in args.sizes:
-        key = str(m)
-        tn = med(labels[-1], "fk", key, "numpy")
-        tr = [med(lab, "fk", key, "robocal") for lab in labels]
-        ratios = [statistics.median(r["fk"][key]["numpy"] / r["fk"][key]["robocal"] for r in rounds[lab]) for lab in labels]
-        row = f"| {m:,} | {tn * 1e3:.2f} ms | " + " | ".join(f"{t * 1e3:.3f} ms" for t in tr) + " | " + " | ".join(f"{x:.1f}x" for x in ratios)
-        row += f" | {m / tr[-1] / 1e6:.1f} |" + (f" {tr[0] / tr[-1]:.2f}x |" if len(labels) > 1 else "")
-        print(row)
-    diff = max(r["fk"][str(m)]["max_abs_diff"] for rs in rounds.values() for r in rs for m in args.sizes)
-    print(f"\nlargest |robocal − NumPy| over all poses and entries: {diff:.1e} (mm)")
-    if args.d1:
-        print(f"\nOne residual evaluation on D1 ({rounds[labels[-1]][0]['d1']['samples']} cable samples):\n")
-        print("| call | " + " | ".join(labels) + " |" + (f" {labels[-1]} vs {labels[0]} |" if len(labels) > 1 else ""))
-        print("|---|" + "---:|" * (len(labels) + (len(labels) > 1)))
-        for name, key in (("`Problem.residuals(x0)`", "problem"), ("`Chain.residuals` (cable)", "chain")):
-            ts = [med(lab, "d1", key) for lab in labels]
-            print(f"| {name} | " + " | ".join(f"{t * 1e6:.1f} µs" for t in ts) + " |" + (f" {ts[0] / ts[-1]:.2f}x |" if len(labels) > 1 else ""))
+        labels = list(builds)
+        head = "| poses | NumPy FK | " + " | ".join(f"robocal {lab}" for lab in labels) + " | " + " | ".join(f"NumPy / {lab}" for lab in labels)
+        head += " | M poses/s (" + labels[-1] + ") |" + (f" {labels[-1]} vs {labels[0]} |" if len(labels) > 1 else "")
+        print(head)
+        print("|" + "---:|" * (head.count("|") - 1))
+        for m in args.sizes:
+            key = str(m)
+            tn = med(labels[-1], "fk", key, "numpy")
+            tr = [med(lab, "fk", key, "robocal") for lab in labels]
+            ratios = [statistics.median(r["fk"][key]["numpy"] / r["fk"][key]["robocal"] for r in rounds[lab]) for lab in labels]
+            row = f"| {m:,} | {tn * 1e3:.2f} ms | " + " | ".join(f"{t * 1e3:.3f} ms" for t in tr) + " | " + " | ".join(f"{x:.1f}x" for x in ratios)
+            row += f" | {m / tr[-1] / 1e6:.1f} |" + (f" {tr[0] / tr[-1]:.2f}x |" if len(labels) > 1 else "")
+            print(row)
+        diff = max(r["fk"][str(m)]["max_abs_diff"] for rs in rounds.values() for r in rs for m in args.sizes)
+        print(f"\nlargest |robocal − NumPy| over all poses and entries: {diff:.1e} (mm)")
+        if args.d1:
+            print(f"\nOne residual evaluation on D1 ({rounds[labels[-1]][0]['d1']['samples']} cable samples):\n")
+            print("| call | " + " | ".join(labels) + " |" + (f" {labels[-1]} vs {labels[0]} |" if len(labels) > 1 else ""))
+            print("|---|" + "---:|" * (len(labels) + (len(labels) > 1)))
+            for name, key in (("`Problem.residuals(x0)`", "problem"), ("`Chain.residuals` (cable)", "chain")):
+                ts = [med(lab, "d1", key) for lab in labels]
+                print(f"| {name} | " + " | ".join(f"{t * 1e6:.1f} µs" for t in ts) + " |" + (f" {ts[0] / ts[-1]:.2f}x |" if len(labels) > 1 else ""))
 
 
 if __name__ == "__main__":

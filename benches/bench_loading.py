@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from bench_calibration import load_avg, rmse, scipy_csv_fit
 from machine import cpu_model
+from record import add_argument, recording
 
 DATASETS = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets"))
 PUBLIC = {
@@ -201,30 +202,32 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--scipy-method", default="lm", choices=["lm", "trf"])
     parser.add_argument("--quick", action="store_true", help="2 000 samples, 3 repeats, no scipy fit")
+    add_argument(parser)
     args = parser.parse_args()
-    if args.quick:
-        args.samples, args.repeats = 2000, 3
-    import pyarrow
-    import scipy
+    with recording(args.record):
+        if args.quick:
+            args.samples, args.repeats = 2000, 3
+        import pyarrow
+        import scipy
 
-    import robocal
-    from robocal.data import write_canonical
+        import robocal
+        from robocal.data import write_canonical
 
-    print("# Loading benchmark (`python benches/bench_loading.py" + (" --quick" if args.quick else "") + "`)\n")
-    print(
-        f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, NumPy {np.__version__}, "
-        f"SciPy {scipy.__version__}, pyarrow {pyarrow.__version__}, robocal {robocal.__version__}; load average {load_avg()} at the start\n"
-    )
-    with tempfile.TemporaryDirectory() as tmp:
-        data, _ = robocal.simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
-        canonical = write_canonical(data, Path(tmp) / "sim.csv")
+        print("# Loading benchmark (`python benches/bench_loading.py" + (" --quick" if args.quick else "") + "`)\n")
         print(
-            f"canonical file: `robocal.simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by "
-            f"`robocal.data.write_canonical` ({canonical.stat().st_size / 1e6:.1f} MB, columns q1..q6 (deg), L, t)\n"
+            f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, NumPy {np.__version__}, "
+            f"SciPy {scipy.__version__}, pyarrow {pyarrow.__version__}, robocal {robocal.__version__}; load average {load_avg()} at the start\n"
         )
-        part_loading(args, canonical)
-        part_end_to_end(args, canonical)
-    print(f"\nload average {load_avg()} at the end")
+        with tempfile.TemporaryDirectory() as tmp:
+            data, _ = robocal.simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
+            canonical = write_canonical(data, Path(tmp) / "sim.csv")
+            print(
+                f"canonical file: `robocal.simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by "
+                f"`robocal.data.write_canonical` ({canonical.stat().st_size / 1e6:.1f} MB, columns q1..q6 (deg), L, t)\n"
+            )
+            part_loading(args, canonical)
+            part_end_to_end(args, canonical)
+        print(f"\nload average {load_avg()} at the end")
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from machine import cpu_model
+from record import add_argument, recording
 
 import robocal
 from robocal.calibration.problem import Problem
@@ -46,35 +47,37 @@ def main() -> None:
     parser.add_argument("--series", default="A", choices=sorted(SERIES))
     parser.add_argument("--spacing", type=float, default=2.0)
     parser.add_argument("--repeats", type=int, default=3)
+    add_argument(parser)
     args = parser.parse_args()
-    data = robocal.load(DATASETS / "ipa-robot-accuracy-ur10" / SERIES[args.series], measurement="position")
-    robot = robocal.robot("ur10")
-    base = Problem.build(robot, data, mask=baseline_mask(robot, "position", True))
-    idx = np.arange(len(data))
-    plain = ExtendedProblem(base, [], data, idx)
-    geometric = fit_problem(plain)
-    noise = map_noise(plain.data_residuals(geometric.x).reshape(len(data), 3))
-    maps = [map_candidate(data, j, args.spacing, 0.03, noise, data.q[:, j]) for j in range(6)]
-    rows = []
-    for name, cls in (("sparse normal equations (the LM's Cholesky of JᵀJ)", ExtendedProblem), ("dense QR (Rust DampedQr)", Dense)):
-        model = cls(base, maps, data, idx)
-        x0 = np.concatenate([geometric.x, np.zeros(model.n - len(geometric.x))])
-        times, fit = [], None
-        for _ in range(args.repeats):
-            t = time.perf_counter()
-            fit = fit_problem(model, x0=x0)
-            times.append(time.perf_counter() - t)
-        rows.append((name, statistics.median(times), fit.cost, fit.nfev, model.n))
-    J = ExtendedProblem(base, maps, data, idx).jacobian(x0)
-    print(
-        f"machine: {cpu_model()}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"
-    )
-    print(f"UR10 series {args.series}: {len(data)} samples, Jacobian {J.shape[0]} x {J.shape[1]}, {J.nnz / J.shape[0]:.1f} non-zeros per row\n")
-    print("| solver | median fit time (s) | cost | evaluations | unknowns |")
-    print("|---|---|---|---|---|")
-    for name, t, cost, nfev, n in rows:
-        print(f"| {name} | {t:.2f} | {cost:.6g} | {nfev} | {n} |")
-    print(f"\nratio dense / sparse: {rows[1][1] / rows[0][1]:.1f}x")
+    with recording(args.record):
+        data = robocal.load(DATASETS / "ipa-robot-accuracy-ur10" / SERIES[args.series], measurement="position")
+        robot = robocal.robot("ur10")
+        base = Problem.build(robot, data, mask=baseline_mask(robot, "position", True))
+        idx = np.arange(len(data))
+        plain = ExtendedProblem(base, [], data, idx)
+        geometric = fit_problem(plain)
+        noise = map_noise(plain.data_residuals(geometric.x).reshape(len(data), 3))
+        maps = [map_candidate(data, j, args.spacing, 0.03, noise, data.q[:, j]) for j in range(6)]
+        rows = []
+        for name, cls in (("sparse normal equations (the LM's Cholesky of JᵀJ)", ExtendedProblem), ("dense QR (Rust DampedQr)", Dense)):
+            model = cls(base, maps, data, idx)
+            x0 = np.concatenate([geometric.x, np.zeros(model.n - len(geometric.x))])
+            times, fit = [], None
+            for _ in range(args.repeats):
+                t = time.perf_counter()
+                fit = fit_problem(model, x0=x0)
+                times.append(time.perf_counter() - t)
+            rows.append((name, statistics.median(times), fit.cost, fit.nfev, model.n))
+        J = ExtendedProblem(base, maps, data, idx).jacobian(x0)
+        print(
+            f"machine: {cpu_model()}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"
+        )
+        print(f"UR10 series {args.series}: {len(data)} samples, Jacobian {J.shape[0]} x {J.shape[1]}, {J.nnz / J.shape[0]:.1f} non-zeros per row\n")
+        print("| solver | median fit time (s) | cost | evaluations | unknowns |")
+        print("|---|---|---|---|---|")
+        for name, t, cost, nfev, n in rows:
+            print(f"| {name} | {t:.2f} | {cost:.6g} | {nfev} | {n} |")
+        print(f"\nratio dense / sparse: {rows[1][1] / rows[0][1]:.1f}x")
 
 
 if __name__ == "__main__":

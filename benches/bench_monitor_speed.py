@@ -21,6 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from record import add_argument, recording
+
 CASES = (("ur10", "position"), ("hsr-jr680", "cable"))
 
 
@@ -66,37 +68,48 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--code", action="append", help="the python folder of a robocal tree (repeatable)")
     parser.add_argument("--updates-in", help=argparse.SUPPRESS)  # the child process that times updates
+    add_argument(parser)
     args = parser.parse_args()
-    if args.updates_in:
-        _time_updates(Path(args.updates_in))
-        return
-    codes = args.code or [str(Path(__import__("robocal").__file__).parents[1])]
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        _prepare(folder, args.samples)
-        print(f"{args.samples} samples per stream; median over the samples after the opening; load = 1-minute load average")
-        print("| code | round | robot, sensor | update (median) | load | robocal monitor end to end, per sample | load |")
-        print("|---|---|---|---|---|---|---|")
-        for round_ in range(1, args.rounds + 1):
-            for code in codes:
-                env = {**os.environ, "PYTHONPATH": code}
-                load = _load()
-                done = subprocess.run([sys.executable, __file__, "--updates-in", str(folder)], env=env, capture_output=True, text=True, check=True)
-                updates = json.loads(done.stdout.strip().splitlines()[-1])
-                for robot, measurement in CASES:
-                    load_cli = _load()
-                    t0 = time.perf_counter()
-                    subprocess.run(
-                        [sys.executable, "-m", "robocal", "monitor", str(folder / f"{robot}.json"), str(folder / f"{robot}.csv"), "--new-session", "--quiet"],
-                        env=env,
-                        capture_output=True,
-                        check=True,
-                    )
-                    end_to_end = (time.perf_counter() - t0) / args.samples
-                    print(
-                        f"| {code} | {round_} | {robot}, {measurement} | {updates[robot] * 1e3:.2f} ms | {load} | {end_to_end * 1e3:.2f} ms | {load_cli} |",
-                        flush=True,
-                    )
+    with recording(args.record):
+        if args.updates_in:
+            _time_updates(Path(args.updates_in))
+            return
+        codes = args.code or [str(Path(__import__("robocal").__file__).parents[1])]
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            _prepare(folder, args.samples)
+            print(f"{args.samples} samples per stream; median over the samples after the opening; load = 1-minute load average")
+            print("| code | round | robot, sensor | update (median) | load | robocal monitor end to end, per sample | load |")
+            print("|---|---|---|---|---|---|---|")
+            for round_ in range(1, args.rounds + 1):
+                for code in codes:
+                    env = {**os.environ, "PYTHONPATH": code}
+                    load = _load()
+                    done = subprocess.run([sys.executable, __file__, "--updates-in", str(folder)], env=env, capture_output=True, text=True, check=True)
+                    updates = json.loads(done.stdout.strip().splitlines()[-1])
+                    for robot, measurement in CASES:
+                        load_cli = _load()
+                        t0 = time.perf_counter()
+                        subprocess.run(
+                            [
+                                sys.executable,
+                                "-m",
+                                "robocal",
+                                "monitor",
+                                str(folder / f"{robot}.json"),
+                                str(folder / f"{robot}.csv"),
+                                "--new-session",
+                                "--quiet",
+                            ],
+                            env=env,
+                            capture_output=True,
+                            check=True,
+                        )
+                        end_to_end = (time.perf_counter() - t0) / args.samples
+                        print(
+                            f"| {code} | {round_} | {robot}, {measurement} | {updates[robot] * 1e3:.2f} ms | {load} | {end_to_end * 1e3:.2f} ms | {load_cli} |",
+                            flush=True,
+                        )
 
 
 if __name__ == "__main__":

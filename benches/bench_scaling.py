@@ -26,6 +26,7 @@ import time
 
 from bench_calibration import best_of, load_avg, rmse
 from machine import cpu_model
+from record import add_argument, recording
 
 #: KUKA LBR iiwa 7-like standard-DH table (alpha deg, a mm, d mm, theta deg): a 7-joint arm.
 IIWA_LIKE = [(-90, 0, 340, 0), (90, 0, 0, 0), (90, 0, 400, 0), (-90, 0, 0, 0), (-90, 0, 400, 0), (90, 0, 0, 0), (0, 0, 126, 0)]
@@ -170,26 +171,28 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None, help="rayon threads (default: all cores)")
     parser.add_argument("--quick", action="store_true", help="M up to 3000, 1000 samples for the parameter sweep")
+    add_argument(parser)
     args = parser.parse_args()
-    if args.quick:
-        args.samples, args.param_samples, args.repeats = [100, 1000, 3000], 1000, 1
-    if args.threads:
-        os.environ["RAYON_NUM_THREADS"] = str(args.threads)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = "1"
+    with recording(args.record):
+        if args.quick:
+            args.samples, args.param_samples, args.repeats = [100, 1000, 3000], 1000, 1
+        if args.threads:
+            os.environ["RAYON_NUM_THREADS"] = str(args.threads)
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ[var] = "1"
 
-    import numpy as np
+        import numpy as np
 
-    import robocal
+        import robocal
 
-    print("## Scaling\n")
-    print(f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {args.threads or os.cpu_count()}; load average at start: {load_avg()}")
-    print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, robocal {robocal.__version__}")
-    print(f"* command: `python benches/bench_scaling.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
-    start = time.perf_counter()
-    part_samples(args)
-    part_params(args)
-    print(f"total {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}\n")
+        print("## Scaling\n")
+        print(f"* machine: {cpu_model()}, {os.cpu_count()} cores; rayon threads: {args.threads or os.cpu_count()}; load average at start: {load_avg()}")
+        print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, robocal {robocal.__version__}")
+        print(f"* command: `python benches/bench_scaling.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
+        start = time.perf_counter()
+        part_samples(args)
+        part_params(args)
+        print(f"total {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}\n")
 
 
 if __name__ == "__main__":
