@@ -1,7 +1,7 @@
 """The in-line monitor on simulated streams: detection delay per change kind and size, false alarms
 on clean streams, time per update.
 
-    python benches/bench_monitor.py [--samples 3000] [--seeds 3]
+    python benches/bench_monitor.py [--samples 3000] [--seeds 3] [--record PATH]
 
 Per robot and sensor: a calibration on one simulated session, then new sessions of the same robot
 (``--samples`` each, ``--new-session``) replayed sample by sample: clean (false alarms counted
@@ -24,6 +24,8 @@ import robocal
 from robocal.monitoring import OPENING, Monitor
 from robocal.simulation import simulate
 
+from record import add_argument, recording
+
 CASES = (("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position"))
 
 
@@ -41,7 +43,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=3000)
     parser.add_argument("--seeds", type=int, default=3)
+    add_argument(parser)
     args = parser.parse_args()
+    with recording(args.record):
+        run(args)
+
+
+def run(args) -> None:
     at = args.samples // 2
     print(
         "| robot, sensor | change | size (x limit) | delay, samples (median) | start error (median) | named right | false alarms on clean streams | time per update (median) |"
