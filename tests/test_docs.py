@@ -70,3 +70,17 @@ def test_a_public_name_without_a_docstring_fails_the_build(monkeypatch):
     monkeypatch.setattr(robocal, "__all__", [*robocal.__all__, "undocumented"])
     with pytest.raises(PluginError, match="undocumented"):
         _hook().check_docstrings()
+
+
+def test_the_manual_carries_no_dated_development_log():
+    # A manual states what is true now; history goes to CHANGELOG.md. A measurement's provenance is its command and
+    # commit; the benchmark pages' dates come from their records at build time, not from docs/.
+    import re
+
+    dated = [
+        f"{page.relative_to(ROOT)}:{n}: {line.strip()[:120]}"
+        for page in sorted((ROOT / "docs").rglob("*.md"))
+        for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1)
+        if re.search(r"\b20\d\d-[01]\d-[0-3]\d\b", line)
+    ]
+    assert not dated, "dated passages in the manual (say what is true now; history goes to CHANGELOG.md):\n" + "\n".join(dated)
