@@ -365,7 +365,7 @@ class Monitor:
         self.robot, self.doc = load_result(result)
         self.measurement = self.doc["measurement"]
         self.params = self.robot.params.copy()
-        self._drift = np.zeros_like(self.params)  # per sample, of the drifts found
+        self._drift, self._drift_left = np.zeros_like(self.params), 0  # per sample, of a drift found, for how many samples more
         self.structures = structure.parse_all(self.doc.get("structure", []), self.robot.n_joints)
         causes = self.doc.get("causes", [])
         self.offsets = joint_offsets(self.robot, causes, kinds=COMPENSABLE)
@@ -529,7 +529,9 @@ class Monitor:
             self.inflation = self._variance.inflation
 
     def _step(self, i: int, q: np.ndarray, y: np.ndarray, row) -> Optional[Alarm]:
-        self.params += self._drift  # a drift found goes on: the model follows it sample by sample
+        if self._drift_left:  # a drift found goes on for a window: the model follows it sample by sample
+            self.params += self._drift
+            self._drift_left -= 1
         e, J = self._innovations(q, y)
         self._push(i, e[0], J[0])
         found = self._test(i, row)
@@ -580,8 +582,12 @@ class Monitor:
     def _apply(self, alarm: Alarm) -> None:
         change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)
         size = np.radians(alarm.size) if alarm.unit == "deg" else np.asarray(alarm.size)
-        if change.ramp:  # the drift so far, as a step of the set-up, and from now on its rate: the sensor keeps drifting
+        if change.ramp:  # the drift so far, as a step of the set-up, and its rate for the next window
+            # Carried for one window only: a drift that goes on is then seen anew against a level before it (a
+            # drift from the window's first sample cannot be), one that stopped, or a false one, errs no further.
+            self._drift = np.zeros_like(self.params) if not self._drift_left else self._drift
             self._drift[list(change.columns)] += size
+            self._drift_left = WINDOW
             size = size * (alarm.sample - alarm.since)
         self.params[list(change.columns)] += size
 
