@@ -585,7 +585,8 @@ class Monitor:
         if change.ramp:  # the drift so far, as a step of the set-up, and its rate for the next window
             # Carried for one window only: a drift that goes on is then seen anew against a level before it (a
             # drift from the window's first sample cannot be), one that stopped, or a false one, errs no further.
-            self._drift = np.zeros_like(self.params) if not self._drift_left else self._drift
+            if not self._drift_left:  # the last drift's window is over: this one alone goes on
+                self._drift[:] = 0.0
             self._drift[list(change.columns)] += size
             self._drift_left = WINDOW
             size = size * (alarm.sample - alarm.since)
