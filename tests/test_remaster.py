@@ -168,3 +168,12 @@ def test_ds_optimal_beats_the_d_optimal_and_random_designs_on_its_criterion():
     best = criterion(chosen)
     assert best >= criterion(d_optimal(A, M0, 6)) - 1e-9
     assert all(best >= criterion(rng.choice(300, 6, replace=False)) for _ in range(200))
+
+
+def test_the_remaster_key_is_validated_when_read_back(case):
+    found = remaster(case[2], _session(case, 3))
+    robot, _ = robocal.results.load_result(found.document)  # the key as written passes its schema
+    assert robot.n_params == len(found.document["parameters"])
+    broken = {**found.document, "remaster": {**found.report, "joints": [{**found.report["joints"][0], "status": "gone"}]}}
+    with pytest.raises(InvalidParameterError, match=r"key 'remaster', joint 1, key 'status'"):
+        robocal.results.load_result(broken)

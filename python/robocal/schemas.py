@@ -180,6 +180,50 @@ class Provenance(BaseModel):
     sha256: Optional[str] = None
 
 
+class RemasteredJoint(BaseModel):
+    """One joint of a re-mastering (:func:`robocal.remaster`): whether its zero moved, and by how much."""
+
+    model_config = _OPEN
+    joint: int = Field(ge=1)
+    name: str
+    unit: str
+    status: Literal["moved", "held", "indistinguishable"]
+    change: Optional[float] = None
+    std: Optional[float] = None
+    detectable_std: Optional[float] = None
+    statistic: Optional[float] = None
+    redundant_with: List[str] = []
+
+
+class RemasterFit(BaseModel):
+    model_config = _OPEN
+    chi2: float
+    dof: int
+    p_value: Optional[float] = None
+
+
+class RemasterReport(BaseModel):
+    """The ``remaster`` key of a re-mastered result (``robocal calibrate NEW --prior RESULT``): the
+    joints' verdicts, the test's threshold and noise, the new set-up and the points it was found on."""
+
+    model_config = _OPEN
+    joints: List[RemasteredJoint] = Field(min_length=1)
+    alpha: float = Field(gt=0, lt=1)
+    threshold: float
+    noise_mm: float = Field(gt=0)
+    noise_from: str
+    result_error_counted: bool
+    setup: dict[str, float]
+    rmse: dict[str, float]
+    fit: RemasterFit
+    samples: int = Field(ge=1)
+    data: Optional[str] = None
+    sha256: Optional[str] = None
+    fingerprint: Optional[dict] = None
+    result: Optional[str] = None
+    notes: List[str] = []
+
+
 class ResultSpec(BaseModel):
     """The keys of a result file (``robocal.result/1``) that robocal reads back; others are kept."""
 
@@ -195,6 +239,7 @@ class ResultSpec(BaseModel):
     causes: List[dict] = []
     convergence: dict[str, Any] = {}
     dataset: Optional[Provenance] = None
+    remaster: Optional[RemasterReport] = None
 
 
 def _where(loc: tuple, document: str) -> str:
