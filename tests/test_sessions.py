@@ -44,6 +44,22 @@ def test_stacked_sessions_share_the_robot_and_keep_their_setups():
     assert held.names == [n for n in problems[0].names if n.startswith(("base_", "tool_"))]
 
 
+@pytest.mark.parametrize("robot,measurement", [("hsr-jr680", "cable"), ("ur10", "position"), ("abb-irb120", "pose")])
+def test_sessions_fix_as_many_redundant_parameters_as_one_session_does(robot, measurement):
+    """Each session's start places its own tool point; a shared parameter is judged at one value for
+    all sessions, or redundancies exact at one point (alpha6, theta6 and the tool on a cable) pass
+    as directions the data determine and leave the fit undetermined. Each fixed parameter names
+    what reproduces it."""
+    rob = robocal.robot(robot)
+    data = _sessions(robot, measurement, [], n=2, samples=300, seed=1)
+    alone = robocal.calibrate(data[0], robot=rob)
+    together = robocal.calibrate(data, robot=rob)
+    assert together.undetermined() == []
+    fixed = together.to_dict()["fixed"]
+    assert len(fixed) == len(alone.to_dict()["fixed"])
+    assert all(why.startswith(("redundant with ", "no effect")) for why in fixed.values())
+
+
 @pytest.mark.parametrize("robot,measurement,effect,label", CASES)
 def test_a_joint_cause_is_carried_and_a_session_step_is_not(robot, measurement, effect, label):
     """Every session has the joint effect; only the first has a step of its sensor's zero. The
@@ -139,4 +155,12 @@ def test_pose_sessions_report_the_held_out_orientation_error(tmp_path, capsys):
     assert b["rotation_rmse_loso_deg"] > 10.0 * floor
     paths = [write_canonical(s, tmp_path / f"s{i}.csv") for i, s in enumerate(sessions)]
     assert main(["diagnose", *map(str, paths), "--robot", "ur10", "--quiet"]) == 0
-    assert "held-out orientation RMS" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "held-out orientation RMS" in out
+    # The selection compares position and orientation weighed as in the fit: each line says that
+    # figure too, and a refused cause is compared with the one the last kept cause reached.
+    judged = f"position and orientation weighed as in the fit {f['rmse_loso_judged']:.4f} mm"
+    assert judged in out.split("final leave-one-session-out RMSE")[1]
+    last = report["effects"][-1]
+    assert f"weighed as in the fit {last['rmse_loso_judged_before']:.4f} -> {last['rmse_loso_judged_after']:.4f} mm" in out
+    assert all(f"below {last['rmse_loso_judged_after']:.4g}" in r["reason"] for r in report["rejected"] if "is not" in r["reason"])

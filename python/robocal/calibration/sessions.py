@@ -96,7 +96,10 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask, kinematic_prio
     measurement = datasets[0].measurement
     private = [c for c in cols if is_private(robot.param_names[c], measurement)]
     shared = [c for c in cols if not is_private(robot.param_names[c], measurement)]
-    blocks = [robot.jacobian(d.measurement, d.q, y=d.y, params=b.start, cols=private + shared) for d, b in zip(datasets, bases)]
+    starts = [b.start.copy() for b in bases]
+    for start in starts[1:]:
+        start[shared] = bases[0].start[shared]  # one robot: a shared parameter holds one value, at which every block is linearised
+    blocks = [robot.jacobian(d.measurement, d.q, y=d.y, params=start, cols=private + shared) for d, start in zip(datasets, starts)]
     n, p = len(datasets), len(private)
     stacked = np.zeros((sum(len(J) for J in blocks), n * p + len(shared)))
     at = 0
@@ -105,12 +108,12 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask, kinematic_prio
         stacked[at : at + len(J), n * p :] = J[:, p:]
         at += len(J)
     kept = _independent(stacked)
+    labels = [f"{robot.param_names[c]} [session {s + 1}]" for s in range(n) for c in private] + [robot.param_names[c] for c in shared]
+    why = {robot.param_names[c]: _redundancy(stacked, kept, n * p + i, labels) for i, c in enumerate(shared) if not kept[n * p + i]}
     out = []
-    for s, (d, b) in enumerate(zip(datasets, bases)):
+    for s, (b, start) in enumerate(zip(bases, starts)):
         free = [c for i, c in enumerate(private) if kept[s * p + i]] + [c for i, c in enumerate(shared) if kept[n * p + i]]
-        fixed = {robot.param_names[c]: "redundant with the set-ups of the sessions" for c in cols if c not in free}
-        start = b.start.copy()
-        start[shared] = bases[0].start[shared]  # one robot: a shared parameter held fixed holds one value
+        fixed = {robot.param_names[c]: why.get(robot.param_names[c], "redundant with the other sessions' set-ups") for c in cols if c not in free}
         out.append(replace(b, free=np.array(sorted(free), dtype=int), fixed=fixed, start=start))
     if kinematic_prior is not None:
         first = out[0]
@@ -136,6 +139,19 @@ def _independent(A: np.ndarray) -> np.ndarray:
             basis = np.column_stack([basis, v / rest])
             kept[j] = True
     return kept
+
+
+def _redundancy(A: np.ndarray, kept: np.ndarray, j: int, labels: list) -> str:
+    """Why column ``j`` of ``A`` was not kept: the kept columns before it that reproduce it, up to
+    three, largest share first, with their coefficients on unit columns (as a single session's
+    identifiability names them)."""
+    before = np.flatnonzero(kept[:j])
+    coef, *_ = np.linalg.lstsq(A[:, before], A[:, j], rcond=None)
+    share = coef * np.linalg.norm(A[:, before], axis=0) / max(float(np.linalg.norm(A[:, j])), 1e-300)
+    strongest = [k for k in np.argsort(-np.abs(share))[:3] if abs(share[k]) > 1e-3]
+    if not strongest:
+        return "no effect on the measurements"
+    return "redundant with " + ", ".join(f"{labels[before[k]]} ({share[k]:+.3g})" for k in strongest)
 
 
 #: A column whose part the set-up's columns do not reproduce is below this fraction of its norm:
