@@ -87,6 +87,10 @@ class Effect(BaseModel):
     # several sessions: leave-one-session-out, pooled and per session
     rmse_loso_before: Optional[float] = None
     rmse_loso_after: Optional[float] = None
+    #: Pose data: the pooled leave-one-session-out RMS of what the fit minimises (position and
+    #: orientation weighed as in the fit), the figure the selection compared.
+    rmse_loso_judged_before: Optional[float] = None
+    rmse_loso_judged_after: Optional[float] = None
     per_session_before: List[float] = []
     per_session_after: List[float] = []
     found_in_sessions: List[int] = []
@@ -189,6 +193,9 @@ class Figures(BaseModel):
     per_session_covered: List[Covered] = []
     rmse_heldout_unconstrained: Optional[float] = None
     rmse_loso_unconstrained: Optional[float] = None
+    #: Pose data, several sessions: the final model's pooled RMS of what the fit minimises, the
+    #: figure the refused causes were compared with.
+    rmse_loso_judged: Optional[float] = None
     rotation_per_session_deg: List[float] = []
     rotation_rmse_heldout_deg: Optional[float] = None
     rotation_rmse_heldout_blocked_deg: Optional[float] = None

@@ -111,6 +111,14 @@ def _origin(entry: Effect) -> str:
     return f"found in sessions {entry.found_in_sessions}" if entry.found_in_sessions else "from the mass model"
 
 
+def _judged(entry: Effect) -> str:
+    """Pose data: what the selection compared (position and orientation weighed as in the fit),
+    beside the position's error a cause may raise while it lowers the orientation's."""
+    if entry.rmse_loso_judged_after is None:
+        return ""
+    return f"; position and orientation weighed as in the fit {entry.rmse_loso_judged_before:.4f} -> {entry.rmse_loso_judged_after:.4f} mm"
+
+
 def sessions_summary(report) -> str:
     """A few lines for the terminal on a multi-session report (typed, or its document)."""
     report = load_diagnosis(report).needs_figures("the summary")
@@ -126,14 +134,15 @@ def sessions_summary(report) -> str:
     for e in report.effects:
         lines.append(
             f"  + {e.label} ({_origin(e)}): {_quantities(e.params)}{correlation_words(e.correlation)}; held-out "
-            f"{e.rmse_loso_before:.4f} -> {e.rmse_loso_after:.4f} mm (per session {rmse(e.per_session_after)})"
+            f"{e.rmse_loso_before:.4f} -> {e.rmse_loso_after:.4f} mm (per session {rmse(e.per_session_after)})" + _judged(e)
         )
     for r in report.rejected:
         lines.append(f"  not carried: {r.label} ({_origin(r)}): {r.reason}")
     for i, s in enumerate(model.sessions or [], start=1):
         if s.causes:
             lines.append(f"  session {i} keeps its own: {'; '.join(s.causes)}")
-    lines.append(f"  final leave-one-session-out RMSE {f.rmse_loso:.4f} mm (per session {rmse(f.per_session)})")
+    judged = "" if f.rmse_loso_judged is None else f"; position and orientation weighed as in the fit {f.rmse_loso_judged:.4f} mm"
+    lines.append(f"  final leave-one-session-out RMSE {f.rmse_loso:.4f} mm (per session {rmse(f.per_session)}){judged}")
     if f.rotation_rmse_loso_deg is not None:
         lines.append(
             f"  held-out orientation RMS {b.rotation_rmse_loso_deg:.4f} -> {f.rotation_rmse_loso_deg:.4f} deg "

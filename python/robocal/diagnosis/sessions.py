@@ -405,11 +405,11 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
             else:
                 break
         else:
-            rejected += [_entry(label, candidate, where, current, errors, reasons[label]) for _, label, candidate, where, errors in trials]
+            rejected += [_entry(kind, label, candidate, where, current, errors, reasons[label]) for _, label, candidate, where, errors in trials]
             logger.info("diagnose: no further cause lowers the pooled held-out error (%d tried)", len(trials))
             break
         logger.info("diagnose: %s kept: pooled held-out RMSE %.4g %s", label, rmse, judged_unit(kind))
-        effects.append(_entry(label, candidate, where, current, errors, None))
+        effects.append(_entry(kind, label, candidate, where, current, errors, None))
         model, current = model.plus(candidate), errors
         del pending[label]
         if candidate.kind == "joint_map":  # one map per joint
@@ -442,6 +442,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
         # where the joint maps fitted on the other sessions apply: what they can do, apart from the samples they cannot correct
         "per_session_covered": [{"samples": int(m.sum()), "rmse": reported_rmse(e[m]) if m.any() else None} for e, m in zip(current, covered)],
         "rmse_loso_unconstrained": unconstrained,
+        **({"rmse_loso_judged": _rmse(current, judged_rmse)} if kind == "pose" else {}),
         "rmse_train": fit.metrics["train"]["rmse"],
         "n_params": len(joint.names),
     }
@@ -482,7 +483,7 @@ def _physical(evaluator: _Evaluator, model: _Model, current: list):
     return (trial, errors, entry) if entry["accepted"] else (model, current, entry)
 
 
-def _entry(label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
+def _entry(measurement: str, label: str, candidate, where: list, before: list, after: list, reason: Optional[str]) -> dict:
     joint = None if candidate.joint is None else candidate.joint + 1
     entry = {
         "kind": candidate.kind,
@@ -495,6 +496,9 @@ def _entry(label: str, candidate, where: list, before: list, after: list, reason
         "per_session_before": _per_session(before, reported_rmse),
         "per_session_after": _per_session(after, reported_rmse),
     }
+    if measurement == "pose":  # what the selection compared: the position's error alone may rise
+        entry["rmse_loso_judged_before"] = _rmse(before, judged_rmse)
+        entry["rmse_loso_judged_after"] = _rmse(after, judged_rmse)
     if reason is not None:
         entry["reason"] = reason
     return entry
