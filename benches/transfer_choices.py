@@ -13,9 +13,12 @@ own fit (same session: its set-up kept). The setting each scheme picks is then v
 other series (``robocal.verify``: only the tracker base and the tool point re-fitted). Nothing of the
 verifying series enters a fit or a choice.
 
-A second table says why little can move: the standard deviation the fit's parameter covariance gives
+The other tables say why little can move: the standard deviation the fit's parameter covariance gives
 its predictions on each series (the part the target's set-up re-fit cannot absorb), against the gap
-between the transferred fit and the target's own geometric fit.
+between the transferred fit and the target's own geometric fit; the series' estimates of a few
+parameters with their standard deviations; A's kinematic parameters moved part of the way towards
+C's own fit (an analysis of what a geometry good for C costs on A and B, not a choice); and A's fit
+with one parameter pinned at nominal, or with the lengths and offsets alone.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ from robocal.calibration.problem import Problem
 from robocal.kernels import covariance
 from robocal.robot import setup_names
 
+#: Parameters whose estimates the series are compared on.
+COMPARED = ("a2", "a3", "d1", "theta2", "theta3", "alpha3")
 SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv", "C": "Series_C/measurements_random_poses.csv"}
 FOLDS = 5
 #: label -> (Problem.build options, levenberg_marquardt options)
@@ -137,6 +142,42 @@ def main() -> None:
                 if target != source:
                     own = rmse(defaults[target].problem.data_residuals(defaults[target].x))
                     print(f"| {source} → {target} | {propagated_std(result, test):.4f} | {verified[source, 'default'][target]:.4f} | {own:.4f} |")
+
+        print("\n### Each series' estimates (± their standard deviations; mm, deg)\n")
+        print("| parameter | nominal | " + " | ".join(data) + " |")
+        print("|---|---|" + "---|" * len(data))
+        for name in COMPARED:
+            k = robot.param_names.index(name)
+            unit = 1.0 if robot.param_units[k] == "mm" else np.degrees(1.0)
+            cells = [f"{r.params[k] * unit:.4f} ± {r.std[list(r.problem.free).index(k)] * unit:.4f}" for r in defaults.values()]
+            print(f"| {name} | {robot.params[k] * unit:.4f} | " + " | ".join(cells) + " |")
+        print("\n### A's kinematic parameters moved a share of the way towards C's own fit (set-up re-fitted on each series, mm)\n")
+        print("| share | " + " | ".join(data) + " |")
+        print("|---|" + "---|" * len(data))
+        kinematic = np.array([not n.startswith(("base_", "tool_")) for n in robot.param_names])
+        start, end = defaults["A"].params, defaults["C"].params
+        for share in (0.0, 0.1, 0.2, 0.3, 0.5, 1.0):
+            params = start.copy()
+            params[kinematic] += share * (end[kinematic] - start[kinematic])
+            doc = defaults["A"].to_dict()
+            doc["parameters"] = [{**p, "value": float(v)} for p, v in zip(doc["parameters"], params)]
+            cells = [f"{robocal.verify(doc, d)['metrics']['rmse']:.4f}" for d in data.values()]
+            print(f"| {share:.1f} | " + " | ".join(cells) + " |")
+        print("\n### A's fit with fewer parameters free, verified on B and C (mm)\n")
+        print("| free | training RMSE on A | B | C |")
+        print("|---|---|---|---|")
+        names = defaults["A"].problem.names
+        setup = set(setup_names(robot, "position"))
+        masks = {
+            "all (default)": names,
+            "lengths and offsets alone (a, d, theta)": [n for n in names if n in setup or n[0] in "adt" and not n.startswith("alpha")],
+        }
+        masks.update({f"all but {n}": [m for m in names if m != n] for n in names if n not in setup})
+        for label, mask in masks.items():
+            result = levenberg_marquardt(Problem.build(robot, data["A"], mask=mask))
+            doc = result.to_dict()
+            cells = [f"{robocal.verify(doc, data[t])['metrics']['rmse']:.4f}" for t in "BC"]
+            print(f"| {label} | {rmse(result.problem.data_residuals(result.x)):.4f} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
