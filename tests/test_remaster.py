@@ -16,6 +16,7 @@ from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import InvalidParameterError
 from robocal.remastering import remaster
+from robocal.report import report
 from robocal.simulation import simulate
 
 CHANGE = 0.05  # deg
@@ -177,3 +178,21 @@ def test_the_remaster_key_is_validated_when_read_back(case):
     broken = {**found.document, "remaster": {**found.report, "joints": [{**found.report["joints"][0], "status": "gone"}]}}
     with pytest.raises(InvalidParameterError, match=r"key 'remaster', joint 1, key 'status'"):
         robocal.results.load_result(broken)
+
+
+def test_the_report_of_a_remastered_result_shows_the_remastering_not_a_corrupt_file(case, tmp_path):
+    """The re-mastered document's set-up is the new session's: on the data calibrated on its values
+    cannot reproduce the calibration's figures, and the report says why instead of calling the file
+    edited; its figures are computed on the re-mastering's points."""
+    result = case[2]
+    write_canonical(_session(case, 3), tmp_path / "new.csv")
+    found = remaster(result, str(tmp_path / "new.csv"))
+    page = report(found.document, tmp_path / "page").read_text()
+    assert "edited or is corrupt" not in page
+    assert "<h2>Re-mastering</h2>" in page and "it was re-mastered since" in page
+    assert (
+        "new.csv, 12 samples; the re-mastering&#x27;s points (sha256 matches)" in page
+        or "new.csv, 12 samples; the re-mastering's points (sha256 matches)" in page
+    )
+    moved = [j for j in found.report["joints"] if j["status"] == "moved"]
+    assert [j["joint"] for j in moved] == [3] and f"{moved[0]['change']:+.4g} ± " in page

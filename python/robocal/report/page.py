@@ -143,13 +143,23 @@ def _load_recorded(fitted: dict, measurement: str, robot: Optional[Robot], what:
     return _Data(dataset, recorded, [], same_file=True)
 
 
-def _fitted(doc: dict) -> dict:
-    """The provenance of the file the result's set-up belongs to: its ``dataset``, or for a fit
-    on several sessions the first session (whose set-up ``parameters`` state)."""
+def _calibrated_on(doc: dict) -> dict:
+    """The provenance of the file the result was calibrated on: its ``dataset``, or for a fit on
+    several sessions the first session."""
     sessions = doc.get("sessions")
     if isinstance(sessions, list) and sessions and isinstance(sessions[0], dict):
         return sessions[0]
     return doc.get("dataset") or {}
+
+
+def _fitted(doc: dict) -> dict:
+    """The provenance of the file the result's set-up belongs to (whose set-up ``parameters``
+    state): the file calibrated on (:func:`_calibrated_on`), or for a re-mastered result the
+    re-mastering's points, none of them held out."""
+    remastered = doc.get("remaster")
+    if isinstance(remastered, dict):
+        return {"source": remastered.get("data"), "sha256": remastered.get("sha256"), "rows_held_out": []}
+    return _calibrated_on(doc)
 
 
 def _same_file(fitted: dict, path) -> bool:
@@ -267,7 +277,8 @@ def _table(header: list[str], rows: list[list[str]], numeric: set = frozenset(),
 
 
 def _header(doc: dict, data: _Data) -> str:
-    ds = _fitted(doc)
+    ds = _calibrated_on(doc)
+    remastered = doc.get("remaster") or {}
     conv = doc.get("convergence") or {}
     rows = [
         ("robot", doc.get("robot")),
@@ -282,7 +293,17 @@ def _header(doc: dict, data: _Data) -> str:
             else []
         ),
         ("samples", f"{len(ds.get('rows_used') or [])} training, {len(ds.get('rows_held_out') or [])} held out, {len(ds.get('rows_excluded') or [])} excluded"),
-        ("figures computed on", _data_row(data)),
+        *(
+            [
+                (
+                    "re-mastered on",
+                    f"{remastered.get('data') or 'data in memory'}, {remastered.get('samples')} samples (sha256 {remastered.get('sha256') or 'not recorded'})",
+                )
+            ]
+            if remastered
+            else []
+        ),
+        ("figures computed on", _data_row(data, "the re-mastering's points" if remastered else "the file calibrated on")),
         (
             "solver",
             f"{'converged' if conv.get('success') else 'did not converge'}: {conv.get('message', '')} "
@@ -293,11 +314,12 @@ def _header(doc: dict, data: _Data) -> str:
     return f'<table class="meta"><tbody>{body}</tbody></table>'
 
 
-def _data_row(data: _Data) -> str:
+def _data_row(data: _Data, fitted: str) -> str:
+    """What the figures were computed on; ``fitted``: what the result's set-up was fitted on."""
     if data.dataset is None:
         return "no measurements (see the note under Figures)"
     where = data.path or "a Dataset"
-    same = "the file calibrated on (sha256 matches)" if data.same_file else "not verified to be the file calibrated on"
+    same = f"{fitted} (sha256 matches)" if data.same_file else f"not verified to be {fitted}"
     return f"{where}, {len(data.dataset)} samples; {same}"
 
 
@@ -340,6 +362,13 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
         return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)", copied
     if doc.get("method") == "rbf":
         return m, "copied from the result file: its network is not held in it, so its values alone do not reproduce them", copied
+    if doc.get("remaster"):
+        return (
+            m,
+            "the calibration's, copied from the result file: it was re-mastered since (see Re-mastering), so its set-up is the new session's "
+            "and its values no longer reproduce them on the data calibrated on",
+            copied,
+        )
     if ev.model.session_terms:
         return (
             m,
@@ -390,6 +419,31 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
         out,
         "recomputed from the parameter values on the data" + (" of every session, each at its own set-up" if recorded else "") + ": they match the result file",
         per_session,
+    )
+
+
+def _remastering(doc: dict) -> str:
+    """The re-mastering's section: each joint's verdict and change, the test, and the points."""
+    found = doc.get("remaster")
+    if not found:
+        return ""
+    rows = []
+    for j in found["joints"]:
+        unit = j.get("unit", "")
+        change = "" if j.get("change") is None else f"{j['change']:+.4g} ± {_num(j.get('std'))} {unit}"
+        why = ", ".join(j.get("redundant_with") or [])
+        rows.append([str(j["joint"]), _esc(j["status"] + (f" (by {why})" if why else "")), _esc(change), _esc(f"{_num(j.get('detectable_std'))} {unit}")])
+    rmse = found.get("rmse") or {}
+    fit = found.get("fit") or {}
+    return (
+        "<h2>Re-mastering</h2>"
+        f"<p>Re-mastered on {found.get('samples')} points of a new session ({_esc(found.get('data') or 'data in memory')}): the joints whose zero "
+        f"moved, each named when its χ² drop passed {_num(found.get('threshold'))} (family-wise chance {_num(found.get('alpha'))} of naming one that did "
+        f"not move; reading noise {_num(found.get('noise_mm'))} mm, {_esc(found.get('noise_from', ''))}). RMSE on these points: "
+        f"{_num(rmse.get('setup_alone'))} mm with the set-up alone, {_num(rmse.get('remastered'))} mm re-mastered; "
+        f"χ² {_num(fit.get('chi2'))} on {fit.get('dof')} degrees of freedom (p = {_num(fit.get('p_value'))}).</p>"
+        + _table(["joint", "zero", "change", "smallest change it could show (1 std)"], rows, numeric={0, 2, 3})
+        + "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in found.get("notes") or [])
     )
 
 
@@ -761,6 +815,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 {_header(doc, d)}
 <h2>Accuracy</h2>
 {_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
+{_remastering(doc)}
 {"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(result_sessions(doc)) > 1)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
