@@ -290,3 +290,22 @@ def _diagnosis(*effects) -> dict:
         "final": {"rmse_heldout": 0.03},
         "effects": list(effects),
     }
+
+
+def test_a_result_the_monitor_updated_is_not_called_corrupt(calibrated, tmp_path):
+    """``robocal monitor --out`` applies what changed to the values: on the data calibrated on they
+    no longer reproduce the calibration's metrics, and the report says why, lists the changes and
+    draws no figure of the old data under the new values."""
+    from robocal.monitoring import Monitor
+
+    path, doc, _ = calibrated
+    stream, _ = robocal.simulate("abb-irb120", "position", samples=700, seed=1)
+    q = stream.q.copy()
+    q[400:, 1] -= np.radians(0.2)  # joint 2's zero moves at sample 400
+    monitor = Monitor(str(path))
+    monitor.update(q, stream.y)
+    assert [a.kind for a in monitor.alarms] == ["joint_zero"]
+    page = report(monitor.result_document(), tmp_path / "page").read_text()
+    assert "edited or is corrupt" not in page
+    assert "<h2>Monitoring</h2>" in page and "joint_zero of joint 2" in page and "robocal monitor has applied changes" in page
+    assert "figures that need the data are left out" in page

@@ -109,7 +109,20 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
         # An explicit file must load: its errors are the caller's to see.
         dataset, _ = load_inputs(data, robot, doc["measurement"], angle_unit)
         return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=_same_file(_fitted(doc), data))
+    if _monitored(doc):
+        return _Data(
+            notes=[
+                "the result was updated by robocal monitor (what changed in its stream applied): its values are the robot and set-up of that stream "
+                "now, not those of the data calibrated on; the figures that need the data are left out (pass --data FILE)"
+            ]
+        )
     return _load_recorded(_fitted(doc), doc["measurement"], robot)
+
+
+def _monitored(doc: dict) -> bool:
+    """Whether ``robocal monitor --out`` applied a change to the result's values."""
+    monitor = doc.get("monitor")
+    return isinstance(monitor, dict) and bool(monitor.get("alarms"))
 
 
 def _load_recorded(fitted: dict, measurement: str, robot: Optional[Robot], what: str = "the result") -> _Data:
@@ -358,6 +371,8 @@ def checked_metrics(doc: dict, ev: Optional[_Evaluation], dataset: Optional[Data
     m = doc.get("metrics") or {}
     recorded = result_sessions(doc)
     copied = [(s, f.get("metrics") or {}) for s, f in enumerate(recorded)]
+    if _monitored(doc):
+        return m, "the calibration's, copied from the result file: robocal monitor has applied changes to its values since (see Monitoring)", copied
     if ev is None or ev.held_out is None:
         return m, "copied from the result file: they cannot be checked without the measurement file it was calibrated on (its sha256 must match)", copied
     if doc.get("method") == "rbf":
@@ -444,6 +459,28 @@ def _remastering(doc: dict) -> str:
         f"χ² {_num(fit.get('chi2'))} on {fit.get('dof')} degrees of freedom (p = {_num(fit.get('p_value'))}).</p>"
         + _table(["joint", "zero", "change", "smallest change it could show (1 std)"], rows, numeric={0, 2, 3})
         + "".join(f'<p class="note">{_esc(n[0].upper() + n[1:])}.</p>' for n in found.get("notes") or [])
+    )
+
+
+def _monitoring(doc: dict) -> str:
+    """The changes ``robocal monitor`` found and applied to the result's values."""
+    if not _monitored(doc):
+        return ""
+    found = doc["monitor"]
+    rows = [
+        [
+            str(a.get("sample")),
+            str(a.get("row")),
+            str(a.get("since")),
+            _esc(a.get("kind")) + ("" if a.get("joint") is None else f" of joint {a['joint']}"),
+            _esc(", ".join(_num(v) for v in a.get("size") or []) + f" {a.get('unit', '')}"),
+        ]
+        for a in found["alarms"]
+    ]
+    return (
+        f"<h2>Monitoring</h2><p>robocal monitor watched {found.get('samples')} samples and applied what changed to the values below "
+        f"(thresholds for one false alarm per {_num(found.get('mean_run_length'))} samples).</p>"
+        + _table(["alarm at sample", "row", "since sample", "change", "size"], rows, numeric={0, 1, 2, 4})
     )
 
 
@@ -816,6 +853,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 <h2>Accuracy</h2>
 {_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
 {_remastering(doc)}
+{_monitoring(doc)}
 {"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(result_sessions(doc)) > 1)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
