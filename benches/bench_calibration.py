@@ -41,19 +41,12 @@ import sys
 import time
 from pathlib import Path
 
-from machine import cpu_model
+from machine import cpu_model, load_text
 from record import add_argument, recording
 
 D1_DEFAULT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets")) / "hsr-robotcali" / "HSR-RobotCali.xlsx"
 #: The paper's Table IX wall time of M9 (UKF-VSLM) on D1, seconds.
 PAPER_M9_D1_S = 1471.0
-
-
-def load_avg() -> str:
-    try:
-        return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
-    except OSError:
-        return "n/a"
 
 
 def thread_counts() -> str:
@@ -156,7 +149,7 @@ def part_end_to_end(args) -> None:
         times = {"robocal": [], **{name: [] for name in SCIPY_PIPELINES}}
         cpu = {k: [] for k in times}  # process CPU time (all threads): what a loaded machine disturbs less than wall time
         outs = {}
-        loads = [load_avg()]
+        loads = [load_text(all_three=True)]
         for _ in range(args.scipy_repeats):
             for _ in range(args.e2e_repeats):
                 t, c = time.perf_counter(), time.process_time()
@@ -168,7 +161,7 @@ def part_end_to_end(args) -> None:
                 outs[name] = scipy_csv_fit(csv, r, **options)
                 times[name].append(time.perf_counter() - t)
                 cpu[name].append(time.process_time() - c)
-        loads.append(load_avg())
+        loads.append(load_text(all_three=True))
         prof = cProfile.Profile()
         prof.enable()
         ours()
@@ -602,7 +595,7 @@ def main() -> None:
 
         print("# robocal calibration benchmark\n")
         machine = f"{cpu_model()}, {os.cpu_count()} cores"
-        print(f"* machine: {machine}; threads: {thread_counts()}; load average at start: {load_avg()}")
+        print(f"* machine: {machine}; threads: {thread_counts()}; load average at start: {load_text(all_three=True)}")
         print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
         print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
         start = time.perf_counter()
@@ -614,7 +607,7 @@ def main() -> None:
             part_lm(args)
         if not args.skip_m9:
             part_m9(args)
-        print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}")
+        print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_text(all_three=True)}")
 
 
 if __name__ == "__main__":
