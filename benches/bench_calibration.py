@@ -269,6 +269,11 @@ def part_lm(args) -> None:
             Counting.njac += 1
             return super().jacobian(x)
 
+        def residuals_and_jacobian(self, x):
+            Counting.nres += 1
+            Counting.njac += 1
+            return super().residuals_and_jacobian(x)
+
     counting = Counting(problem.robot, problem.data, problem.free, problem.start, dict(problem.fixed))
     res_counted = levenberg_marquardt(counting, **tol)
     # from_fit evaluates r and J once more at the end for the result's std/metrics

@@ -447,7 +447,13 @@ class Problem:
         J = self._evaluated_at_start("_start_jacobian", params)
         if J is None:
             J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=params, cols=self.free)
-        return J if self._unit_weights else J * self.row_weights[:, None]
+        return self._weighted(J)
+
+    def _weighted(self, data_rows: np.ndarray) -> np.ndarray:
+        """Data residuals (m·k,) or Jacobian rows (m·k, n) times :attr:`row_weights`."""
+        if self._unit_weights:
+            return data_rows
+        return data_rows * (self.row_weights if data_rows.ndim == 1 else self.row_weights[:, None])
 
     @cached_property
     def row_weights(self) -> np.ndarray:
@@ -457,8 +463,10 @@ class Problem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """What the calibrators minimise: :meth:`data_residuals` (weighted: :attr:`row_weights`)
         followed by the prior rows."""
-        r = self.data_residuals(x)
-        r = r if self._unit_weights else r * self.row_weights
+        return self._with_prior_residuals(self._weighted(self.data_residuals(x)), x)
+
+    def _with_prior_residuals(self, r: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Weighted data residuals ``r`` followed by the prior rows at ``x``."""
         if not self.prior:
             return r
         idx, mean, sigma = self._prior_rows()
@@ -476,13 +484,22 @@ class Problem:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """``∂h/∂x`` of :meth:`residuals` (data rows, then prior rows), (rows, n_free)."""
-        J = self._data_jacobian(x)
+        return self._with_prior_jacobian(self._data_jacobian(x))
+
+    def _with_prior_jacobian(self, J: np.ndarray) -> np.ndarray:
+        """Weighted data Jacobian rows ``J`` followed by the prior rows."""
         if not self.prior:
             return J
         idx, _, sigma = self._prior_rows()
         rows = np.zeros((len(idx), len(self.free)))
         rows[np.arange(len(idx)), idx] = self.prior_scale / sigma
         return np.vstack([J, rows])
+
+    def residuals_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residuals` and :meth:`jacobian` at ``x`` from one pass of the core: the forward
+        kinematics once for both (each bit for bit what its own method gives)."""
+        r, J = self.robot.residuals_and_jacobian(self.data.measurement, self.data.q, self.data.y, params=self.full(x), cols=self.free)
+        return self._with_prior_residuals(self._weighted(r.ravel()), x), self._with_prior_jacobian(self._weighted(J))
 
     def cost(self, x: np.ndarray) -> float:
         """``½‖r‖²`` of :meth:`residuals` (scipy's convention)."""
