@@ -99,7 +99,7 @@ START_SAMPLES = 2000
 START_SWITCH = 1e-2
 
 
-def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
+def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None, points: Optional[np.ndarray] = None) -> np.ndarray:
     """Nominal kinematics plus a fitted measurement set-up.
 
     Cable: the anchor and sensor zero in closed form (:func:`robocal.cable_initial_guess`).
@@ -107,10 +107,13 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
     nominal tool points onto the measured points (Kabsch). Then a few Gauss-Newton steps on the
     set-up and the tool point alone, kinematics held nominal: the closed forms minimise
     algebraic errors that the unknown tool offset biases. Nothing needs to be supplied.
+    ``points``: the nominal tool points of ``data`` (m, 3) where the caller has them
+    (:func:`check_observations` returns them), used when ``params`` is None.
     """
     p = robot.params.copy() if params is None else np.array(params, dtype=np.float64)
     if data.measurement == "cable":
-        points = robot.fkine(data.q, params=p, tool=True)[:, :3, 3]
+        if points is None or params is not None:
+            points = robot.fkine(data.q, params=p, tool=True)[:, :3, 3]
         anchor, offset = cable_initial_guess(points, data.y[:, 0])
         setup = [robot.index(n) for n in ("anchor_x", "anchor_y", "anchor_z", "cable_offset")]
         p[setup] = (*anchor, offset)
@@ -143,13 +146,14 @@ def _spread(points: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - np.median(points, axis=0), axis=1)
 
 
-def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray] = None) -> None:
+def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray] = None) -> np.ndarray:
     """An error naming the likely cause when ``data``'s observations cannot be readings of
     ``robot`` at its joint values: another joint count, values that are not finite, too few distinct configurations to place the sensor
     (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
     the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
     than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row.
-    ``labels``: :func:`~robocal.data.splits.configuration_groups` of ``data.q`` if the caller has them."""
+    ``labels``: :func:`~robocal.data.splits.configuration_groups` of ``data.q`` if the caller has them.
+    Returns the robot's nominal tool points at ``data.q`` (m, 3) it compared the observations with."""
     if data.n_joints != robot.n_joints:
         raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
     for name, values in (("q", data.q), ("y", data.y)):
@@ -170,7 +174,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
     observed_spread = _spread(observed)
     typical = float(np.median(robot_spread))
     if typical < 1.0:  # the joints barely move: nothing to compare with
-        return
+        return points
     ratio = float(np.median(observed_spread)) / typical
     low, high = SCALE_RATIO[kind]
     if ratio == 0.0:
@@ -198,6 +202,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
             where,
             int(data.rows[wild[0]]),
         )
+    return points
 
 
 def _pairs(value, what: str) -> Mapping:
@@ -317,12 +322,12 @@ class Problem:
             them absorb what the geometry cannot explain.
         """
         labels = configuration_groups(data.q)
-        check_observations(robot, data, labels)
+        points = check_observations(robot, data, labels)
         cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
-        start = start_parameters(robot, data, params)
+        start = start_parameters(robot, data, params, points)
         r, J = robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
         names = [robot.param_names[c] for c in cols]
