@@ -108,8 +108,9 @@ def test_a_trial_point_the_model_refuses_is_a_failed_step():
 @pytest.mark.parametrize("measurement", ["cable", "pose"])
 def test_a_taken_step_has_its_residuals_and_jacobian_from_one_pass(monkeypatch, measurement):
     """The LM evaluates a trial point's residuals and Jacobian in one pass of the core
-    (`Problem.residuals_and_jacobian`): no Jacobian of its own after the start's, and the fit bit
-    for bit the one that evaluates them apart (pose: weighted rotation rows; a prior's rows)."""
+    (`Problem.residuals_and_jacobian`), and so does the result's `undetermined`: no Jacobian of
+    their own after the start's, and the fit bit for bit the one that evaluates them apart (pose:
+    weighted rotation rows; a prior's rows)."""
     import numpy as np
 
     from robocal.simulation import simulate
@@ -121,9 +122,11 @@ def test_a_taken_step_has_its_residuals_and_jacobian_from_one_pass(monkeypatch, 
         residuals_and_jacobian = None  # what the LM does for a problem without the joint evaluation
 
     apart = levenberg_marquardt(Apart(problem.robot, data, problem.free, problem.start, dict(problem.fixed), dict(problem.prior), problem.prior_scale))
+    undetermined = apart.undetermined()
     jacobians, jacobian = [], Problem.jacobian
     monkeypatch.setattr(Problem, "jacobian", lambda self, x: jacobians.append(x) or jacobian(self, x))
     joint = levenberg_marquardt(problem)
     assert joint.nit > 1 and len(jacobians) == 1  # the start's (build evaluated it)
     assert np.array_equal(joint.x, apart.x) and joint.history == apart.history
     assert np.array_equal(joint.std, apart.std)
+    assert joint.undetermined() == undetermined and len(jacobians) == 1  # the result's check takes both at once too
