@@ -5,8 +5,11 @@ Everything runs in this one process, on the same inputs, from the same start:
 0. End to end: ``robocal.calibrate(csv, robot="hsr-jr680")`` on a 20 000-row canonical CSV of
    simulated cable samples (read, 80/20 split, ``Problem.build``, LM, result with covariance and
    held-out metrics) against ``pandas.read_csv``, the same split, start and free parameters and
-   ``scipy.optimize.least_squares(jac="2-point")`` (default tolerances, ``lm`` and ``trf``) on the
-   NumPy model; the runs interleaved, medians, ratio of medians.
+   ``scipy.optimize.least_squares`` (default tolerances) on the NumPy model: with
+   ``jac="2-point"`` (``lm`` and ``trf``; issue 30's baseline) and with the analytic NumPy
+   Jacobian ``robocal.reference.jacobian``, ``method="trf", x_scale="jac"`` (issue 53's); the runs
+   interleaved, medians, ratio of medians. Both sides on their default threads unless
+   ``--threads`` / ``--blas-threads`` say otherwise: the counts are printed.
 1. robocal's production Levenberg–Marquardt (``robocal.calibration.lm``, Rust core) on simulated
    cable data (HSR JR680, 20 000 samples, seed 1) against ``scipy.optimize.least_squares``
    (method ``"lm"`` = MINPACK and ``"trf"``) with the pure-NumPy model
@@ -23,7 +26,7 @@ Prints Markdown tables: machine, load, versions, absolute wall times, ratios, ev
 final RMSE.
 
     python benches/bench_calibration.py
-    python benches/bench_calibration.py --threads 1          # single rayon thread (NumPy's BLAS: --blas-threads, default 1)
+    python benches/bench_calibration.py --threads 1          # single rayon thread (NumPy's BLAS: --blas-threads N)
     python benches/bench_calibration.py --skip-lm            # only part 2 (and vice versa)
     python benches/bench_calibration.py --only-end-to-end    # only part 0
 """
@@ -36,21 +39,26 @@ import os
 import pstats
 import sys
 import time
-
-from machine import cpu_model
-from record import add_argument, recording
 from pathlib import Path
+
+from machine import cpu_model, load_text
+from record import add_argument, recording
 
 D1_DEFAULT = Path(os.environ.get("ROBOCAL_DATASETS", Path(__file__).resolve().parents[2] / "shared" / "datasets")) / "hsr-robotcali" / "HSR-RobotCali.xlsx"
 #: The paper's Table IX wall time of M9 (UKF-VSLM) on D1, seconds.
 PAPER_M9_D1_S = 1471.0
 
 
-def load_avg() -> str:
+def thread_counts() -> str:
+    """The threads each side computes on: rayon's (robocal's core) and NumPy's BLAS (threadpoolctl's count, where installed)."""
+    rayon = os.environ.get("RAYON_NUM_THREADS") or f"{os.cpu_count()} (rayon's default: the cores)"
     try:
-        return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
-    except OSError:
-        return "n/a"
+        from threadpoolctl import threadpool_info
+
+        blas = ", ".join(f"{p['internal_api']} {p['num_threads']}" for p in threadpool_info() if p["user_api"] == "blas") or "none loaded"
+    except ImportError:
+        blas = os.environ.get("OPENBLAS_NUM_THREADS", "default (threadpoolctl not installed)")
+    return f"rayon {rayon}; NumPy BLAS {blas}"
 
 
 def best_of(fn, repeats: int):
@@ -71,15 +79,25 @@ def rmse(r) -> float:
     return float(np.sqrt(np.mean(np.square(r))))
 
 
-def scipy_csv_fit(csv, robot, method: str) -> tuple:
+#: The scipy pipelines of part 0: name -> ``least_squares`` options (``jac="analytic"``: the NumPy twin's
+#: ``reference.jacobian`` on the free columns).
+SCIPY_PIPELINES = {
+    "lm": {"method": "lm", "jac": "2-point"},
+    "trf": {"method": "trf", "jac": "2-point"},
+    "trf-analytic": {"method": "trf", "jac": "analytic", "x_scale": "jac"},
+}
+
+
+def scipy_csv_fit(csv, robot, method: str, jac: str = "2-point", **options) -> tuple:
     """The baseline a competent user writes for ``robocal.calibrate(csv)``: ``pandas.read_csv``,
     robocal's 80/20 split (configuration groups kept whole), and scipy ``least_squares`` with
-    2-point finite differences on the NumPy model from robocal's start and free set. Returns
-    (residual evaluations, train RMSE, held-out RMSE, scipy's message)."""
+    2-point finite differences (``jac="2-point"``) or the analytic NumPy Jacobian
+    (``jac="analytic"``) on the NumPy model from robocal's start and free set, default
+    tolerances; ``options`` go to ``least_squares`` (``x_scale``). Returns (residual evaluations,
+    train RMSE, held-out RMSE, scipy's message)."""
     import numpy as np
     import pandas as pd
     import scipy.optimize
-
     from robocal.calibration.problem import Problem
     from robocal.data import Dataset
     from robocal.data.splits import configuration_groups, random_split
@@ -91,14 +109,14 @@ def scipy_csv_fit(csv, robot, method: str) -> tuple:
     train = Dataset(q=q[train_idx], y=y[train_idx], measurement="cable")
     problem = Problem.build(robot, train)  # the same start and free parameters as robocal's
     conv, kinds = [j.convention for j in robot.joints], [j.kind for j in robot.joints]
-    _, fun, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, train.q, train.y)
+    _, fun, jacobian = numpy_twin(conv, kinds, "cable", problem.start, problem.free, train.q, train.y)
     calls = [0]
 
     def counted(x):
         calls[0] += 1
         return fun(x)
 
-    out = scipy.optimize.least_squares(counted, problem.x0, jac="2-point", method=method)
+    out = scipy.optimize.least_squares(counted, problem.x0, jac=jacobian if jac == "analytic" else jac, method=method, **options)
     _, held_out, _ = numpy_twin(conv, kinds, "cable", problem.start, problem.free, q[test_idx], y[test_idx])
     return calls[0], rmse(fun(out.x)), rmse(held_out(out.x)), out.message
 
@@ -108,13 +126,14 @@ def scipy_csv_fit(csv, robot, method: str) -> tuple:
 # ---------------------------------------------------------------------------------------------
 #: robocal.calibrate(file) against the faster scipy finite-difference pipeline (issue 30).
 END_TO_END_TARGET = 30.0
+#: ... and against scipy trf with the analytic NumPy Jacobian and x_scale="jac" (issue 53).
+ANALYTIC_TARGET = 30.0
 
 
 def part_end_to_end(args) -> None:
     import tempfile
 
     import numpy as np
-
     import robocal
     from robocal.data import write_canonical
 
@@ -127,22 +146,22 @@ def part_end_to_end(args) -> None:
             return robocal.calibrate(csv, robot="hsr-jr680")
 
         res = ours()  # warm: imports, the reader, the thread pool
-        times = {"robocal": [], "lm": [], "trf": []}
+        times = {"robocal": [], **{name: [] for name in SCIPY_PIPELINES}}
         cpu = {k: [] for k in times}  # process CPU time (all threads): what a loaded machine disturbs less than wall time
         outs = {}
-        loads = [load_avg()]
+        loads = [load_text(all_three=True)]
         for _ in range(args.scipy_repeats):
             for _ in range(args.e2e_repeats):
                 t, c = time.perf_counter(), time.process_time()
                 res = ours()
                 times["robocal"].append(time.perf_counter() - t)
                 cpu["robocal"].append(time.process_time() - c)
-            for method in ("lm", "trf") if not args.quick else ():
+            for name, options in SCIPY_PIPELINES.items() if not args.quick else ():
                 t, c = time.perf_counter(), time.process_time()
-                outs[method] = scipy_csv_fit(csv, r, method)
-                times[method].append(time.perf_counter() - t)
-                cpu[method].append(time.process_time() - c)
-        loads.append(load_avg())
+                outs[name] = scipy_csv_fit(csv, r, **options)
+                times[name].append(time.perf_counter() - t)
+                cpu[name].append(time.process_time() - c)
+        loads.append(load_text(all_three=True))
         prof = cProfile.Profile()
         prof.enable()
         ours()
@@ -151,13 +170,14 @@ def part_end_to_end(args) -> None:
     med = {k: float(np.median(v)) for k, v in times.items() if v}
     med_cpu = {k: float(np.median(v)) for k, v in cpu.items() if v}
     ours_rmse = (res.metrics["train"]["rmse"], res.metrics["test"]["rmse"])
-    print(f"## 0. End to end: `robocal.calibrate(csv)` vs pandas + scipy with finite differences — {args.samples:,} simulated cable samples\n")
+    print(f"## 0. End to end: `robocal.calibrate(csv)` vs pandas + scipy — {args.samples:,} simulated cable samples\n")
     print(
         f"`simulate('hsr-jr680', 'cable', samples={args.samples}, seed=1)` written by `write_canonical`; robocal: "
         f"`robocal.calibrate(csv, robot='hsr-jr680')` (read, 80/20 split, `Problem.build`, LM, result with covariance and held-out "
         f"metrics), {len(times['robocal'])} runs after a warm-up; scipy: `pandas.read_csv`, the same split, `Problem.build`'s start and "
-        f"free parameters, `least_squares(jac='2-point')` with default tolerances on the NumPy model, {len(times['lm'])} runs per method; "
-        f"the runs interleaved in one process. Load average {loads[0]} at the start, {loads[1]} at the end.\n"
+        f"free parameters, `least_squares` with default tolerances on the NumPy model (finite differences, or the analytic NumPy "
+        f"`reference.jacobian` on the free columns), {len(times['lm'])} runs per pipeline; the runs interleaved in one process. "
+        f"Threads: {thread_counts()}. Load average {loads[0]} at the start, {loads[1]} at the end.\n"
     )
     print(
         "| pipeline | median wall time (s) | min (s) | × robocal (medians) | median CPU time (s) | × robocal (CPU medians) | residual evaluations | "
@@ -169,23 +189,33 @@ def part_end_to_end(args) -> None:
         f"| `robocal.calibrate(csv)` | {med['robocal']:.4f} | {min(times['robocal']):.4f} | 1.0× | {med_cpu['robocal']:.4f} | 1.0× | {evals} | {ours_rmse[0]:.6f} | "
         f"{ours_rmse[1]:.6f} | {res.message[:80]} |"
     )
-    for method, (calls, train_rmse, test_rmse, message) in outs.items():
+    for name, (calls, train_rmse, test_rmse, message) in outs.items():
+        options = SCIPY_PIPELINES[name]
+        jac = "reference.jacobian" if options["jac"] == "analytic" else repr(options["jac"])
+        scale = f", x_scale={options['x_scale']!r}" if "x_scale" in options else ""
         print(
-            f"| pandas + scipy `least_squares(method={method!r}, jac='2-point')` | {med[method]:.3f} | {min(times[method]):.3f} | "
-            f"{med[method] / med['robocal']:.1f}× | {med_cpu[method]:.3f} | {med_cpu[method] / med_cpu['robocal']:.1f}× | {calls} | {train_rmse:.6f} | "
+            f"| pandas + scipy `least_squares(method={options['method']!r}, jac={jac}{scale})` | {med[name]:.3f} | {min(times[name]):.3f} | "
+            f"{med[name] / med['robocal']:.1f}× | {med_cpu[name]:.3f} | {med_cpu[name] / med_cpu['robocal']:.1f}× | {calls} | {train_rmse:.6f} | "
             f"{test_rmse:.6f} | {message[:80]} |"
         )
     if outs:
-        fastest = min(outs, key=lambda m: med[m])
-        ratio = med[fastest] / med["robocal"]
-        same = all(abs(o[1] - ours_rmse[0]) <= 1e-6 * ours_rmse[0] for o in outs.values())
-        met = ratio >= END_TO_END_TARGET and same
-        print(
-            f"\n**Target (issue 30): robocal.calibrate(file) ≥ {END_TO_END_TARGET:g}× scipy with finite differences at the same RMSE: "
-            f"{'MET' if met else 'NOT MET'}** ({ratio:.1f}× the faster scipy method, `{fastest}`, ratio of medians"
-            f"{'' if same else '; NOT the same training RMSE to 1e-6 relative'}; process CPU times: "
-            f"{med_cpu[fastest] / med_cpu['robocal']:.1f}×).\n"
-        )
+
+        def target(issue: str, what: str, names: list, goal: float) -> None:
+            fastest = min(names, key=lambda m: med[m])
+            ratio = med[fastest] / med["robocal"]
+            same = all(abs(outs[m][1] - ours_rmse[0]) <= 1e-6 * ours_rmse[0] for m in names)
+            met = ratio >= goal and same
+            print(
+                f"\n**Target ({issue}): robocal.calibrate(file) ≥ {goal:g}× {what} at the same RMSE: "
+                f"{'MET' if met else 'NOT MET'}** ({ratio:.1f}× `{fastest}`, ratio of medians"
+                f"{'' if same else '; NOT the same training RMSE to 1e-6 relative'}; process CPU times: "
+                f"{med_cpu[fastest] / med_cpu['robocal']:.1f}×)."
+            )
+
+        finite = [m for m in outs if SCIPY_PIPELINES[m]["jac"] != "analytic"]
+        target("issue 30", "scipy with finite differences (the faster method)", finite, END_TO_END_TARGET)
+        target("issue 53", "scipy trf with the analytic NumPy Jacobian, x_scale='jac'", ["trf-analytic"], ANALYTIC_TARGET)
+        print()
     st = pstats.Stats(prof)
     total = st.total_tt
     print(f"Where one `robocal.calibrate(csv)` spends its time (cProfile; {total * 1e3:.1f} ms under the profiler), by cumulative time:\n")
@@ -212,9 +242,8 @@ def part_end_to_end(args) -> None:
 # ---------------------------------------------------------------------------------------------
 def part_lm(args) -> None:
     import numpy as np
-    import scipy.optimize
-
     import robocal
+    import scipy.optimize
     from robocal.calibration.lm import levenberg_marquardt
     from robocal.calibration.problem import Problem
     from robocal.simulation import simulate
@@ -239,6 +268,11 @@ def part_lm(args) -> None:
         def jacobian(self, x):
             Counting.njac += 1
             return super().jacobian(x)
+
+        def residuals_and_jacobian(self, x):
+            Counting.nres += 1
+            Counting.njac += 1
+            return super().residuals_and_jacobian(x)
 
     counting = Counting(problem.robot, problem.data, problem.free, problem.start, dict(problem.fixed))
     res_counted = levenberg_marquardt(counting, **tol)
@@ -346,7 +380,6 @@ def numpy_ukf_vslm(conv, kinds, measurement, start, free, q, y, sweeps, P0, Q, R
     Returns (x_ukf, x, history, vslm_iterations, UKF-stage seconds, VSLM-stage seconds).
     """
     import numpy as np
-
     from robocal import reference as ref
 
     full, residuals, _ = numpy_twin(conv, kinds, measurement, start, free, q, y)
@@ -406,8 +439,7 @@ def m9_setup(d1_path, sweeps: int):
     from robocal.calibration.kalman import Q_FRACTION, prior_covariance, sensor_covariance
     from robocal.calibration.problem import Problem
     from robocal.calibration.vslm import LAMBDA
-    from robocal.data import random_split
-    from robocal.data import load
+    from robocal.data import load, random_split
 
     r = robocal.robot("hsr-jr680")
     d1 = load(d1_path)
@@ -428,7 +460,6 @@ VSLM_OPTIONS = ("delta0", "mu", "lam", "max_iter", "ftol", "xtol")
 
 def part_m9(args) -> None:
     import numpy as np
-
     from robocal.calibration.cascade import ukf_vslm
     from robocal.calibration.kalman import Q_FRACTION, ukf
     from robocal.calibration.vslm import LAMBDA, vslm
@@ -454,7 +485,7 @@ def part_m9(args) -> None:
     hist_rc = np.asarray(res.history)
     vslm_nit_rc = res.nit - args.sweeps
 
-    print(f"## 2. M9 UKF-VSLM on D1 — robocal vs the same cascade in NumPy\n")
+    print("## 2. M9 UKF-VSLM on D1 — robocal vs the same cascade in NumPy\n")
     print(
         f"D1 = `{args.d1}` ({len(d1)} samples), training split `random_split({len(d1)}, 0.2, seed=0)` → {m} samples; "
         f"`Problem.build` → {n} free parameters ({2 * n + 1} sigma points). Options (identical for both): sweeps={args.sweeps}, "
@@ -539,7 +570,7 @@ def part_m9(args) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=None, help="rayon threads (default: all cores)")
-    parser.add_argument("--blas-threads", type=int, default=1, help="OpenBLAS/OpenMP/MKL threads of NumPy (default 1: stable on a shared machine)")
+    parser.add_argument("--blas-threads", type=int, default=None, help="OpenBLAS/OpenMP/MKL threads of NumPy (default: the library's own)")
     parser.add_argument("--samples", type=int, default=20_000, help="simulated cable samples for part 1")
     parser.add_argument("--tol", type=float, default=1e-10, help="ftol = xtol = gtol of every solver in part 1")
     parser.add_argument("--fd-max-nfev", type=int, default=None, help="cap scipy's max_nfev for the finite-difference runs")
@@ -560,18 +591,16 @@ def main() -> None:
     with recording(args.record):
         if args.threads:
             os.environ["RAYON_NUM_THREADS"] = str(args.threads)  # read when the core starts its pool
-        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS") if args.blas_threads else ():
             os.environ[var] = str(args.blas_threads)  # read when NumPy's BLAS loads
 
         import numpy as np
+        import robocal
         import scipy
 
-        import robocal
-
-        threads = args.threads or os.cpu_count()
         print("# robocal calibration benchmark\n")
         machine = f"{cpu_model()}, {os.cpu_count()} cores"
-        print(f"* machine: {machine}; rayon threads: {threads}; NumPy BLAS threads: {args.blas_threads}; load average at start: {load_avg()}")
+        print(f"* machine: {machine}; threads: {thread_counts()}; load average at start: {load_text(all_three=True)}")
         print(f"* python {sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, robocal {robocal.__version__}")
         print(f"* command: `python benches/bench_calibration.py {' '.join(sys.argv[1:])}`".rstrip() + "\n")
         start = time.perf_counter()
@@ -583,7 +612,7 @@ def main() -> None:
             part_lm(args)
         if not args.skip_m9:
             part_m9(args)
-        print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_avg()}")
+        print(f"total benchmark time {time.perf_counter() - start:.1f} s; load average at end: {load_text(all_three=True)}")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from machine import cpu_model
+from machine import cpu_model, load_text
 from record import add_argument, recording
 from scipy.optimize import least_squares
 
@@ -91,7 +91,7 @@ def main() -> None:
     add_argument(parser)
     args = parser.parse_args()
     with recording(args.record):
-        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {os.getloadavg()[0]:.2f} at the start; robocal {robocal.__version__}\n")
+        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {load_text()} at the start; robocal {robocal.__version__}\n")
         print("| problem | solver | residual evals | Jacobian evals | time (s) | converged | training RMSE (mm) | held-out RMSE (mm) |")
         print("|---|---|---:|---:|---:|---|---:|---:|")
         for name, data in problems(args.samples):
@@ -106,7 +106,7 @@ def main() -> None:
                     f"| {name} | {solver} | {nfev} | {njev} | {elapsed:.2f} | {'yes' if converged else 'no'} | {rmse(problem, x):.6f} | {rmse(held_out, x):.6f} |",
                     flush=True,
                 )
-        print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+        print(f"\nload average {load_text()} at the end")
 
 
 if __name__ == "__main__":

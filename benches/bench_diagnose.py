@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 import robocal
-from machine import cpu_model
+from machine import cpu_model, load_text
 from record import add_argument, recording
 from robocal.diagnosis import diagnose
 from robocal.simulation import simulate
@@ -127,7 +127,7 @@ def main() -> None:
             return
         print(
             f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; Python {platform.python_version()}, robocal {robocal.__version__}; "
-            f"load average {os.getloadavg()[0]:.2f} at the start"
+            f"load average {load_text()} at the start"
         )
         print(
             f"threads: RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}\n"
@@ -147,7 +147,7 @@ def main() -> None:
                 print(row(name, f"public:{name}", 1, measured), flush=True)
             if not args.no_sessions:
                 print(row("D3 Series A + B + C UR10 position, as sessions", "sessions:", 1, measured), flush=True)
-        print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+        print(f"\nload average {load_text()} at the end")
         if args.figure:
             draw(measured, args.figure)
 

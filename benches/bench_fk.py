@@ -137,21 +137,21 @@ def main() -> None:
             print(json.dumps(worker(args.sizes, args.repeats, args.d1)))
             return
 
-        from machine import cpu_model
+        from machine import cpu_model, load_text
 
         with tempfile.TemporaryDirectory() as tmp:
             builds = {"this build": os.environ.get("PYTHONPATH")}
             if args.baseline_so:
                 builds = {args.label_baseline: str(build_tree(args.baseline_so, Path(tmp))), **builds}
-            load_start = os.getloadavg()[0]
+            load_start = load_text()
             rounds = {label: [] for label in builds}
             for _ in range(args.rounds):
                 for label, path in builds.items():
                     rounds[label].append(run_round(path, args))
-            load_end = os.getloadavg()[0]
+            load_end = load_text()
 
         threads = os.environ.get("RAYON_NUM_THREADS", "all")
-        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {load_start:.2f} at the start, {load_end:.2f} at the end")
+        print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs; load average {load_start} at the start, {load_end} at the end")
         print(f"rayon threads: {threads}; {args.rounds} alternating rounds per build, {args.repeats} calls per figure; medians\n")
         for label, rs in rounds.items():
             print(f"- {label}: {rs[0]['module']}")

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from machine import cpu_model
+from machine import cpu_model, load_text
 from record import add_argument, recording
 
 import robocal
@@ -69,9 +69,7 @@ def main() -> None:
                 times.append(time.perf_counter() - t)
             rows.append((name, statistics.median(times), fit.cost, fit.nfev, model.n))
         J = ExtendedProblem(base, maps, data, idx).jacobian(x0)
-        print(
-            f"machine: {cpu_model()}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"
-        )
+        print(f"machine: {cpu_model()}, {os.cpu_count()} cores, load {load_text()}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
         print(f"UR10 series {args.series}: {len(data)} samples, Jacobian {J.shape[0]} x {J.shape[1]}, {J.nnz / J.shape[0]:.1f} non-zeros per row\n")
         print("| solver | median fit time (s) | cost | evaluations | unknowns |")
         print("|---|---|---|---|---|")

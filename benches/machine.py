@@ -22,6 +22,24 @@ def cpu_model() -> str:
     return platform.processor() or "unknown CPU"
 
 
+def load_averages() -> list[float] | None:
+    """The 1-, 5- and 15-minute load averages, rounded to 0.01 (None where the system keeps none):
+    what every bench reports beside its timings."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (OSError, AttributeError):
+        return None
+
+
+def load_text(all_three: bool = False) -> str:
+    """:func:`load_averages` as the benches print it: the 1-minute figure, or all three
+    (``all_three``), two decimals each; "n/a" where there are none."""
+    loads = load_averages()
+    if loads is None:
+        return "n/a"
+    return " ".join(f"{x:.2f}" for x in (loads if all_three else loads[:1]))
+
+
 def ram_gib() -> float | None:
     try:
         return round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30, 1)

@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from machine import ROOT, describe, git_state
+from machine import ROOT, describe, git_state, load_averages
 
 # Variables that change what a bench measures; recorded when set.
 ENVIRONMENT = ("RAYON_NUM_THREADS", "ROBOCAL_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_CORETYPE")
@@ -68,10 +68,6 @@ class _Tee(io.TextIOBase):
         self.stream.flush()
 
 
-def _load() -> list[float]:
-    return [round(x, 2) for x in os.getloadavg()]
-
-
 @contextlib.contextmanager
 def recording(path: str | None, argv: list[str] | None = None):
     """Keep what the block prints and write it, with its provenance, to ``path`` (nothing when ``path`` is None)."""
@@ -80,7 +76,7 @@ def recording(path: str | None, argv: list[str] | None = None):
         return
     argv = sys.argv if argv is None else argv
     script = Path(argv[0]).resolve()
-    start, load_start, date = time.perf_counter(), _load(), datetime.datetime.now(datetime.timezone.utc)
+    start, load_start, date = time.perf_counter(), load_averages(), datetime.datetime.now(datetime.timezone.utc)
     code = git_state()  # the code as it was when the bench started
     tee = _Tee(sys.stdout)
     with contextlib.redirect_stdout(tee):
@@ -93,7 +89,7 @@ def recording(path: str | None, argv: list[str] | None = None):
         **code,
         "date": date.isoformat(timespec="seconds"),
         "seconds": round(time.perf_counter() - start, 1),
-        "load": {"start": load_start, "end": _load()},
+        "load": {"start": load_start, "end": load_averages()},
         "machine": describe(),
         "output": output,
         "tables": parse_tables(output),

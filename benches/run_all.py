@@ -1,7 +1,7 @@
 """Runs every calibration benchmark of the "prove it" issue in sequence and writes each one's
 Markdown to stdout (and, with ``--out``, to a file): robocal vs the alternatives
 (``bench_alternatives.py``), scaling (``bench_scaling.py``), fleets (``bench_fleet.py``) and robocal vs its NumPy twin
-(``bench_calibration.py --threads 1``).
+(``bench_calibration.py``, both sides on their default threads).
 
     python benches/run_all.py --out /tmp/benchmarks.md
     python benches/run_all.py --record benches/records    # the records the manual's benchmark pages render
@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = [["bench_alternatives.py"], ["bench_scaling.py"], ["bench_fleet.py"], ["bench_calibration.py", "--threads", "1"]]
+SCRIPTS = [["bench_alternatives.py"], ["bench_scaling.py"], ["bench_fleet.py"], ["bench_calibration.py"]]
 
 
 def main() -> None:

@@ -256,3 +256,19 @@ def test_a_pose_fit_weighs_the_orientation_by_the_sensors_noise():
     assert np.isclose(rotation_weight(recorded), 0.01 / np.radians(0.002))  # ≈ 286 mm/rad
     position, _ = simulate("ur10", "position", samples=20, seed=4)
     assert rotation_weight(position) == 1.0
+
+
+def test_build_places_a_cable_from_the_tool_points_it_checked(monkeypatch):
+    """The nominal tool points that `check_observations` compares the cable lengths with are
+    those the closed-form anchor is fitted to: `Problem.build` runs the forward kinematics for
+    them once, and starts where `start_parameters` alone does."""
+    from robocal.calibration.problem import start_parameters
+
+    data, _ = simulate("hsr-jr680", "cable", samples=200, seed=5)
+    r = robocal.robot("hsr-jr680")
+    alone = start_parameters(r, data)
+    calls, fkine = [], type(r).fkine
+    monkeypatch.setattr(type(r), "fkine", lambda self, *args, **kw: calls.append(args) or fkine(self, *args, **kw))
+    problem = Problem.build(r, data)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(problem.start, alone)

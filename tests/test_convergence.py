@@ -103,3 +103,30 @@ def test_a_trial_point_the_model_refuses_is_a_failed_step():
     assert fit.success, fit.message
     assert len(calls) > 3 and fit.nfev > free.nfev
     assert abs(fit.metrics["train"]["rmse"] - free.metrics["train"]["rmse"]) <= 1e-3 * free.metrics["train"]["rmse"]
+
+
+@pytest.mark.parametrize("measurement", ["cable", "pose"])
+def test_a_taken_step_has_its_residuals_and_jacobian_from_one_pass(monkeypatch, measurement):
+    """The LM evaluates a trial point's residuals and Jacobian in one pass of the core
+    (`Problem.residuals_and_jacobian`), and so does the result's `undetermined`: no Jacobian of
+    their own after the start's, and the fit bit for bit the one that evaluates them apart (pose:
+    weighted rotation rows; a prior's rows)."""
+    import numpy as np
+
+    from robocal.simulation import simulate
+
+    data, _ = simulate("hsr-jr680", measurement, samples=300, seed=4)
+    problem = Problem.build(robocal.robot(data.robot), data, kinematic_prior=(1.0, 0.1))
+
+    class Apart(Problem):
+        residuals_and_jacobian = None  # what the LM does for a problem without the joint evaluation
+
+    apart = levenberg_marquardt(Apart(problem.robot, data, problem.free, problem.start, dict(problem.fixed), dict(problem.prior), problem.prior_scale))
+    undetermined = apart.undetermined()
+    jacobians, jacobian = [], Problem.jacobian
+    monkeypatch.setattr(Problem, "jacobian", lambda self, x: jacobians.append(x) or jacobian(self, x))
+    joint = levenberg_marquardt(problem)
+    assert joint.nit > 1 and len(jacobians) == 1  # the start's (build evaluated it)
+    assert np.array_equal(joint.x, apart.x) and joint.history == apart.history
+    assert np.array_equal(joint.std, apart.std)
+    assert joint.undetermined() == undetermined and len(jacobians) == 1  # the result's check takes both at once too

@@ -129,6 +129,29 @@ def test_format_detection_by_content(datasets, tmp_path, path, fmt):
     assert len(load(copy)) > 0
 
 
+@pytest.mark.parametrize(
+    "path, reader",
+    [
+        (f"{D1}/HSR-RobotCali.xlsx", read_hsr),
+        (f"{D1}/hsr_jr680_cable.csv", read_canonical),
+        (f"{D2}/abb_irb120_cable.csv", read_robotcali),
+        (SERIES["B"], read_ipa),
+    ],
+)
+def test_load_reads_the_file_once(datasets, monkeypatch, path, reader):
+    # What recognising the format read (a workbook's sheet, a text) serves its reader: the file's bytes are read once.
+    import robocal.data.table as table
+
+    reads, read_regular = [], table.read_regular
+    monkeypatch.setattr(table, "read_regular", lambda *args, **kw: reads.append(args[0]) or read_regular(*args, **kw))
+    d = load(datasets / path)
+    assert len(reads) == 1
+    alone = reader(datasets / path)
+    assert len(reads) == 2
+    for name in ("q", "y", "rows"):
+        np.testing.assert_array_equal(getattr(d, name), getattr(alone, name))
+
+
 def test_load_with_robot_and_overrides(datasets):
     d = load(datasets / D1 / "hsr_jr680_cable.csv", robot="hsr-jr680")
     assert (d.robot, len(d)) == ("hsr-jr680", 2017)

@@ -198,6 +198,10 @@ def _minimise(
     J, J_at, gram_at = problem.jacobian(x), x, None  # where J and its normal matrix were evaluated
     scale, fresh = None, True
     weighted = objective.loss != "linear"  # least squares: the weights are all 1
+    # A trial point that is taken needs its Jacobian, whose forward kinematics also gives its
+    # residuals: one pass of the core for both, where the problem has it. A frozen-check fit keeps
+    # trial residuals alone: it stops after a linear step without that Jacobian.
+    both = None if frozen_check else getattr(problem, "residuals_and_jacobian", None)
     while nfev < max_nfev:
         if fresh:  # a new Jacobian: factor it once for every step tried from this point
             fresh = False
@@ -231,7 +235,7 @@ def _minimise(
         v = factored.solve(c, lam) / d
         # Geodesic acceleration: r(x + h·v) ≈ r − h·J·v − ½h²·r_vv gives the second directional
         # derivative of the model along v, and its damped solve the acceleration a.
-        r_probe = _residuals_or_refused(problem, x + GEODESIC_H * v)
+        r_probe = _refused_as_none(problem.residuals, x + GEODESIC_H * v)
         nfev += 1
         if r_probe is None:
             lam, nu = lam * nu, 2.0 * nu
@@ -245,11 +249,13 @@ def _minimise(
             continue
         x_new = problem.clip(x + v + 0.5 * a)
         step = x_new - x
-        r_new = _residuals_or_refused(problem, x_new)
+        evaluated_new = _refused_as_none(both or problem.residuals, x_new)
         nfev += 1
-        if r_new is None:
+        if evaluated_new is None:
             lam, nu = lam * nu, 2.0 * nu
             continue
+        r_new, J_new = evaluated_new if both else (evaluated_new, None)
+        njev += J_new is not None
         cost_new, w_new = objective(r_new)
         downhill = cost_new < cost
         # An uphill step is taken when it continues the previous direction (cos β near 1).
@@ -275,8 +281,10 @@ def _minimise(
             if frozen_check and statistical_stop and not weighted and abs(1.0 - rho) <= LINEAR_STEP and _within_noise(factored, r, cost, dof):
                 success, message = True, "converged to within the noise (the Gauss-Newton step measured with the last step's Jacobian)"
                 break
-            J, J_at, fresh = problem.jacobian(x), x, True
-            njev += 1
+            if J_new is None:
+                J_new = problem.jacobian(x)
+                njev += 1
+            J, J_at, fresh = J_new, x, True
         elif small_step:
             # Even tiny steps no longer lower the cost: a minimum to within rounding.
             success, message = True, "`xtol` termination condition is satisfied"
@@ -294,13 +302,13 @@ def _minimise(
     return result
 
 
-def _residuals_or_refused(problem: Problem, x: np.ndarray):
-    """The residuals at a trial point ``x``, or None where the model refuses it — a parameter
+def _refused_as_none(evaluate, x: np.ndarray):
+    """``evaluate(x)`` at a trial point ``x``, or None where the model refuses it — a parameter
     beyond the range the core takes (±10¹² mm or rad), as a nearly singular system's step of
     little damping can reach (a fold fit of discovery seed 40's file 41): a failed step, which
     raises the damping, not an error."""
     try:
-        return problem.residuals(x)
+        return evaluate(x)
     except (InvalidParameterError, NonFiniteError):
         return None
 

@@ -99,7 +99,7 @@ START_SAMPLES = 2000
 START_SWITCH = 1e-2
 
 
-def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None) -> np.ndarray:
+def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None, points: Optional[np.ndarray] = None) -> np.ndarray:
     """Nominal kinematics plus a fitted measurement set-up.
 
     Cable: the anchor and sensor zero in closed form (:func:`robocal.cable_initial_guess`).
@@ -107,10 +107,13 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
     nominal tool points onto the measured points (Kabsch). Then a few Gauss-Newton steps on the
     set-up and the tool point alone, kinematics held nominal: the closed forms minimise
     algebraic errors that the unknown tool offset biases. Nothing needs to be supplied.
+    ``points``: the nominal tool points of ``data`` (m, 3) where the caller has them
+    (:func:`check_observations` returns them), used when ``params`` is None.
     """
     p = robot.params.copy() if params is None else np.array(params, dtype=np.float64)
     if data.measurement == "cable":
-        points = robot.fkine(data.q, params=p, tool=True)[:, :3, 3]
+        if points is None or params is not None:
+            points = robot.fkine(data.q, params=p, tool=True)[:, :3, 3]
         anchor, offset = cable_initial_guess(points, data.y[:, 0])
         setup = [robot.index(n) for n in ("anchor_x", "anchor_y", "anchor_z", "cable_offset")]
         p[setup] = (*anchor, offset)
@@ -143,13 +146,14 @@ def _spread(points: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - np.median(points, axis=0), axis=1)
 
 
-def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray] = None) -> None:
+def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray] = None) -> np.ndarray:
     """An error naming the likely cause when ``data``'s observations cannot be readings of
     ``robot`` at its joint values: another joint count, values that are not finite, too few distinct configurations to place the sensor
     (:data:`MIN_CONFIGURATIONS`), observations in another unit than mm (their spread against
     the robot's tool points', :data:`SCALE_RATIO`), or single readings further from the others
     than the robot's points are from each other (:data:`IMPOSSIBLE_SPREAD`), named by row.
-    ``labels``: :func:`~robocal.data.splits.configuration_groups` of ``data.q`` if the caller has them."""
+    ``labels``: :func:`~robocal.data.splits.configuration_groups` of ``data.q`` if the caller has them.
+    Returns the robot's nominal tool points at ``data.q`` (m, 3) it compared the observations with."""
     if data.n_joints != robot.n_joints:
         raise InvalidParameterError(f"the data have {data.n_joints} joints but robot {robot.name!r} has {robot.n_joints}")
     for name, values in (("q", data.q), ("y", data.y)):
@@ -170,7 +174,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
     observed_spread = _spread(observed)
     typical = float(np.median(robot_spread))
     if typical < 1.0:  # the joints barely move: nothing to compare with
-        return
+        return points
     ratio = float(np.median(observed_spread)) / typical
     low, high = SCALE_RATIO[kind]
     if ratio == 0.0:
@@ -198,6 +202,7 @@ def check_observations(robot: Robot, data: Dataset, labels: Optional[np.ndarray]
             where,
             int(data.rows[wild[0]]),
         )
+    return points
 
 
 def _pairs(value, what: str) -> Mapping:
@@ -317,12 +322,12 @@ class Problem:
             them absorb what the geometry cannot explain.
         """
         labels = configuration_groups(data.q)
-        check_observations(robot, data, labels)
+        points = check_observations(robot, data, labels)
         cols = robot.columns(robot.default_mask(data.measurement) if mask is None else mask, "mask")
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
-        start = start_parameters(robot, data, params)
+        start = start_parameters(robot, data, params, points)
         r, J = robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
         names = [robot.param_names[c] for c in cols]
@@ -447,7 +452,13 @@ class Problem:
         J = self._evaluated_at_start("_start_jacobian", params)
         if J is None:
             J = self.robot.jacobian(self.data.measurement, self.data.q, y=self.data.y, params=params, cols=self.free)
-        return J if self._unit_weights else J * self.row_weights[:, None]
+        return self._weighted(J)
+
+    def _weighted(self, data_rows: np.ndarray) -> np.ndarray:
+        """Data residuals (m·k,) or Jacobian rows (m·k, n) times :attr:`row_weights`."""
+        if self._unit_weights:
+            return data_rows
+        return data_rows * (self.row_weights if data_rows.ndim == 1 else self.row_weights[:, None])
 
     @cached_property
     def row_weights(self) -> np.ndarray:
@@ -457,8 +468,10 @@ class Problem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """What the calibrators minimise: :meth:`data_residuals` (weighted: :attr:`row_weights`)
         followed by the prior rows."""
-        r = self.data_residuals(x)
-        r = r if self._unit_weights else r * self.row_weights
+        return self._with_prior_residuals(self._weighted(self.data_residuals(x)), x)
+
+    def _with_prior_residuals(self, r: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Weighted data residuals ``r`` followed by the prior rows at ``x``."""
         if not self.prior:
             return r
         idx, mean, sigma = self._prior_rows()
@@ -476,13 +489,22 @@ class Problem:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """``∂h/∂x`` of :meth:`residuals` (data rows, then prior rows), (rows, n_free)."""
-        J = self._data_jacobian(x)
+        return self._with_prior_jacobian(self._data_jacobian(x))
+
+    def _with_prior_jacobian(self, J: np.ndarray) -> np.ndarray:
+        """Weighted data Jacobian rows ``J`` followed by the prior rows."""
         if not self.prior:
             return J
         idx, _, sigma = self._prior_rows()
         rows = np.zeros((len(idx), len(self.free)))
         rows[np.arange(len(idx)), idx] = self.prior_scale / sigma
         return np.vstack([J, rows])
+
+    def residuals_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residuals` and :meth:`jacobian` at ``x`` from one pass of the core: the forward
+        kinematics once for both (each bit for bit what its own method gives)."""
+        r, J = self.robot.residuals_and_jacobian(self.data.measurement, self.data.q, self.data.y, params=self.full(x), cols=self.free)
+        return self._with_prior_residuals(self._weighted(r.ravel()), x), self._with_prior_jacobian(self._weighted(J))
 
     def cost(self, x: np.ndarray) -> float:
         """``½‖r‖²`` of :meth:`residuals` (scipy's convention)."""

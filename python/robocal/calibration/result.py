@@ -279,8 +279,8 @@ class CalibrationResult:
         Each is ``{"std": σ̂/s (in limits), "combination": {name: weight}}`` with the ``shown``
         largest weights of ``v`` (unit norm; a parameter's move is weight · std · its limit).
         """
-        J = self.problem.jacobian(self.x)
-        r = self.problem.residuals(self.x)
+        both = getattr(self.problem, "residuals_and_jacobian", None)  # one pass of the core where the problem has it
+        r, J = both(self.x) if both else (self.problem.residuals(self.x), self.problem.jacobian(self.x))
         if J.shape[0] <= J.shape[1] or J.shape[1] == 0:
             return []
         units = [self.problem.robot.param_units[k] for k in self.problem.free]

@@ -25,7 +25,7 @@ import logging
 import os
 import re
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Union
 
 from ..exceptions import DataError
 from .dataset import ANGLE_UNITS, OBSERVATION_COLUMNS, Dataset, angle_unit_check
@@ -34,7 +34,7 @@ from .formats.canonical import read_canonical
 from .formats.frame import SOURCE as FRAME
 from .formats.frame import is_frame, read_frame
 from .formats.ipa import read_ipa
-from .table import is_workbook, read_table, read_text, shown
+from .table import Table, is_workbook, read_delimited, read_table, read_text, shown
 
 logger = logging.getLogger(__name__)
 
@@ -69,13 +69,19 @@ def detect_format(path) -> str:
     DataError
         Saying what was found when the content matches no format.
     """
-    path = Path(path)
+    return _detect(Path(path))[0]
+
+
+def _detect(path: Path) -> tuple[str, Union[Table, str]]:
+    """:func:`detect_format`'s answer and what it read to give it, for the reader not to read
+    the file again: a workbook's first sheet as a :class:`Table`, a text file's text."""
     if is_workbook(path):
-        header = read_table(path).header
+        table = read_table(path)
+        header = table.header
         if all(c in header for c in ROBOTCALI_COLUMNS):
-            return "robotcali"
+            return "robotcali", table
         if all(c in header for c in HSR_COLUMNS):
-            return "hsr"
+            return "hsr", table
         raise DataError(f"an .xlsx workbook whose first sheet's header {header} is neither D1 ({HSR_COLUMNS}) nor D2 ({ROBOTCALI_COLUMNS})", path, 1)
     text = read_text(path)
     first = _FIRST_LINE.match(text).group() if text.strip() else ""
@@ -83,11 +89,11 @@ def detect_format(path) -> str:
         raise DataError("the file is empty (a header row is expected)", path, 1)
     fields = {sep: _header_fields(first, sep) for sep in (";", ",", "\t")}
     if "shoulder_pan_joint" in fields[";"] or "measurement_x" in fields[";"]:
-        return "ipa"
+        return "ipa", text
     if fields[","] == ROBOTCALI_COLUMNS:
-        return "robotcali"
+        return "robotcali", text
     if any(re.fullmatch(r"q\d+", c) for c in fields[","]):
-        return "canonical"
+        return "canonical", text
     expected = (
         "expected a canonical header with q1..qN columns, the D2 header x,y,z,q1..q6,L, the D3 ';'-separated tracker columns, or an .xlsx workbook of D1/D2"
     )
@@ -197,23 +203,28 @@ def load(
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
     if frame and format not in (None, "canonical"):
         raise DataError(f"a DataFrame is read as a canonical table; got format={format!r}", path)
-    fmt = "canonical" if frame else format or detect_format(path)
+    fmt, content = ("canonical", None) if frame else (format, None) if format else _detect(path)
     native_unit = {"hsr": "deg", "robotcali": "deg", "ipa": "rad"}.get(fmt)
     if native_unit and angle_unit not in (None, native_unit):
         raise DataError(f"{fmt} files give joint angles in {native_unit}; got angle_unit={angle_unit!r}", path)
     if fmt in ("hsr", "robotcali") and measurement not in (None, "cable"):
         raise DataError(f"{fmt} files hold cable measurements; got measurement={measurement!r}", path)
-    if fmt == "canonical":
-        read = read_frame if frame else read_canonical
-        dataset = read(source if frame else path, angle_unit or "deg", measurement, None, exclude_bad_rows, prismatic=_prismatic(robot))
-        if sheet is not None:
-            raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
+    # What detection read (a workbook's first sheet, a text) serves the reader, unless it is to read another sheet.
+    table = content if isinstance(content, Table) and sheet is None else None
+    if isinstance(content, str) and sheet is None:
+        table = read_delimited(path, ";" if fmt == "ipa" else ",", content)
+    if frame:
+        dataset = read_frame(source, angle_unit or "deg", measurement, None, exclude_bad_rows, prismatic=_prismatic(robot))
+    elif fmt == "canonical":
+        dataset = read_canonical(path, angle_unit or "deg", measurement, None, exclude_bad_rows, prismatic=_prismatic(robot), table=table)
     elif fmt == "hsr":
-        dataset = read_hsr(path, exclude_bad_rows)
+        dataset = read_hsr(path, exclude_bad_rows, table=table)
     elif fmt == "robotcali":
-        dataset = read_robotcali(path, sheet, exclude_bad_rows)
+        dataset = read_robotcali(path, sheet, exclude_bad_rows, table=table)
     else:
-        dataset = read_ipa(path, measurement or "pose", exclude_bad_rows)
+        dataset = read_ipa(path, measurement or "pose", exclude_bad_rows, table=table)
+    if fmt == "canonical" and sheet is not None:
+        raise DataError(f"`sheet` applies to .xlsx workbooks; got sheet={sheet!r}", path)
     if check_units and len(dataset.prismatic) < dataset.n_joints:
         unit = angle_unit or native_unit or "deg"
         check = angle_unit_check(dataset.q, unit, dataset.rows, dataset.prismatic)

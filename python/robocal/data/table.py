@@ -692,9 +692,10 @@ class Table:
         return [f"ignored columns {ignored}"] if ignored else []
 
 
-def read_delimited(path, delimiter: str = ",") -> Table:
-    """The :class:`Table` of a delimited text file (UTF-8; see :func:`split_delimited`)."""
-    header, body = split_delimited(read_text(path), delimiter, path)
+def read_delimited(path, delimiter: str = ",", text: Optional[str] = None) -> Table:
+    """The :class:`Table` of a delimited text file (UTF-8; see :func:`split_delimited`);
+    ``text``: the file's text (:func:`read_text`) where the caller has read it already."""
+    header, body = split_delimited(read_text(path) if text is None else text, delimiter, path)
     return Table(header, body, path)
 
 

@@ -33,7 +33,14 @@ def _measurement_from_header(header: list[str], path) -> str:
 
 
 def read_canonical(
-    path, angle_unit: str = "deg", measurement: Optional[str] = None, robot: Optional[str] = None, exclude_bad_rows: bool = False, *, prismatic: tuple = ()
+    path,
+    angle_unit: str = "deg",
+    measurement: Optional[str] = None,
+    robot: Optional[str] = None,
+    exclude_bad_rows: bool = False,
+    *,
+    prismatic: tuple = (),
+    table: Optional[Table] = None,
 ) -> Dataset:
     """Reads a canonical CSV file into a :class:`Dataset` (joint angles converted to rad).
 
@@ -51,11 +58,14 @@ def read_canonical(
         raising a :class:`DataError` on the first.
     prismatic : tuple of int
         Joints (0-based) that are prismatic: their columns are mm, read as they are.
+    table : Table, optional
+        The file's table (:func:`~robocal.data.table.read_delimited`) where the caller has read
+        it already (:func:`robocal.data.load` has, to recognise the format).
     """
     path = Path(path)
     if angle_unit not in ANGLE_UNITS:
         raise DataError(f"`angle_unit` must be one of {ANGLE_UNITS}; got {angle_unit!r}", path)
-    return canonical_dataset(read_delimited(path), angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
+    return canonical_dataset(read_delimited(path) if table is None else table, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
 
 
 def canonical_dataset(

@@ -12,7 +12,7 @@ import numpy as np
 
 from ...exceptions import DataError
 from ..dataset import Dataset, time_order_notes
-from ..table import excluded_notes, read_table
+from ..table import Table, excluded_notes, read_table
 
 IPA_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
 IPA_POSITION = ["measurement_x", "measurement_y", "measurement_z"]
@@ -78,7 +78,7 @@ def _timestamps(stamps: list[str], rows: np.ndarray, path):
     return None, [f"Timestamp is not yyyymmddHHMMSS throughout (e.g. {example!r}): not used, `t` left unset"]
 
 
-def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) -> Dataset:
+def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False, *, table: Optional[Table] = None) -> Dataset:
     """Reads D3, ipa-robot-accuracy (UR10, laser tracker): a ``Series_*/measurements_*.csv``.
 
     The files are ``;``-separated with decimal commas. Joints in rad; ``measurement_x/y/z`` in
@@ -95,6 +95,9 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
         Read the full pose, or only the position.
     exclude_bad_rows : bool
         Record rows with a bad cell in ``Dataset.excluded`` instead of raising.
+    table : Table, optional
+        The file's table (``;``-separated) where the caller has read it already
+        (:func:`robocal.data.load` has, to recognise the format).
 
     Returns
     -------
@@ -105,7 +108,7 @@ def read_ipa(path, measurement: str = "pose", exclude_bad_rows: bool = False) ->
     """
     if measurement not in ("pose", "position"):
         raise DataError(f"`measurement` must be 'pose' or 'position' for tracker data; got {measurement!r}", path)
-    table = read_table(path, delimiter=";")
+    table = read_table(path, delimiter=";") if table is None else table
     header = table.header
     obs = IPA_POSITION + (IPA_EULER if measurement == "pose" else [])
     table.require(IPA_JOINTS + obs, f"an ipa-robot-accuracy (D3) {measurement} file")
