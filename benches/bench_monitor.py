@@ -9,8 +9,8 @@ over every monitored sample), and with a change at the middle of the stream — 
 (joints 2 and 3: the reading that much below the angle from then on) or the sensor's step (the
 cable re-zeroed, the tracker moved), 3x and 5x the detection limit the monitor states for it.
 Prints a Markdown table: samples from the change to the alarm (median over seeds; "missed" when
-none named the change), the error of the estimated start, whether the kind was right, and the
-median time per update.
+none named the change) and the error of its estimated start (the first alarm, provisional or not), whether the
+kind was right (the first alarm that names it for good), and the median time per update.
 """
 
 from __future__ import annotations
@@ -80,7 +80,8 @@ def run(args) -> None:
                     if after:
                         delays.append(after[0].sample - at)
                         starts.append(abs(after[0].since - at))
-                        right += (after[0].kind, after[0].joint) == (kind, joint)
+                        named = [a for a in after if not a.provisional]  # a provisional alarm (the sensor's step) is told, not the naming
+                        right += bool(named) and (named[0].kind, named[0].joint) == (kind, joint)
                 what = f"joint {joint} zero" if kind == "joint_zero" else "sensor step"
                 unit = "deg" if kind == "joint_zero" else "mm"
                 delay = f"{np.median(delays):.0f}" if delays else "missed"
