@@ -6,7 +6,8 @@ samples, 100 000 by default) measured over about 10⁵ monitored samples.
 
 A calibration on 400 samples of one simulated session (as ``bench_monitor.py`` makes it), then ``--sessions`` new
 sessions of the same robot, nothing changed, replayed with ``--new-session``. Prints a Markdown table per session: the
-samples monitored, the alarms (sample, kind, evidence over its threshold) and the long-run inflation at the end.
+samples monitored, the alarms (sample, kind, evidence over its threshold; each counted, a provisional one too) and the
+long-run inflation at the end.
 """
 
 from __future__ import annotations
@@ -41,7 +42,13 @@ def main() -> None:
             monitor, alarms, _ = _run(result, stream.q, stream.y)
             total += args.samples - OPENING
             alarms_total += len(alarms)
-            said = "; ".join(f"{a.sample} {a.kind}{'' if a.joint is None else f' {a.joint}'} ({a.evidence:.2f}x)" for a in alarms) or "none"
+            said = (
+                "; ".join(
+                    f"{a.sample} {a.kind}{'' if a.joint is None else f' {a.joint}'} ({a.evidence:.2f}x{', provisional' if a.provisional else ''})"
+                    for a in alarms
+                )
+                or "none"
+            )
             print(f"| {s} | {args.samples - OPENING} | {said} | {monitor.inflation:.3g} |", flush=True)
         print(f"\n{alarms_total} alarms in {total} monitored samples: {alarms_total / total:.2g} per sample (stated: {1 / monitor.mean_run_length:.2g})")
 

@@ -40,7 +40,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -72,14 +72,19 @@ CONFIDENCE = 0.95
 MEAN_RUN_LENGTH = 100_000
 #: Fewest samples after a change's start before it may be tested (one bad sample is no change).
 MIN_AFTER = 3
-#: Samples after a change's estimated start before it is named: the kinds tell apart by then.
+#: Samples after a change's estimated start before it is named for good: the kinds tell apart by then.
 CONFIRM = 6
 #: How much less likely under no change (natural log) the named change must be than any other
-#: kind, else the monitor waits for more samples ...
+#: kind, else the monitor waits for more samples (having alarmed at once, provisionally, as the
+#: sensor's step when the step is among the kinds within this margin) ...
 DISTINCT = 5.0
-#: ... up to this many after the change's start; then it names the likelier and says which other
+#: ... up to this many after the change's start; then it names the likelier and says what else
 #: it could be.
 MAX_WAIT = 25
+#: A provisional alarm needs the step's statistic at this many times its threshold: it then stands
+#: even if the yardstick underestimates the innovations' long-run variance by as much (the false
+#: alarms over long clean cable streams came at 1.0-1.5 times their thresholds, all but one).
+TOLD_AT = 2.0
 #: Samples at which each change's detection limit is stated.
 LIMIT_SAMPLES = 25
 
@@ -102,7 +107,11 @@ class Change:
 @dataclass
 class Alarm:
     """A change found: at stream sample ``sample`` (0-based; file ``row``), begun at ``since``,
-    of ``size`` (per parameter, ``unit``), with ``evidence`` (statistic over threshold)."""
+    of ``size`` (per parameter, ``unit``), with ``evidence`` (statistic over threshold).
+    ``could_be``: the other kinds within a likelihood ratio of e^:data:`DISTINCT` (``margin``: the
+    log ratio to the likeliest of them). A ``provisional`` alarm is raised as soon as a change is
+    seen, as the sensor's step, while other kinds explain it as well; it is not applied: the
+    same change is named for good (and applied) by a later alarm."""
 
     sample: int
     row: Optional[int]
@@ -114,7 +123,8 @@ class Alarm:
     names: list
     evidence: float
     margin: float = float("inf")
-    alternative: Optional[str] = None
+    could_be: list = field(default_factory=list)
+    provisional: bool = False
 
     def to_dict(self) -> dict:
         return {
@@ -128,14 +138,16 @@ class Alarm:
             "parameters": self.names,
             "evidence": self.evidence,
             "distinct_by": self.margin,
-            "could_be": self.alternative if self.margin < DISTINCT else None,
+            "could_be": list(self.could_be),
+            "provisional": self.provisional,
         }
 
     def words(self) -> str:
         what = f"joint {self.joint}'s zero" if self.kind == "joint_zero" else f"the sensor's {'drift' if self.kind == 'drift' else 'set-up'}"
         size = ", ".join(f"{n} {v:+.4g}" for n, v in zip(self.names, self.size))
-        doubt = f"; it could also be {self.alternative} (likelihoods within e^{self.margin:.1f})" if self.margin < DISTINCT else ""
-        return f"sample {self.sample} (row {self.row}): {what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold{doubt})"
+        doubt = f"; it could also be {' or '.join(self.could_be)} (likelihoods within e^{abs(self.margin):.1f})" if self.could_be else ""
+        told = "provisionally, " if self.provisional else ""
+        return f"sample {self.sample} (row {self.row}): {told}{what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold{doubt})"
 
 
 def _surprise(stat: float, d: int) -> float:
@@ -393,6 +405,7 @@ class Monitor:
         self.sigma: Optional[np.ndarray] = None
         self.inflation = 1.0
         self._delayed: deque = deque()
+        self._told: Alarm | None = None  # the provisional alarm of the crossing under way
         self.limits: dict = {}
         self.refit: dict = {}
 
@@ -534,22 +547,37 @@ class Monitor:
             self._drift_left -= 1
         e, J = self._innovations(q, y)
         self._push(i, e[0], J[0])
-        found = self._test(i, row)
-        if found is None or i - found.since < CONFIRM:  # named once enough samples after its start show which change it is
+        found, step = self._test(i, row)
+        if found is None:
+            self._told = None  # no crossing (any more): a provisional alarm of it stays unapplied
             return None
-        if found.margin < DISTINCT and i - found.since < MAX_WAIT:  # two kinds explain it alike: more samples tell them apart
+        waited = i - found.since
+        # Named for good once enough samples after its start show which change it is, and no
+        # other kind explains it alike (or it has waited long enough for more samples to tell).
+        if waited < CONFIRM or (found.could_be and waited < MAX_WAIT):
+            # Meanwhile, if the sensor's step is among the kinds that explain it, the change is
+            # told at once as that step: the simplest explanation (a constant on the reading, no
+            # fault of the robot), and the one a single reading cannot tell from a joint's zero
+            # for a while. Once per crossing; not applied.
+            if step is not None and self._told is None:
+                self._told = step
+                self.alarms.append(step)
+                return step
             return None
+        self._told = None
         self._apply(found)
         self.alarms.append(found)
         self._buffers.clear()  # the window starts anew under the changed model
         return found
 
-    def _test(self, now: int, row) -> Optional[Alarm]:
-        """The change with the strongest evidence over its threshold, or None."""
+    def _test(self, now: int, row) -> tuple[Alarm | None, Alarm | None]:
+        """The change with the strongest evidence over its threshold, or None; and the sensor's
+        step as a provisional alarm if it is :data:`TOLD_AT` times over its threshold and within
+        e^DISTINCT of that change."""
         b = self._buffers
         starts = b.n - MIN_AFTER + 1  # starts with at least MIN_AFTER samples from them on
         if starts <= 1:
-            return None
+            return None, None
         groups, self._level = b.evidence(starts, self.prior)
         # Per change: its largest statistic, at which start (1-based in the window), and its estimate there.
         strongest: list = [None] * len(self.changes)
@@ -562,22 +590,37 @@ class Monitor:
             stat = np.einsum("nkd,nkd->nk", score, delta) / self.inflation
             for j, k in enumerate(np.argmax(stat, axis=0)):
                 strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[k, j])
-        best, surprises = None, []
-        for change, (stat, k, delta) in zip(self.changes, strongest):
-            d = len(change.columns)
-            surprise = _surprise(stat, d)  # kinds of other degrees of freedom compared by how unlikely each is under no change
-            surprises.append((surprise, change))
-            if stat > self.threshold[d] and (best is None or surprise > best[0]):
-                best = (surprise, change, k, delta, stat / self.threshold[d])
-        if best is None:
-            return None
-        surprise, change, k, delta, ratio = best
-        runner = max(((v, c) for v, c in surprises if c is not change), key=lambda vc: vc[0], default=(0.0, None))
-        scale = np.degrees(delta) if self._unit(change) == "deg" else delta
-        alarm = Alarm(now, row, b.index(k), change.kind, change.joint, [float(v) for v in scale], self._unit(change), list(change.names), ratio)
-        alarm.margin = float(surprise - runner[0])
-        alarm.alternative = None if runner[1] is None else (runner[1].kind if runner[1].joint is None else f"joint {runner[1].joint}'s zero")
-        return alarm
+        # Kinds of other degrees of freedom compared by how unlikely each is under no change.
+        ranked = sorted(((_surprise(stat, len(c.columns)), c, stat, k, delta) for c, (stat, k, delta) in zip(self.changes, strongest)), key=lambda r: -r[0])
+        crossed = [r for r in ranked if r[2] > self.threshold[len(r[1].columns)]]
+        if not crossed:
+            return None, None
+
+        def alarm(surprise, change, stat, k, delta) -> Alarm:
+            scale = np.degrees(delta) if self._unit(change) == "deg" else delta
+            found = Alarm(
+                now,
+                row,
+                b.index(k),
+                change.kind,
+                change.joint,
+                [float(v) for v in scale],
+                self._unit(change),
+                list(change.names),
+                stat / self.threshold[len(change.columns)],
+            )
+            others = [r for r in ranked if r[1] is not change]
+            found.margin = float(surprise - others[0][0]) if others else float("inf")
+            found.could_be = [c.kind if c.joint is None else f"joint {c.joint}'s zero" for v, c, *_ in others if v > surprise - DISTINCT]
+            return found
+
+        found = alarm(*crossed[0])
+        step = next((r for r in crossed if r[1].kind == "step"), None)
+        if step is None or not found.could_be or crossed[0][0] - step[0] >= DISTINCT or step[2] < TOLD_AT * self.threshold[len(step[1].columns)]:
+            return found, None
+        told = alarm(*step)
+        told.provisional = True
+        return found, told
 
     def _apply(self, alarm: Alarm) -> None:
         change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)
