@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
-from robocal.monitoring import BATCH, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance
+from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -142,6 +142,41 @@ def test_d2s_cable_re_zeroing_is_alarmed_at_once_as_a_step(datasets):
     assert first.kind == "step" and first.sample - re_zero <= 5 and first.since == re_zero, first.words()
     assert first.provisional and any("joint" in c for c in first.could_be), first.words()
     assert np.array_equal(monitor.params, before)  # told, not applied
+
+
+def test_d2s_re_zeroing_is_not_named_as_a_joint_it_does_not_fit(datasets):
+    """Past the provisional step, the likeliest single kind on D2 (joint 4's zero) leaves the
+    innovations after the re-zero at several times their noise: the monitor names no joint,
+    applies nothing, says no single kind explains it and opens anew."""
+    data = robocal.load(datasets / "robotcali-abb-irb120" / "abb_irb120_cable.csv")
+    result = robocal.calibrate(data.subset(np.arange(230, 499)), robot="abb-irb120", test_fraction=0)
+    rows = np.asarray(data.rows)[230:]
+    re_zero = int(np.flatnonzero(rows == 508)[0])
+    monitor = Monitor(result.to_dict())
+    before = monitor.params.copy()
+    alarms = monitor.update(data.q[230 : 230 + re_zero + 30], data.y[230 : 230 + re_zero + 30], rows=rows[: re_zero + 30])
+    assert [a.kind for a in alarms] == ["step", "unexplained"], [a.words() for a in alarms]
+    last = alarms[-1]
+    assert last.since == re_zero and last.evidence > FIT_RATIO and last.could_be[0] == "joint 4's zero", last.words()
+    assert np.array_equal(monitor.params, before) and monitor.sigma is None  # nothing applied; a new opening under way
+
+
+def test_a_sensor_moved_before_the_stream_is_said_and_its_set_up_re_fitted():
+    """The calibration's session goes on by default; a stream from a sensor placed elsewhere (a new
+    session) differs from the first sample, which the window's constant would absorb unseen: the
+    opening says so, re-fits the set-up as ``new_session`` does, and the clean stream raises no
+    other alarm. The calibration's own session raises none."""
+    data, _ = simulate("ur10", "position", samples=300, seed=2)
+    result = robocal.calibrate(data, robot="ur10").to_dict()
+    other, _ = simulate("ur10", "position", samples=600, seed=2, session=1)
+    monitor = Monitor(result)
+    alarms = monitor.update(other.q, other.y)
+    assert [a.kind for a in alarms] == ["setup"] and alarms[0].since == 0 and alarms[0].sample == OPENING - 1, [a.words() for a in alarms]
+    fresh = Monitor(result, new_session=True)
+    fresh.update(other.q, other.y)
+    assert np.allclose(monitor.params, fresh.params) and monitor.refit == fresh.refit
+    same, _ = simulate("ur10", "position", samples=600, seed=2)
+    assert Monitor(result).update(same.q, same.y) == []
 
 
 def test_a_slow_drift_raises_no_step(calibrated):

@@ -40,7 +40,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -54,7 +54,7 @@ from .data.dataset import OBSERVATION_COLUMNS, Dataset
 from .exceptions import InvalidParameterError, ShapeError
 from .kernels import as_float_array
 from .results import load_result
-from .serial_robot import setup_names, zero_names
+from .serial_robot import RESIDUAL_WIDTH, setup_names, zero_names
 
 logger = logging.getLogger(__name__)
 
@@ -85,6 +85,12 @@ MAX_WAIT = 25
 #: even if the yardstick underestimates the innovations' long-run variance by as much (the false
 #: alarms over long clean cable streams came at 1.0-1.5 times their thresholds, all but one).
 TOLD_AT = 2.0
+#: A change is named for good only if what it leaves of the innovations from its start on is
+#: within this many times their noise (RMS of the whitened innovations): else no single kind
+#: explains it, and the monitor says so and opens anew. The same ratio between the opening's
+#: innovations at the calibration's set-up and with it re-fitted (and against the calibration's
+#: held-out error) says the sensor stands elsewhere than the calibration placed it.
+FIT_RATIO = 2.0
 #: Samples at which each change's detection limit is stated.
 LIMIT_SAMPLES = 25
 
@@ -125,6 +131,8 @@ class Alarm:
     margin: float = float("inf")
     could_be: list = field(default_factory=list)
     provisional: bool = False
+    #: The change's estimate in the model's units (rad, mm), as fitted; not written.
+    delta: Optional[np.ndarray] = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
         return {
@@ -143,11 +151,29 @@ class Alarm:
         }
 
     def words(self) -> str:
+        if self.kind == "unexplained":
+            return (
+                f"sample {self.sample} (row {self.row}): a change from sample {self.since} that no single kind explains: the likeliest, "
+                f"{self.could_be[0]}, leaves {self.evidence:.1f}x the noise (RMS)"
+                + (f"; {' and '.join(self.could_be[1:])} explain it about as well" if len(self.could_be) > 1 else "")
+                + ": nothing applied; the monitor opens anew, re-fitting the set-up on its next opening samples — a calibration may be due"
+            )
+        if self.kind == "setup":
+            return (
+                f"sample {self.sample} (row {self.row}): from sample {self.since} on the readings differ from the calibration's model as a moved sensor "
+                f"would make them ({self.evidence:.1f}x the calibration's held-out error, RMS): the sensor stands elsewhere, or this is a new session; "
+                "its set-up is re-fitted on the opening samples (as with --new-session)"
+            )
         what = f"joint {self.joint}'s zero" if self.kind == "joint_zero" else f"the sensor's {'drift' if self.kind == 'drift' else 'set-up'}"
         size = ", ".join(f"{n} {v:+.4g}" for n, v in zip(self.names, self.size))
         doubt = f"; it could also be {' or '.join(self.could_be)} (likelihoods within e^{abs(self.margin):.1f})" if self.could_be else ""
         told = "provisionally, " if self.provisional else ""
         return f"sample {self.sample} (row {self.row}): {told}{what} changed from sample {self.since}: {size} {self.unit} ({self.evidence:.1f}x its threshold{doubt})"
+
+
+def _kind_words(change) -> str:
+    """A change's kind (a :class:`Change` or an :class:`Alarm`) as ``could_be`` lists it."""
+    return change.kind if change.joint is None else f"joint {change.joint}'s zero"
 
 
 def _surprise(stat: float, d: int) -> float:
@@ -406,6 +432,7 @@ class Monitor:
         self.inflation = 1.0
         self._delayed: deque = deque()
         self._told: Alarm | None = None  # the provisional alarm of the crossing under way
+        self._reopened = False  # an unexplained change: the next opening re-fits the set-up
         self.limits: dict = {}
         self.refit: dict = {}
 
@@ -473,36 +500,40 @@ class Monitor:
             if self.sigma is None:
                 self._opening.append((i, qi, yi, row))
                 if len(self._opening) == self.opening:
-                    self._start()
+                    moved = self._start()
+                    if moved is not None:
+                        self.alarms.append(moved)
+                        raised.append(moved)
                 continue
             alarm = self._step(i, qi[None, :], yi[None, :], row)
             if alarm is not None:
                 raised.append(alarm)
         return raised
 
-    def _start(self) -> None:
-        """The opening is complete: the set-up (``new_session``), the innovations' scale and
-        correlation, the detection limits; then the opening samples enter the window."""
+    def _start(self) -> Optional[Alarm]:
+        """The opening is complete: the set-up (``new_session``, after an unexplained change, or
+        when the opening shows the sensor elsewhere: then a ``setup`` alarm, returned), the
+        innovations' scale and correlation, the detection limits; then the opening samples enter
+        the window."""
         index = [i for i, *_ in self._opening]
         q = np.array([s[1] for s in self._opening])
         y = np.array([s[2] for s in self._opening])
-        if self.new_session:
-            data = Dataset(q=self._links(q), y=y, measurement=self.measurement, robot=self.robot.name)
-            names = setup_names(self.robot, self.measurement)
-            problem = Problem.build(self.robot, data, mask=names, params=self.params)
-            fit = levenberg_marquardt(problem)
-            self.params = problem.full(fit.x)
-            self.refit = {"names": names, "samples": len(q)}
+        # Never below what the calibration itself erred by on samples it did not fit: the model's
+        # error on new poses, which a short opening may not show.
+        figures = self.doc.get("metrics", {}).get("test") or self.doc.get("metrics", {}).get("train") or {}
+        floor = np.full(RESIDUAL_WIDTH[self.measurement], (figures.get("rmse") or 0.0) / np.sqrt(3.0 if self.measurement != "cable" else 1.0))
+        if self.measurement == "pose":
+            floor[3:] = 0.0  # the rotation rows: the opening's figure alone
+        moved = None
+        if self.new_session or self._reopened:
+            self._refit_setup(q, y)
+        else:
+            moved = self._moved_sensor(q, y, floor, index, self._opening[-1][3])
+        self._reopened = False
         e, J = self._innovations(q, y)
         centred = e - e.mean(axis=0)
         fitted = len(self.refit.get("names", [])) + e.shape[1]  # the set-up re-fitted and the mean removed take degrees of freedom
         opening_sigma = np.sqrt(np.sum(centred**2, axis=0) / max(len(q) - fitted / e.shape[1], 1.0))
-        # Never below what the calibration itself erred by on samples it did not fit: the model's
-        # error on new poses, which a short opening may not show.
-        figures = self.doc.get("metrics", {}).get("test") or self.doc.get("metrics", {}).get("train") or {}
-        floor = np.full(e.shape[1], (figures.get("rmse") or 0.0) / np.sqrt(3.0 if self.measurement != "cable" else 1.0))
-        if self.measurement == "pose":
-            floor[3:] = 0.0  # the rotation rows: the opening's figure alone
         self.sigma = np.maximum(opening_sigma, floor).clip(1e-9)
         Jw = J / self.sigma[None, :, None]
         z = e / self.sigma
@@ -530,6 +561,36 @@ class Monitor:
             self._push(i, ei, Ji)
         self._opening.clear()
         logger.info("monitor: opening of %d samples: sigma %s, long-run inflation %.2f", len(index), self.sigma, self.inflation)
+        return moved
+
+    def _refit_setup(self, q: np.ndarray, y: np.ndarray) -> None:
+        """The session's set-up fitted anew on the samples ``q``, ``y`` (as ``verify`` does)."""
+        data = Dataset(q=self._links(q), y=y, measurement=self.measurement, robot=self.robot.name)
+        names = setup_names(self.robot, self.measurement)
+        problem = Problem.build(self.robot, data, mask=names, params=self.params)
+        fit = levenberg_marquardt(problem)
+        self.params = problem.full(fit.x)
+        self.refit = {"names": names, "samples": len(q)}
+
+    def _moved_sensor(self, q: np.ndarray, y: np.ndarray, floor: np.ndarray, index: list, row) -> Optional[Alarm]:
+        """A ``setup`` alarm if the opening's innovations at the calibration's set-up exceed its
+        held-out error ``floor`` and the set-up re-fitted on them by :data:`FIT_RATIO` (RMS) each —
+        the sensor stands elsewhere (a change before the stream, which the window's constant would
+        absorb unseen) —, the set-up then kept re-fitted; else None and the set-up as calibrated."""
+        seen = floor > 0
+        if not seen.any():
+            return None
+        before, _ = self._innovations(q, y)
+        calibrated = self.params.copy()
+        self._refit_setup(q, y)
+        after, _ = self._innovations(q, y)
+        rms = lambda e: float(np.sqrt(np.mean(e[:, seen] ** 2)))  # noqa: E731
+        ratio = rms(before) / float(np.sqrt(np.mean(floor[seen] ** 2)))
+        if ratio <= FIT_RATIO or rms(before) <= FIT_RATIO * rms(after):
+            self.params, self.refit = calibrated, {}
+            return None
+        logger.info("monitor: the opening's readings are %.3g x the calibration's held-out error: the set-up re-fitted", ratio)
+        return Alarm(index[-1], row, index[0], "setup", None, [], "", list(self.refit["names"]), ratio, provisional=False)
 
     def _push(self, i: int, e: np.ndarray, J: np.ndarray) -> None:
         z = e / self.sigma
@@ -565,10 +626,39 @@ class Monitor:
                 return step
             return None
         self._told = None
+        left = self._left_by(found, i)
+        if left > FIT_RATIO:  # no single kind explains it: said so, nothing applied, the monitor opens anew
+            found = replace(found, kind="unexplained", joint=None, size=[], unit="", names=[], evidence=left, could_be=[_kind_words(found)] + found.could_be)
+            self.alarms.append(found)
+            self._reopen()
+            return found
         self._apply(found)
         self.alarms.append(found)
         self._buffers.clear()  # the window starts anew under the changed model
         return found
+
+    def _left_by(self, found: Alarm, now: int) -> float:
+        """The RMS of what ``found`` leaves of the whitened innovations from its start to ``now``:
+        about 1 where it explains the change."""
+        change = next(c for c in self.changes if c.kind == found.kind and c.joint == found.joint)
+        recent = list(self._delayed)[-(now - found.since + 1) :]
+        z = np.array([zj for zj, _ in recent])
+        Jw = np.array([Jj for _, Jj in recent])
+        effect = Jw[:, :, [self.columns.index(c) for c in change.columns]] @ found.delta
+        if change.ramp:
+            effect = effect * np.arange(len(recent))[:, None]
+        left = z - effect
+        return float(np.sqrt(np.mean(left**2)))
+
+    def _reopen(self) -> None:
+        """Starts anew after an unexplained change: the next opening samples re-fit the set-up and
+        measure the innovations again."""
+        self.sigma = None
+        self._opening.clear()
+        self._buffers.clear()
+        self._delayed.clear()
+        self._drift_left = 0
+        self._reopened = True
 
     def _test(self, now: int, row) -> tuple[Alarm | None, Alarm | None]:
         """The change with the strongest evidence over its threshold, or None; and the sensor's
@@ -608,10 +698,11 @@ class Monitor:
                 self._unit(change),
                 list(change.names),
                 stat / self.threshold[len(change.columns)],
+                delta=np.array(delta, dtype=float),
             )
             others = [r for r in ranked if r[1] is not change]
             found.margin = float(surprise - others[0][0]) if others else float("inf")
-            found.could_be = [c.kind if c.joint is None else f"joint {c.joint}'s zero" for v, c, *_ in others if v > surprise - DISTINCT]
+            found.could_be = [_kind_words(c) for v, c, *_ in others if v > surprise - DISTINCT]
             return found
 
         found = alarm(*crossed[0])
