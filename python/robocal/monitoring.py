@@ -86,8 +86,9 @@ MAX_WAIT = 25
 #: alarms over long clean cable streams came at 1.0-1.5 times their thresholds, all but one).
 TOLD_AT = 2.0
 #: A change is named for good only if what it leaves of the innovations from its start on is
-#: within this many times their noise (RMS of the whitened innovations): else no single kind
-#: explains it, and the monitor says so and opens anew. The same ratio between the opening's
+#: within this many times what the model left before it (RMS): else no single kind explains it,
+#: and the monitor says so and opens anew. (Simulated changes named right leave 1.0-1.7 times; D2's
+#: re-zero, named as joint 4's zero, 3.2.) The same ratio between the opening's
 #: innovations at the calibration's set-up and with it re-fitted (and against the calibration's
 #: held-out error) says the sensor stands elsewhere than the calibration placed it.
 FIT_RATIO = 2.0
@@ -154,7 +155,7 @@ class Alarm:
         if self.kind == "unexplained":
             return (
                 f"sample {self.sample} (row {self.row}): a change from sample {self.since} that no single kind explains: the likeliest, "
-                f"{self.could_be[0]}, leaves {self.evidence:.1f}x the noise (RMS)"
+                f"{self.could_be[0]}, leaves {self.evidence:.1f}x what the model left before it (RMS)"
                 + (f"; {' and '.join(self.could_be[1:])} explain it about as well" if len(self.could_be) > 1 else "")
                 + ": nothing applied; the monitor opens anew, re-fitting the set-up on its next opening samples — a calibration may be due"
             )
@@ -638,17 +639,30 @@ class Monitor:
         return found
 
     def _left_by(self, found: Alarm, now: int) -> float:
-        """The RMS of what ``found`` leaves of the whitened innovations from its start to ``now``:
-        about 1 where it explains the change."""
+        """How much more ``found`` leaves of the innovations after its start than the model left
+        before it: the window's constant (profiled as the test profiles it) fitted to the samples
+        before the start, the change then fitted to those after it; the RMS of what is left after
+        the start over that before it (its degrees of freedom counted). About 1 where the change
+        explains what follows as the model explained what preceded."""
         change = next(c for c in self.changes if c.kind == found.kind and c.joint == found.joint)
-        recent = list(self._delayed)[-(now - found.since + 1) :]
-        z = np.array([zj for zj, _ in recent])
-        Jw = np.array([Jj for _, Jj in recent])
-        effect = Jw[:, :, [self.columns.index(c) for c in change.columns]] @ found.delta
-        if change.ramp:
-            effect = effect * np.arange(len(recent))[:, None]
-        left = z - effect
-        return float(np.sqrt(np.mean(left**2)))
+        window = list(self._delayed)[-min(self._buffers.n, len(self._delayed)) :]
+        z = np.array([zj for zj, _ in window])
+        Jw = np.array([Jj for _, Jj in window])
+        n_after = now - found.since + 1
+        z0, J0, z1, J1 = z[:-n_after], Jw[:-n_after], z[-n_after:], Jw[-n_after:]
+        free = int(np.sum(self.prior == 0))  # the set-up's columns, which the constant fits unhindered
+        if z0.size <= free + MIN_AFTER:  # too few samples before it in this window: against the noise
+            level, before = np.zeros(Jw.shape[2]), 1.0
+        else:
+            A, b = J0.reshape(-1, J0.shape[2]), z0.ravel()
+            level = np.linalg.lstsq(A.T @ A + np.diag(self.prior), A.T @ b, rcond=None)[0]
+            before = float(np.sum((b - A @ level) ** 2) / (b.size - free))
+        rest = z1 - J1 @ level
+        onset = np.arange(n_after, dtype=float) if change.ramp else np.ones(n_after)
+        Jc = (J1[:, :, [self.columns.index(c) for c in change.columns]] * onset[:, None, None]).reshape(-1, len(change.columns))
+        delta = np.linalg.lstsq(Jc, rest.ravel(), rcond=None)[0]
+        after = float(np.sum((rest.ravel() - Jc @ delta) ** 2) / max(rest.size - len(change.columns), 1))
+        return float(np.sqrt(after / max(before, 1e-300)))
 
     def _reopen(self) -> None:
         """Starts anew after an unexplained change: the next opening samples re-fit the set-up and
