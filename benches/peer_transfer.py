@@ -70,8 +70,9 @@ def as_robocal(peer) -> Robot:
 
 def pybotics_fit(data, options: dict, jacobian: bool):
     """pybotics' calibration of ``data``: the fitted robot (robocal's), the scipy result, the largest
-    gap between robocal's residual and pybotics' own ``optimize_accuracy`` (start and end), and
-    pybotics' nominal robot (robocal's). ``jacobian``: the distances' analytic Jacobian (from robocal's
+    gap between robocal's residual and pybotics' own ``optimize_accuracy`` (start and end),
+    pybotics' nominal robot (robocal's) and, after each residual evaluation (2-point differences
+    included), the best robot so far (what a stop there would return). ``jacobian``: the distances' analytic Jacobian (from robocal's
     core) instead of scipy's 2-point differences — the same solver, ~30 times fewer evaluations."""
     import scipy.optimize
     from pybotics.geometry import vector_2_matrix
@@ -93,8 +94,13 @@ def pybotics_fit(data, options: dict, jacobian: bool):
         handler.apply_optimization_vector(x)
         return as_robocal(handler.robot)
 
+    path = []  # (evaluations so far, the best parameters so far): where a stop after so many evaluations leaves the fit
+
     def distances(x):
-        return np.linalg.norm(robot_at(x).residuals("position", q, y), axis=1)
+        d = np.linalg.norm(robot_at(x).residuals("position", q, y), axis=1)
+        cost = float(d @ d)
+        path.append((cost, x.copy()) if not path or cost < path[-1][0] else path[-1])
+        return d
 
     def distances_jacobian(x):
         robot = robot_at(x)
@@ -108,8 +114,9 @@ def pybotics_fit(data, options: dict, jacobian: bool):
         return J
 
     out = scipy.optimize.least_squares(distances, x0, jac=distances_jacobian if jacobian else "2-point", **options)
+    stops = [robot_at(x) for _, x in path]
     gap = max(float(np.max(np.abs(distances(x) - optimize_accuracy(x, handler, q, y)))) for x in (x0, out.x))
-    return robot_at(out.x), out, gap, as_robocal(PyboticsRobot.from_parameters(ur10()))
+    return robot_at(out.x), out, gap, as_robocal(PyboticsRobot.from_parameters(ur10())), stops
 
 
 def transferred(robot: Robot, data) -> float:
@@ -134,6 +141,7 @@ def main() -> None:
         print("### Each fit on one series, verified on the others (mm)\n")
         print("| fit on | tool, solve | training RMSE | verified on | evaluations | stop | implausible parameters |")
         print("|---|---|---|---|---|---|---|")
+        paths = {}
         for source, train in data.items():
             result = levenberg_marquardt(Problem.build(robocal.robot("ur10"), train))
             doc = result.to_dict()
@@ -148,7 +156,9 @@ def main() -> None:
                 f"| {source} | robocal `levenberg_marquardt`, default | {train_rmse:.4f} | {', '.join(cells)} | {result.nfev} | {result.status} | {len(result.implausible())} |"
             )
             for label, (options, jacobian) in SOLVES.items():
-                robot, out, gap, nominal = pybotics_fit(train, options, jacobian)
+                robot, out, gap, nominal, stops = pybotics_fit(train, options, jacobian)
+                if source == "A" and not jacobian:
+                    paths[label] = stops
                 assert gap < 1e-6, f"robocal's MDH chain differs from pybotics' optimize_accuracy by {gap} mm"
                 cells = [f"{t} {transferred(robot, d):.4f}" for t, d in data.items() if t != source]
                 free = [n for n, k in zip(robot.param_names, robot.default_mask("position")) if k]
@@ -157,12 +167,20 @@ def main() -> None:
                     f"| {source} | pybotics, {label} | {np.sqrt(np.mean(out.fun**2)):.4f} | {', '.join(cells)} | "
                     f"{out.nfev} | {out.status}: {out.message} | {len(flagged)} {', '.join(f['name'] for f in flagged)} |"
                 )
+        print("\n### pybotics' fit on A stopped after so many residual evaluations, verified on the others (mm)\n")
+        print("| solve | evaluations (2-point differences included) | training RMSE | verified on B | verified on C |")
+        print("|---|---|---|---|---|")
+        for label, stops in paths.items():
+            for k in sorted({*(k for k in (1, 35, 70, 140, 280, 560, 1120, 2240) if k < len(stops)), len(stops)}):
+                robot = stops[k - 1]
+                train = rmse(robot.residuals("position", data["A"].q, data["A"].y))
+                print(f"| {label} | {k} | {train:.4f} | {transferred(robot, data['B']):.4f} | {transferred(robot, data['C']):.4f} |")
         print("\n### The analytic Jacobian follows scipy's 2-point differences (pybotics on B, mm)\n")
         print("| solve | Jacobian | training RMSE | evaluations | stop | verified on A |")
         print("|---|---|---|---|---|---|")
         for label in ("least_squares defaults (trf)", "least_squares method='lm', defaults"):
             for jacobian in (True, False):
-                robot, out, _, _ = pybotics_fit(data["B"], SOLVES[label][0], jacobian)
+                robot, out, *_ = pybotics_fit(data["B"], SOLVES[label][0], jacobian)
                 print(
                     f"| {label} | {'analytic' if jacobian else '2-point'} | {np.sqrt(np.mean(out.fun**2)):.6f} | {out.nfev} | {out.status} | "
                     f"{transferred(robot, data['A']):.6f} |"
