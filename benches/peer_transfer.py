@@ -124,7 +124,7 @@ def main() -> None:
         print(f"pybotics {peer_version}, robocal {robocal.__version__}; positions; verified with the base frame and tool point re-fitted\n")
         print("### Each fit on one series, verified on the others (mm)\n")
         print(
-            "| fit on | tool, solve | training RMSE | verified on | evaluations (scipy: trf counts none of its 2-point differences, lm all) | stop | implausible parameters |"
+            "| fit on | tool, solve | training RMSE | verified on | evaluations (scipy's nfev: its 2-point differences not counted) | stop | implausible parameters |"
         )
         print("|---|---|---|---|---|---|---|")
         paths = {}
