@@ -99,6 +99,15 @@ START_SAMPLES = 2000
 START_SWITCH = 1e-2
 
 
+def redundancy_words(partners) -> str:
+    """Why a parameter is held fixed: ``partners`` — (name, coefficient on unit-norm columns) of the
+    identifiable parameters that reproduce its effect — the three strongest named."""
+    strongest = sorted(partners, key=lambda p: -abs(p[1]))[:3]
+    if not strongest:
+        return "no effect on the measurements"
+    return "redundant with " + ", ".join(f"{name} ({c:+.3g})" for name, c in strongest)
+
+
 def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] = None, points: Optional[np.ndarray] = None) -> np.ndarray:
     """Nominal kinematics plus a fitted measurement set-up.
 
@@ -333,8 +342,7 @@ class Problem:
         names = [robot.param_names[c] for c in cols]
         fixed = {names[j]: "no effect on the measurements" for j in ident["no_effect"]}
         for j, partners in ident["redundant"]:
-            strongest = sorted(partners, key=lambda p: -abs(p[1]))[:3]
-            fixed[names[j]] = "redundant with " + ", ".join(f"{names[k]} ({c:+.3g})" for k, c in strongest)
+            fixed[names[j]] = redundancy_words([(names[k], c) for k, c in partners])
         free = cols[np.sort(ident["identifiable"])]
         problem = cls(robot=robot, data=data, free=free, start=start, fixed=fixed, prior_scale=DEFAULT_NOISE[data.measurement].sigma)
         problem._distinct = (data, int(labels.max(initial=-1)) + 1)  # for require_dof, while the data are these

@@ -24,7 +24,7 @@ from ..data.identity import require_distinct_sessions
 from ..exceptions import InvalidParameterError
 from ..robot import RESIDUAL_WIDTH, Robot
 from .api import load_inputs
-from .problem import Problem, kinematic_prior_pairs, kinematic_prior_sigmas
+from .problem import Problem, kinematic_prior_pairs, kinematic_prior_sigmas, redundancy_words
 
 #: Causes whose coefficients belong to a session's sensor, not to the robot.
 SESSION_KINDS = ("drift", "step", "wander", "temperature", "outliers", "sensor_periodic", "tracker_azimuth")
@@ -148,10 +148,7 @@ def _redundancy(A: np.ndarray, kept: np.ndarray, j: int, labels: list) -> str:
     before = np.flatnonzero(kept[:j])
     coef, *_ = np.linalg.lstsq(A[:, before], A[:, j], rcond=None)
     share = coef * np.linalg.norm(A[:, before], axis=0) / max(float(np.linalg.norm(A[:, j])), 1e-300)
-    strongest = [k for k in np.argsort(-np.abs(share))[:3] if abs(share[k]) > 1e-3]
-    if not strongest:
-        return "no effect on the measurements"
-    return "redundant with " + ", ".join(f"{labels[before[k]]} ({share[k]:+.3g})" for k in strongest)
+    return redundancy_words([(labels[b], c) for b, c in zip(before, share) if abs(c) > 1e-3])
 
 
 #: A column whose part the set-up's columns do not reproduce is below this fraction of its norm:
