@@ -139,7 +139,11 @@ def test_command_line(case, tmp_path, capsys):
     assert main(["plan", "--from", str(tmp_path / "result.json"), "--poses", "12", "--criterion", "Ds", "--out", str(tmp_path / "p.csv")]) == 0
     out = capsys.readouterr().out
     assert "a re-mastering on these poses: each zero's change ±" in out and "joint 1: no pose tells its zero from the set-up" in out
-    for extra in (["--method", "vslm"], ["--test-fraction", "0.3"], ["--kinematic-prior", "1,0.1"], ["--robot", robot]):
+    # The calibration's own command line plus --prior is taken; another robot is refused.
+    assert main(["calibrate", str(tmp_path / "new.csv"), "--prior", str(tmp_path / "result.json"), "--robot", robot, "--quiet"]) == 0
+    capsys.readouterr()
+    other = "abb-irb120" if robot != "abb-irb120" else "ur10"
+    for extra in (["--method", "vslm"], ["--test-fraction", "0.3"], ["--kinematic-prior", "1,0.1"], ["--robot", other]):
         assert main(["calibrate", str(tmp_path / "new.csv"), "--prior", str(tmp_path / "result.json"), *extra]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("robocal: error: --"), err

@@ -12,7 +12,7 @@ from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..outputs import printable
 from ..remastering import remaster
-from ..results import save_result
+from ..results import load_result, save_result
 from .arguments import add_data_arguments, add_kinematic_prior_argument
 
 
@@ -129,7 +129,10 @@ def _remaster(args: argparse.Namespace) -> int:
     if len(args.data) != 1:
         raise InvalidParameterError(f"a re-mastering (--prior) reads one session's file; got {len(args.data)}")
     if args.robot is not None:
-        raise InvalidParameterError("--robot: a re-mastering (--prior) is of the result's robot")
+        # The same command line as the calibration's, plus --prior, is welcome; another robot is not.
+        named = load_result(args.prior)[1].get("robot")
+        if args.robot != named:
+            raise InvalidParameterError(f"--robot {args.robot}: a re-mastering (--prior) is of the result's robot, {named!r}; omit --robot or give that one")
     found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=args.angle_unit)
     if args.out:
         save_result(found.document, args.out)
