@@ -292,3 +292,32 @@ def test_the_window_sums_are_the_windows_own(seed, k, extra, clear_at):
                 scale = np.abs(F).max()
                 np.testing.assert_allclose(score[n, j], s, rtol=1e-7, atol=1e-7 * np.sqrt(scale))
                 np.testing.assert_allclose(info[n, j], F, rtol=1e-7, atol=1e-7 * scale)
+
+
+def test_a_stream_on_standard_input_refuses_bad_lines_and_goes_on(tmp_path, capsys, monkeypatch, monitor_result):
+    """``robocal monitor RESULT -``: lines as they come; a line cut short, a value that is not a
+    number, a repeated header and a clock that goes backwards are each refused naming their row;
+    the samples around them are monitored."""
+    import io
+
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(monitor_result))
+    stream, _ = simulate("ur10", "position", samples=60, seed=3, session=1)
+    write_canonical(stream, tmp_path / "s.csv")
+    lines = (tmp_path / "s.csv").read_text().splitlines()
+    header, rows = lines[0], lines[1:]
+    t_at = header.split(",").index("t")
+    back = rows[20].split(",")
+    back[t_at] = "-5"
+    bad = [rows[10][:25], rows[15].replace(rows[15].split(",")[0], "x", 1), header, ",".join(back)]
+    text = "\n".join([header, *rows[:20], bad[0], bad[1], "", bad[2], bad[3], *rows[21:]])
+    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    assert main(["monitor", str(result), "-", "--new-session", "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    refused = [line for line in err.splitlines() if "refused" in line]
+    assert len(refused) == 4, err
+    assert "row 22 refused" in refused[0] and "cells" in refused[0]
+    assert "row 23 refused" in refused[1] and "'q1'" in refused[1]
+    assert "row 25 refused" in refused[2]
+    assert "row 26 refused" in refused[3] and "clock goes backwards" in refused[3] and "'t'" in refused[3]
+    assert out.startswith(f"{len(rows) - 1} samples, 0 alarms, 4 refused")

@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _stdin_samples(monitor: Monitor, angle_unit):
     """``(q, y, row)`` of each line of a canonical CSV on standard input, as it comes; a line that
     does not parse is refused with a note naming its row, and the stream goes on."""
-    header = None
+    header, last_t = None, -float("inf")
     for number, line in enumerate(sys.stdin, start=1):
         if not line.strip():
             continue
@@ -51,10 +51,14 @@ def _stdin_samples(monitor: Monitor, angle_unit):
             continue
         try:
             sample = canonical_dataset(Table(header, [(number, cells)], "<stdin>"), angle_unit or "deg", monitor.measurement, None, False)
+            if sample.t is not None and not sample.t[0] >= last_t:
+                # the stream is taken in the order it comes: a sample from the past is not acquisition order
+                raise DataError(f"the clock goes backwards: t = {sample.t[0]:g} after {last_t:g}", "<stdin>", number, "t")
         except DataError as exc:
             monitor.refused.append(f"row {number} refused: {exc}")
             print(f"  row {number} refused: {printable(str(exc), one_line=True)}", file=sys.stderr)
             continue
+        last_t = last_t if sample.t is None else float(sample.t[0])
         yield sample.q[0], sample.y[0], number
     if header is None:
         raise DataError("no header line: a canonical CSV starts with its column names", "<stdin>", 1)
