@@ -175,3 +175,18 @@ def test_distance_accuracy_samples_pairs_deterministically(monkeypatch):
     assert drawn["sampled"] and drawn["n"] == 5000 and drawn["of_pairs"] == every["n"] == 300 * 299 // 2
     assert drawn == acceptance.iso9283(r, y, q, "position")["distance_accuracy_mm"]
     assert drawn["rms"] == pytest.approx(every["rms"], rel=0.05)
+
+
+def test_a_plans_expected_readings_are_not_taken_for_measurements(tmp_path, sessions, capsys):
+    """``plan --from`` writes the readings the model expects, to be overwritten with the sensor's:
+    verified as they are, the calibrated model reproduces them exactly — no figure of the robot.
+    verify says so and does not call them held out."""
+    first, _ = sessions
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(robocal.calibrate(first, robot="ur10").to_dict()))
+    assert main(["plan", "--from", str(result), "--poses", "12", "--out", str(tmp_path / "p.csv"), "--quiet"]) == 0
+    capsys.readouterr()
+    report = robocal.verify(str(result), str(tmp_path / "p.csv"))
+    assert report["held_out"] is False
+    assert any("not measurements" in note for note in report["notes"])
+    assert "its own predictions" in report["verdict"]["why"]

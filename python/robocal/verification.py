@@ -38,6 +38,9 @@ from .serial_robot import Robot, setup_names
 logger = logging.getLogger(__name__)
 
 SCHEMA = "robocal.verify/1"
+#: Readings the calibrated model reproduces within this (mm, every reading) are its own predictions
+#: (a plan's expected readings, simulated data), not measurements: no sensor resolves 1 nm.
+OWN_PREDICTION_MM = 1e-6
 
 
 def _refit_setup(robot: Robot, data: Dataset) -> tuple[np.ndarray, dict, list[str]]:
@@ -131,9 +134,16 @@ def verify(
     nominal = nominal_residuals(model.nominal, model.read)
     covered = model.covered
     held_out, seen = _seen_by_fit(doc, dataset, model.read)
+    not_held = "these data trained it, so they cannot bear it out"
+    if held_out and np.max(np.abs(residuals)) < OWN_PREDICTION_MM:
+        held_out, not_held = False, "these readings are its own predictions, not measurements, so they cannot bear it out"
+        seen = seen + [
+            f"these readings are what the calibrated model predicts, within {OWN_PREDICTION_MM:g} mm at every sample: they are not "
+            "measurements (a plan's expected readings not yet overwritten with the sensor's?), so these figures say nothing of the robot"
+        ]
     here, before = (metrics(r, dataset.measurement)["rmse"] for r in (residuals, nominal))
     return {
-        "verdict": _verdict_here(doc, here, before, held_out),
+        "verdict": _verdict_here(doc, here, before, held_out, not_held),
         "held_out": held_out,
         "notes": seen + list(dataset.notes),  # and what the reader and load_inputs noticed (data naming another robot)
         "schema": SCHEMA,
@@ -160,14 +170,15 @@ def verify(
     }
 
 
-def _verdict_here(doc: dict, rmse: float, nominal_rmse: float, held_out: bool) -> dict:
+def _verdict_here(doc: dict, rmse: float, nominal_rmse: float, held_out: bool, not_held: str) -> dict:
     """The result's verdict (:func:`~robocal.calibration.result.verdict`) as these data bear it
-    out: a calibration that predicts new data worse than the nominal robot is not determined."""
+    out: a calibration that predicts new data worse than the nominal robot is not determined;
+    ``not_held`` says why data that are not held out cannot bear it out."""
     word, why = verdict(doc)
     if held_out and rmse > nominal_rmse:
         word, why = VERDICTS[2], f"on these new data it predicts worse than the nominal robot (RMSE {rmse:.4g} against {nominal_rmse:.4g} mm); {why}"
     elif held_out:
         why += f"; on these new data RMSE {rmse:.4g} mm against the nominal robot's {nominal_rmse:.4g} mm"
     else:
-        why += "; these data trained it, so they cannot bear it out"
+        why += f"; {not_held}"
     return {"verdict": word, "why": why}
