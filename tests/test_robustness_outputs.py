@@ -335,6 +335,17 @@ def test_a_refused_run_into_a_new_folder_leaves_no_folder(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [bad]
 
 
+@pytest.mark.parametrize("command", ["diagnose", "report", "compare"])
+def test_a_file_name_given_for_an_output_folder_is_refused_before_any_work(inputs, tmp_path, capsys, command):  # noqa: F811
+    """``diagnose --out report.json`` made a folder called report.json: a new folder named like a
+    file is a file name in the wrong place. An existing folder of that name is the user's choice."""
+    data, result = inputs / "d.csv", inputs / "result.json"
+    argv = {"diagnose": ["diagnose", data, "--robot", ROBOT], "report": ["report", result], "compare": ["compare", data, "--robot", ROBOT]}[command]
+    err = refused([*argv, "--out", tmp_path / "out.json"], capsys)
+    assert "an output folder is expected" in err and "(.json)" in err
+    assert not (tmp_path / "out.json").exists()
+
+
 # -- row 19: what goes to the terminal ---------------------------------------------------------------
 HOSTILE = "ur10\x1b[2K\r  train: RMSE 0.0001 (faked)\n  fake \u202eline"
 

@@ -70,6 +70,11 @@ def refuse_special(path) -> None:
         raise OutputError(f"{path}: is {kind}, not a regular file; robocal writes only regular files (it would replace this one), choose another path")
 
 
+#: Suffixes of the files robocal writes: a new output folder so named is a file name given in the
+#: wrong place (`diagnose --out report.json` made a folder called report.json).
+FILE_SUFFIXES = (".json", ".jsonl", ".csv", ".html", ".htm", ".png", ".svg", ".pdf", ".urdf", ".yaml", ".yml", ".txt", ".xlsx", ".md")
+
+
 def _writable_folder(folder: Path, what) -> None:
     if not folder.is_dir():
         raise OutputError(f"{what}: the folder {folder} does not exist")
@@ -136,6 +141,11 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
                 raise OutputError(f"{folder}: the output folder holds the input {inside}; choose another folder")
             _writable_folder(folder, folder)
         else:
+            if folder.suffix.lower() in FILE_SUFFIXES:
+                raise OutputError(
+                    f"{folder}: an output folder is expected here (it would hold several files), and this name ends like one file "
+                    f"({folder.suffix}); name the folder without it, or give the command's option for that file"
+                )
             ancestor = next(p for p in folder.resolve().parents if p.exists())
             _writable_folder(ancestor, folder)
     claims: list[FolderClaim] = []
