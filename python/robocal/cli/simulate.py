@@ -16,7 +16,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--measurement", default="cable", choices=MEASUREMENTS, help="observation type (default cable)")
     parser.add_argument("--samples", type=int, default=400, help="number of samples (default 400)")
     parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    parser.add_argument("--session", type=int, default=0, help="another session of the same robot: new path, noise and set-up (default 0)")
+    parser.add_argument(
+        "--session",
+        type=int,
+        default=0,
+        help="another session of the same robot (same --seed and --measurement: the robot is drawn on what that kind of sensor identifies): new path, noise and set-up (default 0)",
+    )
     parser.add_argument(
         "--effect", action="append", default=[], metavar="KIND[:key=value,...]", help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}"
     )
