@@ -87,8 +87,8 @@ MAX_WAIT = 25
 TOLD_AT = 2.0
 #: A change is named for good only if what it leaves of the innovations from its start on is
 #: within this many times what the model left before it (RMS): else no single kind explains it,
-#: and the monitor says so and opens anew. (Simulated changes named right leave 1.0-1.7 times; D2's
-#: re-zero, named as joint 4's zero, 3.2.) The same ratio between the opening's
+#: and the monitor says so and opens anew. (Simulated changes named right leave 0.7-1.5 times; D2's
+#: re-zero as joint 4's zero 1.9 over its first 15 samples: too close to tell.) The same ratio between the opening's
 #: innovations at the calibration's set-up and with it re-fitted (and against the calibration's
 #: held-out error) says the sensor stands elsewhere than the calibration placed it.
 FIT_RATIO = 2.0
