@@ -47,7 +47,7 @@ import numpy as np
 from scipy.special import chdtri, gammaincc
 
 from .calibration.lm import levenberg_marquardt
-from .calibration.problem import Problem
+from .calibration.problem import TOLERANCE, Problem, is_kinematic
 from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets
 from .data.dataset import OBSERVATION_COLUMNS, Dataset
@@ -87,8 +87,8 @@ MAX_WAIT = 25
 TOLD_AT = 2.0
 #: A change is named for good only if what it leaves of the innovations from its start on is
 #: within this many times what the model left before it (RMS): else no single kind explains it,
-#: and the monitor says so and opens anew. (Simulated changes named right leave 1.0-1.7 times; D2's
-#: re-zero, named as joint 4's zero, 3.2.) The same ratio between the opening's
+#: and the monitor says so and opens anew. (Simulated changes named right leave 0.7-1.5 times; D2's
+#: re-zero as joint 4's zero 1.9 over its first 15 samples: too close to tell.) The same ratio between the opening's
 #: innovations at the calibration's set-up and with it re-fitted (and against the calibration's
 #: held-out error) says the sensor stands elsewhere than the calibration placed it.
 FIT_RATIO = 2.0
@@ -184,6 +184,18 @@ def _surprise(stat: float, d: int) -> float:
     if tail > 1e-300:
         return float(-math.log(tail))
     return stat / 2.0 - (d / 2.0 - 1.0) * math.log(stat / 2.0) + math.lgamma(d / 2.0)
+
+
+def _ridged_inverse(G: np.ndarray) -> np.ndarray:
+    """``G⁻¹`` with a ridge of a millionth of each column's own information: a direction the
+    window does not determine stays at the calibration's value instead of making the inverse blow
+    up. Per column, not of the mean information: the columns mix mm and rad, an angle's
+    information is up to 10⁷ times a length's, and a ridge of the mean held the lengths — the
+    set-up's own among them — at their values, so that the model's error along a path, which they
+    would have absorbed, read as a change (the false alarms over long clean cable streams). A
+    column without any information (its row zero) gets a unit ridge: its level stays zero."""
+    information = np.diag(G)
+    return np.linalg.inv(G + np.diag(np.where(information > 0, 1e-6 * information, 1.0)))
 
 
 class _Buffers:
@@ -318,10 +330,7 @@ class _Buffers:
         calibration's error as the window sees it)."""
         rows = self.order[1:starts]
         n, p, h = len(rows), self.p, len(self.tested)
-        G = self.window_G + np.diag(prior)
-        # A ridge a millionth of the mean information: a direction the window does not determine
-        # stays at the calibration's value instead of making the inverse blow up.
-        inverse = np.linalg.inv(G + 1e-6 * np.trace(G) / len(G) * np.eye(len(G)))
+        inverse = _ridged_inverse(self.window_G + np.diag(prior))
         level = inverse @ self.window_g
         tau = self.times[rows] - self.origin
         after = np.take(self._ring, rows, axis=0, out=self._after[:n])
@@ -413,15 +422,28 @@ class Monitor:
         self.changes = self._changes()
         # The null hypothesis is no change in the window, the parameters then as the calibration
         # left them or anywhere near (its own error): every parameter it estimated is profiled out
-        # over the window, held near its value by the calibration's standard deviation (the
-        # session's set-up free), so the calibration's error along a path is no evidence.
+        # over the window (the session's set-up free), so the calibration's error along a path is
+        # no evidence. Each is held near its value by the calibration's standard deviation and, a
+        # kinematic one, by the manufacturing tolerance too (TOLERANCE, the calibration's own
+        # prior): a direction the calibration left undetermined (D2's: stds of tens of mm) would
+        # otherwise let the constant absorb a change as a geometry no arm has. The parameters it
+        # fixed stay at their values: redundant with estimated ones wherever the arm goes (a point
+        # sensor's tool against the last joint, the base's turn against the first), profiling
+        # them too explained nothing more of the long clean cable streams' innovations.
         names = self.robot.param_names
         fitted = [names.index(n) for n in self.doc.get("free", []) if n in names]
         self.columns = sorted({c for change in self.changes for c in change.columns} | set(fitted))
         std = {p["name"]: p.get("std") for p in self.doc["parameters"]}
         private = set(setup_names(self.robot, self.measurement)) | {"cable_offset"}
+        units = dict(zip(names, self.robot.param_units))
+
+        def hold(name: str) -> float:  # the inverse variance the window's constant is held by
+            if name in private:
+                return 0.0
+            return (1.0 / std[name] ** 2 if std.get(name) else 0.0) + (1.0 / TOLERANCE[units[name]] ** 2 if is_kinematic(name) else 0.0)
+
+        self.prior = np.array([hold(names[c]) for c in self.columns])
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
-        self.prior = np.array([0.0 if names[c] in private or not std.get(names[c]) else 1.0 / std[names[c]] ** 2 for c in self.columns])
         self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
         self._limits = tuple(np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
         self.samples = 0
@@ -545,7 +567,7 @@ class Monitor:
         Jw = J / self.sigma[None, :, None]
         per_sample = np.einsum("mkp,mkq->pq", Jw, Jw) / len(q)
         window = WINDOW * per_sample + np.diag(self.prior)
-        window_inverse = np.linalg.inv(window + 1e-6 * np.trace(window) / len(window) * np.eye(len(window)))
+        window_inverse = _ridged_inverse(window)
         for change in self.changes:
             if change.ramp:
                 continue
