@@ -163,11 +163,6 @@ def test_d2s_cable_re_zeroing_is_alarmed_at_once_as_a_step(datasets):
     assert np.array_equal(monitor.params, before)  # told, not applied
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="joint 4's zero leaves 1.9x the noise over the 15 samples after the re-zero, under FIT_RATIO: the 3.2x before came from a "
-    "window's constant held by a ridge (docs/monitor.md, D2); a naming rule that tells them apart is open",
-)
 def test_d2s_re_zeroing_is_not_named_as_a_joint_it_does_not_fit(datasets):
     """Past the provisional step, the likeliest single kind on D2 (joint 4's zero) leaves the
     innovations after the re-zero at several times their noise: the monitor names no joint,
