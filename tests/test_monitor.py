@@ -219,6 +219,13 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
         monitor.update(q[:1, :3], y[:1])
     with pytest.raises(ShapeError, match=r"`y` must hold 3 readings \(position\) for each of the 2 samples; got shape \(1, 6\)"):
         monitor.update(q[:2], y[:2].ravel())
+    # rows for fewer samples than given: refused whole (zip would have dropped the rest unseen)
+    seen = monitor.samples
+    with pytest.raises(ShapeError, match="`rows` must name the file row of each of the 2 samples; got 1"):
+        monitor.update(q[:2], y[:2], rows=[7])
+    with pytest.raises(ShapeError, match=r"one sample \(N,\) or a block of samples \(m, N\); got shape \(1, 2, 6\)"):
+        monitor.update(q[None, :2], y[None, :2])
+    assert monitor.samples == seen
 
 
 @settings(max_examples=60, deadline=None)

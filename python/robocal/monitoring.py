@@ -490,7 +490,9 @@ class Monitor:
     def _checked(self, q, y) -> tuple[np.ndarray, np.ndarray]:
         q, y = np.atleast_2d(as_float_array(q, "q")), np.atleast_2d(as_float_array(y, "y"))
         readings = len(OBSERVATION_COLUMNS[self.measurement])
-        if q.ndim != 2 or q.shape[1] != self.robot.n_joints:
+        if q.ndim != 2:
+            raise ShapeError(f"`q` must be one sample (N,) or a block of samples (m, N); got shape {q.shape}")
+        if q.shape[1] != self.robot.n_joints:
             raise ShapeError(f"a sample has {q.shape[-1]} joint values; the result's robot {self.robot.name!r} has {self.robot.n_joints}")
         if y.ndim != 2 or y.shape != (len(q), readings):
             raise ShapeError(f"`y` must hold {readings} readings ({self.measurement}) for each of the {len(q)} samples; got shape {y.shape}")
@@ -508,6 +510,8 @@ class Monitor:
         (:attr:`refused`) and the stream goes on."""
         q, y = self._checked(q, y)
         rows = [None] * len(q) if rows is None else list(rows)
+        if len(rows) != len(q):  # else zip would drop the samples past the shorter
+            raise ShapeError(f"`rows` must name the file row of each of the {len(q)} samples; got {len(rows)}")
 
         raised = []
         lower, upper = self._limits
