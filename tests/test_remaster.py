@@ -200,3 +200,19 @@ def test_the_report_of_a_remastered_result_shows_the_remastering_not_a_corrupt_f
     )
     moved = [j for j in found.report["joints"] if j["status"] == "moved"]
     assert [j["joint"] for j in moved] == [3] and f"{moved[0]['change']:+.4g} ± " in page
+
+
+def test_a_re_mastering_that_raises_the_error_says_its_zeros_are_not_to_be_trusted(tmp_path, capsys):
+    """Points of another robot (a seed's pose simulation is another robot than its position one),
+    read as positions: the premise (only zeros moved) is rejected, and where the re-mastered zeros
+    fit the points worse than the set-up alone, the note says they are not to be trusted."""
+    data, _ = simulate("ur10", "position", samples=300, seed=2)
+    write_canonical(data, tmp_path / "p.csv")
+    other, _ = simulate("ur10", "pose", samples=300, seed=2, session=3)
+    write_canonical(other, tmp_path / "ps.csv")
+    assert main(["calibrate", str(tmp_path / "p.csv"), "--robot", "ur10", "--out", str(tmp_path / "r.json"), "--quiet"]) == 0
+    assert main(["calibrate", str(tmp_path / "ps.csv"), "--prior", str(tmp_path / "r.json"), "--out", str(tmp_path / "re.json"), "--quiet"]) == 0
+    capsys.readouterr()
+    report = json.loads((tmp_path / "re.json").read_text())["remaster"]
+    assert report["rmse"]["remastered"] > report["rmse"]["setup_alone"], report["rmse"]
+    assert any("not to be trusted" in note for note in report["notes"]), report["notes"]

@@ -275,15 +275,18 @@ def remaster(
             }
         )
     p_value = float(chi2.sf(chi, dof)) if dof > 0 else None
-    notes = list(dataset.notes) + ([why] if why else [])
-    if p_value is not None and p_value < alpha:
-        notes.append(
-            f"the residuals are larger than the result's noise and error (χ² {chi:.1f} on {dof} degrees of freedom, p = {p_value:.2g}): "
-            "more than joint zeros changed — a calibration is due"
-        )
 
     def rmse(p):
         return metrics(robot.residuals(links.measurement, links.q, links.y, params=p), links.measurement)["rmse"]
+
+    notes = list(dataset.notes) + ([why] if why else [])
+    if p_value is not None and p_value < alpha:
+        worse = rmse(params) > rmse(start)
+        notes.append(
+            f"the residuals are larger than the result's noise and error (χ² {chi:.1f} on {dof} degrees of freedom, p = {p_value:.2g}): "
+            "more than joint zeros changed — a calibration is due"
+            + ("; re-mastered, the RMSE is even larger than with the set-up alone: the zeros found are not to be trusted" if worse and moved else "")
+        )
 
     report = {
         "joints": entries,
