@@ -609,12 +609,14 @@ class Monitor:
         if not seen.any():
             return None
         before, _ = self._innovations(q, y)
+        rms = lambda e: float(np.sqrt(np.mean(e[:, seen] ** 2)))  # noqa: E731
+        ratio = rms(before) / float(np.sqrt(np.mean(floor[seen] ** 2)))
+        if ratio <= FIT_RATIO:  # as the calibration predicted: the set-up need not be re-fitted to tell
+            return None
         calibrated = self.params.copy()
         self._refit_setup(q, y)
         after, _ = self._innovations(q, y)
-        rms = lambda e: float(np.sqrt(np.mean(e[:, seen] ** 2)))  # noqa: E731
-        ratio = rms(before) / float(np.sqrt(np.mean(floor[seen] ** 2)))
-        if ratio <= FIT_RATIO or rms(before) <= FIT_RATIO * rms(after):
+        if rms(before) <= FIT_RATIO * rms(after):
             self.params, self.refit = calibrated, {}
             return None
         logger.info("monitor: the opening's readings are %.3g x the calibration's held-out error: the set-up re-fitted", ratio)
