@@ -696,7 +696,7 @@ class Monitor:
         else:
             # Held out: a constant change fitted on the first half of the samples after its start
             # predicts the second half (a change that is there stays as it was; a kind that only
-            # follows what it sees wanders: D2's re-zero as joint 4's zero moved 0.8 deg in 17 samples).
+            # follows the samples it sees does not predict the next ones: D2's re-zero as joint 4's zero).
             half = (n_after + 1) // 2
             fit_on, check = Jc[:half].reshape(-1, Jc.shape[2]), Jc[half:].reshape(-1, Jc.shape[2])
             delta = np.linalg.lstsq(fit_on, rest[:half].ravel(), rcond=None)[0]

@@ -279,9 +279,10 @@ def remaster(
     def rmse(p):
         return metrics(robot.residuals(links.measurement, links.q, links.y, params=p), links.measurement)["rmse"]
 
+    figures = {"setup_alone": rmse(start), "remastered": rmse(params)}
     notes = list(dataset.notes) + ([why] if why else [])
     if p_value is not None and p_value < alpha:
-        worse = rmse(params) > rmse(start)
+        worse = figures["remastered"] > figures["setup_alone"]
         notes.append(
             f"the residuals are larger than the result's noise and error (χ² {chi:.1f} on {dof} degrees of freedom, p = {p_value:.2g}): "
             "more than joint zeros changed — a calibration is due"
@@ -296,7 +297,7 @@ def remaster(
         "noise_from": sigma_from,
         "result_error_counted": C is not None,
         "setup": {robot.param_names[c]: float(params[c]) for c in setup},
-        "rmse": {"setup_alone": rmse(start), "remastered": rmse(params)},
+        "rmse": figures,
         "fit": {"chi2": chi, "dof": dof, "p_value": p_value},
         "samples": len(links),
         "data": dataset.source,
