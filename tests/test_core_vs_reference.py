@@ -254,9 +254,9 @@ def scaled(J):
 
 
 def assert_identifiability_matches(got: dict, want: dict, J: np.ndarray) -> None:
-    """Everything equal, except that the pivot order (and for exactly dependent columns the
-    choice) of the identifiable subset may differ: the first pivot of unit-norm columns is a tie
-    broken by rounding. Then the core's own subset is checked, and its redundancies against the
+    """Everything equal, the identifiable subset in the same pivot order too: both break pivot
+    ties (every first pivot of unit-norm columns, exactly dependent columns) by the lowest column
+    index. The core's subset is checked to be independent, and its redundancies against the
     twin's least squares on that subset."""
     assert set(got) == set(want)
     assert got["rank"] == want["rank"], f"rank {got['rank']} != {want['rank']}, singular values {want['singular_values']}"
@@ -267,6 +267,7 @@ def assert_identifiability_matches(got: dict, want: dict, J: np.ndarray) -> None
     assert got["no_effect"] == want["no_effect"]
     rank, Jn = want["rank"], scaled(J)
     ident = got["identifiable"]
+    assert ident == want["identifiable"], f"identifiable {ident} != {want['identifiable']}"
     assert len(ident) == len(set(ident)) == rank and not set(ident) & set(got["no_effect"])
     if rank:
         s_sub = np.linalg.svd(Jn[:, ident], compute_uv=False)

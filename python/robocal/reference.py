@@ -87,6 +87,10 @@ QUATERNION_NORM_TOL = 1e-3
 NO_EFFECT_REL = 1e-12
 #: Redundancy coefficients (on unit-norm columns) at or below this are not reported.
 REDUNDANCY_COEF_MIN = 1e-6
+#: Pivot ties of :func:`identifiability`: remaining column norms within this relative distance
+#: of the largest go to the lowest column index (exactly equal scaled columns then never depend
+#: on rounding).
+PIVOT_TIE_REL = 1e-9
 #: ``solve_damped``: a Cholesky factor whose smallest squared pivot is <= this times the largest
 #: counts as failed; the SVD fallback drops singular values <= this * n * the largest.
 RANK_TOL = 1e-13
@@ -664,12 +668,32 @@ def _check_tol(tol) -> float:
     return tol
 
 
+def _pivoted_qr_order(A: np.ndarray) -> list[int]:
+    """Pivot order of a Householder QR of ``A`` (p, k) with column pivoting: each step the largest
+    remaining column norm, ties within :data:`PIVOT_TIE_REL` to the lowest column index."""
+    A = np.array(A, dtype=np.float64)
+    p, k = A.shape
+    perm = list(range(k))
+    for i in range(min(p, k)):
+        norms = np.linalg.norm(A[i:, i:], axis=0)
+        tied = np.flatnonzero(norms >= norms.max() * (1.0 - PIVOT_TIE_REL))
+        best = i + min(tied, key=lambda j: perm[i + j])
+        A[:, [i, best]] = A[:, [best, i]]
+        perm[i], perm[best] = perm[best], perm[i]
+        if norms.max() == 0.0:
+            break
+        v = A[i:, i].copy()
+        v[0] += np.copysign(np.linalg.norm(v), v[0])
+        A[i:, i:] -= np.outer(v, 2.0 * (v @ A[i:, i:]) / (v @ v))
+    return perm
+
+
 def identifiability(J, tol: float = 1e-9) -> dict:
     """Which parameters a Jacobian identifies, on unit-norm columns.
 
     The rank counts singular values of the scaled ``J`` above ``tol * sigma_1``; a column-pivoted
-    QR (:func:`scipy.linalg.qr` with ``pivoting=True``) of the columns with an effect picks the
-    identifiable subset (its first ``rank`` pivots); each other column ``j`` is written by least
+    Householder QR of the columns with an effect picks the identifiable subset (its first
+    ``rank`` pivots; ties within :data:`PIVOT_TIE_REL` go to the lowest column index); each other column ``j`` is written by least
     squares as ``J_j ~ sum_k c_k J_k`` over that subset, and the partners ``k`` with
     ``|c_k| >`` :data:`REDUNDANCY_COEF_MIN` (1e-6) are reported. A column counts as having no
     effect when its norm is at most :data:`NO_EFFECT_REL` (1e-12) times the largest.
@@ -690,9 +714,10 @@ def identifiability(J, tol: float = 1e-9) -> dict:
 
     Notes
     -----
-    The scaled columns all have norm 1, so the QR's first pivot is a tie decided by rounding:
-    the *order* (and, for exactly redundant columns, the choice) of the subset may differ
-    between implementations; the rank and the span of the subset do not.
+    The scaled columns all have norm 1, so the first pivot is a tie: the lowest column index.
+    Exactly redundant columns (``theta1`` and ``base_rz``) keep the lower index the same way;
+    only columns whose remaining norms differ by about :data:`PIVOT_TIE_REL` could be chosen
+    otherwise by another implementation's rounding.
     """
     tol = _check_tol(tol)
     J = _array(J, "J", ("m", "n"))
@@ -703,7 +728,7 @@ def identifiability(J, tol: float = 1e-9) -> dict:
     candidates = np.flatnonzero(effective)
     identifiable: list[int] = []
     if candidates.size:
-        _, pivots = scipy.linalg.qr(scaled[:, candidates], mode="r", pivoting=True)
+        pivots = _pivoted_qr_order(scaled[:, candidates])
         identifiable = [int(c) for c in candidates[pivots[:rank]]]
     others = [int(c) for c in candidates if c not in identifiable]
     redundant = []

@@ -173,8 +173,10 @@ def geometric_errors(r: Robot, measurement: str, q: np.ndarray, rng: np.random.G
     """Random geometric errors on the identifiable subset of the default mask.
 
     Lengths get N(0, :data:`LENGTH_ERROR_MM`) mm, angles N(0, :data:`ANGLE_ERROR_DEG`) deg.
-    Parameters redundant with others on these configurations (e.g. ``theta1`` and ``base_rz``)
-    keep their nominal values, so that the truth is unique.
+    Every parameter's error is drawn, in parameter order, whether it is kept or not: a parameter's
+    error does not depend on which others the sensor identifies or on the order a factorisation
+    finds them in. Parameters redundant with others on these configurations (e.g. ``theta1`` and
+    ``base_rz``) keep their nominal values, so that the truth is unique.
 
     Returns
     -------
@@ -185,9 +187,9 @@ def geometric_errors(r: Robot, measurement: str, q: np.ndarray, rng: np.random.G
     cols = np.flatnonzero(r.default_mask(measurement))
     J = r.jacobian(measurement, q, y=r.predict(measurement, q), cols=cols)
     perturbed = cols[identifiability(J)["identifiable"]]
-    units = np.array(r.param_units)[perturbed]
+    drawn = rng.normal(0.0, 1.0, r.n_params) * np.where(np.array(r.param_units) == "mm", LENGTH_ERROR_MM, math.radians(ANGLE_ERROR_DEG))
     errors = np.zeros(r.n_params)
-    errors[perturbed] = np.where(units == "mm", rng.normal(0.0, LENGTH_ERROR_MM, perturbed.size), np.radians(rng.normal(0.0, ANGLE_ERROR_DEG, perturbed.size)))
+    errors[perturbed] = drawn[perturbed]
     return errors, np.sort(perturbed)
 
 

@@ -2,18 +2,31 @@
 //!
 //! Everything is computed on the column-scaled Jacobian (unit-norm columns), so the answer does
 //! not depend on mixing mm and rad. The rank is the number of singular values above
-//! `tol·σ₁`; a column-pivoted QR (faer) picks the identifiable subset in order of independence;
+//! `tol·σ₁`; a column-pivoted QR picks the identifiable subset in order of independence;
 //! every other parameter is written as a combination of that subset, which says what it is
 //! redundant with (e.g. `theta1` with `base_rz`). Covariance: `σ̂² (JᵀJ)⁺` with
 //! `σ̂² = ‖r‖² / (rows − rank)`.
+//!
+//! Both work on the triangular factor `R` (n × n) of the scaled `J` (m × n): `RᵀR = ĴᵀĴ`, so its
+//! singular values, right singular vectors and pivoted QR (Businger & Golub 1965; Golub & Van
+//! Loan §5.4.1) are those of `Ĵ`, at the cost of an n × n problem after one tall-skinny QR.
 
 use crate::error::{CoreError, CoreResult};
-use crate::linalg::{row_major, scale_columns};
+use crate::linalg::{column_scales, row_major};
+use crate::solve::TallQr;
 use faer::prelude::*;
 use faer::Mat;
+use rayon::prelude::*;
 
 /// Coefficients below this (on unit-norm columns) are not reported as redundancy partners.
 pub const REDUNDANCY_COEF_MIN: f64 = 1e-6;
+
+/// Pivot tie margin: columns whose remaining norm is within this relative distance of the largest
+/// are a tie, broken by the lowest column index. Exactly equal scaled columns (`theta1` and
+/// `base_rz`) differ after the QR by round-off (~1e-15 relative, up to ~1e-12 after 10⁵ rows),
+/// far below it, so the choice never hangs on rounding; columns 1e-9 apart in what they
+/// add are equally good pivots.
+pub const PIVOT_TIE_REL: f64 = 1e-9;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Identifiability {
@@ -52,36 +65,87 @@ fn check_tol(tol: f64) -> CoreResult<()> {
     }
 }
 
-/// The triangular factor `R` (n, n) of `a` (m, n) with `m ≥ n` (`a = Q·R`, `Q` not formed): the
-/// singular values, right singular vectors and least-squares solutions of `a` are those of `R`,
-/// so what follows works on an n × n matrix. Tall matrices are split in two halves factored on
-/// two threads, their `R`s stacked and factored again (a tall-skinny QR).
-fn triangular_factor(a: faer::MatRef<'_, f64>) -> Mat<f64> {
-    let (m, n) = (a.nrows(), a.ncols());
-    let r_of = |block: faer::MatRef<'_, f64>| {
-        let r = block.qr().thin_R().to_owned();
-        // (thin_R has min(rows, n) rows: a short block pads with zero rows.)
-        Mat::from_fn(n, n, |i, j| if i < r.nrows() && j >= i { r[(i, j)] } else { 0.0 })
-    };
-    if m < 8 * n.max(16) {
-        return if m >= n { r_of(a) } else { Mat::from_fn(n, n, |i, j| if i < m { a[(i, j)] } else { 0.0 }) };
+/// Rows per block of [`triangular_factor`]: a block (512 × ≤ 60 values, ≤ 240 KB) stays in
+/// cache while it is factored, where one QR of all the rows streams them from memory once per
+/// column; fixed, so the factor does not depend on the number of threads.
+const TSQR_ROWS: usize = 512;
+
+/// The triangular factor `R` (n, n) of the row-major `a` (m, n) with its columns multiplied by
+/// `scale` (`a·S = Q·R`, `Q` not formed): the singular values, right singular vectors and
+/// least-squares solutions of `a·S` are those of `R`, so what follows works on an n × n matrix.
+/// A tall-skinny QR (Demmel et al. 2012): blocks of [`TSQR_ROWS`] rows scaled (a copy that
+/// stays in cache) and factored in parallel ([`TallQr`]), their `R`s stacked and factored the
+/// same way until one block is left. With fewer rows than columns, `a·S` padded with zero rows.
+fn triangular_factor(a: &[f64], m: usize, n: usize, scale: &[f64]) -> Mat<f64> {
+    let scaled = |block: &[f64]| -> Vec<f64> { block.chunks_exact(n).flat_map(|row| row.iter().zip(scale).map(|(x, s)| x * s)).collect() };
+    if m < n {
+        let b = scaled(a);
+        return Mat::from_fn(n, n, |i, j| if i < m { b[i * n + j] } else { 0.0 });
     }
-    let half = m / 2;
-    let (top, bottom) = rayon::join(|| r_of(a.subrows(0, half)), || r_of(a.subrows(half, m - half)));
-    let stacked = Mat::from_fn(2 * n, n, |i, j| if i < n { top[(i, j)] } else { bottom[(i - n, j)] });
-    r_of(stacked.as_ref())
+    let rows = TSQR_ROWS.max(2 * n); // each level at least halves the rows
+    if m <= rows {
+        let qr = TallQr::new(&scaled(a), m, n);
+        return Mat::from_fn(n, n, |i, j| qr.r()[i * n + j]);
+    }
+    // A last block shorter than n rows is stacked as it is: the same Gram matrix.
+    let factor =
+        |block: &[f64]| if block.len() < n * n { scaled(block) } else { TallQr::new(&scaled(block), block.len() / n, n).r().to_vec() };
+    let stacked: Vec<f64> = a.par_chunks(rows * n).map(factor).flatten().collect();
+    triangular_factor(&stacked, stacked.len() / n, n, &vec![1.0; n])
+}
+
+/// `R` of [`triangular_factor`] of `a` with unit-norm columns (`norms`), the columns without
+/// effect set to zero.
+fn scaled_factor(a: &[f64], m: usize, n: usize, norms: &[f64], effective: &[bool]) -> Mat<f64> {
+    let scale: Vec<f64> = norms.iter().zip(effective).map(|(&v, &e)| if e { 1.0 / v } else { 0.0 }).collect();
+    triangular_factor(a, m, n, &scale)
+}
+
+/// Column-pivoted Householder QR of `a` (p, k): returns the pivot order (`perm[i]` is the column
+/// of `a` in position `i`) and `R` (min(p, k), k), upper triangular in pivot order, with
+/// `a[:, perm] = Q·R`. Each step takes the column with the largest remaining norm (recomputed,
+/// not downdated: k is small), ties within [`PIVOT_TIE_REL`] going to the lowest column index.
+pub fn pivoted_qr(a: faer::MatRef<'_, f64>) -> (Vec<usize>, Mat<f64>) {
+    let (p, k) = (a.nrows(), a.ncols());
+    let mut cols: Vec<Vec<f64>> = (0..k).map(|c| (0..p).map(|r| a[(r, c)]).collect()).collect();
+    let mut perm: Vec<usize> = (0..k).collect();
+    let steps = p.min(k);
+    for i in 0..steps {
+        let norms: Vec<f64> = cols[i..].iter().map(|c| c[i..].iter().map(|v| v * v).sum::<f64>().sqrt()).collect();
+        let largest = norms.iter().copied().fold(0.0, f64::max);
+        let best = (0..norms.len()).filter(|&j| norms[j] >= largest * (1.0 - PIVOT_TIE_REL)).min_by_key(|&j| perm[i + j]).unwrap_or(0);
+        cols.swap(i, i + best);
+        perm.swap(i, i + best);
+        let alpha = norms[best];
+        if alpha == 0.0 {
+            break; // every remaining column is zero below row i: R's rest is zero
+        }
+        // Householder reflector v = x − β·e₁ with β = −sign(x₀)‖x‖ (no cancellation).
+        let beta = if cols[i][i] > 0.0 { -alpha } else { alpha };
+        let mut v = cols[i][i..].to_vec();
+        v[0] -= beta;
+        let vv: f64 = v.iter().map(|x| x * x).sum();
+        for col in cols[i + 1..].iter_mut() {
+            let f = 2.0 * v.iter().zip(&col[i..]).map(|(x, y)| x * y).sum::<f64>() / vv;
+            col[i..].iter_mut().zip(&v).for_each(|(y, x)| *y -= f * x);
+        }
+        cols[i][i] = beta;
+        cols[i][i + 1..].iter_mut().for_each(|y| *y = 0.0);
+    }
+    (perm, Mat::from_fn(steps, k, |r, c| if r <= c { cols[c][r] } else { 0.0 }))
 }
 
 /// Identifiability analysis of `J` (m, n) row-major.
 ///
-/// One column-pivoted QR of the scaled `J` (m, n) picks the identifiable subset; the singular
-/// values and the redundancy coefficients come from its triangular factor (n, n).
+/// The triangular factor (n, n) of the scaled `J`, then a column-pivoted QR of its columns with
+/// an effect ([`pivoted_qr`]) picks the identifiable subset; the singular values and the
+/// redundancy coefficients come from that QR's triangular factor.
 ///
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (tol outside (0, 1)).
 pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Identifiability> {
     check_tol(tol)?;
-    let jm = row_major("J", j, m, n)?;
-    let (column_norms, effective, scaled) = scale_columns(jm);
+    row_major("J", j, m, n)?;
+    let (column_norms, effective) = column_scales(j, n);
     let eff_idx: Vec<usize> = (0..n).filter(|&c| effective[c]).collect();
     let no_effect: Vec<usize> = (0..n).filter(|&c| !effective[c]).collect();
     let k = eff_idx.len();
@@ -93,12 +157,14 @@ pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Id
     if k == 0 {
         rank = 0;
     } else {
-        let sub = Mat::from_fn(m, k, |r, c| scaled[(r, eff_idx[c])]);
-        let qr = sub.col_piv_qr();
-        let (fwd, _) = qr.P().arrays();
-        let r = qr.thin_R(); // (min(m, k), k), columns in pivot order
-        let s = singular_values(r)?;
-        values[..s.len()].copy_from_slice(&s);
+        // R's columns of the columns with an effect: the same Gram matrix as theirs in Ĵ.
+        let factor = scaled_factor(j, m, n, &column_norms, &effective);
+        let sub = Mat::from_fn(n, k, |row, c| factor[(row, eff_idx[c])]);
+        let (fwd, r) = pivoted_qr(sub.as_ref()); // r: (k, k) when m ≥ k (n ≥ k rows always)
+        let s = singular_values(r.as_ref())?;
+        // With fewer rows than columns (m < k) the extra values are zeros: keep min(m, n).
+        let kept = s.len().min(values.len());
+        values[..kept].copy_from_slice(&s[..kept]);
         rank = rank_of(&values, tol);
         identifiable = fwd.iter().take(rank).map(|&c| eff_idx[c]).collect();
         // Each other column (pivot position p ≥ rank) in the basis of the first `rank` pivoted
@@ -128,10 +194,10 @@ pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Id
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (no degrees of freedom left).
 pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<(Vec<f64>, f64, usize, usize)> {
     check_tol(tol)?;
-    let jm = row_major("J", j, m, n)?;
+    row_major("J", j, m, n)?;
     let rv = row_major("r", r, m, 1)?;
-    let (norms, effective, scaled) = scale_columns(jm);
-    let factor = triangular_factor(scaled.as_ref());
+    let (norms, effective) = column_scales(j, n);
+    let factor = scaled_factor(j, m, n, &norms, &effective);
     let svd = factor.thin_svd().map_err(|e| CoreError::NoConvergence(format!("SVD of the scaled Jacobian: {e:?}")))?;
     let s = svd.S().column_vector();
     let k = s.nrows().min(m);
@@ -160,6 +226,121 @@ pub fn covariance(j: &[f64], r: &[f64], m: usize, n: usize, tol: f64) -> CoreRes
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// Columns (x, 2·v, 2·v, y) with |x| = 1 < |y| = 1.5 < |2v| = 2: the first pivot is a tie of
+    /// columns 1 and 2 (lowest index wins), after which column 2 has nothing left.
+    #[test]
+    fn exact_tie_goes_to_the_lowest_column_index() {
+        let v = [0.6, 0.0, 0.8, 0.0];
+        let rows: Vec<[f64; 4]> =
+            (0..4).map(|i| [if i == 1 { 1.0 } else { 0.0 }, 2.0 * v[i], 2.0 * v[i], if i == 3 { 1.5 } else { 0.0 }]).collect();
+        let a = Mat::from_fn(4, 4, |r, c| rows[r][c]);
+        let (perm, r) = pivoted_qr(a.as_ref());
+        assert_eq!(perm, vec![1, 3, 0, 2]);
+        assert!(r[(3, 3)].abs() < 1e-15);
+        // The same with the duplicate first and a last-bit difference between the two.
+        let b = Mat::from_fn(4, 4, |r, c| if c == 2 { a[(r, 1)] * (1.0 + 1e-15) } else { a[(r, c)] });
+        assert_eq!(pivoted_qr(b.as_ref()).0, vec![1, 3, 0, 2]);
+    }
+
+    /// theta1 and base_rz alike: scaled columns 1 and 3 equal up to sign, either one the copy,
+    /// on a tall matrix (the triangular factor's two threads). Column 0 takes the first pivot
+    /// (all unit norms tie), so the pair's tie is met after a Householder step: the lower index
+    /// is identifiable, the other redundant with coefficient ±1.
+    #[test]
+    fn equal_scaled_columns_keep_the_lower_index() {
+        let m = 600;
+        let f = |i: usize, c: usize| ((i * (c + 3)) as f64 * 0.37).sin() + 0.1 * c as f64;
+        for (dup, orig) in [(1usize, 3usize), (3, 1)] {
+            let j: Vec<f64> = (0..m).flat_map(|i| (0..4).map(move |c| if c == dup { -2.5 * f(i, orig) } else { f(i, c) })).collect();
+            let id = identifiability(&j, m, 4, 1e-9).unwrap();
+            assert_eq!(id.rank, 3);
+            assert!(id.identifiable.contains(&1) && !id.identifiable.contains(&3), "{:?}", id.identifiable);
+            assert_eq!(id.redundant.len(), 1);
+            let (col, partners) = &id.redundant[0];
+            assert_eq!((*col, partners.len(), partners[0].0), (3, 1, 1));
+            assert!((partners[0].1.abs() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    fn gaussian_like(seed: u64, p: usize, k: usize) -> Mat<f64> {
+        // A fixed xorshift stream: sums of uniforms, scaled per column (mm and rad mixed).
+        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let scales: Vec<f64> = (0..k).map(|_| 10f64.powf(4.0 * next())).collect();
+        Mat::from_fn(p, k, |_, c| (next() + next() + next()) * scales[c])
+    }
+
+    fn row_major_of(a: &Mat<f64>) -> Vec<f64> {
+        (0..a.nrows()).flat_map(|i| (0..a.ncols()).map(move |j| a[(i, j)])).collect()
+    }
+
+    /// Column norms summed row by row: tiny and huge Jacobians (squares that would underflow or
+    /// reach 1e300) give the analysis of the same Jacobian at unit scale.
+    #[test]
+    fn scale_of_the_jacobian_does_not_matter() {
+        let a = gaussian_like(7, 40, 5);
+        let j = row_major_of(&a);
+        let want = identifiability(&j, 40, 5, 1e-9).unwrap();
+        for scale in [1e-170, 1e140] {
+            let got = identifiability(&j.iter().map(|v| v * scale).collect::<Vec<_>>(), 40, 5, 1e-9).unwrap();
+            assert_eq!((got.rank, &got.identifiable), (want.rank, &want.identifiable));
+            for (g, w) in got.column_norms.iter().zip(&want.column_norms) {
+                assert!((g / scale - w).abs() <= 1e-14 * w, "{g} vs {w}");
+            }
+        }
+    }
+
+    /// Blocks, a second level and a short last block (2 600 rows of 7: 6 blocks of 512, the last
+    /// 40 rows; then 42 rows), and one block: `R` equals faer's QR of the whole matrix up to the
+    /// signs of its rows.
+    #[test]
+    fn blocked_triangular_factor_is_the_qr_factor() {
+        for m in [2600, 3076, 300] {
+            let a = gaussian_like(m as u64, m, 7);
+            let got = triangular_factor(&row_major_of(&a), m, 7, &[1.0; 7]);
+            let want = a.qr().thin_R().to_owned();
+            for i in 0..want.nrows() {
+                let sign = if (got[(i, i)] > 0.0) == (want[(i, i)] > 0.0) { 1.0 } else { -1.0 };
+                for j in 0..7 {
+                    let w = if j >= i { want[(i, j)] } else { 0.0 };
+                    assert!(
+                        (sign * got[(i, j)] - w).abs() <= 1e-12 * want[(0, 0)].abs() * 7f64.powi(3),
+                        "m {m} R[{i},{j}]: {} vs {w}",
+                        got[(i, j)]
+                    );
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// On full-rank matrices (no ties) the pivots and |R| equal faer's column-pivoted QR of
+        /// the matrix itself, and of its triangular factor (the same Gram matrix).
+        #[test]
+        fn pivoted_qr_equals_faer(seed in 0u64..1_000_000, k in 1usize..12, extra in 0usize..300) {
+            let a = gaussian_like(seed, k + extra, k);
+            let qr = a.col_piv_qr();
+            let want_perm: Vec<usize> = qr.P().arrays().0.to_vec();
+            let want_r = qr.thin_R();
+            for (what, got) in [("matrix", pivoted_qr(a.as_ref())), ("factor", pivoted_qr(triangular_factor(&row_major_of(&a), k + extra, k, &vec![1.0; k]).as_ref()))] {
+                prop_assert_eq!(&got.0, &want_perm, "{} pivots", what);
+                let scale = want_r[(0, 0)].abs();
+                for r in 0..k {
+                    for c in r..k {
+                        let (g, w) = (got.1[(r, c)].abs(), want_r[(r, c)].abs());
+                        prop_assert!((g - w).abs() <= 1e-11 * scale, "{} R[{},{}]: {} vs {}", what, r, c, g, w);
+                    }
+                }
+            }
+        }
+    }
 
     /// Entries whose squares overflow made every column "no effect" and the rank 0; they are an
     /// `OutOfRange` error now.
