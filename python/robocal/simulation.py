@@ -274,9 +274,10 @@ def simulate(
         ``0``: the acquisition of ``seed``. ``s > 0``: the same robot (the kinematic errors of
         session 0, whatever the ``samples`` of either; the same draws of the effects) measured in
         another session: a new path and noise, and the set-up (base, tool, anchor, zero errors)
-        drawn anew. The same robot for the same ``measurement`` only: the errors are drawn on the
-        parameters that kind of sensor identifies (:func:`geometric_errors`), so a tracker's and a
-        cable's simulation of one seed are two robots.
+        drawn anew. One seed's errors are drawn for every parameter and kept where the kind of
+        sensor identifies them (:func:`geometric_errors`): a position and a pose simulation of one
+        seed are one robot up to what the position sensor cannot see (the tool's orientation); a
+        cable keeps fewer (those redundant with its anchor and zero stay nominal).
     poses : array_like, shape (m, N), optional
         Joint values (rad; mm for prismatic joints) to measure at, in this order, instead of a
         random path — a plan of :func:`robocal.planning.plan`, say. The true robot is still drawn

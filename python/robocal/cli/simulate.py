@@ -20,7 +20,7 @@ def add_arguments(parser) -> None:
         "--session",
         type=int,
         default=0,
-        help="another session of the same robot (same --seed and --measurement: the robot is drawn on what that kind of sensor identifies): new path, noise and set-up (default 0)",
+        help="another session of the same robot (same --seed; another --measurement sees the same robot as far as both sensors identify it): new path, noise and set-up (default 0)",
     )
     parser.add_argument(
         "--effect", action="append", default=[], metavar="KIND[:key=value,...]", help=f"a non-geometric effect; repeatable. Kinds: {', '.join(sorted(EFFECTS))}"
