@@ -233,9 +233,11 @@ class _Buffers:
         packed = [(c, 0) for c in H] + [(c, 1) for c in R] + [(p + c * p + j, 0) for c in H for j in range(p)]
         packed += [(p + c * p + j, 1) for c in R for j in range(p)] + [(p + ci * p + cj, 2) for ci in R for cj in R] + [(0, 3)]
         self._source, self._power = (np.array(column) for column in zip(*packed))
-        self._total, self._ring = np.zeros(zero + 1), np.zeros((WINDOW, zero + 1))
+        # The ring is held twice over (rows k and k + WINDOW alike): the totals before the window's
+        # samples from any start on are then one slice, in order, not a gather across the wrap.
+        self._total, self._ring = np.zeros(zero + 1), np.zeros((2 * WINDOW, zero + 1))
         self._parts = [(slice(base[n], base[n] + int(np.prod(s))), s) for n, s in shapes.items()]
-        self.rings = {n: self._ring[:, cut].reshape((WINDOW,) + s) for n, (cut, s) in zip(shapes, self._parts)}
+        self.rings = {n: self._ring[:WINDOW, cut].reshape((WINDOW,) + s) for n, (cut, s) in zip(shapes, self._parts)}
         self.each_g, self.each_G = np.zeros((WINDOW, p)), np.zeros((WINDOW, p, p))
         self.times = np.zeros(WINDOW)
         # Every hypothesis is a set of the m = h + r "extended" columns: a step on a tested column
@@ -279,7 +281,9 @@ class _Buffers:
         (n, p, p) add to the running totals, packed as they are: (n, K)."""
         n = len(t)
         flat = np.concatenate([g, G.reshape(n, -1)], axis=1)
-        return flat[:, self._source] * np.stack([np.ones(n), t, t * t, np.zeros(n)], axis=1)[:, self._power]
+        powers = np.zeros((n, 4))
+        powers[:, 0], powers[:, 1], powers[:, 2] = 1.0, t, t * t
+        return flat[:, self._source] * powers[:, self._power]
 
     def push(self, t: int, g: np.ndarray, G: np.ndarray) -> None:
         if self.n == WINDOW:  # the oldest leaves
@@ -291,7 +295,7 @@ class _Buffers:
             self.n += 1
         if self.origin is None:
             self.origin = t
-        self._ring[at] = self._total
+        self._ring[at] = self._ring[at + WINDOW] = self._total
         self.times[at], self.each_g[at], self.each_G[at] = t, g, G
         self.window_g += g
         self.window_G += G
@@ -309,7 +313,7 @@ class _Buffers:
         self.origin = self.times[order[0]]
         added = self._packed(self.times[order] - self.origin, self.each_g[order], self.each_G[order])
         sums = np.cumsum(added, axis=0)
-        self._ring[order] = sums - added
+        self._ring[order] = self._ring[order + WINDOW] = sums - added
         self._total[:] = sums[-1]
         self.window_g, self.window_G = self.each_g[order].sum(axis=0), self.each_G[order].sum(axis=0)
 
@@ -334,8 +338,7 @@ class _Buffers:
         inverse = _ridged_inverse(self.window_G + np.diag(prior))
         level = inverse @ self.window_g
         tau = self.times[rows] - self.origin
-        after = np.take(self._ring, rows, axis=0, out=self._after[:n])
-        np.subtract(self._total, after, out=after)
+        after = np.subtract(self._total, self._ring[self.head + 1 : self.head + starts], out=self._after[:n])
         g, tg, Gs, tG, _ = (after[:, cut].reshape((n,) + s) for cut, s in self._parts)
         at = self._ramp_at
         # The extended columns' scores (Σ (t−τ) g_t for a ramp) and cross-information with the
@@ -375,9 +378,9 @@ class _LongRunVariance:
         self.batches = {half: 2 * batches, BATCH: batches}  # the opening's few batches weigh as many, not as the full memory
         self.pending: list = []
         self.first_half: Optional[np.ndarray] = None
+        self.inflation = self._bound()
 
-    @property
-    def inflation(self) -> float:
+    def _bound(self) -> float:
         half = BATCH // 2
         whole, halved = BATCH * self.square[BATCH], half * self.square[half]
         window = whole + np.maximum(whole - halved, 0.0) * (1.0 - BATCH / WINDOW)
@@ -394,6 +397,7 @@ class _LongRunVariance:
         w = 1.0 / self.batches[size]
         self.mean[size] = (1 - w) * self.mean[size] + w * m
         self.square[size] = (1 - w) * self.square[size] + w * (m - self.mean[size]) ** 2
+        self.inflation = self._bound()  # changes once a batch: kept, not recomputed per sample
 
     def add(self, z: np.ndarray) -> None:
         self.pending.append(z)
@@ -500,9 +504,8 @@ class Monitor:
         return q if self.offsets is None else q + self.offsets(q)
 
     def _innovations(self, q: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        links = self._links(q)
-        e = self.robot.residuals(self.measurement, links, y, params=self.params).reshape(len(q), -1)
-        J = self.robot.jacobian(self.measurement, links, y=y, params=self.params, cols=self.columns)
+        e, J = self.robot.residuals_and_jacobian(self.measurement, self._links(q), y, params=self.params, cols=self.columns)
+        e = e.reshape(len(q), -1)
         return e, J.reshape(len(q), e.shape[1], len(self.columns))
 
     # -- the stream ----------------------------------------------------------------------------
@@ -752,11 +755,11 @@ class Monitor:
             stat = np.einsum("nkd,nkd->nk", score, delta) / self.inflation
             for j, k in enumerate(np.argmax(stat, axis=0)):
                 strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[k, j])
+        if all(stat <= self.threshold[len(c.columns)] for c, (stat, _, _) in zip(self.changes, strongest)):
+            return None, None  # the common case: no change ranked (the χ² tails cost more than the test)
         # Kinds of other degrees of freedom compared by how unlikely each is under no change.
         ranked = sorted(((_surprise(stat, len(c.columns)), c, stat, k, delta) for c, (stat, k, delta) in zip(self.changes, strongest)), key=lambda r: -r[0])
         crossed = [r for r in ranked if r[2] > self.threshold[len(r[1].columns)]]
-        if not crossed:
-            return None, None
 
         def alarm(surprise, change, stat, k, delta) -> Alarm:
             scale = np.degrees(delta) if self._unit(change) == "deg" else delta
