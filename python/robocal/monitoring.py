@@ -187,6 +187,29 @@ def _surprise(stat: float, d: int) -> float:
     return stat / 2.0 - (d / 2.0 - 1.0) * math.log(stat / 2.0) + math.lgamma(d / 2.0)
 
 
+def _quadratic(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``bᵀ A⁻¹ b`` over the leading axes of ``A`` (..., d, d) symmetric and ``b`` (..., d), from
+    ``A``'s ``LDLᵀ`` factors built element by element on the whole stack at once: the changes
+    have a few parameters, and a LAPACK solve per start and change cost more than all of the
+    window's sums."""
+    d = b.shape[-1]
+    L, D, w = {}, [], []
+    for j in range(d):
+        for i in range(j, d):
+            x = A[..., i, j]
+            for k in range(j):
+                x = x - L[i, k] * L[j, k] * D[k]
+            if i == j:
+                D.append(x)
+            else:
+                L[i, j] = x / D[j]
+        x = b[..., j]
+        for k in range(j):
+            x = x - L[j, k] * w[k]
+        w.append(x)
+    return sum(wj * wj / Dj for wj, Dj in zip(w, D))
+
+
 def _ridged_inverse(G: np.ndarray) -> np.ndarray:
     """``G⁻¹`` with a ridge of a millionth of each column's own information: a direction the
     window does not determine stays at the calibration's value instead of making the inverse blow
@@ -469,7 +492,8 @@ class Monitor:
         self.prior = np.array([hold(names[c]) for c in self.columns])
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
-        self._limits = tuple(np.array([j.limits[k] for j in self.robot.joints]) for k in (0, 1))
+        # The joints' limits, a nanoradian's grace for rounding in the readings.
+        self._limits = tuple(np.array([j.limits[k] for j in self.robot.joints]) + grace for k, grace in ((0, -1e-9), (1, 1e-9)))
         self.samples = 0
         self.alarms: list[Alarm] = []
         self.refused: list[str] = []
@@ -541,10 +565,10 @@ class Monitor:
             i = self.samples
             self.samples += 1
             model_q = structure.to_model(qi[None, :], self.structures)[0]
-            if not (np.all(np.isfinite(qi)) and np.all(np.isfinite(yi))):
+            if not (np.isfinite(qi).all() and np.isfinite(yi).all()):
                 self._refuse(i, row, "a value is not a finite number")
                 continue
-            if np.any(model_q < lower - 1e-9) or np.any(model_q > upper + 1e-9):
+            if (model_q < lower).any() or (model_q > upper).any():
                 self._refuse(i, row, "a joint lies beyond the robot's limits")
                 continue
             if self.sigma is None:
@@ -747,14 +771,14 @@ class Monitor:
         # Per change: its largest statistic, at which start (1-based in the window), and its estimate there.
         strongest: list = [None] * len(self.changes)
         for which, score, info in groups:  # the changes of d parameters each, all starts at once
-            d = score.shape[2]
-            if d == 1:
-                delta = score / (info[..., 0] + 1e-12)
-            else:
-                delta = np.linalg.solve(info + 1e-12 * np.eye(d), score[..., None])[..., 0]
-            stat = np.einsum("nkd,nkd->nk", score, delta) / self.inflation
-            for j, k in enumerate(np.argmax(stat, axis=0)):
-                strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[k, j])
+            info = info + 1e-12 * np.eye(score.shape[2])
+            stat = _quadratic(info, score) / self.inflation
+            best = np.argmax(stat, axis=0)
+            # The estimate only where it is the largest: one small solve per change, not per start.
+            at, picked = info[best, np.arange(len(which))], score[best, np.arange(len(which))]
+            delta = picked / at[:, 0] if score.shape[2] == 1 else np.linalg.solve(at, picked[..., None])[..., 0]
+            for j, k in enumerate(best):
+                strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[j])
         if all(stat <= self.threshold[len(c.columns)] for c, (stat, _, _) in zip(self.changes, strongest)):
             return None, None  # the common case: no change ranked (the χ² tails cost more than the test)
         # Kinds of other degrees of freedom compared by how unlikely each is under no change.
