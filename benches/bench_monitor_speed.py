@@ -1,5 +1,5 @@
 """The in-line monitor's speed: the median time of ``Monitor.update`` per sample, and of ``robocal
-monitor FILE`` end to end per sample, on simulated streams of ``--samples`` samples (UR10 with a
+monitor FILE`` end to end per sample (wall and the process's CPU time each), on simulated streams of ``--samples`` samples (UR10 with a
 position sensor, HSR JR680 with a cable sensor; calibrated on 400 samples of one session, the
 stream a new session replayed with ``--new-session``), the machine's load beside each figure.
 
@@ -7,7 +7,8 @@ stream a new session replayed with ``--new-session``), the machine's load beside
 
 ``--code`` names the ``python`` folder of a robocal tree to time (default: the one imported); with
 several, they are timed in turn, round after round, in one run, so that a before/after ratio is
-measured under the same load. Set ``OPENBLAS_NUM_THREADS=1`` on a shared machine.
+measured under the same load; the CPU times count less of what other processes take of the machine. Set
+``OPENBLAS_NUM_THREADS=1`` on a shared machine.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -28,6 +30,12 @@ CASES = (("ur10", "position"), ("hsr-jr680", "cable"))
 
 def _load() -> str:
     return Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
+
+
+def _children_cpu() -> float:
+    """User and system CPU seconds of the child processes waited for so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _prepare(folder: Path, samples: int) -> None:
@@ -44,7 +52,7 @@ def _prepare(folder: Path, samples: int) -> None:
 
 
 def _time_updates(folder: Path) -> None:
-    """Run inside the tree timed: the median wall time of one ``update`` after the opening."""
+    """Run inside the tree timed: the median wall and CPU times of one ``update`` after the opening."""
     import numpy as np
     from robocal.data import read_canonical
     from robocal.monitoring import Monitor
@@ -53,12 +61,13 @@ def _time_updates(folder: Path) -> None:
     for robot, measurement in CASES:
         monitor = Monitor(str(folder / f"{robot}.json"), new_session=True)
         data = read_canonical(folder / f"{robot}.csv", measurement=measurement)
-        times = []
+        times, cpu = [], []
         for q, y in zip(data.q, data.y):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             monitor.update(q, y)
             times.append(time.perf_counter() - t0)
-        out[robot] = float(np.median(times[monitor.opening :]))
+            cpu.append(time.process_time() - c0)
+        out[robot] = [float(np.median(times[monitor.opening :])), float(np.median(cpu[monitor.opening :]))]
     print(json.dumps(out))
 
 
@@ -79,8 +88,8 @@ def main() -> None:
             folder = Path(tmp)
             _prepare(folder, args.samples)
             print(f"{args.samples} samples per stream; median over the samples after the opening; load = 1-minute load average")
-            print("| code | round | robot, sensor | update (median) | load | robocal monitor end to end, per sample | load |")
-            print("|---|---|---|---|---|---|---|")
+            print("| code | round | robot, sensor | update (median): wall | CPU | load | robocal monitor end to end, per sample: wall | CPU | load |")
+            print("|---|---|---|---|---|---|---|---|---|")
             for round_ in range(1, args.rounds + 1):
                 for code in codes:
                     env = {**os.environ, "PYTHONPATH": code}
@@ -89,7 +98,7 @@ def main() -> None:
                     updates = json.loads(done.stdout.strip().splitlines()[-1])
                     for robot, measurement in CASES:
                         load_cli = _load()
-                        t0 = time.perf_counter()
+                        t0, c0 = time.perf_counter(), _children_cpu()
                         subprocess.run(
                             [
                                 sys.executable,
@@ -105,9 +114,11 @@ def main() -> None:
                             capture_output=True,
                             check=True,
                         )
-                        end_to_end = (time.perf_counter() - t0) / args.samples
+                        end_to_end, cpu = (time.perf_counter() - t0) / args.samples, (_children_cpu() - c0) / args.samples
+                        wall, cpu_update = updates[robot]
                         print(
-                            f"| {code} | {round_} | {robot}, {measurement} | {updates[robot] * 1e3:.2f} ms | {load} | {end_to_end * 1e3:.2f} ms | {load_cli} |",
+                            f"| {code} | {round_} | {robot}, {measurement} | {wall * 1e3:.2f} ms | {cpu_update * 1e3:.2f} ms | {load} "
+                            f"| {end_to_end * 1e3:.2f} ms | {cpu * 1e3:.2f} ms | {load_cli} |",
                             flush=True,
                         )
 
