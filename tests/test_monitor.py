@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
-from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance, _ridged_inverse
+from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance, _quadratic, _ridged_inverse
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -317,6 +317,18 @@ def test_the_window_sums_are_the_windows_own(seed, k, extra, clear_at):
                 scale = np.abs(F).max()
                 np.testing.assert_allclose(score[n, j], s, rtol=1e-7, atol=1e-7 * np.sqrt(scale))
                 np.testing.assert_allclose(info[n, j], F, rtol=1e-7, atol=1e-7 * scale)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), d=st.integers(1, 4), condition=st.floats(0.0, 8.0))
+def test_the_statistic_from_ldl_factors_is_the_solved_ones(seed, d, condition):
+    """``bᵀ A⁻¹ b`` from the stacked ``LDLᵀ`` factors is what a solve per matrix gives, for
+    symmetric positive definite matrices up to 10⁸ times as long along one axis as another."""
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((5, 3, d, d)) * np.logspace(0.0, -condition / 2.0, d)
+    A, b = X @ X.transpose(0, 1, 3, 2) + 1e-9 * np.eye(d), rng.standard_normal((5, 3, d))
+    solved = np.einsum("...i,...i->...", b, np.linalg.solve(A, b[..., None])[..., 0])
+    np.testing.assert_allclose(_quadratic(A, b), solved, rtol=1e-6)
 
 
 def test_a_stream_on_standard_input_refuses_bad_lines_and_goes_on(tmp_path, capsys, monkeypatch, monitor_result):
