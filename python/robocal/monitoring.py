@@ -768,24 +768,23 @@ class Monitor:
         if starts <= 1:
             return None, None
         groups, self._level = b.evidence(starts, self.prior)
-        # Per change: its largest statistic, at which start (1-based in the window), and its estimate there.
+        # Per change: its largest statistic, at which start (1-based in the window), and its score and
+        # information there (the estimate is solved only for an alarm).
         strongest: list = [None] * len(self.changes)
         for which, score, info in groups:  # the changes of d parameters each, all starts at once
             info = info + 1e-12 * np.eye(score.shape[2])
             stat = _quadratic(info, score) / self.inflation
-            best = np.argmax(stat, axis=0)
-            # The estimate only where it is the largest: one small solve per change, not per start.
-            at, picked = info[best, np.arange(len(which))], score[best, np.arange(len(which))]
-            delta = picked / at[:, 0] if score.shape[2] == 1 else np.linalg.solve(at, picked[..., None])[..., 0]
-            for j, k in enumerate(best):
-                strongest[which[j]] = (float(stat[k, j]), int(k) + 1, delta[j])
+            for j, k in enumerate(np.argmax(stat, axis=0)):
+                strongest[which[j]] = (float(stat[k, j]), int(k) + 1, (info[k, j], score[k, j]))
         if all(stat <= self.threshold[len(c.columns)] for c, (stat, _, _) in zip(self.changes, strongest)):
             return None, None  # the common case: no change ranked (the χ² tails cost more than the test)
         # Kinds of other degrees of freedom compared by how unlikely each is under no change.
-        ranked = sorted(((_surprise(stat, len(c.columns)), c, stat, k, delta) for c, (stat, k, delta) in zip(self.changes, strongest)), key=lambda r: -r[0])
+        ranked = sorted(((_surprise(stat, len(c.columns)), c, stat, k, fit) for c, (stat, k, fit) in zip(self.changes, strongest)), key=lambda r: -r[0])
         crossed = [r for r in ranked if r[2] > self.threshold[len(r[1].columns)]]
 
-        def alarm(surprise, change, stat, k, delta) -> Alarm:
+        def alarm(surprise, change, stat, k, fit) -> Alarm:
+            info, score = fit
+            delta = score / info[0] if len(score) == 1 else np.linalg.solve(info, score)
             scale = np.degrees(delta) if self._unit(change) == "deg" else delta
             found = Alarm(
                 now,
