@@ -272,3 +272,25 @@ def test_build_places_a_cable_from_the_tool_points_it_checked(monkeypatch):
     problem = Problem.build(r, data)
     assert len(calls) == 1
     np.testing.assert_array_equal(problem.start, alone)
+
+
+def test_held_out_problem_checks_the_observations_once(monkeypatch):
+    """The check of every sample before the split gives the training problem its configuration
+    labels and tool points: the forward kinematics and the grouping run once, and the problem is
+    the one `Problem.build` makes of the training samples alone."""
+    from robocal.calibration import api
+    from robocal.calibration import problem as problem_module
+
+    data, _ = simulate("hsr-jr680", "cable", samples=200, seed=5)
+    r = robocal.robot("hsr-jr680")
+    calls, fkine, groups = [], type(r).fkine, problem_module.configuration_groups
+    monkeypatch.setattr(type(r), "fkine", lambda self, *args, **kw: calls.append("fkine") or fkine(self, *args, **kw))
+    for module in (api, problem_module):
+        monkeypatch.setattr(module, "configuration_groups", lambda q: calls.append("groups") or groups(q))
+    problem, train, test = api.held_out_problem(r, data, 0.25, 3)
+    assert sorted(calls) == ["fkine", "groups"] and len(test) == 50
+    monkeypatch.undo()
+    alone = Problem.build(r, data.subset(train))
+    np.testing.assert_array_equal(problem.start, alone.start)
+    np.testing.assert_array_equal(problem.free, alone.free)
+    assert problem.fixed == alone.fixed and problem._distinct[1] == alone._distinct[1] == 150
