@@ -110,6 +110,16 @@ def test_the_residuals_build_evaluated_at_the_start_are_the_starts_and_taken_onc
     np.testing.assert_array_equal(moved.residuals(x), p.residuals(x))  # elsewhere: not the start's
 
 
+def test_the_jacobian_build_evaluated_at_the_start_is_the_starts_and_c_ordered(cable_data):
+    """The fit's first ``jacobian`` takes the free columns of the one ``Problem.build`` evaluated
+    for the identifiability analysis: bit for bit what an evaluation gives, in C order (the core
+    and the normal equations read rows)."""
+    p = Problem.build(robocal.robot("hsr-jr680"), cable_data[0])
+    first = p.jacobian(p.x0)
+    assert "_start_jacobian" not in vars(p) and first.flags.c_contiguous
+    np.testing.assert_array_equal(first, p.jacobian(p.x0))
+
+
 def test_undetermined_gives_the_directions_of_an_svd_of_the_scaled_jacobian_itself():
     """``undetermined`` takes the SVD of ``J``'s triangular factor (n, n): the same singular
     values and directions (up to sign) as the SVD of ``J·diag(limits)`` (m, n), on narrow joint

@@ -379,9 +379,11 @@ class Problem:
         problem.prior = problem._checked_pairs(prior, "prior", "(mean, sigma)", lambda a, b: np.isfinite(a) and np.isfinite(b) and b > 0)
         problem.bounds = problem._checked_pairs(_pairs(bounds, "bounds"), "bounds", "(lower, upper)", lambda a, b: a < b)
         problem.start[problem.free] = problem.clip(problem.start[problem.free])
-        if not problem.bounds:  # the start is where r and J were evaluated: the fit's first residuals, and J's free columns (if nothing changes)
+        # The start is where r and J were evaluated: the fit's first residuals, and J's free columns (if nothing changes);
+        # `take` gives them C-ordered in one pass (a fancy index gives them F-ordered: a copy that cost 6 ms on 16 000 rows).
+        if not problem.bounds:
             problem._start_residuals = (data, free.copy(), start.copy(), r.ravel())
-            problem._start_jacobian = (data, free.copy(), start.copy(), np.ascontiguousarray(J[:, np.searchsorted(cols, free)]))
+            problem._start_jacobian = (data, free.copy(), start.copy(), J.take(np.searchsorted(cols, free), axis=1))
         return problem
 
     def require_dof(self, purpose: str = "a calibration", remedy: str = "more samples, or a kinematic prior") -> None:
