@@ -46,26 +46,67 @@ where
 /// [`for_each_group`] filling two outputs at once: `fill(first, count, rows, extra, scratch)`
 /// writes `count·width` values of `out` and `count·extra_width` of `extra` (both > 0 wide), so
 /// that one pass over the samples yields two per-sample results (a Jacobian and its residuals).
-/// Groups of `G` samples, SSE2 only (what the Jacobian's 4-lane groups use).
+/// Groups of `G` samples; wide groups (`G` ≥ 16) compiled for AVX2 where the CPU has it, as in
+/// [`for_each_group`] (bit-identical results).
 pub fn for_each_group_pair<const G: usize, S, M, F>(out: &mut [f64], width: usize, extra: &mut [f64], extra_width: usize, make: M, fill: F)
 where
     M: Fn() -> S + Sync,
     F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S) + Sync,
 {
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = G >= 16 && std::is_x86_feature_detected!("avx2");
     let run = |(c, (chunk, more)): (usize, (&mut [f64], &mut [f64]))| {
         let mut scratch = make();
-        let samples = chunk.len() / width;
-        for g in (0..samples).step_by(G) {
-            let count = G.min(samples - g);
-            let (a, b) = (&mut chunk[g * width..(g + count) * width], &mut more[g * extra_width..(g + count) * extra_width]);
-            fill(c * CHUNK + g, count, a, b, &mut scratch);
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: the CPU has AVX2 (checked at run time above).
+            return unsafe { fill_pair_chunk_avx2::<G, S, F>(c * CHUNK, chunk, width, more, extra_width, &mut scratch, &fill) };
         }
+        fill_pair_chunk::<G, S, F>(c * CHUNK, chunk, width, more, extra_width, &mut scratch, &fill)
     };
     if out.len() <= CHUNK * width {
         run((0, (out, extra)));
     } else {
         out.par_chunks_mut(CHUNK * width).zip(extra.par_chunks_mut(CHUNK * extra_width)).enumerate().for_each(run);
     }
+}
+
+/// Groups of one task's chunks of the two outputs of [`for_each_group_pair`], in order.
+#[inline(always)]
+fn fill_pair_chunk<const G: usize, S, F>(
+    first: usize,
+    chunk: &mut [f64],
+    width: usize,
+    more: &mut [f64],
+    extra_width: usize,
+    scratch: &mut S,
+    fill: &F,
+) where
+    F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S),
+{
+    let samples = chunk.len() / width;
+    for g in (0..samples).step_by(G) {
+        let count = G.min(samples - g);
+        let (a, b) = (&mut chunk[g * width..(g + count) * width], &mut more[g * extra_width..(g + count) * extra_width]);
+        fill(first + g, count, a, b, scratch);
+    }
+}
+
+/// [`fill_pair_chunk`] compiled for AVX2: `fill` must be `#[inline(always)]` to be compiled with it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_pair_chunk_avx2<const G: usize, S, F>(
+    first: usize,
+    chunk: &mut [f64],
+    width: usize,
+    more: &mut [f64],
+    extra_width: usize,
+    scratch: &mut S,
+    fill: &F,
+) where
+    F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S),
+{
+    fill_pair_chunk::<G, S, F>(first, chunk, width, more, extra_width, scratch, fill)
 }
 
 /// Groups of one task's chunk, in order; the body of both builds below.
