@@ -56,57 +56,29 @@ where
     #[cfg(target_arch = "x86_64")]
     let avx2 = G >= 16 && std::is_x86_feature_detected!("avx2");
     let run = |(c, (chunk, more)): (usize, (&mut [f64], &mut [f64]))| {
-        let mut scratch = make();
+        // The chunk's rows of `extra` ride in the scratch: the groups are those of `for_each_group`.
+        let first = c * CHUNK;
+        let mut state = (make(), more);
+        // Inlined into the AVX2 build with `fill` (stable Rust takes a closure's attribute in a call's arguments).
+        let both = std::convert::identity(
+            #[inline(always)]
+            |g: usize, count: usize, rows: &mut [f64], state: &mut (S, &mut [f64])| {
+                let at = (g - first) * extra_width;
+                fill(g, count, rows, &mut state.1[at..at + count * extra_width], &mut state.0)
+            },
+        );
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             // SAFETY: the CPU has AVX2 (checked at run time above).
-            return unsafe { fill_pair_chunk_avx2::<G, S, F>(c * CHUNK, chunk, width, more, extra_width, &mut scratch, &fill) };
+            return unsafe { fill_chunk_avx2::<G, _, _>(first, chunk, width, &mut state, &both) };
         }
-        fill_pair_chunk::<G, S, F>(c * CHUNK, chunk, width, more, extra_width, &mut scratch, &fill)
+        fill_chunk::<G, _, _>(first, chunk, width, &mut state, &both)
     };
     if out.len() <= CHUNK * width {
         run((0, (out, extra)));
     } else {
         out.par_chunks_mut(CHUNK * width).zip(extra.par_chunks_mut(CHUNK * extra_width)).enumerate().for_each(run);
     }
-}
-
-/// Groups of one task's chunks of the two outputs of [`for_each_group_pair`], in order.
-#[inline(always)]
-fn fill_pair_chunk<const G: usize, S, F>(
-    first: usize,
-    chunk: &mut [f64],
-    width: usize,
-    more: &mut [f64],
-    extra_width: usize,
-    scratch: &mut S,
-    fill: &F,
-) where
-    F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S),
-{
-    let samples = chunk.len() / width;
-    for g in (0..samples).step_by(G) {
-        let count = G.min(samples - g);
-        let (a, b) = (&mut chunk[g * width..(g + count) * width], &mut more[g * extra_width..(g + count) * extra_width]);
-        fill(first + g, count, a, b, scratch);
-    }
-}
-
-/// [`fill_pair_chunk`] compiled for AVX2: `fill` must be `#[inline(always)]` to be compiled with it.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_pair_chunk_avx2<const G: usize, S, F>(
-    first: usize,
-    chunk: &mut [f64],
-    width: usize,
-    more: &mut [f64],
-    extra_width: usize,
-    scratch: &mut S,
-    fill: &F,
-) where
-    F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S),
-{
-    fill_pair_chunk::<G, S, F>(first, chunk, width, more, extra_width, scratch, fill)
 }
 
 /// Groups of one task's chunk, in order; the body of both builds below.
