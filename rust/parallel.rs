@@ -46,20 +46,33 @@ where
 /// [`for_each_group`] filling two outputs at once: `fill(first, count, rows, extra, scratch)`
 /// writes `count·width` values of `out` and `count·extra_width` of `extra` (both > 0 wide), so
 /// that one pass over the samples yields two per-sample results (a Jacobian and its residuals).
-/// Groups of `G` samples, SSE2 only (what the Jacobian's 4-lane groups use).
+/// Groups of `G` samples; wide groups (`G` ≥ 16) compiled for AVX2 where the CPU has it, as in
+/// [`for_each_group`] (bit-identical results).
 pub fn for_each_group_pair<const G: usize, S, M, F>(out: &mut [f64], width: usize, extra: &mut [f64], extra_width: usize, make: M, fill: F)
 where
     M: Fn() -> S + Sync,
     F: Fn(usize, usize, &mut [f64], &mut [f64], &mut S) + Sync,
 {
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = G >= 16 && std::is_x86_feature_detected!("avx2");
     let run = |(c, (chunk, more)): (usize, (&mut [f64], &mut [f64]))| {
-        let mut scratch = make();
-        let samples = chunk.len() / width;
-        for g in (0..samples).step_by(G) {
-            let count = G.min(samples - g);
-            let (a, b) = (&mut chunk[g * width..(g + count) * width], &mut more[g * extra_width..(g + count) * extra_width]);
-            fill(c * CHUNK + g, count, a, b, &mut scratch);
+        // The chunk's rows of `extra` ride in the scratch: the groups are those of `for_each_group`.
+        let first = c * CHUNK;
+        let mut state = (make(), more);
+        // Inlined into the AVX2 build with `fill` (stable Rust takes a closure's attribute in a call's arguments).
+        let both = std::convert::identity(
+            #[inline(always)]
+            |g: usize, count: usize, rows: &mut [f64], state: &mut (S, &mut [f64])| {
+                let at = (g - first) * extra_width;
+                fill(g, count, rows, &mut state.1[at..at + count * extra_width], &mut state.0)
+            },
+        );
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: the CPU has AVX2 (checked at run time above).
+            return unsafe { fill_chunk_avx2::<G, _, _>(first, chunk, width, &mut state, &both) };
         }
+        fill_chunk::<G, _, _>(first, chunk, width, &mut state, &both)
     };
     if out.len() <= CHUNK * width {
         run((0, (out, extra)));

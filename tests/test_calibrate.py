@@ -110,6 +110,16 @@ def test_the_residuals_build_evaluated_at_the_start_are_the_starts_and_taken_onc
     np.testing.assert_array_equal(moved.residuals(x), p.residuals(x))  # elsewhere: not the start's
 
 
+def test_the_jacobian_build_evaluated_at_the_start_is_the_starts_and_c_ordered(cable_data):
+    """The fit's first ``jacobian`` takes the free columns of the one ``Problem.build`` evaluated
+    for the identifiability analysis: bit for bit what an evaluation gives, in C order (the core
+    and the normal equations read rows)."""
+    p = Problem.build(robocal.robot("hsr-jr680"), cable_data[0])
+    first = p.jacobian(p.x0)
+    assert "_start_jacobian" not in vars(p) and first.flags.c_contiguous
+    np.testing.assert_array_equal(first, p.jacobian(p.x0))
+
+
 def test_undetermined_gives_the_directions_of_an_svd_of_the_scaled_jacobian_itself():
     """``undetermined`` takes the SVD of ``J``'s triangular factor (n, n): the same singular
     values and directions (up to sign) as the SVD of ``J·diag(limits)`` (m, n), on narrow joint
@@ -272,3 +282,25 @@ def test_build_places_a_cable_from_the_tool_points_it_checked(monkeypatch):
     problem = Problem.build(r, data)
     assert len(calls) == 1
     np.testing.assert_array_equal(problem.start, alone)
+
+
+def test_held_out_problem_checks_the_observations_once(monkeypatch):
+    """The check of every sample before the split gives the training problem its configuration
+    labels and tool points: the forward kinematics and the grouping run once, and the problem is
+    the one `Problem.build` makes of the training samples alone."""
+    from robocal.calibration import api
+    from robocal.calibration import problem as problem_module
+
+    data, _ = simulate("hsr-jr680", "cable", samples=200, seed=5)
+    r = robocal.robot("hsr-jr680")
+    calls, fkine, groups = [], type(r).fkine, problem_module.configuration_groups
+    monkeypatch.setattr(type(r), "fkine", lambda self, *args, **kw: calls.append("fkine") or fkine(self, *args, **kw))
+    for module in (api, problem_module):
+        monkeypatch.setattr(module, "configuration_groups", lambda q: calls.append("groups") or groups(q))
+    problem, train, test = api.held_out_problem(r, data, 0.25, 3)
+    assert sorted(calls) == ["fkine", "groups"] and len(test) == 50
+    monkeypatch.undo()
+    alone = Problem.build(r, data.subset(train))
+    np.testing.assert_array_equal(problem.start, alone.start)
+    np.testing.assert_array_equal(problem.free, alone.free)
+    assert problem.fixed == alone.fixed and problem._distinct[1] == alone._distinct[1] == 150

@@ -126,3 +126,20 @@ def test_data_of_another_robot_are_a_problem(tmp_path, capsys):
     add_arguments(parser)
     assert run(parser.parse_args([str(path), "--robot", "ur10", "--strict"])) == 1
     assert "another robot? the data do not fit ur10" in capsys.readouterr().out
+
+
+def test_angle_unit_check_names_the_rows_and_the_columns_in_radians_in_a_degree_table():
+    """A few rows, or one joint's column, read in radians among degrees are named (row numbers
+    as in the file, header = 1; the column by its joint); the degree table itself passes."""
+    from robocal.data.dataset import angle_unit_check
+
+    degrees = np.random.default_rng(0).uniform(-170.0, 170.0, (40, 6))
+    rows = degrees.copy()
+    rows[5:8] = np.radians(rows[5:8])
+    check = angle_unit_check(np.radians(rows), "deg")
+    assert check["partial"] and check["message"].startswith("rows 7-9 (3 rows)")
+    column = degrees.copy()
+    column[:, 4] = np.radians(column[:, 4])
+    check = angle_unit_check(np.radians(column), "deg")
+    assert check["partial"] and check["message"].startswith("column(s) q5 stay within")
+    assert angle_unit_check(np.radians(degrees), "deg")["plausible"]

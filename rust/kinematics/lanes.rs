@@ -2,9 +2,10 @@
 //! transform is one loop across samples that the compiler vectorises, and a polynomial
 //! sine/cosine that vectorises the same way (libm's `sin_cos` is a scalar call per angle).
 //!
-//! Two widths are used: `LANES` (4) where each sample carries much more state than its frame
-//! (the Jacobian's per-parameter derivatives, the sigma points of a filter update), and
-//! `BLOCK` (64) for plain poses, where a block of frames (6 KiB) stays in L1 and each op is a
+//! Three widths are used: `LANES` (4) where each sample carries much more state than its frame
+//! (the sigma points of a filter update, the Jacobian of a batch below `SMALL_BATCH`), 16 for the
+//! Jacobian of a larger batch (its per-parameter derivatives in L2, the frames in AVX2 registers:
+//! `measurement::JACOBIAN_GROUP`), and `BLOCK` (64) for plain poses, where a block of frames (6 KiB) stays in L1 and each op is a
 //! long vector loop: with 4 lanes the twelve frame values do not fit in the 16 SSE2 registers
 //! and every op spills, and the per-op dispatch is paid every 4 samples instead of every 64.
 

@@ -282,7 +282,7 @@ impl Chain {
         self.ops.len()
     }
 
-    /// Tool frames of `LANES` samples and their derivatives with respect to every parameter:
+    /// Tool frames of `L` samples and their derivatives with respect to every parameter:
     /// `dp[k]` (mm per unit of parameter k) of the tool origin and `dw[k]` (rad per unit) of its
     /// orientation (only when `orientation`), in the base (world) frame, for the parameters
     /// flagged in `wanted` (length `n_params`); the others, and parameters outside the chain
@@ -290,16 +290,16 @@ impl Chain {
     /// is scratch space of length `n_ops`.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    pub fn forward_with_jacobian(
+    pub fn forward_with_jacobian<const L: usize>(
         &self,
         pre: &Prepared,
-        q: &[Lane],
+        q: &[Lane<L>],
         wanted: &[bool],
         orientation: bool,
-        axes: &mut [(Vec3L, Vec3L)],
-        dp: &mut [Vec3L],
-        dw: &mut [Vec3L],
-    ) -> Frames {
+        axes: &mut [(Vec3L<L>, Vec3L<L>)],
+        dp: &mut [Vec3L<L>],
+        dw: &mut [Vec3L<L>],
+    ) -> Frames<L> {
         // An elementary rotation about world axis ω through o moves the end point by ω×(p−o);
         // a translation along world axis u moves it by u. Axes and origins are those of the
         // frame *before* the op, so they are recorded on the way out and used once p is known.
@@ -320,14 +320,14 @@ impl Chain {
                 continue;
             }
             if op.rotation {
-                let mut d = [splat::<LANES>(0.0); 3];
+                let mut d = [splat::<L>(0.0); 3];
                 for r in 0..3 {
-                    for l in 0..LANES {
+                    for l in 0..L {
                         d[r][l] = f.t[r][l] - o[r][l];
                     }
                 }
                 let out = &mut dp[op.param];
-                for l in 0..LANES {
+                for l in 0..L {
                     out[0][l] = w[1][l] * d[2][l] - w[2][l] * d[1][l];
                     out[1][l] = w[2][l] * d[0][l] - w[0][l] * d[2][l];
                     out[2][l] = w[0][l] * d[1][l] - w[1][l] * d[0][l];

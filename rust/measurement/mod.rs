@@ -22,8 +22,15 @@ use crate::parallel::{for_each_group, for_each_group_pair};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-/// Scratch of one Jacobian task: joint lanes, the ops' axes and origins, `dp`, `dw`.
-type JacobianScratch = (Vec<Lane>, Vec<(Vec3L, Vec3L)>, Vec<Vec3L>, Vec<Vec3L>);
+/// Scratch of one Jacobian task of `L`-sample groups: joint lanes, the ops' axes and origins, `dp`, `dw`.
+type JacobianScratch<const L: usize> = (Vec<Lane<L>>, Vec<(Vec3L<L>, Vec3L<L>)>, Vec<Vec3L<L>>, Vec<Vec3L<L>>);
+
+/// Samples per group of a Jacobian batch of [`SMALL_BATCH`] samples or more: wide enough for
+/// the AVX2 build of the groups (`parallel`). In 4-lane SSE2 groups the forward kinematics cost
+/// 2.5 times the residuals' (16 000 cable samples: 4.2 ms for one column against 1.6 ms); in 16
+/// the residuals with 7 columns take 3.2 ms instead of 4.9, with 25 columns 5.7 instead of 6.7.
+/// Smaller batches (a filter's single samples) keep `LANES`.
+const JACOBIAN_GROUP: usize = 16;
 
 /// What a sample observes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -222,16 +229,26 @@ impl<'a> Batch<'a> {
         }
         let wanted = self.wanted(cols)?;
         let mut out = vec![0.0; self.m * self.measurement.res_width() * cols.len()];
-        for_each_group::<LANES, _, _, _>(
-            &mut out,
+        if self.m < SMALL_BATCH {
+            self.jacobian_into::<LANES>(cols, &wanted, &mut out);
+        } else {
+            self.jacobian_into::<JACOBIAN_GROUP>(cols, &wanted, &mut out);
+        }
+        Ok(out)
+    }
+
+    /// [`Self::jacobian`] into `out`, in groups of `L` samples.
+    fn jacobian_into<const L: usize>(&self, cols: &[usize], wanted: &[bool], out: &mut [f64]) {
+        for_each_group::<L, _, _, _>(
+            out,
             self.measurement.res_width() * cols.len(),
-            || self.jacobian_scratch(),
+            || self.jacobian_scratch::<L>(),
+            #[inline(always)]
             |first, count, rows, scratch| {
-                let f = self.frames_with_derivatives(first, count, &wanted, scratch);
+                let f = self.frames_with_derivatives(first, count, wanted, scratch);
                 self.jacobian_group(first, count, &f, &scratch.2, &scratch.3, cols, rows);
             },
         );
-        Ok(out)
     }
 
     /// Residuals `y − h` (m·res_width) and the Jacobian of [`Self::jacobian`] in one pass over the
@@ -247,21 +264,32 @@ impl<'a> Batch<'a> {
             return Ok((self.residuals()?, Vec::new()));
         }
         let (mut r, mut out) = (vec![0.0; self.m * k], vec![0.0; self.m * k * cols.len()]);
-        for_each_group_pair::<LANES, _, _, _>(
-            &mut out,
+        if self.m < SMALL_BATCH {
+            self.residuals_and_jacobian_into::<LANES>(cols, &wanted, &mut r, &mut out);
+        } else {
+            self.residuals_and_jacobian_into::<JACOBIAN_GROUP>(cols, &wanted, &mut r, &mut out);
+        }
+        Ok((r, out))
+    }
+
+    /// [`Self::residuals_and_jacobian`] into `r` and `out`, in groups of `L` samples.
+    fn residuals_and_jacobian_into<const L: usize>(&self, cols: &[usize], wanted: &[bool], r: &mut [f64], out: &mut [f64]) {
+        let k = self.measurement.res_width();
+        for_each_group_pair::<L, _, _, _>(
+            out,
             k * cols.len(),
-            &mut r,
+            r,
             k,
-            || self.jacobian_scratch(),
+            || self.jacobian_scratch::<L>(),
+            #[inline(always)]
             |first, count, rows, res, scratch| {
-                let f = self.frames_with_derivatives(first, count, &wanted, scratch);
+                let f = self.frames_with_derivatives(first, count, wanted, scratch);
                 self.jacobian_group(first, count, &f, &scratch.2, &scratch.3, cols, rows);
                 for (l, row) in res.chunks_exact_mut(k).enumerate() {
                     self.residual_row(first + l, &f.lane(l), row);
                 }
             },
         );
-        Ok((r, out))
     }
 
     /// Which parameters `cols` asks for (length `n_params`), or an error naming a column out of range.
@@ -279,16 +307,22 @@ impl<'a> Batch<'a> {
     }
 
     /// Scratch of [`Self::frames_with_derivatives`]: joint lanes, the ops' axes, `dp`, `dw`.
-    fn jacobian_scratch(&self) -> JacobianScratch {
-        let zero: Vec3L = [splat(0.0); 3];
+    fn jacobian_scratch<const L: usize>(&self) -> JacobianScratch<L> {
+        let zero: Vec3L<L> = [splat(0.0); 3];
         let n_params = self.chain.layout().n_params();
-        (self.q_scratch::<LANES>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
+        (self.q_scratch::<L>(), vec![(zero, zero); self.chain.n_ops()], vec![zero; n_params], vec![zero; n_params])
     }
 
     /// Tool frames of samples `first .. first+count` with the derivatives of the `wanted`
     /// parameters in `scratch.2` (`dp`) and `scratch.3` (`dw`).
     #[inline(always)]
-    fn frames_with_derivatives(&self, first: usize, count: usize, wanted: &[bool], scratch: &mut JacobianScratch) -> Frames {
+    fn frames_with_derivatives<const L: usize>(
+        &self,
+        first: usize,
+        count: usize,
+        wanted: &[bool],
+        scratch: &mut JacobianScratch<L>,
+    ) -> Frames<L> {
         let (ql, axes, dp, dw) = scratch;
         gather_lanes(self.q, self.chain.n_joints(), first, count, ql);
         let orientation = self.measurement == Measurement::Pose;
@@ -299,17 +333,26 @@ impl<'a> Batch<'a> {
     /// `rows` (`count · res_width · cols.len()` values), restricted to `cols`.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn jacobian_group(&self, first: usize, count: usize, f: &Frames, dp: &[Vec3L], dw: &[Vec3L], cols: &[usize], rows: &mut [f64]) {
+    fn jacobian_group<const L: usize>(
+        &self,
+        first: usize,
+        count: usize,
+        f: &Frames<L>,
+        dp: &[Vec3L<L>],
+        dw: &[Vec3L<L>],
+        cols: &[usize],
+        rows: &mut [f64],
+    ) {
         let nc = cols.len();
         let width = self.measurement.res_width() * nc;
         match self.measurement {
             Measurement::Cable => {
                 let s = self.chain.layout().sensor();
-                let terms: [_; LANES] = std::array::from_fn(|l| cable_terms(self.sensor(), &lane_vec(&f.t, l)));
+                let terms: [_; L] = std::array::from_fn(|l| cable_terms(self.sensor(), &lane_vec(&f.t, l)));
                 let scale = self.params[s + 4];
-                let u: Vec3L = std::array::from_fn(|r| std::array::from_fn(|l| terms[l].1[r]));
+                let u: Vec3L<L> = std::array::from_fn(|r| std::array::from_fn(|l| terms[l].1[r]));
                 for (c, &col) in cols.iter().enumerate() {
-                    let v: Lane = match col.checked_sub(s) {
+                    let v: Lane<L> = match col.checked_sub(s) {
                         Some(a @ 0..=2) => std::array::from_fn(|l| -scale * u[a][l]),
                         Some(3) => splat(-1.0),
                         Some(4) => std::array::from_fn(|l| terms[l].0),

@@ -306,7 +306,7 @@ proptest! {
     }
 
     /// A sample's residual and Jacobian rows do not depend on the batch (lanes, group padding,
-    /// 4-lane groups or 64-lane blocks), and `sigma_residuals` row s is the residual vector at
+    /// 4-lane groups, 16-sample Jacobian groups or 64-lane blocks), and `sigma_residuals` row s is the residual vector at
     /// parameter set s.
     #[test]
     fn batching_and_sigma_points_are_consistent(case in case(), scale in 0.9..1.1f64) {
@@ -327,6 +327,10 @@ proptest! {
         let (q_big, y_big) = (case.q.repeat(tiles), y.repeat(tiles));
         let big = Batch::new(&chain, case.measurement, &case.params, &q_big, Some(&y_big)).unwrap();
         prop_assert!(big.residuals().unwrap() == r_all.repeat(tiles), "residuals in blocks differ");
+        // ... and its Jacobian in 16-sample groups (AVX2 when the CPU has it), alone or with the residuals.
+        let (r_big, j_big) = big.residuals_and_jacobian(&cols).unwrap();
+        prop_assert!(big.jacobian(&cols).unwrap() == j_all.repeat(tiles), "Jacobian in wide groups differs");
+        prop_assert!(r_big == r_all.repeat(tiles) && j_big == j_all.repeat(tiles), "residuals and Jacobian in wide groups differ");
         prop_assert!(big.predict() == batch.predict().repeat(tiles), "predictions in blocks differ");
         let other: Vec<f64> = case.params.iter().map(|v| v * scale).collect();
         let mut sigmas = case.params.clone();

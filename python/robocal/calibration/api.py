@@ -19,7 +19,7 @@ from ..exceptions import DataError, InvalidParameterError
 from ..robot import Robot, robot as load_robot, setup_names
 from . import cascade, kalman, metaheuristics, rbf, vslm
 from .lm import levenberg_marquardt
-from .problem import TOLERANCE, Problem, check_observations, start_parameters
+from .problem import TOLERANCE, Problem, check_observations, check_readings, start_parameters
 from .result import CalibrationResult, describe_implausible, grossly_implausible
 
 #: method name -> (paper label, description, function(problem, **options) -> CalibrationResult)
@@ -143,13 +143,16 @@ def held_out_problem(robot: Robot, dataset: Dataset, test_fraction: float, seed:
 
     The split keeps every joint configuration whole (:func:`~robocal.data.splits.configuration_groups`):
     a repeated row on both sides would make the held-out error a training error."""
-    train_idx, test_idx, labels = np.arange(len(dataset)), None, None
+    check_readings(robot, dataset)  # before the configurations are grouped: a bad value named by its row
+    labels = configuration_groups(dataset.q)
+    train_idx, test_idx = np.arange(len(dataset)), None
     if test_fraction > 0:
-        labels = configuration_groups(dataset.q)
         train_idx, test_idx = random_split(len(dataset), test_fraction=test_fraction, seed=seed, groups=labels)
-    check_observations(robot, dataset, labels)  # held-out samples too: a wrong reading there would only inflate the test error
+    points = check_observations(robot, dataset, labels)  # held-out samples too: a wrong reading there would only inflate the test error
     try:
-        problem = Problem.build(robot, dataset.subset(train_idx) if test_idx is not None else dataset, **build)
+        # the training samples are checked with the rest: build takes their labels and points
+        train, observed = (dataset, (labels, points)) if test_idx is None else (dataset.subset(train_idx), (labels[train_idx], points[train_idx]))
+        problem = Problem.build(robot, train, observations=observed, **build)
         problem.require_dof()
     except (DataError, InvalidParameterError) as exc:
         if test_idx is None or "too few" not in str(exc) and "degrees of freedom" not in str(exc):

@@ -94,7 +94,10 @@ def canonical_dataset(
     q = values[:, :n].copy()
     if angle_unit == "deg":
         revolute = [j for j in range(n) if j not in prismatic]
-        q[:, revolute] = np.radians(q[:, revolute])
+        if len(revolute) == n:  # in place: a column index gathers and scatters (2 ms on 20 000 rows)
+            np.radians(q, out=q)
+        else:
+            q[:, revolute] = np.radians(q[:, revolute])
     column = {name: values[:, i] for i, name in enumerate(wanted)}
     notes = ([f"ignored unknown columns {ignored}"] if ignored else []) + excluded_notes(excluded) + time_order_notes(column.get("t"), rows, path)
     return Dataset(
