@@ -14,15 +14,23 @@ from robocal.data.splits import random_split
 from robocal.simulation import simulate
 
 # The simulator's tool point is (30, -10, 80) mm; with it known, the start (nominal kinematics +
-# closed-form anchor) lies within the default ±2 mm / ±0.2° box of the optimum.
+# closed-form anchor) lies within the default ±2 mm / ±0.2° box of the optimum, on enough samples
+# to determine it (on 80, the optimum of most seeds' robots lies outside: the noise's fit).
 TOOL = {"tool_x": 30.0, "tool_y": -10.0, "tool_z": 80.0}
 SMALL = dict(max_iter=60)  # short budgets keep the suite fast
 
 
 @pytest.fixture(scope="module")
 def problem():
-    data, _ = simulate("hsr-jr680", "cable", samples=80, seed=4)
+    data, _ = simulate("hsr-jr680", "cable", samples=400, seed=4)
     return Problem.build(robocal.robot("hsr-jr680").with_params(**TOOL), data)
+
+
+def test_the_optimum_lies_in_the_default_box_around_the_start(problem):
+    """The premise of the methods' comparison: their search box holds the LM optimum."""
+    lower, upper = search_box(problem)
+    x = levenberg_marquardt(problem).x
+    assert np.all((lower <= x) & (x <= upper)), [n for n, v, lo, hi in zip(problem.names, x, lower, upper) if not lo <= v <= hi]
 
 
 def test_default_box_follows_units_and_mapping_overrides(problem):
@@ -54,7 +62,8 @@ def test_metaheuristics_lower_the_cost_and_are_deterministic(problem, method, op
 
 
 def test_de_reaches_the_lm_optimum_on_a_small_problem(problem):
-    small = Problem.build(problem.robot, problem.data, mask=["a2", "d4", "theta2", "cable_offset"])
+    data, _ = simulate("hsr-jr680", "cable", samples=80, seed=4)
+    small = Problem.build(problem.robot, data, mask=["a2", "d4", "theta2", "cable_offset"])
     assert len(small.free) == 4
     reference = levenberg_marquardt(small)
     # Widen the box so that it surely contains the LM optimum.
