@@ -2,9 +2,10 @@
 
 Conventions are not small, so each hypothesis is judged by full nonlinear re-fits, never by a
 linearisation: a screening fit of every hypothesis on a subsample (capped), then the most
-promising on all samples, then cross-validation. A hypothesis is accepted when it makes the
-geometric fit plausible (no parameter beyond the limits) at an equal or better held-out error,
-or lowers the held-out error by :data:`REAL_GAIN` with fewer implausible parameters; hypotheses
+promising on all samples, then cross-validation. A hypothesis is accepted when it leaves fewer
+parameters beyond the plausibility limits at an equal or better held-out error (a fit that is
+implausible for another reason too, a set-up member fixed where a kinematic one absorbs it, still
+tells a joint's quarter turn), or lowers the held-out error by :data:`REAL_GAIN`; hypotheses
 the data cannot tell apart are reported together, as undetermined. Single-joint hypotheses are
 every quarter-turn zero offset and sign of a moving joint and the references of coupled joints
 (:func:`coupled`); a re-mastered joint's zero is proposed where a geometric fit moves
@@ -220,7 +221,7 @@ def search(
         # Cross-validation (the expensive part) only for what could pass: a plausible fit as
         # good as now, or a training error already lower by the gain asked of the held-out one.
         for h, (rmse, bad) in zip(tried, thread_map(lambda h: fit(apply_all(now, list(h)), None), tried)):
-            if (bad == 0 and rmse <= (1.0 + EQUAL) * current.rmse) or (bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse):
+            if bad < current.implausible and rmse <= (1.0 + EQUAL) * current.rmse:
                 trials.append(Trial(accepted + list(h), rmse, bad))
         if trials and current.heldout is None:
             current.heldout = cross_validate(apply_all(data, accepted))
@@ -229,7 +230,7 @@ def search(
         good = [
             t
             for t in trials
-            if (t.implausible == 0 and all(t.heldout[k] <= (1.0 + (EQUAL if k == "random" else REAL_GAIN)) * current.heldout[k] for k in current.heldout))
+            if (t.implausible < current.implausible and all(t.heldout[k] <= (1.0 + (EQUAL if k == "random" else REAL_GAIN)) * current.heldout[k] for k in current.heldout))
             or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
         ]
         if not good:
