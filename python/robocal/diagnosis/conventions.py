@@ -87,13 +87,13 @@ def _discrete(s: Structure) -> bool:
     return s.kind != "joint_zero" or abs(s.value / (np.pi / 2) - round(s.value / (np.pi / 2))) < 1e-9
 
 
-def _allowed(hypothesis, implausible: int) -> int:
-    """One more than the implausible parameters a hypothesis may leave at an equal held-out error:
-    fewer than now for conventions of the finite family (a quarter turn the fit reproduced, in a fit
-    implausible for another reason too), none for a continuous zero error, which is the fit's own
-    offset and so always lowers the count by one (clean narrow data then claimed a joint 2 zero of
-    -2.349 deg)."""
-    return implausible if all(_discrete(s) for s in hypothesis) else 1
+def _fewer_suffice(hypothesis, left: int, implausible: int) -> bool:
+    """Whether a hypothesis that leaves ``left`` of the ``implausible`` parameters beyond the limits
+    passes at an equal held-out error: a convention of the finite family if it leaves fewer (a
+    quarter turn the fit reproduced, in a fit implausible for another reason too); a continuous
+    zero error only if it leaves none, for it is the fit's own offset and so always removes one
+    (clean narrow data then claimed a joint 2 zero of -2.349 deg)."""
+    return left < implausible if all(_discrete(s) for s in hypothesis) else left == 0
 
 
 def zero_errors(implausible: list[dict]) -> list[Structure]:
@@ -237,7 +237,7 @@ def search(
         # Cross-validation (the expensive part) only for what could pass: a plausible fit as
         # good as now, or a training error already lower by the gain asked of the held-out one.
         for h, (rmse, bad) in zip(tried, thread_map(lambda h: fit(apply_all(now, list(h)), None), tried)):
-            if (bad < _allowed(h, current.implausible) and rmse <= (1.0 + EQUAL) * current.rmse) or (
+            if (_fewer_suffice(h, bad, current.implausible) and rmse <= (1.0 + EQUAL) * current.rmse) or (
                 bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse
             ):
                 trials.append(Trial(accepted + list(h), rmse, bad))
@@ -249,7 +249,7 @@ def search(
             t
             for t in trials
             if (
-                t.implausible < _allowed(t.structures[len(accepted) :], current.implausible)
+                _fewer_suffice(t.structures[len(accepted) :], t.implausible, current.implausible)
                 and all(t.heldout[k] <= (1.0 + (EQUAL if k == "random" else REAL_GAIN)) * current.heldout[k] for k in current.heldout)
             )
             or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
