@@ -3,10 +3,8 @@
 Conventions are not small, so each hypothesis is judged by full nonlinear re-fits, never by a
 linearisation: a screening fit of every hypothesis on a subsample (capped), then the most
 promising on all samples, then cross-validation. A hypothesis is accepted when it makes the
-geometric fit plausible (no parameter beyond the limits) at an equal or better held-out error —
-for a convention of the finite family (quarter turns, signs, references), when it leaves fewer
-parameters beyond the limits, so that a fit implausible for another reason too still tells a
-joint's quarter turn — or lowers the held-out error by :data:`REAL_GAIN`; hypotheses
+geometric fit plausible (no parameter beyond the limits) at an equal or better held-out error,
+or lowers the held-out error by :data:`REAL_GAIN` with fewer implausible parameters; hypotheses
 the data cannot tell apart are reported together, as undetermined. Single-joint hypotheses are
 every quarter-turn zero offset and sign of a moving joint and the references of coupled joints
 (:func:`coupled`); a re-mastered joint's zero is proposed where a geometric fit moves
@@ -79,21 +77,6 @@ class Trial:
     rmse: float
     implausible: int
     heldout: Optional[dict] = None
-
-
-def _discrete(s: Structure) -> bool:
-    """A convention of the finite family (a quarter turn, a sign, a neighbour's reference), not a
-    continuous zero error (:func:`zero_errors`)."""
-    return s.kind != "joint_zero" or abs(s.value / (np.pi / 2) - round(s.value / (np.pi / 2))) < 1e-9
-
-
-def _fewer_suffice(hypothesis, left: int, implausible: int) -> bool:
-    """Whether a hypothesis that leaves ``left`` of the ``implausible`` parameters beyond the limits
-    passes at an equal held-out error: a convention of the finite family if it leaves fewer (a
-    quarter turn the fit reproduced, in a fit implausible for another reason too); a continuous
-    zero error only if it leaves none, for it is the fit's own offset and so always removes one
-    (clean narrow data then claimed a joint 2 zero of -2.349 deg)."""
-    return left < implausible if all(_discrete(s) for s in hypothesis) else left == 0
 
 
 def zero_errors(implausible: list[dict]) -> list[Structure]:
@@ -237,9 +220,7 @@ def search(
         # Cross-validation (the expensive part) only for what could pass: a plausible fit as
         # good as now, or a training error already lower by the gain asked of the held-out one.
         for h, (rmse, bad) in zip(tried, thread_map(lambda h: fit(apply_all(now, list(h)), None), tried)):
-            if (_fewer_suffice(h, bad, current.implausible) and rmse <= (1.0 + EQUAL) * current.rmse) or (
-                bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse
-            ):
+            if (bad == 0 and rmse <= (1.0 + EQUAL) * current.rmse) or (bad < current.implausible and rmse <= (1.0 - REAL_GAIN) * current.rmse):
                 trials.append(Trial(accepted + list(h), rmse, bad))
         if trials and current.heldout is None:
             current.heldout = cross_validate(apply_all(data, accepted))
@@ -248,10 +229,7 @@ def search(
         good = [
             t
             for t in trials
-            if (
-                _fewer_suffice(t.structures[len(accepted) :], t.implausible, current.implausible)
-                and all(t.heldout[k] <= (1.0 + (EQUAL if k == "random" else REAL_GAIN)) * current.heldout[k] for k in current.heldout)
-            )
+            if (t.implausible == 0 and all(t.heldout[k] <= (1.0 + (EQUAL if k == "random" else REAL_GAIN)) * current.heldout[k] for k in current.heldout))
             or all(t.heldout[k] <= (1.0 - REAL_GAIN) * current.heldout[k] for k in current.heldout)
         ]
         if not good:
