@@ -299,24 +299,9 @@ def test_held_out_figures_never_see_the_held_out_samples():
 STRUCTURES = ("joint_zero", "joint_sign", "joint_reference")
 
 
-# On this case's draw (HSR, position, seed 649) the clean geometric fit is already implausible:
-# the identifiability analysis fixes the tool's x and frees theta6, which takes the start's tool
-# error (2.37 deg). A convention must make the geometry plausible, so joint 5 read 90 deg off is
-# not named. A defect of the parameter choice (the set-up should be preferred where it explains
-# the same), not of the convention search; loosening the search named false conventions on D1.
-SETUP_ABSORBED_BY_THETA6 = pytest.mark.xfail(
-    strict=True, reason="clean fit implausible: theta6 absorbs a fixed tool coordinate (the identifiable subset prefers no set-up)"
-)
-
-
 @pytest.mark.parametrize(
     "robot,measurement,kind",
-    [
-        pytest.param(r, m, k, marks=SETUP_ABSORBED_BY_THETA6) if (r, m, k) == ("hsr-jr680", "position", "joint_zero") else (r, m, k)
-        for r in ROBOTS
-        for m in ("cable", "position")
-        for k in STRUCTURES
-    ],
+    [(r, m, k) for r in ROBOTS for m in ("cable", "position") for k in STRUCTURES],
 )
 def test_hidden_reading_convention_is_named(robot, measurement, kind):
     """The controller reports a joint in another convention than the model (a zero 90/180/270°

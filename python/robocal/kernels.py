@@ -166,13 +166,16 @@ def stack_csr(dense: np.ndarray, dense_cols: np.ndarray, thin: list, weights: np
     )
 
 
-def identifiability(J, tol: float = 1e-9) -> dict:
+def identifiability(J, tol: float = 1e-9, first=None) -> dict:
     """Rank, singular values, identifiable subset and redundancies of a Jacobian (m, n).
 
     Computed on unit-norm columns. ``redundant`` lists, for each parameter outside the subset,
-    ``(j, [(k, c_k), ...])`` with scaled column ``j ≈ Σ c_k · column k``.
+    ``(j, [(k, c_k), ...])`` with scaled column ``j ≈ Σ c_k · column k``. ``first`` (n bools,
+    optional) marks columns to keep in the subset before the others where they explain the same
+    (a session's set-up: :meth:`robocal.robot.Robot.identifiability`).
     """
-    return _robocal.identifiability(as_float_array(J, "J"), as_float(tol, "tol"))
+    marked = None if first is None else [bool(v) for v in np.asarray(first, dtype=bool).ravel()]
+    return _robocal.identifiability(as_float_array(J, "J"), as_float(tol, "tol"), marked)
 
 
 def covariance(J, r, tol: float = 1e-9):

@@ -91,6 +91,9 @@ REDUNDANCY_COEF_MIN = 1e-6
 #: of the largest go to the lowest column index (exactly equal scaled columns then never depend
 #: on rounding).
 PIVOT_TIE_REL = 1e-9
+#: :func:`identifiability`'s ``first`` columns (a session's set-up) are pivoted before the others
+#: while their largest remaining norm is at least this fraction of the largest of all.
+FIRST_MIN_REL = 1e-3
 #: ``solve_damped``: a Cholesky factor whose smallest squared pivot is <= this times the largest
 #: counts as failed; the SVD fallback drops singular values <= this * n * the largest.
 RANK_TOL = 1e-13
@@ -668,15 +671,20 @@ def _check_tol(tol) -> float:
     return tol
 
 
-def _pivoted_qr_order(A: np.ndarray) -> list[int]:
+def _pivoted_qr_order(A: np.ndarray, first: np.ndarray) -> list[int]:
     """Pivot order of a Householder QR of ``A`` (p, k) with column pivoting: each step the largest
-    remaining column norm, ties within :data:`PIVOT_TIE_REL` to the lowest column index."""
+    remaining column norm among the columns ``first`` (k bools) marks if it is at least
+    :data:`FIRST_MIN_REL` of the largest of all, otherwise among all; ties within
+    :data:`PIVOT_TIE_REL` to the lowest column index."""
     A = np.array(A, dtype=np.float64)
     p, k = A.shape
     perm = list(range(k))
     for i in range(min(p, k)):
         norms = np.linalg.norm(A[i:, i:], axis=0)
-        tied = np.flatnonzero(norms >= norms.max() * (1.0 - PIVOT_TIE_REL))
+        marked = np.asarray(first)[perm[i:]]
+        preferred = norms[marked].max(initial=0.0)
+        pool = marked if preferred > 0 and preferred >= FIRST_MIN_REL * norms.max() else np.ones(k - i, bool)
+        tied = np.flatnonzero(pool & (norms >= norms[pool].max() * (1.0 - PIVOT_TIE_REL)))
         best = i + min(tied, key=lambda j: perm[i + j])
         A[:, [i, best]] = A[:, [best, i]]
         perm[i], perm[best] = perm[best], perm[i]
@@ -688,12 +696,14 @@ def _pivoted_qr_order(A: np.ndarray) -> list[int]:
     return perm
 
 
-def identifiability(J, tol: float = 1e-9) -> dict:
+def identifiability(J, tol: float = 1e-9, first=None) -> dict:
     """Which parameters a Jacobian identifies, on unit-norm columns.
 
     The rank counts singular values of the scaled ``J`` above ``tol * sigma_1``; a column-pivoted
     Householder QR of the columns with an effect picks the identifiable subset (its first
-    ``rank`` pivots; ties within :data:`PIVOT_TIE_REL` go to the lowest column index); each other column ``j`` is written by least
+    ``rank`` pivots; the columns ``first`` marks before the others while they add at least
+    :data:`FIRST_MIN_REL` of the largest remaining norm; ties within :data:`PIVOT_TIE_REL` go to
+    the lowest column index); each other column ``j`` is written by least
     squares as ``J_j ~ sum_k c_k J_k`` over that subset, and the partners ``k`` with
     ``|c_k| >`` :data:`REDUNDANCY_COEF_MIN` (1e-6) are reported. A column counts as having no
     effect when its norm is at most :data:`NO_EFFECT_REL` (1e-12) times the largest.
@@ -703,6 +713,8 @@ def identifiability(J, tol: float = 1e-9) -> dict:
     J : array_like, shape (m, n)
     tol : float
         Relative singular-value threshold, in (0, 1).
+    first : array_like of bool, shape (n,), optional
+        Columns to pivot first (a session's set-up): default none.
 
     Returns
     -------
@@ -728,7 +740,8 @@ def identifiability(J, tol: float = 1e-9) -> dict:
     candidates = np.flatnonzero(effective)
     identifiable: list[int] = []
     if candidates.size:
-        pivots = _pivoted_qr_order(scaled[:, candidates])
+        marked = np.zeros(J.shape[1], bool) if first is None else _array(first, "first", (J.shape[1],)) != 0
+        pivots = _pivoted_qr_order(scaled[:, candidates], marked[candidates])
         identifiable = [int(c) for c in candidates[pivots[:rank]]]
     others = [int(c) for c in candidates if c not in identifiable]
     redundant = []

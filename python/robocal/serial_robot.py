@@ -17,7 +17,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from . import _robocal
-from .kernels import MAX_ABS, as_float, as_float_array, as_str
+from .kernels import MAX_ABS, as_float, as_float_array, as_str, identifiability
 from .exceptions import InvalidParameterError, NonFiniteError, ShapeError
 from .geometry import frame_params, frame_transform, rotation
 
@@ -326,6 +326,17 @@ class Robot:
         p, qa, ya = self._measurement_inputs(measurement, q, y, params)
         vals = np.ascontiguousarray(as_float_array(values, "values"))
         return self.chain.sigma_residuals(measurement, p, [int(c) for c in cols], vals, qa, ya)
+
+    def identifiability(self, measurement: str, J, cols, tol: float = 1e-9) -> dict:
+        """:func:`robocal.kernels.identifiability` of ``J``, the Jacobian of ``measurement``
+        residuals in the parameters ``cols`` (indices, J's columns in order), with the set-up a
+        session places anew (:func:`setup_names`) kept first where it and the robot's own
+        parameters explain the same: ``tool_x``/``tool_y`` rather than ``theta6``, ``base_rz``
+        rather than ``theta1``. A redundant robot parameter then stays at its nominal value, and
+        what a start's set-up error does is absorbed by the set-up, not by an implausible link
+        parameter. Indices in the result are positions in ``cols``."""
+        setup = {self.index(name) for name in setup_names(self, measurement)}
+        return identifiability(J, tol, first=[int(c) in setup for c in cols])
 
     def jacobian(self, measurement: str, q, y=None, params=None, cols=None) -> np.ndarray:
         """Identification Jacobian ``∂h/∂params[cols]``, shape (m·k, len(cols)), rows sample-major.

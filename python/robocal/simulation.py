@@ -20,7 +20,7 @@ from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .kernels import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed, identifiability
+from .kernels import MAX_SAMPLES, as_count, as_float, as_float_array, as_positive, check_seed
 from .data.formats.canonical import write_canonical
 from .data.dataset import Dataset
 from .effects import EFFECTS, Acquisition, Effect, parse_effect
@@ -186,7 +186,7 @@ def geometric_errors(r: Robot, measurement: str, q: np.ndarray, rng: np.random.G
     """
     cols = np.flatnonzero(r.default_mask(measurement))
     J = r.jacobian(measurement, q, y=r.predict(measurement, q), cols=cols)
-    perturbed = cols[identifiability(J)["identifiable"]]
+    perturbed = cols[r.identifiability(measurement, J, cols)["identifiable"]]
     drawn = rng.normal(0.0, 1.0, r.n_params) * np.where(np.array(r.param_units) == "mm", LENGTH_ERROR_MM, math.radians(ANGLE_ERROR_DEG))
     errors = np.zeros(r.n_params)
     errors[perturbed] = drawn[perturbed]

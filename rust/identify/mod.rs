@@ -2,16 +2,17 @@
 //!
 //! Everything is computed on the column-scaled Jacobian (unit-norm columns), so the answer does
 //! not depend on mixing mm and rad. The rank is the number of singular values above
-//! `tol·σ₁`; a column-pivoted QR picks the identifiable subset in order of independence;
-//! every other parameter is written as a combination of that subset, which says what it is
-//! redundant with (e.g. `theta1` with `base_rz`). Covariance: `σ̂² (JᵀJ)⁺` with
+//! `tol·σ₁`; a column-pivoted QR picks the identifiable subset in order of independence, the
+//! columns the caller names `first` (a session's set-up) before the others while they add
+//! something of their own; every other parameter is written as a combination of that subset,
+//! which says what it is redundant with (e.g. `theta1` with `base_rz`). Covariance: `σ̂² (JᵀJ)⁺` with
 //! `σ̂² = ‖r‖² / (rows − rank)`.
 //!
 //! Both work on the triangular factor `R` (n × n) of the scaled `J` (m × n): `RᵀR = ĴᵀĴ`, so its
 //! singular values, right singular vectors and pivoted QR (Businger & Golub 1965; Golub & Van
 //! Loan §5.4.1) are those of `Ĵ`, at the cost of an n × n problem after one tall-skinny QR.
 
-use crate::error::{CoreError, CoreResult};
+use crate::error::{check_len, CoreError, CoreResult};
 use crate::linalg::{column_scales, row_major};
 use crate::solve::TallQr;
 use faer::prelude::*;
@@ -27,6 +28,14 @@ pub const REDUNDANCY_COEF_MIN: f64 = 1e-6;
 /// far below it, so the choice never hangs on rounding; columns 1e-9 apart in what they
 /// add are equally good pivots.
 pub const PIVOT_TIE_REL: f64 = 1e-9;
+
+/// A column named `first` is pivoted before the others while its remaining norm is at least this
+/// fraction of the largest: a redundancy between a set-up member and a kinematic parameter
+/// (`tool_x`, `tool_y` and `theta6` of a position sensor) is then resolved to the set-up, which a
+/// session places anew, and the robot's parameter stays at its nominal value, instead of turning
+/// on which of them happens to add the larger norm. Below the fraction, a set-up column adds too
+/// little to be worth a worse-conditioned basis, and the largest norm decides.
+pub const FIRST_MIN_REL: f64 = 1e-3;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Identifiability {
@@ -104,16 +113,25 @@ fn scaled_factor(a: &[f64], m: usize, n: usize, norms: &[f64], effective: &[bool
 /// Column-pivoted Householder QR of `a` (p, k): returns the pivot order (`perm[i]` is the column
 /// of `a` in position `i`) and `R` (min(p, k), k), upper triangular in pivot order, with
 /// `a[:, perm] = Q·R`. Each step takes the column with the largest remaining norm (recomputed,
-/// not downdated: k is small), ties within [`PIVOT_TIE_REL`] going to the lowest column index.
-pub fn pivoted_qr(a: faer::MatRef<'_, f64>) -> (Vec<usize>, Mat<f64>) {
+/// not downdated: k is small) among the columns `first` marks, if that norm is at least
+/// [`FIRST_MIN_REL`] of the largest of all, otherwise among all; ties within [`PIVOT_TIE_REL`]
+/// go to the lowest column index.
+pub fn pivoted_qr(a: faer::MatRef<'_, f64>, first: &[bool]) -> (Vec<usize>, Mat<f64>) {
     let (p, k) = (a.nrows(), a.ncols());
+    assert_eq!(first.len(), k, "one `first` flag per column");
     let mut cols: Vec<Vec<f64>> = (0..k).map(|c| (0..p).map(|r| a[(r, c)]).collect()).collect();
     let mut perm: Vec<usize> = (0..k).collect();
     let steps = p.min(k);
     for i in 0..steps {
         let norms: Vec<f64> = cols[i..].iter().map(|c| c[i..].iter().map(|v| v * v).sum::<f64>().sqrt()).collect();
         let largest = norms.iter().copied().fold(0.0, f64::max);
-        let best = (0..norms.len()).filter(|&j| norms[j] >= largest * (1.0 - PIVOT_TIE_REL)).min_by_key(|&j| perm[i + j]).unwrap_or(0);
+        let marked = |j: usize| first[perm[i + j]];
+        let preferred = (0..norms.len()).filter(|&j| marked(j)).map(|j| norms[j]).fold(0.0, f64::max);
+        let (pool, top) = if preferred > 0.0 && preferred >= FIRST_MIN_REL * largest { (true, preferred) } else { (false, largest) };
+        let best = (0..norms.len())
+            .filter(|&j| (!pool || marked(j)) && norms[j] >= top * (1.0 - PIVOT_TIE_REL))
+            .min_by_key(|&j| perm[i + j])
+            .unwrap_or(0);
         cols.swap(i, i + best);
         perm.swap(i, i + best);
         let alpha = norms[best];
@@ -138,13 +156,15 @@ pub fn pivoted_qr(a: faer::MatRef<'_, f64>) -> (Vec<usize>, Mat<f64>) {
 /// Identifiability analysis of `J` (m, n) row-major.
 ///
 /// The triangular factor (n, n) of the scaled `J`, then a column-pivoted QR of its columns with
-/// an effect ([`pivoted_qr`]) picks the identifiable subset; the singular values and the
-/// redundancy coefficients come from that QR's triangular factor.
+/// an effect ([`pivoted_qr`], the columns `first` marks before the others) picks the
+/// identifiable subset; the singular values and the redundancy coefficients come from that QR's
+/// triangular factor.
 ///
 /// Errors: `Shape`, `NonFinite`, `InvalidParameter` (tol outside (0, 1)).
-pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Identifiability> {
+pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64, first: &[bool]) -> CoreResult<Identifiability> {
     check_tol(tol)?;
     row_major("J", j, m, n)?;
+    check_len("first", first.len(), n)?;
     let (column_norms, effective) = column_scales(j, n);
     let eff_idx: Vec<usize> = (0..n).filter(|&c| effective[c]).collect();
     let no_effect: Vec<usize> = (0..n).filter(|&c| !effective[c]).collect();
@@ -160,7 +180,8 @@ pub fn identifiability(j: &[f64], m: usize, n: usize, tol: f64) -> CoreResult<Id
         // R's columns of the columns with an effect: the same Gram matrix as theirs in Ĵ.
         let factor = scaled_factor(j, m, n, &column_norms, &effective);
         let sub = Mat::from_fn(n, k, |row, c| factor[(row, eff_idx[c])]);
-        let (fwd, r) = pivoted_qr(sub.as_ref()); // r: (k, k) when m ≥ k (n ≥ k rows always)
+        let marked: Vec<bool> = eff_idx.iter().map(|&c| first[c]).collect();
+        let (fwd, r) = pivoted_qr(sub.as_ref(), &marked); // r: (k, k) when m ≥ k (n ≥ k rows always)
         let s = singular_values(r.as_ref())?;
         // With fewer rows than columns (m < k) the extra values are zeros: keep min(m, n).
         let kept = s.len().min(values.len());
@@ -236,12 +257,12 @@ mod tests {
         let rows: Vec<[f64; 4]> =
             (0..4).map(|i| [if i == 1 { 1.0 } else { 0.0 }, 2.0 * v[i], 2.0 * v[i], if i == 3 { 1.5 } else { 0.0 }]).collect();
         let a = Mat::from_fn(4, 4, |r, c| rows[r][c]);
-        let (perm, r) = pivoted_qr(a.as_ref());
+        let (perm, r) = pivoted_qr(a.as_ref(), &[false; 4]);
         assert_eq!(perm, vec![1, 3, 0, 2]);
         assert!(r[(3, 3)].abs() < 1e-15);
         // The same with the duplicate first and a last-bit difference between the two.
         let b = Mat::from_fn(4, 4, |r, c| if c == 2 { a[(r, 1)] * (1.0 + 1e-15) } else { a[(r, c)] });
-        assert_eq!(pivoted_qr(b.as_ref()).0, vec![1, 3, 0, 2]);
+        assert_eq!(pivoted_qr(b.as_ref(), &[false; 4]).0, vec![1, 3, 0, 2]);
     }
 
     /// theta1 and base_rz alike: scaled columns 1 and 3 equal up to sign, either one the copy,
@@ -254,7 +275,7 @@ mod tests {
         let f = |i: usize, c: usize| ((i * (c + 3)) as f64 * 0.37).sin() + 0.1 * c as f64;
         for (dup, orig) in [(1usize, 3usize), (3, 1)] {
             let j: Vec<f64> = (0..m).flat_map(|i| (0..4).map(move |c| if c == dup { -2.5 * f(i, orig) } else { f(i, c) })).collect();
-            let id = identifiability(&j, m, 4, 1e-9).unwrap();
+            let id = identifiability(&j, m, 4, 1e-9, &[false; 4]).unwrap();
             assert_eq!(id.rank, 3);
             assert!(id.identifiable.contains(&1) && !id.identifiable.contains(&3), "{:?}", id.identifiable);
             assert_eq!(id.redundant.len(), 1);
@@ -262,6 +283,35 @@ mod tests {
             assert_eq!((*col, partners.len(), partners[0].0), (3, 1, 1));
             assert!((partners[0].1.abs() - 1.0).abs() < 1e-12);
         }
+    }
+
+    /// A position sensor's tool point (t_x, t_y) turned by theta6: the theta6 column is
+    /// t_x·(tool_y column) − t_y·(tool_x column), so the three have rank 2. Unmarked, the pivots
+    /// follow the norms and may keep theta6; with the set-up marked `first`, tool_x and tool_y are
+    /// identifiable and theta6 is the redundant one, whatever the norms. A marked column that adds
+    /// less than [`FIRST_MIN_REL`] of the largest waits for the others.
+    #[test]
+    fn marked_columns_are_pivoted_first_while_they_add_enough() {
+        let m = 50;
+        let g = gaussian_like(3, m, 3);
+        let (tx, ty) = (0.3, 0.4);
+        // Columns: theta6, tool_x, tool_y (theta6 first: the lowest index wins the unit-norm tie).
+        let j: Vec<f64> = (0..m).flat_map(|i| [tx * g[(i, 1)] - ty * g[(i, 0)], g[(i, 0)], g[(i, 1)]]).collect();
+        let plain = identifiability(&j, m, 3, 1e-9, &[false; 3]).unwrap();
+        assert_eq!((plain.rank, plain.identifiable[0]), (2, 0));
+        let id = identifiability(&j, m, 3, 1e-9, &[false, true, true]).unwrap();
+        assert_eq!(id.rank, 2);
+        assert_eq!(id.identifiable.iter().copied().collect::<std::collections::BTreeSet<_>>(), [1, 2].into());
+        assert_eq!(id.redundant.len(), 1);
+        assert_eq!(id.redundant[0].0, 0);
+        // Two marked columns, nearly copies (the second adds 1e-4 of the first's norm): once one is
+        // taken, the other adds less than FIRST_MIN_REL and the unmarked column goes before it.
+        let near: Vec<f64> = (0..m).flat_map(|i| [g[(i, 0)], g[(i, 1)], g[(i, 0)] + 1e-4 * g[(i, 2)]]).collect();
+        let a = Mat::from_fn(m, 3, |i, c| near[i * 3 + c]);
+        let (perm, _) = pivoted_qr(a.as_ref(), &[true, false, true]);
+        assert_eq!(perm[1], 1, "{perm:?}");
+        let wrong = identifiability(&j, m, 3, 1e-9, &[true; 2]);
+        assert!(matches!(wrong, Err(CoreError::Shape { arg: "first", .. })));
     }
 
     fn gaussian_like(seed: u64, p: usize, k: usize) -> Mat<f64> {
@@ -287,9 +337,9 @@ mod tests {
     fn scale_of_the_jacobian_does_not_matter() {
         let a = gaussian_like(7, 40, 5);
         let j = row_major_of(&a);
-        let want = identifiability(&j, 40, 5, 1e-9).unwrap();
+        let want = identifiability(&j, 40, 5, 1e-9, &[false; 5]).unwrap();
         for scale in [1e-170, 1e140] {
-            let got = identifiability(&j.iter().map(|v| v * scale).collect::<Vec<_>>(), 40, 5, 1e-9).unwrap();
+            let got = identifiability(&j.iter().map(|v| v * scale).collect::<Vec<_>>(), 40, 5, 1e-9, &[false; 5]).unwrap();
             assert_eq!((got.rank, &got.identifiable), (want.rank, &want.identifiable));
             for (g, w) in got.column_norms.iter().zip(&want.column_norms) {
                 assert!((g / scale - w).abs() <= 1e-14 * w, "{g} vs {w}");
@@ -329,7 +379,8 @@ mod tests {
             let qr = a.col_piv_qr();
             let want_perm: Vec<usize> = qr.P().arrays().0.to_vec();
             let want_r = qr.thin_R();
-            for (what, got) in [("matrix", pivoted_qr(a.as_ref())), ("factor", pivoted_qr(triangular_factor(&row_major_of(&a), k + extra, k, &vec![1.0; k]).as_ref()))] {
+            let none = vec![false; k];
+            for (what, got) in [("matrix", pivoted_qr(a.as_ref(), &none)), ("factor", pivoted_qr(triangular_factor(&row_major_of(&a), k + extra, k, &vec![1.0; k]).as_ref(), &none))] {
                 prop_assert_eq!(&got.0, &want_perm, "{} pivots", what);
                 let scale = want_r[(0, 0)].abs();
                 for r in 0..k {
@@ -347,7 +398,7 @@ mod tests {
     #[test]
     fn overflowing_entries_are_an_error_not_a_wrong_rank() {
         let j = [1e300, 1.0, 1e300, 2.0, 0.0, 1.0];
-        assert!(matches!(identifiability(&j, 3, 2, 1e-9), Err(CoreError::OutOfRange { arg: "J", index: 0, .. })));
+        assert!(matches!(identifiability(&j, 3, 2, 1e-9, &[false; 2]), Err(CoreError::OutOfRange { arg: "J", index: 0, .. })));
         assert!(matches!(covariance(&j, &[1.0, 2.0, 3.0], 3, 2, 1e-9), Err(CoreError::OutOfRange { arg: "J", .. })));
     }
 
@@ -356,7 +407,7 @@ mod tests {
         // Columns: c0, c1, c2 = 2·c0 (redundant with c0), c3 = 0 (no effect).
         let rows = [[1.0, 0.0, 2.0, 0.0], [0.0, 1.0, 0.0, 0.0], [1.0, 1.0, 2.0, 0.0], [2.0, -1.0, 4.0, 0.0]];
         let j: Vec<f64> = rows.iter().flatten().copied().collect();
-        let id = identifiability(&j, 4, 4, 1e-9).unwrap();
+        let id = identifiability(&j, 4, 4, 1e-9, &[false; 4]).unwrap();
         assert_eq!(id.rank, 2);
         assert_eq!(id.no_effect, vec![3]);
         assert_eq!(id.identifiable.len(), 2);

@@ -445,13 +445,15 @@ fn normal_equations<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, r: &Bound<'py, 
     Ok((matrix(py, gram, n, n)?, PyArray1::from_vec(py, g)))
 }
 
-/// Identifiability of `J` (m, n): rank, singular values, identifiable subset, redundancy.
+/// Identifiability of `J` (m, n): rank, singular values, identifiable subset, redundancy; the
+/// columns `first` marks (n bools, default none) pivoted before the others while they add enough.
 #[pyfunction]
-#[pyo3(signature = (J, tol = 1e-9))]
+#[pyo3(signature = (J, tol = 1e-9, first = None))]
 #[allow(non_snake_case)]
-fn identifiability<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, tol: f64) -> PyResult<Bound<'py, PyDict>> {
+fn identifiability<'py>(py: Python<'py>, J: &Bound<'py, PyAny>, tol: f64, first: Option<Vec<bool>>) -> PyResult<Bound<'py, PyDict>> {
     let (j, m, n) = array2(J, "J", None)?;
-    let id = py.detach(|| identify::identifiability(&j, m, n, tol)).map_err(core_err)?;
+    let first = first.unwrap_or_else(|| vec![false; n]);
+    let id = py.detach(|| identify::identifiability(&j, m, n, tol, &first)).map_err(core_err)?;
     let d = PyDict::new(py);
     d.set_item("singular_values", PyArray1::from_vec(py, id.singular_values))?;
     d.set_item("rank", id.rank)?;

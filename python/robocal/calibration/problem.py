@@ -14,7 +14,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from ..kernels import as_float_array, cable_initial_guess, identifiability, solve_damped
+from ..kernels import as_float_array, cable_initial_guess, solve_damped
 from ..data.dataset import Dataset
 from ..data.splits import configuration_groups
 from ..exceptions import DataError, InvalidParameterError, NonFiniteError
@@ -364,7 +364,7 @@ class Problem:
         cols = np.unique(cols)  # the core checks the range
         start = start_parameters(robot, data, params, points)
         r, J = robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
-        ident = identifiability(J, tol)
+        ident = robot.identifiability(data.measurement, J, cols, tol)
         names = [robot.param_names[c] for c in cols]
         fixed = {names[j]: "no effect on the measurements" for j in ident["no_effect"]}
         for j, partners in ident["redundant"]:

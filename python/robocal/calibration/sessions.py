@@ -85,9 +85,10 @@ def session_problems(robot: Robot, datasets: list[Dataset], mask, kinematic_prio
     """One :class:`Problem` per session with free sets that fit together (a ``kinematic_prior``
     ``(mm, deg)`` on the first only: it acts on the shared kinematics once).
 
-    Fitted alone, each session resolves its redundancies its own way (``theta1`` or the
-    tracker's ``base_rz``, ``d1`` or ``base_z``); stacked, a shared parameter redundant with every
-    session's set-up must be the one fixed, since each session needs its own set-up. The columns
+    Fitted alone, each session keeps its set-up where it and the robot explain the same
+    (:meth:`~robocal.robot.Robot.identifiability`); stacked, a shared parameter redundant with
+    every session's set-up together (not with one alone) must be fixed too, since each session
+    needs its own set-up. The columns
     of the stacked Jacobian at the sessions' starts are kept greedily — every session's set-up
     first, then the shared parameters — when they add a direction the kept ones do not span.
     """
