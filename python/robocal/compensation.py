@@ -21,7 +21,7 @@ The frame of the targets (``frame=``, ``--frame``):
     ``base_*`` set to the identity), with the calibrated tool (for a multi-session result, session
     1's). The base frame of a tracker calibration is the chain's own: what the tracker cannot
     tell apart from its own placement (``d1`` against ``base_z``, ``theta1`` against ``base_rz``,
-    listed under the result's ``fixed``) keeps the value the fit held it at. A cable
+    listed under the result's ``fixed``) is held nominal by the fit, the set-up taking it. A cable
     calibration's frame is already the robot base (the anchor is placed in it; ``base_*`` are not
     fitted), so ``base`` and ``session`` agree there unless the robot file places the base.
 ``session``, ``session:K``
