@@ -343,17 +343,26 @@ def test_the_public_d2_residuals_wander_in_time_and_d1_is_a_convention_on_two_jo
     assert sorted(e["label"] for e in d1.effects if e["kind"] == "joint_zero") == ["joint_zero joint 2 offset=90", "joint_zero joint 3 offset=180"]
 
 
-def test_the_public_d2_file_is_two_jumps_of_the_cable_zero_and_a_wander(datasets):
-    """D2's residuals wander in time; what wanders are two jumps of the cable's zero of about
-    3 mm (rows 142 and 508), tried before the wander because each gains more than half of what
-    the wander would (a wander taken first smoothed them and ended at 0.47 mm held out instead
-    of 0.29), and a wander of a few tenths of a millimetre between them."""
+def test_the_public_d2_file_is_two_jumps_of_the_cable_zero_and_a_leftover_in_time(datasets):
+    """D2's residuals wander in time; what wanders is first two jumps of the cable's zero of about
+    3 mm (rows 142 and 508), tried before a wander because each gains more than half of what the
+    wander would (a wander taken first smoothed them and ended at 0.47 mm held out). What the
+    jumps leave is still correlated in acquisition order, and said so: a wander of a few tenths of
+    a millimetre follows it on the random folds (0.40 -> 0.30 mm), and is named only where the
+    blocked folds do not lose by it. D2's geometry is undetermined (a dozen parameters far from any
+    arm), so its blocked folds turn on the parameterisation: with the set-up kept first they lose
+    (1.35 -> 1.49 mm) and the wander is an unexplained finding, refused on them; with an anchor
+    coordinate fixed instead of theta1 and d1 they did not, and it was named (0.30 mm)."""
     report = diagnose(datasets / "robotcali-abb-irb120" / "RobotCali-new.xlsx").to_dict()
     steps = sorted((e for e in report["effects"] if e["kind"] == "step"), key=lambda e: -abs(e["params"]["size"]["value"]))
     assert sorted(int(e["params"]["row"]["value"]) for e in steps[:2]) == [142, 508]
     assert all(abs(e["params"]["size"]["value"]) > 2.0 for e in steps[:2])
-    assert "wander" in {e["kind"] for e in report["effects"]}
-    assert report["final"]["rmse_heldout"] < 0.35
+    named = "wander" in {e["kind"] for e in report["effects"]}
+    refused_on_blocked = [r for r in report["rejected"] if r["kind"] == "wander" and "blocked folds" in r["reason"]]
+    assert named or refused_on_blocked
+    last_step = min(steps[:2], key=lambda e: e["rmse_heldout_after"])
+    assert last_step["rmse_heldout_after"] ** 2 < 0.15 * report["baseline"]["rmse_heldout"] ** 2  # the jumps: most of the wandering (92 %)
+    assert report["final"]["rmse_heldout_blocked"] <= 1.01 * last_step["significance"]["rmse_heldout_blocked_after"]  # nothing kept that loses there
 
 
 def test_a_convention_the_set_up_absorbs_is_not_named():

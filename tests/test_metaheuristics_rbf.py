@@ -44,11 +44,13 @@ def test_default_box_follows_units_and_mapping_overrides(problem):
     assert (upper - lower)[problem.names.index("d4")] == pytest.approx(10.0)
 
 
-@pytest.mark.parametrize("method, options", [(bas, dict(max_iter=600)), (pso, SMALL), (de, dict(max_iter=150))])
+@pytest.mark.parametrize("method, options", [(bas, dict(max_iter=1500)), (pso, SMALL), (de, dict(max_iter=150))])
 def test_metaheuristics_lower_the_cost_and_are_deterministic(problem, method, options):
     # The start (nominal kinematics, fitted set-up and tool) is already good; with these short
     # budgets in 23 dimensions the methods improve on it without closing the gap to the LM
-    # optimum (as the paper's Table VIII shows for M2/M4/M7 against M6).
+    # optimum (as the paper's Table VIII shows for M2/M4/M7 against M6). BAS's first steps (half
+    # the box) land worse than the start: after 600 iterations the start was still its best point
+    # for 4 of 10 beetle seeds on this problem, after 1 500 for none (cost 14.7 -> 2.2-6.3).
     start = problem.cost(problem.x0)
     a = method(problem, seed=7, **options)
     b = method(problem, seed=7, **options)

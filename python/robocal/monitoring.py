@@ -490,6 +490,13 @@ class Monitor:
             return (1.0 / std[name] ** 2 if std.get(name) else 0.0) + (1.0 / TOLERANCE[units[name]] ** 2 if is_kinematic(name) else 0.0)
 
         self.prior = np.array([hold(names[c]) for c in self.columns])
+        # What a change leaves (_left_by) extrapolates the constant past the change's start: there
+        # the set-up is held by its own standard deviation (the calibration's, or its re-fit's in a
+        # new session), not free: a set-up direction the samples before the start hardly determine
+        # (a cable's anchor along a slow path) would carry its error into the samples after it.
+        self._extrapolation_prior = np.array(
+            [1.0 / std[names[c]] ** 2 if names[c] in private and std.get(names[c]) else p for c, p in zip(self.columns, self.prior)]
+        )
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
         # The joints' limits, a nanoradian's grace for rounding in the readings.
@@ -645,6 +652,10 @@ class Monitor:
         fit = levenberg_marquardt(problem)
         self.params = problem.full(fit.x)
         self.refit = {"names": names, "samples": len(q)}
+        if fit.std is not None:  # the new set-up is known as well as this fit says
+            for k, sd in zip(problem.free, fit.std):
+                if k in self.columns and sd > 0:
+                    self._extrapolation_prior[self.columns.index(k)] = 1.0 / sd**2
 
     def _moved_sensor(self, q: np.ndarray, y: np.ndarray, floor: np.ndarray, index: list, row) -> Optional[Alarm]:
         """A ``setup`` alarm if the opening's innovations at the calibration's set-up exceed its
@@ -725,12 +736,12 @@ class Monitor:
         Jw = np.array([Jj for _, Jj in window])
         n_after = now - found.since + 1
         z0, J0, z1, J1 = z[:-n_after], Jw[:-n_after], z[-n_after:], Jw[-n_after:]
-        free = int(np.sum(self.prior == 0))  # the set-up's columns, which the constant fits unhindered
+        free = int(np.sum(self.prior == 0))  # the set-up's columns, which the test's constant fits unhindered
         if z0.size <= free + MIN_AFTER:  # too few samples before it in this window: against the noise
             level, before = np.zeros(Jw.shape[2]), 1.0
         else:
             A, b = J0.reshape(-1, J0.shape[2]), z0.ravel()
-            level = np.linalg.lstsq(A.T @ A + np.diag(self.prior), A.T @ b, rcond=None)[0]
+            level = np.linalg.lstsq(A.T @ A + np.diag(self._extrapolation_prior), A.T @ b, rcond=None)[0]
             before = float(np.sum((b - A @ level) ** 2) / (b.size - free))
         rest = z1 - J1 @ level
         onset = np.arange(n_after, dtype=float) if change.ramp else np.ones(n_after)
