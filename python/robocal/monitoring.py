@@ -670,11 +670,11 @@ class Monitor:
         ratio = rms(before) / float(np.sqrt(np.mean(floor[seen] ** 2)))
         if ratio <= FIT_RATIO:  # as the calibration predicted: the set-up need not be re-fitted to tell
             return None
-        calibrated = self.params.copy()
+        calibrated = self.params.copy(), self._extrapolation_prior.copy()
         self._refit_setup(q, y)
         after, _ = self._innovations(q, y)
         if rms(before) <= FIT_RATIO * rms(after):
-            self.params, self.refit = calibrated, {}
+            (self.params, self._extrapolation_prior), self.refit = calibrated, {}
             return None
         logger.info("monitor: the opening's readings are %.3g x the calibration's held-out error: the set-up re-fitted", ratio)
         return Alarm(index[-1], row, index[0], "setup", None, [], "", list(self.refit["names"]), ratio, provisional=False)
