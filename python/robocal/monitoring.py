@@ -490,13 +490,6 @@ class Monitor:
             return (1.0 / std[name] ** 2 if std.get(name) else 0.0) + (1.0 / TOLERANCE[units[name]] ** 2 if is_kinematic(name) else 0.0)
 
         self.prior = np.array([hold(names[c]) for c in self.columns])
-        # What a change leaves (_left_by) extrapolates the constant past the change's start: there
-        # the set-up is held by its own standard deviation (the calibration's, or its re-fit's in a
-        # new session), not free: a set-up direction the samples before the start hardly determine
-        # (a cable's anchor along a slow path) would carry its error into the samples after it.
-        self._extrapolation_prior = np.array(
-            [1.0 / std[names[c]] ** 2 if names[c] in private and std.get(names[c]) else p for c, p in zip(self.columns, self.prior)]
-        )
         self._level = np.zeros(len(self.columns))  # the window's constant (the calibration's error as it sees it)
         self.threshold = {d: float(chdtri(d, 1.0 / (self.mean_run_length * WINDOW * len(self.changes)))) for d in {len(c.columns) for c in self.changes}}
         # The joints' limits, a nanoradian's grace for rounding in the readings.
@@ -652,10 +645,6 @@ class Monitor:
         fit = levenberg_marquardt(problem)
         self.params = problem.full(fit.x)
         self.refit = {"names": names, "samples": len(q)}
-        if fit.std is not None:  # the new set-up is known as well as this fit says
-            for k, sd in zip(problem.free, fit.std):
-                if k in self.columns and sd > 0:
-                    self._extrapolation_prior[self.columns.index(k)] = 1.0 / sd**2
 
     def _moved_sensor(self, q: np.ndarray, y: np.ndarray, floor: np.ndarray, index: list, row) -> Optional[Alarm]:
         """A ``setup`` alarm if the opening's innovations at the calibration's set-up exceed its
@@ -670,11 +659,11 @@ class Monitor:
         ratio = rms(before) / float(np.sqrt(np.mean(floor[seen] ** 2)))
         if ratio <= FIT_RATIO:  # as the calibration predicted: the set-up need not be re-fitted to tell
             return None
-        calibrated = self.params.copy(), self._extrapolation_prior.copy()
+        calibrated = self.params.copy()
         self._refit_setup(q, y)
         after, _ = self._innovations(q, y)
         if rms(before) <= FIT_RATIO * rms(after):
-            (self.params, self._extrapolation_prior), self.refit = calibrated, {}
+            self.params, self.refit = calibrated, {}
             return None
         logger.info("monitor: the opening's readings are %.3g x the calibration's held-out error: the set-up re-fitted", ratio)
         return Alarm(index[-1], row, index[0], "setup", None, [], "", list(self.refit["names"]), ratio, provisional=False)
@@ -726,38 +715,40 @@ class Monitor:
 
     def _left_by(self, found: Alarm, now: int) -> float:
         """How much more ``found`` leaves of the innovations after its start than the model left
-        before it: the window's constant (profiled as the test profiles it) fitted to the samples
-        before the start, the change then fitted to those after it; the RMS of what is left after
-        the start over that before it (its degrees of freedom counted). About 1 where the change
-        explains what follows as the model explained what preceded."""
+        before it. The window's constant and the change are fitted together, as the test profiles
+        them (the constant on every sample, the change from its start on), to the samples before
+        the start and the first half of those after it; the RMS of what is left of the second half
+        — samples the fit did not see — over that of the samples before the start (their degrees
+        of freedom counted). About 1 where the change explains what follows as the model explained
+        what preceded. (The constant fitted to the samples before the start alone carried the error
+        of a direction they hardly determine — a cable's anchor along a slow path — into the
+        samples after it.)"""
         change = next(c for c in self.changes if c.kind == found.kind and c.joint == found.joint)
         window = list(self._delayed)[-min(self._buffers.n, len(self._delayed)) :]
         z = np.array([zj for zj, _ in window])
         Jw = np.array([Jj for _, Jj in window])
         n_after = now - found.since + 1
-        z0, J0, z1, J1 = z[:-n_after], Jw[:-n_after], z[-n_after:], Jw[-n_after:]
-        free = int(np.sum(self.prior == 0))  # the set-up's columns, which the test's constant fits unhindered
-        if z0.size <= free + MIN_AFTER:  # too few samples before it in this window: against the noise
-            level, before = np.zeros(Jw.shape[2]), 1.0
-        else:
-            A, b = J0.reshape(-1, J0.shape[2]), z0.ravel()
-            level = np.linalg.lstsq(A.T @ A + np.diag(self._extrapolation_prior), A.T @ b, rcond=None)[0]
-            before = float(np.sum((b - A @ level) ** 2) / (b.size - free))
-        rest = z1 - J1 @ level
+        n_before = len(z) - n_after
+        free = int(np.sum(self.prior == 0))  # the set-up's columns, which the constant fits unhindered
+        held = n_before * z.shape[1] <= free + MIN_AFTER  # too few samples before it in this window: the constant held, against the noise
+        cols = [self.columns.index(c) for c in change.columns]
         onset = np.arange(n_after, dtype=float) if change.ramp else np.ones(n_after)
-        Jc = J1[:, :, [self.columns.index(c) for c in change.columns]] * onset[:, None, None]
-        if change.ramp:  # a slow ramp's start is uncertain by tens of samples: judged on the samples it is fitted to
-            flat = Jc.reshape(-1, Jc.shape[2])
-            delta = np.linalg.lstsq(flat, rest.ravel(), rcond=None)[0]
-            after = float(np.sum((rest.ravel() - flat @ delta) ** 2) / max(rest.size - len(change.columns), 1))
+        changed = np.zeros((len(z), Jw.shape[1], len(cols)))
+        changed[n_before:] = Jw[n_before:][:, :, cols] * onset[:, None, None]
+        X = changed if held else np.concatenate([Jw, changed], axis=2)
+        penalty = np.zeros(len(cols)) if held else np.concatenate([self.prior, np.zeros(len(cols))])
+        # Held out: a constant change fitted with the first half of the samples after its start predicts the second half (a
+        # change that is there stays as it was; a kind that only follows the samples it sees does not predict the next ones:
+        # D2's re-zero as joint 4's zero). A drift, whose start is uncertain by tens of samples, is judged on the samples it
+        # is fitted to.
+        fit_until = len(z) if change.ramp else n_before + (n_after + 1) // 2
+        A, b = X[:fit_until].reshape(-1, X.shape[2]), z[:fit_until].ravel()
+        left = z - X @ np.linalg.lstsq(A.T @ A + np.diag(penalty), A.T @ b, rcond=None)[0]
+        before = 1.0 if held else float(np.sum(left[:n_before] ** 2) / (left[:n_before].size - free))
+        if change.ramp:
+            after = float(np.sum(left[n_before:] ** 2) / max(left[n_before:].size - len(cols), 1))
         else:
-            # Held out: a constant change fitted on the first half of the samples after its start
-            # predicts the second half (a change that is there stays as it was; a kind that only
-            # follows the samples it sees does not predict the next ones: D2's re-zero as joint 4's zero).
-            half = (n_after + 1) // 2
-            fit_on, check = Jc[:half].reshape(-1, Jc.shape[2]), Jc[half:].reshape(-1, Jc.shape[2])
-            delta = np.linalg.lstsq(fit_on, rest[:half].ravel(), rcond=None)[0]
-            after = float(np.mean((rest[half:].ravel() - check @ delta) ** 2))
+            after = float(np.mean(left[fit_until:] ** 2))
         return float(np.sqrt(after / max(before, 1e-300)))
 
     def _reopen(self) -> None:
