@@ -515,31 +515,5 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(covariance, m)?)?;
     m.add_function(wrap_pyfunction!(cable_initial_guess, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    keep_freed_memory();
     Ok(())
 }
-
-/// glibc hands memory back to the system once 128 KB at the top of a heap are free, and serves
-/// blocks over 128 KB by `mmap` until freeing one raises that threshold: a calibration's
-/// Jacobians (MBs), the kernels' per-block scratch in the worker threads' heaps and NumPy's
-/// temporaries are then paged in afresh on every call (2 500–4 800 page faults in one
-/// `robocal.calibrate` of 20 000 samples, a tenth of its time). Both thresholds are set where
-/// glibc's own adjustment stops (32 MB; twice that to trim): larger blocks are still mapped and
-/// returned, smaller freed ones are reused.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn keep_freed_memory() {
-    use std::ffi::c_int;
-    extern "C" {
-        fn mallopt(param: c_int, value: c_int) -> c_int;
-    }
-    const M_TRIM_THRESHOLD: c_int = -1;
-    const M_MMAP_THRESHOLD: c_int = -3;
-    // SAFETY: glibc's `mallopt` takes any value for these parameters; it only tunes the allocator.
-    unsafe {
-        mallopt(M_MMAP_THRESHOLD, 32 << 20);
-        mallopt(M_TRIM_THRESHOLD, 64 << 20);
-    }
-}
-
-#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn keep_freed_memory() {}
