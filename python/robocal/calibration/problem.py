@@ -97,8 +97,6 @@ def implausible_parameters(robot: Robot, values: dict) -> list[dict]:
 #: many of them, until a step moves no parameter by more than :data:`START_SWITCH` (mm, rad).
 START_SAMPLES = 2000
 START_SWITCH = 1e-2
-#: ... and stops at the first step on every sample that would move no parameter by more than this.
-START_LAST = 1e-9
 
 
 def redundancy_words(partners) -> str:
@@ -121,20 +119,6 @@ def start_parameters(robot: Robot, data: Dataset, params: Optional[np.ndarray] =
     ``points``: the nominal tool points of ``data`` (m, 3) where the caller has them
     (:func:`check_observations` returns them), used when ``params`` is None.
     """
-    return placed_start(robot, data, params, points)[0]
-
-
-def placed_start(
-    robot: Robot, data: Dataset, params: Optional[np.ndarray] = None, points: Optional[np.ndarray] = None, cols: Optional[np.ndarray] = None
-) -> tuple[np.ndarray, Optional[tuple[np.ndarray, np.ndarray]]]:
-    """:func:`start_parameters` and, where its last pass evaluated them, the residuals (m, k) and
-    the Jacobian of the sorted columns ``cols`` (m·k, len(cols)) at that start, else None.
-
-    The steps stop at the first on every sample that would move no parameter by more than 1e-9,
-    which is not taken: the pass that computes it is at the start. When the last two steps say
-    the next one will be that small (they shrink by a steady ratio near the fixed point), that
-    pass evaluates ``cols`` too: what :meth:`Problem.build` needs there, without another pass.
-    """
     p = robot.params.copy() if params is None else np.array(params, dtype=np.float64)
     if data.measurement == "cable":
         if points is None or params is not None:
@@ -149,28 +133,21 @@ def placed_start(
         local = robot.fkine(data.q, params=p_no_base, tool=True)[:, :3, 3]
         p[base] = frame_params(kabsch(local, data.y[:, :3]))
         setup = base
-    fitted = np.array(setup + [robot.index(n) for n in ("tool_x", "tool_y", "tool_z")])
-    wide = None if cols is None else np.union1d(cols, fitted)
+    cols = setup + [robot.index(n) for n in ("tool_x", "tool_y", "tool_z")]
     # The first steps (tens of mm) on a subsample of START_SAMPLES, the last ones on every sample:
     # the same fixed point as all steps on every sample, in half the evaluations of all of them.
     every = max(len(data) // START_SAMPLES, 1)
     q, y = (data.q[::every], data.y[::every]) if every > 1 else (data.q, data.y)
-    last, expected = None, np.inf  # the last step's size on every sample; the next one's expected
     for _ in range(20):
-        evaluated = wide if wide is not None and expected < START_LAST else fitted
-        r, J = robot.residuals_and_jacobian(data.measurement, q, y, params=p, cols=evaluated)
-        step, _ = solve_damped(J if evaluated is fitted else J[:, np.searchsorted(evaluated, fitted)], r.ravel(), 1e-9)
+        r, J = robot.residuals_and_jacobian(data.measurement, q, y, params=p, cols=cols)
+        step, _ = solve_damped(J, r.ravel(), 1e-9)
+        p[cols] += step
         size = np.max(np.abs(step))
-        if every == 1 and size < START_LAST:
-            if evaluated is fitted:
-                return p, None
-            return p, (r, J if wide.size == cols.size else J[:, np.searchsorted(wide, cols)])
-        p[fitted] += step
-        if every == 1:
-            last, expected = size, np.inf if last is None else size * size / last
-        elif size < START_SWITCH:
+        if size < 1e-9 or every > 1 and size < START_SWITCH:
+            if every == 1:
+                break
             every, q, y = 1, data.q, data.y
-    return p, None
+    return p
 
 
 def _spread(points: np.ndarray) -> np.ndarray:
@@ -387,8 +364,8 @@ class Problem:
         if cols.size == 0:
             raise InvalidParameterError(f"`mask` must select at least one of the {robot.n_params} parameters; got {mask!r}")
         cols = np.unique(cols)  # the core checks the range
-        start, evaluated = placed_start(robot, data, params, points, cols)
-        r, J = evaluated or robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
+        start = start_parameters(robot, data, params, points)
+        r, J = robot.residuals_and_jacobian(data.measurement, data.q, data.y, params=start, cols=cols)
         ident = identifiability(J, tol)
         names = [robot.param_names[c] for c in cols]
         fixed = {names[j]: "no effect on the measurements" for j in ident["no_effect"]}
