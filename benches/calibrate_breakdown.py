@@ -5,9 +5,10 @@ process. Unlike a profiler, nothing but the listed functions is instrumented, so
 calls are not inflated.
 
 The file is benchmark part 0's: ``simulate("hsr-jr680", "cable", samples, seed=1)`` written by
-``write_canonical``. The minor page faults per run are printed too: glibc pages large blocks in
-afresh on every call until the process has freed one (which raises its mmap and trim
-thresholds); here the simulation has, as scipy's runs have in ``bench_calibration.py``.
+``write_canonical``. The process first frees a 16 MB block: glibc pages large blocks in afresh on
+every call (thousands of page faults per ``calibrate``) until it has freed one, which raises its
+mmap and trim thresholds — as scipy's runs have in ``bench_calibration.py``. The faults per run
+are printed.
 
     python benches/calibrate_breakdown.py
     python benches/calibrate_breakdown.py --runs 50
@@ -99,6 +100,7 @@ def main() -> None:
     import robocal
     from robocal.data import write_canonical
 
+    np.ones(2 << 20)  # 16 MB allocated and freed: glibc's mmap threshold rises to it, its trim threshold to twice that
     native, sections = instrument()
     with tempfile.TemporaryDirectory() as tmp:
         data, _ = robocal.simulate("hsr-jr680", "cable", samples=args.samples, seed=1)
