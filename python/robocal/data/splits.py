@@ -106,6 +106,12 @@ def _labels(m: int, groups) -> tuple[np.ndarray, int]:
     groups = np.asarray(groups)
     if groups.shape != (m,):
         raise InvalidParameterError(f"`groups` must hold one label per sample, shape ({m},); got shape {groups.shape}")
+    if groups.dtype.kind in "iu" and m and groups[0] == 0:
+        # Labels that are already 0..g-1 in order of first appearance (configuration_groups'
+        # own): each new label is the largest so far plus one. Kept as they are, without a sort.
+        largest = np.maximum.accumulate(groups)
+        if groups.min() >= 0 and np.all(np.diff(largest) <= 1):
+            return groups.astype(np.int64), int(largest[-1]) + 1
     _, first, inverse = np.unique(groups, return_index=True, return_inverse=True)
     rank = np.empty(len(first), dtype=np.int64)
     rank[np.argsort(first)] = np.arange(len(first))
@@ -113,8 +119,10 @@ def _labels(m: int, groups) -> tuple[np.ndarray, int]:
 
 
 def _members(labels: np.ndarray, chosen) -> np.ndarray:
-    """Sorted positions of the samples whose group is among ``chosen``."""
-    return np.flatnonzero(np.isin(labels, np.asarray(chosen, dtype=np.int64)))
+    """Sorted positions of the samples whose group (dense labels, :func:`_labels`) is among ``chosen``."""
+    picked = np.zeros(int(labels.max(initial=-1)) + 1, dtype=bool)
+    picked[np.asarray(chosen, dtype=np.int64)] = True
+    return np.flatnonzero(picked[labels])
 
 
 def _check_m(m: int, least: int, split: str, groups: int) -> int:
