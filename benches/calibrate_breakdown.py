@@ -37,7 +37,7 @@ SECTIONS = [
     ("robocal.calibration.api", "random_split", "· random split"),
     ("robocal.calibration.api", "check_observations", "· check the observations (nominal tool points)"),
     ("robocal.calibration.problem", "start_parameters", "· start: set-up fit (8 passes)"),
-    ("robocal.calibration.problem", "identifiability", "· identifiability analysis"),
+    ("robocal.serial_robot", "identifiability", "· identifiability analysis"),
     ("robocal.calibration.api", "fit", "LM and result (covariance, training metrics)"),
     ("robocal.causes.extended", "_held_out", "held-out metrics"),
 ]
