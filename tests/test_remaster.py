@@ -150,6 +150,13 @@ def test_command_line(case, tmp_path, capsys):
         assert main(["calibrate", str(tmp_path / "new.csv"), "--prior", str(tmp_path / "result.json"), *extra]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("robocal: error: --"), err
+    # The test level: taken by a re-mastering and recorded; out of (0, 1), or without --prior, refused.
+    assert main(["calibrate", str(tmp_path / "new.csv"), "--prior", str(tmp_path / "result.json"), "--alpha", "0.001", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["remaster"]["alpha"] == 0.001
+    for extra in (["--prior", str(tmp_path / "result.json"), "--alpha", "1.5"], ["--robot", robot, "--alpha", "0.01"]):
+        assert main(["calibrate", str(tmp_path / "new.csv"), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "alpha" in err[0], err
     # The result given as the output too: refused before any work, the result untouched.
     assert main(["calibrate", str(tmp_path / "new.csv"), "--prior", str(tmp_path / "result.json"), "--out", str(tmp_path / "result.json")]) == 2
     assert (tmp_path / "result.json").read_bytes() == before

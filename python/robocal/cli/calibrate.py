@@ -33,6 +33,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="RESULT",
         help="re-master: a calibration result held as it is but for each joint's zero; find from a few new points whose zero moved, and by how much",
     )
+    parser.add_argument(
+        "--alpha",
+        type=float,
+        help="re-master (--prior): the level at which a joint's zero is named moved, Bonferroni over the joints the points tell apart "
+        "(default 0.05: a session where nothing moved names a joint at most this often)",
+    )
     parser.add_argument("--out", help="write the result JSON here")
     parser.add_argument("--json", action="store_true", help="print the result JSON instead of a summary")
 
@@ -44,6 +50,8 @@ NOT_WITH_PRIOR = {"method": "lm", "test_fraction": None, "seed": None, "kinemati
 def run(args: argparse.Namespace) -> int:
     if args.prior is not None:
         return _remaster(args)
+    if args.alpha is not None:
+        raise InvalidParameterError("--alpha: only a re-mastering (--prior RESULT) names joints at a test level; a calibration takes none")
     report = args.causes[0] if args.causes and len(args.causes) == 1 and args.causes[0].endswith(".json") else None
     if report is not None:
         report = load_diagnosis(report)  # a corrupt or malformed report is refused naming the file, before the data are read
@@ -133,7 +141,8 @@ def _remaster(args: argparse.Namespace) -> int:
         named = load_result(args.prior)[1].get("robot")
         if args.robot != named:
             raise InvalidParameterError(f"--robot {args.robot}: a re-mastering (--prior) is of the result's robot, {named!r}; omit --robot or give that one")
-    found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=args.angle_unit)
+    level = {} if args.alpha is None else {"alpha": args.alpha}
+    found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=args.angle_unit, **level)
     if args.out:
         save_result(found.document, args.out)
     if args.json:
