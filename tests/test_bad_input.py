@@ -106,6 +106,14 @@ def test_solver_and_sigma_point_errors():
         kernels.merwe_sigma_points(np.zeros(2), np.eye(2), alpha=0.0)
 
 
+def test_identifiability_takes_one_flag_per_column():
+    J = np.random.default_rng(0).normal(size=(20, 4))
+    for first in ([True, False], [[True, False, False, True]], [1, 0, 0, 1]):  # too few, 2-D, not booleans
+        with pytest.raises(InvalidParameterError, match="`first`"):
+            kernels.identifiability(J, first=first)
+    assert kernels.identifiability(J, first=[True, False, False, True])["rank"] == 4
+
+
 def test_exceptions_derive_from_the_stdlib_types():
     assert issubclass(ShapeError, ValueError) and issubclass(SingularError, np.linalg.LinAlgError)
     with pytest.raises(ValueError):

@@ -174,8 +174,13 @@ def identifiability(J, tol: float = 1e-9, first=None) -> dict:
     optional) marks columns to keep in the subset before the others where they explain the same
     (a session's set-up: :meth:`robocal.robot.Robot.identifiability`).
     """
-    marked = None if first is None else [bool(v) for v in np.asarray(first, dtype=bool).ravel()]
-    return _robocal.identifiability(as_float_array(J, "J"), as_float(tol, "tol"), marked)
+    J = as_float_array(J, "J")
+    if first is None:
+        return _robocal.identifiability(J, as_float(tol, "tol"))
+    marked = np.asarray(first)
+    if marked.dtype.kind != "b" or marked.shape != J.shape[1:]:
+        raise InvalidParameterError(f"`first` must hold one boolean per column of J, shape {J.shape[1:]}; got {marked.dtype} of shape {marked.shape}")
+    return _robocal.identifiability(J, as_float(tol, "tol"), marked.tolist())
 
 
 def covariance(J, r, tol: float = 1e-9):
