@@ -7,7 +7,8 @@ Per robot and sensor: a calibration on one simulated session, then new sessions 
 (``--samples`` each, ``--new-session``) replayed sample by sample: clean (false alarms counted
 over every monitored sample), and with a change at the middle of the stream — a joint's zero
 (joints 2 and 3: the reading that much below the angle from then on) or the sensor's step (the
-cable re-zeroed, the tracker moved), 3x and 5x the detection limit the monitor states for it.
+cable re-zeroed, the tracker moved), 3x and 5x the detection limit the monitor states for it
+just before the change (the size column: their median over the streams).
 Prints a Markdown table: samples from the change to the alarm (median over seeds; "missed" when
 none named the change) and the error of its estimated start (the first alarm, provisional or not); the samples to the
 first alarm that names it for good and whether its kind was right; and the median time per update.
@@ -29,20 +30,24 @@ from record import add_argument, recording
 CASES = (("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position"))
 
 
-def _run(result, q, y):
+def _run(result, q, y, at=None):
+    """The stream replayed; with ``at``, also the detection limits the monitor states just before sample ``at``."""
     monitor = Monitor(result, new_session=True)
-    times, alarms = [], []
-    for qi, yi in zip(q, y):
+    times, alarms, limits = [], [], None
+    for i, (qi, yi) in enumerate(zip(q, y)):
+        if i == at:
+            limits = {(e["kind"], e["joint"]): e["size"] for e in monitor.summary()["detection_limits"]}
         t0 = time.perf_counter()
         alarms += monitor.update(qi, yi)
         times.append(time.perf_counter() - t0)
-    return monitor, alarms, times[OPENING:]
+    return monitor, alarms, times[OPENING:], limits
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=3000)
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--factors", default="3,5", help="the changes' sizes in multiples of their detection limits (comma-separated)")
     add_argument(parser)
     args = parser.parse_args()
     with recording(args.record):
@@ -60,23 +65,22 @@ def run(args) -> None:
         data, _ = simulate(robot, measurement, samples=400, seed=2)
         result = robocal.calibrate(data, robot=robot).to_dict()
         streams = [simulate(robot, measurement, samples=args.samples, seed=2, session=s + 1)[0] for s in range(args.seeds)]
-        clean = [_run(result, s.q, s.y) for s in streams]
-        false = sum(len(a) for _, a, _ in clean)
+        clean = [_run(result, s.q, s.y, at) for s in streams]
+        false = sum(len(a) for _, a, _, _ in clean)
         monitored = sum(len(s) - OPENING for s in streams)
-        timing = np.median(np.concatenate([t for _, _, t in clean])) * 1e3
-        limits = {(e["kind"], e["joint"]): e["size"] for e in clean[0][0].summary()["detection_limits"]}
+        timing = np.median(np.concatenate([t for _, _, t, _ in clean])) * 1e3
         for kind, joint in (("joint_zero", 2), ("joint_zero", 3), ("step", None)):
-            for factor in (3, 5):
-                size = factor * limits[(kind, joint)]
+            for factor in [float(f) for f in args.factors.split(",")]:
+                sizes = [factor * limits[(kind, joint)] for _, _, _, limits in clean]
                 delays, starts, naming, right = [], [], [], 0
-                for s in streams:
+                for s, size in zip(streams, sizes):
                     q, y = s.q.copy(), s.y.copy()
                     if kind == "joint_zero":
                         q[at:, joint - 1] -= np.radians(size)
                     else:
                         direction = np.ones(y.shape[1]) / np.sqrt(y.shape[1])
                         y[at:] += size * direction
-                    _, alarms, _ = _run(result, q, y)
+                    _, alarms, _, _ = _run(result, q, y)
                     after = [a for a in alarms if a.sample >= at]
                     if after:
                         delays.append(after[0].sample - at)
@@ -91,7 +95,7 @@ def run(args) -> None:
                 start = f"{np.median(starts):.0f}" if starts else "-"
                 named_after = f"{np.median(naming):.0f}" if naming else "-"
                 print(
-                    f"| {robot}, {measurement} | {what} | {size:.3g} {unit} ({factor}x) | {delay} ({len(delays)}/{len(streams)} found) | {start} | {named_after} | "
+                    f"| {robot}, {measurement} | {what} | {np.median(sizes):.3g} {unit} ({factor:g}x) | {delay} ({len(delays)}/{len(streams)} found) | {start} | {named_after} | "
                     f"{right}/{len(streams)} | {false} in {monitored} | {timing:.2f} ms |",
                     flush=True,
                 )

@@ -44,7 +44,7 @@ def main() -> None:
         for s in range(1, args.sessions + 1):
             stream, _ = simulate(args.robot, args.measurement, samples=args.samples, seed=2, session=s)
             y = stream.y if args.wander is None else stream.y + _wander(stream.y.shape, *args.wander, np.random.default_rng(s))
-            monitor, alarms, _ = _run(result, stream.q, y)
+            monitor, alarms, _, _ = _run(result, stream.q, y)
             total += args.samples - OPENING
             alarms_total += len(alarms)
             said = (

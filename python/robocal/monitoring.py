@@ -95,6 +95,9 @@ TOLD_AT = 2.0
 FIT_RATIO = 2.0
 #: Samples at which each change's detection limit is stated.
 LIMIT_SAMPLES = 25
+#: Full windows over which the stated detection limits are the median (as long as the long-run
+#: variance remembers).
+LIMIT_WINDOWS = MEMORY_BATCHES * BATCH // WINDOW
 
 
 @dataclass(frozen=True)
@@ -505,6 +508,7 @@ class Monitor:
         self._told: Alarm | None = None  # the provisional alarm of the crossing under way
         self._reopened = False  # an unexplained change: the next opening re-fits the set-up
         self.limits: dict = {}
+        self._window_limits: deque = deque(maxlen=LIMIT_WINDOWS)  # per full window, each change's limit in it
         self.refit: dict = {}
 
     # -- what is watched -----------------------------------------------------------------------
@@ -517,6 +521,13 @@ class Monitor:
         columns = tuple(r.index(n) for n in sensor)
         out += [Change("step", None, columns, sensor), Change("drift", None, columns, sensor)]
         return out
+
+    def _limit(self, change: Change, info: np.ndarray) -> float:
+        """The smallest change (along its weakest direction) whose statistic reaches the threshold
+        with information ``info``, at unit inflation (the summary states it at the correlation
+        last measured)."""
+        weakest = np.linalg.eigvalsh(info)[0]
+        return float(np.sqrt(self.threshold[len(change.columns)] / max(weakest, 1e-300)))
 
     def _unit(self, change: Change) -> str:
         return "deg" if change.kind == "joint_zero" and self.robot.joints[change.joint - 1].kind == "revolute" else ("mm/sample" if change.ramp else "mm")
@@ -623,14 +634,10 @@ class Monitor:
             if change.ramp:
                 continue
             cols = [self.columns.index(c) for c in change.columns]
-            # A full window, the change in its last LIMIT_SAMPLES samples, the constant profiled
-            # out: the smallest change (along its weakest direction) whose statistic then reaches
-            # the threshold.
+            # Until the first full window: a window of the opening's mean information, the change
+            # in its last LIMIT_SAMPLES samples, the constant profiled out.
             cross = LIMIT_SAMPLES * per_sample[:, cols]
-            info = cross[cols] - cross.T @ window_inverse @ cross
-            weakest = np.linalg.eigvalsh(info)[0]
-            # at unit inflation: the summary states it at the correlation last measured
-            self.limits[(change.kind, change.joint)] = float(np.sqrt(self.threshold[len(cols)] / max(weakest, 1e-300)))
+            self.limits[(change.kind, change.joint)] = self._limit(change, cross[cols] - cross.T @ window_inverse @ cross)
         for (i, _, _, row), ei, Ji in zip(self._opening, e, J):
             self._push(i, ei, Ji)
         self._opening.clear()
@@ -770,6 +777,8 @@ class Monitor:
         if starts <= 1:
             return None, None
         groups, self._level = b.evidence(starts, self.prior)
+        if b.n == WINDOW and b.head == 0:  # once a window
+            self._measure_limits(groups)
         # Per change: its largest statistic, at which start (1-based in the window), and its score and
         # information there (the estimate is solved only for an alarm).
         strongest: list = [None] * len(self.changes)
@@ -812,6 +821,23 @@ class Monitor:
         told = alarm(*step)
         told.provisional = True
         return found, told
+
+    def _measure_limits(self, groups: list) -> None:
+        """Each change's detection limit in the window now, from the information of a change in
+        its last LIMIT_SAMPLES samples; the stated limit is the median over the last
+        LIMIT_WINDOWS windows. Not the opening's mean information: within a window the path
+        keeps to a small region, where the session's set-up, free in the window's constant, can
+        mimic a change far better than over the whole opening (a tracker's step on a simulated
+        ABB IRB120: a third of the statistic the opening's figure promised)."""
+        row = WINDOW - LIMIT_SAMPLES - 1  # the start LIMIT_SAMPLES before the end (rows begin at the window's second sample)
+        here = {}
+        for which, _, info in groups:
+            for j, k in enumerate(which):
+                change = self.changes[k]
+                if not change.ramp:
+                    here[(change.kind, change.joint)] = self._limit(change, info[row, j])
+        self._window_limits.append(here)
+        self.limits = {key: float(np.median([w[key] for w in self._window_limits])) for key in here}
 
     def _apply(self, alarm: Alarm) -> None:
         change = next(c for c in self.changes if c.kind == alarm.kind and c.joint == alarm.joint)
