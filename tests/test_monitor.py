@@ -154,6 +154,29 @@ def test_a_change_of_three_times_its_stated_limit_is_alarmed_in_time(calibrated)
         assert alarms[0].sample - CHANGE_AT <= within and abs(alarms[0].since - CHANGE_AT) <= 5, alarms[0].words()
 
 
+def test_a_second_change_is_found_after_the_first_is_applied():
+    """Joint 2's zero moves at sample 750 and the cable is re-zeroed at 1,500 (each 5x the limit
+    stated before the first): both are alarmed, the second as quickly as it would be alone. The
+    innovations the first change made, fed to the yardstick as they left the window, had raised
+    the long-run inflation from 5 to 300 and hid the second."""
+    data, _ = simulate("hsr-jr680", "cable", samples=400, seed=2)
+    result = robocal.calibrate(data, robot="hsr-jr680").to_dict()
+    stream, _ = simulate("hsr-jr680", "cable", samples=2200, seed=2, session=1)
+    q, y = stream.q.copy(), stream.y.copy()
+    probe = Monitor(result, new_session=True)
+    probe.update(q[:750], y[:750])
+    before = probe.inflation
+    limits = {(e["kind"], e["joint"]): e["size"] for e in probe.summary()["detection_limits"]}
+    q[750:, 1] -= np.radians(5 * limits[("joint_zero", 2)])
+    monitor = Monitor(result, new_session=True)
+    first = monitor.update(q[:1500], y[:1500])
+    assert [(a.kind, a.joint) for a in first if not a.provisional] == [("joint_zero", 2)], [a.words() for a in first]
+    assert monitor.inflation < 2 * before, (monitor.inflation, before)
+    y[1500:] += 5 * limits[("step", None)]
+    second = monitor.update(q[1500:], y[1500:])
+    assert second and abs(second[0].since - 1500) <= 3 and second[0].sample - 1500 <= 10, [a.words() for a in second]
+
+
 def test_a_sensor_step_is_alarmed_as_a_step(calibrated):
     result, stream = calibrated
     y = stream.y.copy()

@@ -682,8 +682,13 @@ class Monitor:
         self._delayed.append((z, Jw))
         if len(self._delayed) == WINDOW:  # an innovation leaves the window: it now measures the yardstick, less the window's constant
             z_old, J_old = self._delayed.popleft()
-            self._variance.add(z_old - J_old @ self._level)
-            self.inflation = self._variance.inflation
+            # Not while the window refills after a change: its constant rests on a few samples, and the
+            # innovations leaving it were made by the model before the change, the change's own among them
+            # (fed to it, they raised the long-run inflation from 5 to 300 after a joint's zero was found,
+            # and the monitor was blind to the next change for thousands of samples).
+            if self._buffers.n == WINDOW:
+                self._variance.add(z_old - J_old @ self._level)
+                self.inflation = self._variance.inflation
 
     def _step(self, i: int, q: np.ndarray, y: np.ndarray, row) -> Optional[Alarm]:
         if self._drift_left:  # a drift found goes on for a window: the model follows it sample by sample
