@@ -93,6 +93,11 @@ TOLD_AT = 2.0
 #: innovations at the calibration's set-up and with it re-fitted (and against the calibration's
 #: held-out error) says the sensor stands elsewhere than the calibration placed it.
 FIT_RATIO = 2.0
+#: Segments whose statistics, taken every SEGMENT samples from a full window, measure each change's
+#: own yardstick once they have left it ...
+SEGMENT = BATCH
+#: ... counted once this many are in (before, the innovations' long-run inflation alone).
+MIN_SEGMENTS = 20
 #: Samples at which each change's detection limit is stated.
 LIMIT_SAMPLES = 25
 #: Full windows over which the stated detection limits are the median (as long as the long-run
@@ -439,6 +444,35 @@ class _LongRunVariance:
         self.first_half = None
 
 
+class _StatisticScale:
+    """Each change's statistic under no change, per degree of freedom: the mean over past segments
+    of SEGMENT samples, each taken at the end of a full window and counted once it has left the
+    window (one taken while a change was under way is dropped with the alarm). Under no change it
+    is the factor by which that statistic exceeds χ²; the innovations' long-run inflation
+    estimates it from their sums, less each window's constant, alike for every change — and falls
+    short where the model's error along the path and a wandering sensor shape the profiled
+    contrasts otherwise (HSR cable with an AR(1) wander: the drift's statistic 1.6 times and the
+    step's 1.3 times the inflation, whose yardstick then gave 5 false alarms in 10⁵ samples).
+    Forgets over MEMORY_BATCHES segments."""
+
+    def __init__(self, changes: int):
+        self.pending: deque = deque()
+        self.mean, self.count = np.zeros(changes), 0
+
+    def take(self, now: int, per_dof: np.ndarray) -> None:
+        self.pending.append((now, per_dof))
+
+    def fold(self, now: int) -> None:
+        while self.pending and self.pending[0][0] <= now - WINDOW:
+            _, per_dof = self.pending.popleft()
+            self.count = min(self.count + 1, MEMORY_BATCHES)
+            self.mean += (per_dof - self.mean) / self.count
+
+    def scales(self, inflation: float) -> np.ndarray:
+        """Per change: the larger of the long-run inflation and the statistic's own factor."""
+        return np.full(len(self.mean), inflation) if self.count < MIN_SEGMENTS else np.maximum(inflation, self.mean)
+
+
 class Monitor:
     """Watches a calibrated robot sample by sample (see the module notes).
 
@@ -504,6 +538,7 @@ class Monitor:
         self._buffers = _Buffers(len(self.columns), [([self.columns.index(c) for c in change.columns], change.ramp) for change in self.changes])
         self.sigma: Optional[np.ndarray] = None
         self.inflation = 1.0
+        self._scale = _StatisticScale(len(self.changes))
         self._delayed: deque = deque()
         self._told: Alarm | None = None  # the provisional alarm of the crossing under way
         self._reopened = False  # an unexplained change: the next opening re-fits the set-up
@@ -625,6 +660,7 @@ class Monitor:
         G = np.einsum("mkp,mkq->pq", Jw, Jw) + np.diag(self.prior)
         level = np.linalg.pinv(G, rcond=1e-12, hermitian=True) @ np.einsum("mkp,mk->p", Jw, z)
         self._variance = _LongRunVariance(z - Jw @ level)  # the opening less its constant, as the window will see it
+        self._scale = _StatisticScale(len(self.changes))  # the innovations' scale is new: so are the statistics'
         self.inflation = self._variance.inflation
         Jw = J / self.sigma[None, :, None]
         per_sample = np.einsum("mkp,mkq->pq", Jw, Jw) / len(q)
@@ -723,6 +759,7 @@ class Monitor:
         self._apply(found)
         self.alarms.append(found)
         self._buffers.clear()  # the window starts anew under the changed model
+        self._scale.pending.clear()  # taken while the change was under way
         return found
 
     def _left_by(self, found: Alarm, now: int) -> float:
@@ -784,12 +821,19 @@ class Monitor:
         groups, self._level = b.evidence(starts, self.prior)
         if b.n == WINDOW and b.head == 0:  # once a window
             self._measure_limits(groups)
+        groups = [(which, score, info + 1e-12 * np.eye(score.shape[2])) for which, score, info in groups]
+        if b.n == WINDOW and b.head % SEGMENT == 0:
+            per_dof = np.zeros(len(self.changes))
+            for which, score, info in groups:
+                per_dof[which] = _quadratic(info[WINDOW - SEGMENT - 1], score[WINDOW - SEGMENT - 1]) / score.shape[2]
+            self._scale.take(now, per_dof)
+        self._scale.fold(now)
+        scales = self._scale.scales(self.inflation)  # per change, what its statistic is divided by
         # Per change: its largest statistic, at which start (1-based in the window), and its score and
         # information there (the estimate is solved only for an alarm).
         strongest: list = [None] * len(self.changes)
         for which, score, info in groups:  # the changes of d parameters each, all starts at once
-            info = info + 1e-12 * np.eye(score.shape[2])
-            stat = _quadratic(info, score) / self.inflation
+            stat = _quadratic(info, score) / scales[which]
             for j, k in enumerate(np.argmax(stat, axis=0)):
                 strongest[which[j]] = (float(stat[k, j]), int(k) + 1, (info[k, j], score[k, j]))
         if all(stat <= self.threshold[len(c.columns)] for c, (stat, _, _) in zip(self.changes, strongest)):
@@ -859,6 +903,7 @@ class Monitor:
 
     # -- what it found -------------------------------------------------------------------------
     def summary(self) -> dict:
+        scale = dict(zip(((c.kind, c.joint) for c in self.changes), self._scale.scales(self.inflation)))
         return {
             "samples": self.samples,
             "alarms": [a.to_dict() for a in self.alarms],
@@ -872,7 +917,7 @@ class Monitor:
                 {
                     "kind": kind,
                     "joint": joint,
-                    "size": (np.degrees(v) if kind == "joint_zero" else v) * math.sqrt(self.inflation),
+                    "size": (np.degrees(v) if kind == "joint_zero" else v) * math.sqrt(scale[(kind, joint)]),
                     "unit": "deg" if kind == "joint_zero" else "mm",
                     "within": LIMIT_SAMPLES,
                 }
