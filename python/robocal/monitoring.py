@@ -27,10 +27,11 @@ Under no change each statistic is χ² with as many degrees of freedom as the ch
 parameters. The threshold is the χ² quantile of ``1 / (mean_run_length · WINDOW · changes)`` —
 a Bonferroni bound over every start in the window and every change — so false alarms come at
 most once per ``mean_run_length`` samples (default :data:`MEAN_RUN_LENGTH`). Real innovations
-are correlated in time (the model's own errors along a path, a sensor that wanders): the
-statistics are divided by the AR(1) inflation ``(1 + ρ)/(1 − ρ)`` of the lag-1 correlation ``ρ``
-of the opening samples' innovations (their mean removed), and the variance ``W⁻¹`` is those
-innovations' per reading. No alarm is raised during the opening (:data:`OPENING` samples): a
+are correlated in time (the model's own errors along a path, a sensor that wanders): each
+statistic is divided by the larger of the innovations' long-run inflation (:class:`_LongRunVariance`:
+batch means of the innovations leaving the window) and its own yardstick
+(:class:`_StatisticScale`: its mean per degree of freedom over past segments), and the variance
+``W⁻¹`` is the opening innovations' per reading. No alarm is raised during the opening (:data:`OPENING` samples): a
 change there cannot be told from the set-up. With ``new_session`` the opening samples first
 re-fit the session's set-up (as ``verify`` does).
 """
