@@ -201,3 +201,20 @@ def test_heavy_tailed_noise_keeps_its_outliers():
     report = diagnose(dataset(acq, [{"family": "heavy_tails", "keys": {"dof": 3.0}, "size": None}])).to_dict()
     assert "outliers" in [e["kind"] for e in report["effects"]]
     assert not any("gather at" in f for f in report["final"]["residuals"]["findings"])
+
+
+def test_a_joints_clipped_wave_is_one_claim_about_the_joint():
+    """A clipped sine of joint 4, three cycles a turn (file 56 of the mismatch section, seed 25):
+    the model holds joint 4's third harmonic and, beside it, a map of what the harmonic does not
+    follow — one error of the joint's angle, so one entry of the report, the map's, with the
+    harmonic under it (the two were named as two causes)."""
+    from robocal.diagnosis_file import load_diagnosis
+
+    acq = mismatch.acquisition("abb-irb120", "pose", 300, seed=25133)
+    wave = {"family": "periodic_shape", "keys": {"joint": 4, "shape": "clipped", "harmonic": 3, "phase": 0.86}, "size": 0.0276231}
+    report = diagnose(dataset(acq, [wave])).to_dict()
+    assert set(report["model"]["causes"]) >= {"joint_periodic joint 4 harmonic=3", "joint_map joint 4 spacing=5.0 roughness=0.001"}
+    (claim,) = [e for e in report["effects"] if e["joint"] == 4]
+    assert claim["kind"] == "joint_map" and [h["label"] for h in claim["with_harmonics"]] == ["joint_periodic joint 4 harmonic=3"]
+    assert load_diagnosis(report).effects[-1].with_harmonics[0].params["amplitude"].unit == "deg"
+

@@ -101,6 +101,8 @@ class Effect(BaseModel):
     #: An outliers entry's test of readings taken right after long joint moves.
     after_long_moves: Optional[dict[str, Any]] = None
     curve: Optional[Curve] = None
+    #: A joint map's: the harmonics of its joint the model holds beside it, one claim with it.
+    with_harmonics: List["Effect"] = []
     # a refused cause's
     reason: str = ""
     gain_mm: Optional[float] = None
@@ -326,6 +328,7 @@ class DiagnosisReport(BaseModel):
         return self
 
 
+Effect.model_rebuild()
 SessionReport.model_rebuild()
 Floor.model_rebuild()
 

@@ -49,7 +49,9 @@ def summary(report) -> str:
     for e in report.effects:
         where = f" joint {e.joint}" if e.joint is not None else ""
         lines.append(
-            f"  + {e.kind}{where}: {_quantities(e.params)}{correlation_words(e.correlation)}{alike_words(e.significance)}{settling_words(e.after_long_moves)}; "
+            f"  + {e.kind}{where}: {_quantities(e.params)}{correlation_words(e.correlation)}{alike_words(e.significance)}{settling_words(e.after_long_moves)}"
+            + "".join(f", beside its {h.label} ({_quantities(h.params)})" for h in e.with_harmonics)
+            + "; "
             f"held-out RMSE {e.rmse_heldout_before:.4f} -> {e.rmse_heldout_after:.4f} mm"
             + (f" ({e.share_of_explained:.0%} of what the causes explain)" if e.share_of_explained is not None else "")
         )

@@ -45,6 +45,22 @@ def explained_shares(effects: list, baseline: float, final: float) -> None:
         e["share_of_explained"] = float((e["rmse_heldout_before"] ** 2 - e["rmse_heldout_after"] ** 2) / total) if inside else None
 
 
+def one_claim_per_joint(effects: list) -> None:
+    """A joint map and the harmonics of its joint the model holds beside it as one entry of
+    ``effects``: the map's, with the harmonics' entries under ``with_harmonics`` (their shares of
+    what is explained added to its own). Both are the error of one joint's angle — the map the
+    part the harmonics do not follow — and one claim of it (a clipped sine of a joint was named
+    a harmonic and, beside it, a map: two causes, the mismatch section)."""
+    for m in [e for e in effects if e["kind"] == "joint_map"]:
+        own = [e for e in effects if e["kind"] == "joint_periodic" and e["joint"] == m["joint"]]
+        if not own:
+            continue
+        m["with_harmonics"] = own
+        if m.get("share_of_explained") is not None:
+            m["share_of_explained"] += sum(e.get("share_of_explained") or 0.0 for e in own)
+        effects[:] = [e for e in effects if not any(e is o for o in own)]
+
+
 def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
     """What the final model leaves: the error budget (:func:`~.budget.floor`, with the
     repeatability at the revisits), the verdict on its residuals

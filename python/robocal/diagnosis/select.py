@@ -40,7 +40,7 @@ report as far as it is written) and leaves it updated:
 7. :func:`~.physical.physical_model`: a tolerance prior on the kinematics where the data leave the geometry
    undetermined, kept if it costs at most :data:`~.physical.PRIOR_COST` of held-out error.
 8. The report (:mod:`.entries`): :func:`~.entries.describe_causes` (uncertainties, shares of what is
-   explained), :func:`~.entries.final_residuals` (error floor, what the residuals are),
+   explained), :func:`~.entries.one_claim_per_joint` (a map and its joint's harmonics one entry), :func:`~.entries.final_residuals` (error floor, what the residuals are),
    :func:`~.outliers.name_outliers` (the outliers re-decided under the final model),
    :func:`~.entries.baseline_entry` and :func:`~.entries.final_entry`.
 """
@@ -84,7 +84,7 @@ from ..robot import Robot
 from ..stats import paired_z, rmse_of_squares
 from . import conventions
 from .change_points import ramps, step_candidates
-from .entries import baseline_entry, describe_causes, final_entry, final_residuals
+from .entries import baseline_entry, describe_causes, final_entry, final_residuals, one_claim_per_joint
 from .leftover import unexplained
 from .maps import map_stage, merge_harmonics
 from .outliers import gross_outliers, name_outliers
@@ -429,6 +429,7 @@ def _select(
     unconstrained = reported_rmse(state.cv["random"])  # the final model's held-out error without a tolerance prior
     final_fit, prior = physical_model(state)
     describe_causes(state)
+    one_claim_per_joint(state.effects)
     budget, leftover, z = final_residuals(state)
     outliers, beyond_bound, gathered = name_outliers(state, z, revealed, folds=folds, seed=seed, geometric_cv=geometric_cv)
     if gathered is not None:  # what is left is not noise there
