@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
-from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, MIN_SEGMENTS, OPENING, WINDOW, Monitor, _LongRunVariance, _quadratic, _ridged_inverse
+from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance, _quadratic, _ridged_inverse
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -183,10 +183,10 @@ def test_a_second_change_is_found_after_the_first_is_applied():
 
 def test_each_changes_statistic_is_measured_against_its_own_yardstick():
     """Under no change each statistic, per degree of freedom and divided by what the monitor divides
-    it by, averages about 1 (χ²): on a long clean HSR cable stream whose reading wanders (AR(1), 0.9,
-    0.05 mm), over segments of 25 and 75 samples (the yardstick is measured on 50). The innovations'
-    long-run inflation alone fell short for the drift by 1.9-2x, and such streams raised 5 false
-    alarms in 10⁵ samples where one was stated."""
+    it by, averages at most 1 (χ²): on a long clean HSR cable stream whose reading wanders (AR(1),
+    0.9, 0.05 mm), over segments of 25 and 75 samples (the yardstick is measured on 50). The
+    innovations' long-run inflation alone fell short for the drift by 2x, and such streams raised
+    40 false alarms in 870,000 samples where one per 100,000 was stated."""
     data, _ = simulate("hsr-jr680", "cable", samples=400, seed=2)
     result = robocal.calibrate(data, robot="hsr-jr680").to_dict()
     stream, _ = simulate("hsr-jr680", "cable", samples=3000, seed=2, session=5)
@@ -194,21 +194,22 @@ def test_each_changes_statistic_is_measured_against_its_own_yardstick():
     at_scale, at_inflation = {}, {}
     for i, (qi, yi) in enumerate(zip(stream.q, stream.y + _wander(stream.y.shape, np.random.default_rng(5)))):
         monitor.update(qi, yi)
-        if monitor._scale.count < MIN_SEGMENTS or i % 10:
+        if monitor._scale.count < 20 or i % 10:  # once its yardstick rests on 20 segments
             continue
         b = monitor._buffers
         groups, _ = b.evidence(b.n - 2, monitor.prior)
-        scales = monitor._scale.scales(monitor.inflation)
+        scale = monitor._scale.scale(monitor.inflation)
         for which, score, info in groups:
             for after in (25, 75):
                 at = WINDOW - after - 1
                 per_dof = _quadratic(info[at] + 1e-12 * np.eye(score.shape[2]), score[at]) / score.shape[2]
                 for j, k in enumerate(which):
                     kind = monitor.changes[k].kind
-                    at_scale.setdefault(kind, []).append(per_dof[j] / scales[k])
+                    at_scale.setdefault(kind, []).append(per_dof[j] / scale)
                     at_inflation.setdefault(kind, []).append(per_dof[j] / monitor.inflation)
     mean = {kind: float(np.mean(v)) for kind, v in at_scale.items()}
-    assert 0.75 < mean["drift"] < 1.25 and mean["step"] < 1.5 and mean["joint_zero"] < 1.5, mean
+    # At most χ² for every kind (one divisor for all, at its upper confidence bound: the zeros' well below).
+    assert all(0.4 < m < 1.1 for m in mean.values()), mean
     assert np.mean(at_inflation["drift"]) > 1.5  # what the inflation alone made of it
 
 
