@@ -3,7 +3,7 @@ on clean streams, time per update.
 
     python benches/bench_monitor.py [--samples 3000] [--seeds 3] [--record PATH]
 
-Per robot and sensor: a calibration on one simulated session, then new sessions of the same robot
+Per robot and sensor (a tracker's positions or poses, a cable): a calibration on one simulated session, then new sessions of the same robot
 (``--samples`` each, ``--new-session``) replayed sample by sample: clean (false alarms counted
 over every monitored sample), and with a change at the middle of the stream — a joint's zero
 (joints 2 and 3: the reading that much below the angle from then on) or the sensor's step (the
@@ -27,7 +27,7 @@ from robocal.simulation import simulate
 
 from record import add_argument, recording
 
-CASES = (("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position"))
+CASES = (("ur10", "position"), ("hsr-jr680", "cable"), ("abb-irb120", "position"), ("ur10", "pose"), ("abb-irb120", "pose"))
 
 
 def _run(result, q, y, at=None):
@@ -78,8 +78,8 @@ def run(args) -> None:
                     if kind == "joint_zero":
                         q[at:, joint - 1] -= np.radians(size)
                     else:
-                        direction = np.ones(y.shape[1]) / np.sqrt(y.shape[1])
-                        y[at:] += size * direction
+                        moved = min(y.shape[1], 3)  # the cable's length, or a tracker's point (a pose's orientation stays)
+                        y[at:, :moved] += size / np.sqrt(moved)
                     _, alarms, _, _ = _run(result, q, y)
                     after = [a for a in alarms if a.sample >= at]
                     if after:
