@@ -17,7 +17,8 @@ from hypothesis.extra.numpy import arrays
 from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
-from robocal.monitoring import BATCH, FIT_RATIO, MAX_WAIT, OPENING, WINDOW, Monitor, _LongRunVariance, _quadratic, _ridged_inverse
+from robocal.monitor_window import BATCH, WINDOW, LongRunVariance, quadratic_form, ridged_inverse
+from robocal.monitoring import FIT_RATIO, MAX_WAIT, OPENING, Monitor
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -77,7 +78,7 @@ def test_the_yardstick_learns_a_correlation_the_opening_did_not_show():
     opening's estimate weighed as 100 batches kept it near 3), and over the opening alone it is
     taken at its upper confidence bound (4 batches cannot show a correlation they missed)."""
     rng = np.random.default_rng(0)
-    yardstick = _LongRunVariance(rng.standard_normal((OPENING, 1)))
+    yardstick = LongRunVariance(rng.standard_normal((OPENING, 1)))
     assert yardstick.inflation > 2.0
     z = np.zeros(30 * BATCH)
     for t in range(1, len(z)):
@@ -112,10 +113,10 @@ def test_the_windows_constant_is_free_in_every_unit():
     G = np.array([[4e10, 2e6], [2e6, 1.4e3]])
     g = np.array([3e5, 40.0])
     exact = np.linalg.solve(G, g)
-    assert np.allclose(_ridged_inverse(G) @ g, exact, rtol=1e-4)
+    assert np.allclose(ridged_inverse(G) @ g, exact, rtol=1e-4)
     scale = np.diag([1.0, 1e-3])  # the length in metres
-    assert np.allclose(scale @ _ridged_inverse(scale @ G @ scale) @ (scale @ g), exact, rtol=1e-4)
-    assert np.all(np.isfinite(_ridged_inverse(np.array([[1.0, 1.0], [1.0, 1.0]]))))  # undetermined: finite
+    assert np.allclose(scale @ ridged_inverse(scale @ G @ scale) @ (scale @ g), exact, rtol=1e-4)
+    assert np.all(np.isfinite(ridged_inverse(np.array([[1.0, 1.0], [1.0, 1.0]]))))  # undetermined: finite
 
 
 def test_a_joint_zero_change_is_alarmed_as_that_joint_near_where_it_began(calibrated):
@@ -202,7 +203,7 @@ def test_each_changes_statistic_is_measured_against_its_own_yardstick():
         for which, score, info in groups:
             for after in (25, 75):
                 at = WINDOW - after - 1
-                per_dof = _quadratic(info[at] + 1e-12 * np.eye(score.shape[2]), score[at]) / score.shape[2]
+                per_dof = quadratic_form(info[at] + 1e-12 * np.eye(score.shape[2]), score[at]) / score.shape[2]
                 for j, k in enumerate(which):
                     kind = monitor.changes[k].kind
                     at_scale.setdefault(kind, []).append(per_dof[j] / scale)
@@ -360,7 +361,7 @@ def _window_evidence(samples, cols, ramp, prior, start):
     X = np.concatenate([Jw[:, cols] * (t - t0 if ramp else 1.0) * (k >= start) for k, (t, Jw, _) in enumerate(samples)])
     J = np.concatenate([Jw for _, Jw, _ in samples])
     z = np.concatenate([z for _, _, z in samples])
-    inverse = _ridged_inverse(J.T @ J + np.diag(prior))  # the monitor's ridge
+    inverse = ridged_inverse(J.T @ J + np.diag(prior))  # the monitor's ridge
     score = X.T @ z - X.T @ J @ inverse @ (J.T @ z)
     info = X.T @ X - X.T @ J @ inverse @ (J.T @ X)
     return score, info
@@ -372,12 +373,13 @@ def test_the_window_sums_are_the_windows_own(seed, k, extra, clear_at):
     """The running totals, the ring and the packed sums give every change's score and
     information from every start as the window's own samples do, after the window has wrapped
     round any number of times and after a clear (an alarm)."""
-    from robocal.monitoring import MIN_AFTER, _Buffers
+    from robocal.monitor_window import WindowSums
+    from robocal.monitoring import MIN_AFTER
 
     rng = np.random.default_rng(seed)
     p = 7
     hypotheses = [([0], False), ([3], False), ([5], False), ([1, 2, 6], False), ([1, 2, 6], True), ([4, 6], True)]
-    buffers, prior = _Buffers(p, hypotheses), rng.uniform(0.0, 2.0, p)
+    buffers, prior = WindowSums(p, hypotheses), rng.uniform(0.0, 2.0, p)
     window, t = [], int(rng.integers(0, 10**5))
     for step in range(WINDOW // 2 + extra):
         t += int(rng.integers(1, 3))  # refused samples leave gaps in the times
@@ -409,7 +411,7 @@ def test_the_statistic_from_ldl_factors_is_the_solved_ones(seed, d, condition):
     X = rng.standard_normal((5, 3, d, d)) * np.logspace(0.0, -condition / 2.0, d)
     A, b = X @ X.transpose(0, 1, 3, 2) + 1e-9 * np.eye(d), rng.standard_normal((5, 3, d))
     solved = np.einsum("...i,...i->...", b, np.linalg.solve(A, b[..., None])[..., 0])
-    np.testing.assert_allclose(_quadratic(A, b), solved, rtol=1e-6)
+    np.testing.assert_allclose(quadratic_form(A, b), solved, rtol=1e-6)
 
 
 def test_a_stream_on_standard_input_refuses_bad_lines_and_goes_on(tmp_path, capsys, monkeypatch, monitor_result):
