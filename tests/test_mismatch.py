@@ -217,4 +217,3 @@ def test_a_joints_clipped_wave_is_one_claim_about_the_joint():
     (claim,) = [e for e in report["effects"] if e["joint"] == 4]
     assert claim["kind"] == "joint_map" and [h["label"] for h in claim["with_harmonics"]] == ["joint_periodic joint 4 harmonic=3"]
     assert load_diagnosis(report).effects[-1].with_harmonics[0].params["amplitude"].unit == "deg"
-
