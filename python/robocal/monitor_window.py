@@ -289,6 +289,7 @@ class StatisticScale:
         self.pending: deque = deque()
         self.dofs = dofs  # each change's parameters
         self.mean, self.count = np.zeros(len(dofs)), 0
+        self.bound = 0.0  # the largest factor at its upper bound: changes only as a segment is folded, not per sample
 
     def take(self, now: int, per_dof: np.ndarray) -> None:
         self.pending.append((now, per_dof))
@@ -298,13 +299,12 @@ class StatisticScale:
             _, per_dof = self.pending.popleft()
             self.count = min(self.count + 1, MEMORY_BATCHES)
             self.mean += (per_dof - self.mean) / self.count
+            dof = self.count * self.dofs
+            self.bound = float(np.max(self.mean * dof / chdtri(dof, CONFIDENCE)))
 
     def scale(self, inflation: float) -> float:
         """What every statistic is divided by: the larger of the long-run inflation and the
         statistics' own factors. One for all: the kinds are ranked by their statistics, and
         factors of their own, uncertain over a few segments, re-ranked them (a joint's zero at 5x
         its limit named as another's)."""
-        if not self.count:
-            return inflation
-        dof = self.count * self.dofs
-        return float(max(inflation, np.max(self.mean * dof / chdtri(dof, CONFIDENCE))))
+        return max(inflation, self.bound)
