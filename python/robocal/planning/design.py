@@ -19,6 +19,7 @@ from ..causes.extended import extended_problem
 from ..data.dataset import Dataset
 from ..kernels import is_sparse
 from ..robot import RESIDUAL_WIDTH, Robot, setup_names, zero_names
+from .criteria import RIDGE
 
 #: Poses on which the predicted position's standard deviation over the workspace is averaged.
 WORKSPACE_POSES = 500
@@ -117,14 +118,17 @@ def _design(
 @dataclass
 class _ZeroDesign:
     """A re-mastering's model linearised on the candidates (criterion ``"Ds"``): the new session's
-    set-up and the joints' zero offsets, the rest of the robot held. Its entries' names, the column
-    scales (RMS over the candidates), every candidate's rows (scaled, (n, k, p)), the positions of
-    the zeros the candidates can tell from the set-up, and for the others the set-up entries that
-    reproduce them."""
+    set-up and the joints' zero offsets, the rest of the robot held — and, where the result's
+    information is known, the result's own error as a nuisance with that information as its prior
+    (:func:`with_result_error`). Its entries' names, the column scales (RMS over the candidates),
+    every candidate's rows (scaled, (n, k, p)), the prior information (scaled, (p, p)), the
+    positions of the zeros the candidates can tell from the set-up, and for the others the set-up
+    entries that reproduce them."""
 
     names: list
     scale: np.ndarray
     A: np.ndarray
+    M0: np.ndarray
     of: list
     absorbed: dict
 
@@ -149,6 +153,23 @@ def _zero_design(robot: Robot, measurement: str, params: np.ndarray, pool: np.nd
         names=kept,
         scale=scale,
         A=(J / scale).reshape(len(pool), k, -1),
+        M0=RIDGE * np.eye(len(kept)),
         of=list(range(len(setup), len(kept))),
         absorbed={zeros[z]: [setup[i] for i in by] for z, by in absorbed.items()},
     )
+
+
+def with_result_error(zeros: _ZeroDesign, design: _Design, M_result: np.ndarray) -> _ZeroDesign:
+    """The re-mastering's model with the result's own error beside the zeros' changes: the
+    robot's entries of ``design`` (all but the set-up), held at the result's values, err as the
+    result's training data left them — a nuisance with prior information ``M_result`` (scaled as
+    ``design``), as :func:`~robocal.remastering.remaster` weighs the new points by ``σ²I + J C Jᵀ``.
+    A pose where the result's error is large (beyond the path it was calibrated on) then tells a
+    zero's change less, and the plan states the standard deviation the re-mastering will."""
+    setup = set(zeros.names) - {zeros.names[i] for i in zeros.of}
+    own = [i for i, n in enumerate(design.names) if n not in setup]  # a zero's own error too: the change found includes it
+    A = np.concatenate([zeros.A, design.A[:, :, own]], axis=2)
+    M0 = np.zeros((A.shape[2],) * 2)
+    M0[: len(zeros.names), : len(zeros.names)] = zeros.M0
+    M0[len(zeros.names) :, len(zeros.names) :] = M_result[np.ix_(own, own)] + design.M_prior[np.ix_(own, own)] + RIDGE * np.eye(len(own))
+    return replace(zeros, names=zeros.names + [f"result's {design.names[i]}" for i in own], scale=np.concatenate([zeros.scale, design.scale[own]]), A=A, M0=M0)

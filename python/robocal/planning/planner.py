@@ -48,7 +48,7 @@ from .criteria import (
     i_optimal,
     workspace_weights,
 )
-from .design import _Design, _design, _zero_design, _ZeroDesign
+from .design import _Design, _design, _zero_design, _ZeroDesign, with_result_error
 from .order import _per_degree, _tour, default_passes, measuring_order, order_correlations, travel
 from .prior import _Known, _result_information, _result_mask, _training_sessions
 from .uncertainty import _cause_std, _shown, _Uncertainty
@@ -332,8 +332,10 @@ def plan(
         notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
     weights = workspace_weights(design.A, design.names, setup_names(robot, measurement))
     zeros = _zero_design(robot, measurement, params, pool) if criterion == "Ds" else None
-    if zeros is not None:  # the re-mastering's model: the set-up and the zeros alone, the rest of the robot held
-        chosen = ds_optimal(zeros.A[work], RIDGE * np.eye(len(zeros.names)), poses, zeros.of, required=required)
+    if zeros is not None and from_result:
+        zeros = with_result_error(zeros, design, known.M)
+    if zeros is not None:  # the re-mastering's model: the set-up and the zeros, the rest of the robot held at the result's values
+        chosen = ds_optimal(zeros.A[work], zeros.M0, poses, zeros.of, required=required)
     else:
         chosen = d_optimal(A, start, poses, required=required)
     if criterion == "I":
@@ -442,7 +444,7 @@ def _zeros_report(zeros: _ZeroDesign, robot: Robot, sigma: float, picks: dict) -
     entries that reproduce it for a zero no pose tells from the set-up."""
     std = {}
     for key in ("after", "random"):
-        M = RIDGE * np.eye(len(zeros.names)) + _information(zeros.A[picks[key]])
+        M = zeros.M0 + _information(zeros.A[picks[key]])
         std[key] = sigma * np.sqrt(np.diag(np.linalg.inv(M))) / zeros.scale
     entries = []
     for j, name in enumerate(zero_names(robot), start=1):
