@@ -246,3 +246,26 @@ def test_the_plan_states_the_std_the_remastering_will(case):
         q[:, joint - 1] -= np.radians(CHANGE)
         stated = remaster(result, replace(data, q=q)).report["joints"][joint - 1]["std"]
         assert 0.6 < planned.report["zeros"][joint - 1]["after"] / stated < 1.5, (joint, planned.report["zeros"][joint - 1], stated)
+
+
+def _scara():
+    """A SCARA with a prismatic third joint: every axis vertical, so the set-up's base and tool heights are nearly
+    one column (the training data's set-up information conditioned about 1e12)."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    return Robot.from_dh("scara", rows).with_params(tool_x=20.0, tool_y=10.0, tool_z=30.0)
+
+
+def test_a_plan_for_a_prismatic_robot_whose_set_up_is_nearly_redundant(tmp_path, capsys):
+    """The result's information with the set-up eliminated had eigenvalues of -2e-6 of its largest (rounding), and
+    the plan's Cholesky factor of it failed (a traceback); the summary printed a prismatic joint's mm as deg."""
+    robot = _scara()
+    data, _ = simulate(robot, "position", samples=400, seed=1)
+    write_canonical(data, tmp_path / "train.csv")
+    (tmp_path / "result.json").write_text(json.dumps(robocal.calibrate(str(tmp_path / "train.csv"), robot=robot).to_dict()))
+    assert main(["plan", "--from", str(tmp_path / "result.json"), "--poses", "12", "--criterion", "Ds", "--out", str(tmp_path / "p.csv")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "a re-mastering on these poses" in x)
+    zeros = {z["joint"]: z for z in robocal.plan(result=str(tmp_path / "result.json"), poses=12, criterion="Ds").report["zeros"]}
+    assert zeros[3]["unit"] == "mm" and zeros[2]["unit"] == "deg"
+    assert f"joint 3 {zeros[3]['after']:.2g} mm" in line and f"joint 2 {zeros[2]['after']:.2g} deg" in line, line

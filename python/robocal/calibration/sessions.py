@@ -174,6 +174,20 @@ def setup_eliminated(S: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, dict]:
     return rest, absorbed
 
 
+def schur_complement(G: np.ndarray, keep, drop) -> np.ndarray:
+    """The information ``G[keep, keep] − G[keep, drop] G[drop, drop]⁺ G[drop, keep]`` on the entries
+    ``keep`` once ``drop`` (a session's set-up) is fitted anew: symmetric, its negative eigenvalues
+    set to zero. It is positive semi-definite in exact arithmetic; a set-up nearly redundant in
+    itself (a SCARA's base and tool heights: ``G[drop, drop]`` conditioned 1e12) left eigenvalues
+    of −2e-6 of the largest, and a Cholesky factor of a plan's prior failed."""
+    keep, drop = np.asarray(keep, dtype=int), np.asarray(drop, dtype=int)
+    S = G[np.ix_(keep, keep)]
+    if drop.size:
+        S = S - G[np.ix_(keep, drop)] @ np.linalg.pinv(G[np.ix_(drop, drop)], hermitian=True) @ G[np.ix_(drop, keep)]
+    lam, U = np.linalg.eigh((S + S.T) / 2)
+    return (U * np.clip(lam, 0.0, None)) @ U.T
+
+
 def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A problem's residuals at ``x`` as (data rows, prior rows)."""
     r = problem.residuals(x)

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..calibration.api import load_inputs
 from ..calibration.problem import Problem
-from ..calibration.sessions import SESSION_KINDS, is_private
+from ..calibration.sessions import SESSION_KINDS, is_private, schur_complement
 from ..causes import structure
 from ..causes.extended import extended_problem
 from ..kernels import is_sparse
@@ -102,9 +102,8 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
         names = model.names
         own = np.array([n in at and not is_private(n, measurement) for n in names])  # the rest is this session's: eliminated
         r, e = np.flatnonzero(own), np.flatnonzero(~own)
-        S = G[np.ix_(r, r)] - G[np.ix_(r, e)] @ np.linalg.pinv(G[np.ix_(e, e)]) @ G[np.ix_(e, r)] if e.size else G[np.ix_(r, r)]
         to = [at[names[i]] for i in r]
-        M[np.ix_(to, to)] += (S + S.T) / 2
+        M[np.ix_(to, to)] += schur_complement(G, r, e)
         angles.append(data.q[idx])
         x = _result_x(model, fitted, number)
         if x is not None and squares is not None:
