@@ -441,3 +441,24 @@ def test_a_stream_on_standard_input_refuses_bad_lines_and_goes_on(tmp_path, caps
     assert "row 25 refused" in refused[2]
     assert "row 26 refused" in refused[3] and "clock goes backwards" in refused[3] and "'t'" in refused[3]
     assert out.startswith(f"{len(rows) - 1} samples, 0 alarms, 4 refused")
+
+
+def test_a_prismatic_joints_zero_and_its_detection_limit_are_in_mm():
+    """The summary's detection limits gave every joint's zero in deg: a prismatic joint's (mm) read through
+    ``degrees``, 57 times too large."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows).with_params(tool_x=20.0, tool_y=10.0, tool_z=30.0)
+    data, _ = simulate(robot, "position", samples=400, seed=1)
+    result = robocal.calibrate(data, robot=robot).to_dict()
+    stream, _ = simulate(robot, "position", samples=400, seed=1, session=1)
+    q = stream.q.copy()
+    q[300:, 2] -= 0.2  # the prismatic joint read 0.2 mm short from sample 300 on
+    monitor, alarms = _replay(result, q, stream.y)
+    alarms = [a for a in alarms if not a.provisional]
+    assert [(a.kind, a.joint, a.unit) for a in alarms] == [("joint_zero", 3, "mm")], [a.to_dict() for a in alarms]
+    assert abs(alarms[0].size[0] - 0.2) < 0.02
+    limits = {l["joint"]: l for l in monitor.summary()["detection_limits"] if l["kind"] == "joint_zero"}
+    assert limits[3]["unit"] == "mm" and limits[2]["unit"] == "deg"
+    assert limits[3]["size"] < alarms[0].size[0] / 1.5 <= alarms[0].evidence * limits[3]["size"], (limits[3], alarms[0].to_dict())

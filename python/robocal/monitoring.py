@@ -626,6 +626,7 @@ class Monitor:
     # -- what it found -------------------------------------------------------------------------
     def summary(self) -> dict:
         scale = self._scale.scale(self.inflation)
+        units = {(c.kind, c.joint): self._unit(c) for c in self.changes}
         return {
             "samples": self.samples,
             "alarms": [a.to_dict() for a in self.alarms],
@@ -639,8 +640,8 @@ class Monitor:
                 {
                     "kind": kind,
                     "joint": joint,
-                    "size": (np.degrees(v) if kind == "joint_zero" else v) * math.sqrt(scale),
-                    "unit": "deg" if kind == "joint_zero" else "mm",
+                    "size": (np.degrees(v) if units[kind, joint] == "deg" else v) * math.sqrt(scale),
+                    "unit": units[kind, joint],
                     "within": LIMIT_SAMPLES,
                 }
                 for (kind, joint), v in self.limits.items()
