@@ -269,3 +269,24 @@ def test_a_plan_for_a_prismatic_robot_whose_set_up_is_nearly_redundant(tmp_path,
     zeros = {z["joint"]: z for z in robocal.plan(result=str(tmp_path / "result.json"), poses=12, criterion="Ds").report["zeros"]}
     assert zeros[3]["unit"] == "mm" and zeros[2]["unit"] == "deg"
     assert f"joint 3 {zeros[3]['after']:.2g} mm" in line and f"joint 2 {zeros[2]['after']:.2g} deg" in line, line
+
+
+def test_a_re_mastered_result_re_masters_and_plans_as_the_result_it_came_from(case):
+    """A re-mastered (or monitored) result holds the new session's set-up: its training data were read again at that
+    set-up, their residuals another session's (the UR10's tracker 116 mm away), and the result's covariance of the
+    robot with them: the stated stds were 1000x too large (0.8-2.7 deg instead of 0.0006-0.0023), and a later
+    re-mastering named no change, nor did the plan promise one."""
+    robot, measurement, result, poses, _ = case
+    first = remaster(result, _session(case, 3)).document
+    later = replace(_session(case, session=2), q=_session(case, 3, session=2).q.copy())
+    later.q[:, 1] -= np.radians(CHANGE)  # joint 2 moved too, since the first re-mastering
+    again = remaster(first, later).report
+    assert list(_moved(again)) == [2], again["joints"]
+    assert abs(_moved(again)[2]["change"] - CHANGE) < 5 * _moved(again)[2]["std"], _moved(again)[2]
+    direct = remaster(result, _session(case, 2, session=2)).report
+    for a, b in zip(again["joints"], direct["joints"]):
+        if b["detectable_std"] is not None:
+            assert 0.7 < a["detectable_std"] / b["detectable_std"] < 1.4, (a, b)
+    planned = [z["after"] for z in robocal.plan(result=first, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
+    original = [z["after"] for z in robocal.plan(result=result, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
+    assert np.allclose(planned, original, rtol=0.5), (planned, original)  # the new set-up (a cable's anchor) changes the candidates

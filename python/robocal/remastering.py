@@ -45,7 +45,7 @@ from scipy.stats import chi2
 from .calibration.api import load_inputs
 from .calibration.metrics import metrics
 from .calibration.problem import Problem, fit_row_weights
-from .calibration.sessions import schur_complement, setup_eliminated
+from .calibration.sessions import schur_complement, setup_eliminated, training_fit
 from .causes.result_model import result_model
 from .data.dataset import Dataset
 from .data.identity import Fingerprint
@@ -118,9 +118,10 @@ def _result_covariance(doc: dict, robot: Robot, angle_unit) -> tuple[list, Optio
     train = train.subset(np.flatnonzero(np.isin(train.rows, d["rows_used"])))
     setup = [robot.index(n) for n in setup_names(robot, train.measurement)]
     own = [robot.index(n) for n in doc.get("free", []) if n in robot.param_names and robot.index(n) not in setup]
+    params = training_fit(robot, train, own + setup)
     w = fit_row_weights(train)
-    J = robot.jacobian(train.measurement, train.q, y=train.y, params=robot.params, cols=own + setup) * w[:, None]
-    r = robot.residuals(train.measurement, train.q, train.y, params=robot.params).ravel() * w
+    J = robot.jacobian(train.measurement, train.q, y=train.y, params=params, cols=own + setup) * w[:, None]
+    r = robot.residuals(train.measurement, train.q, train.y, params=params).ravel() * w
     s2 = float(r @ r) / max(r.size - len(own) - len(setup), 1)
     G = J.T @ J
     n = len(own)
