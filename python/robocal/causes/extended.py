@@ -136,6 +136,8 @@ def calibrate(
     parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
+    if structures:
+        structures = structure.within_limits(structures, np.vstack([d.q for d in datasets]) if several else dataset.q, r)
     if several:
         terms = session_terms(causes, labels, [d.source for d in datasets])
         return _fit_sessions(datasets, r, structures, labels, terms, kinematic_prior, test_fraction, seed, options)

@@ -143,6 +143,25 @@ def to_model(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
     return q
 
 
+def within_limits(structures: list[Structure], q: np.ndarray, robot: Robot) -> list[Structure]:
+    """``structures`` with each revolute joint's zero offset taken the whole turns over that put the most model
+    angles of the readings ``q`` (m, N) within the robot's joint limits (then the smallest offset). The kinematics
+    see an offset only modulo a turn, the limits do not: a UR10 joint read 90° over its angle, given as an offset of
+    270°, put every model angle of its data beyond the ±360° limits — the monitor refused every sample, and the
+    exported URDF's limits left out every reading."""
+    out: list[Structure] = []
+    for s in structures:
+        if s.kind == "joint_zero" and robot.joints[s.joint].kind == "revolute":
+            lower, upper = robot.joints[s.joint].limits
+            before = to_model(q, out)[:, s.joint]
+            turns = np.arange(-3, 4)
+            offsets = s.value + 2.0 * np.pi * turns
+            inside = [int(np.count_nonzero((before + o >= lower) & (before + o <= upper))) for o in offsets]
+            s = replace(s, value=float(min(zip(offsets, inside), key=lambda t: (-t[1], abs(t[0])))[0]))
+        out.append(s)
+    return out
+
+
 def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
     """``data`` with its joint readings transformed by ``structures`` in order."""
     return replace(data, q=to_model(data.q, structures))
