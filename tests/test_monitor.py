@@ -310,6 +310,18 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
     assert monitor.samples == seen
 
 
+def test_the_monitors_options_are_checked_by_name(monitor_result):
+    """An infinite mean run length was taken: every threshold infinite, no change ever alarmed, the detection limits
+    "inf deg"; a string one raised a TypeError; a NumPy integer opening was refused."""
+    for bad in (float("inf"), float("nan"), 5, "x", None):
+        with pytest.raises(RobocalError, match="mean_run_length"):
+            Monitor(monitor_result, mean_run_length=bad)
+    for bad in (5, 20.0, True, "50"):
+        with pytest.raises(RobocalError, match="opening"):
+            Monitor(monitor_result, opening=bad)
+    assert Monitor(monitor_result, opening=np.int64(50)).opening == 50
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     q=arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(1, 7)), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),

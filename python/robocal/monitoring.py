@@ -53,7 +53,7 @@ from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets
 from .data.dataset import OBSERVATION_COLUMNS, Dataset
 from .exceptions import InvalidParameterError, ShapeError
-from .kernels import as_float_array
+from .kernels import as_count, as_float_array, as_positive
 from .monitor_window import BATCH, MEMORY_BATCHES, SEGMENT, WINDOW, LongRunVariance, StatisticScale, WindowSums, quadratic_form, ridged_inverse
 from .results import load_result
 from .serial_robot import RESIDUAL_WIDTH, setup_names, zero_names
@@ -201,10 +201,10 @@ class Monitor:
     """
 
     def __init__(self, result, *, new_session: bool = False, mean_run_length: float = MEAN_RUN_LENGTH, opening: int = OPENING):
-        if not mean_run_length >= 10:
+        # Finite: at an infinite one every threshold is infinite and no change is ever alarmed (a monitor that says nothing).
+        if not as_positive(mean_run_length, "mean_run_length") >= 10:
             raise InvalidParameterError(f"`mean_run_length` must be at least 10 samples; got {mean_run_length!r}")
-        if not isinstance(opening, int) or opening < 10:
-            raise InvalidParameterError(f"`opening` must be an integer of at least 10 samples; got {opening!r}")
+        opening = as_count(opening, "opening", least=10)
         self.robot, self.doc = load_result(result)
         self.measurement = self.doc["measurement"]
         self.params = self.robot.params.copy()
