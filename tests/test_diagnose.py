@@ -643,3 +643,14 @@ def test_tolerance_prior_is_judged_on_each_held_out_check_until_one_rejects_it()
     entry = judge_tolerance_prior(checks(cheap), "position")
     assert entry["accepted"] and computed == ["random", "blocked", "groups"] and "reason" not in entry
     assert not judge_tolerance_prior([("rmse_loso", "leave-one-session-out", without, without * np.nan)], "position")["accepted"]
+
+
+def test_a_pure_numbers_quantity_is_printed_without_its_unit_1():
+    """A reading convention's sign printed "sign -1 1" (its unit, the pure number's "1")."""
+    from robocal.cli.diagnose import _quantities
+    from robocal.diagnosis_file import Quantity
+
+    assert _quantities({"sign": Quantity(value=-1.0, unit="1")}) == "sign -1"
+    assert (
+        _quantities({"offset": Quantity(value=-90.0, unit="deg"), "scale": Quantity(value=2e-4, std=1e-5, unit="1")}) == "offset -90 deg, scale 0.0002 ± 1e-05"
+    )
