@@ -18,7 +18,7 @@ from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
 from robocal.monitor_window import BATCH, WINDOW, LongRunVariance, quadratic_form, ridged_inverse
-from robocal.monitoring import FIT_RATIO, MAX_WAIT, OPENING, Monitor
+from robocal.monitoring import FIT_RATIO, MAX_WAIT, MIN_OPENING, OPENING, Monitor
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -312,14 +312,19 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
 
 def test_the_monitors_options_are_checked_by_name(monitor_result):
     """An infinite mean run length was taken: every threshold infinite, no change ever alarmed, the detection limits
-    "inf deg"; a string one raised a TypeError; a NumPy integer opening was refused."""
+    "inf deg"; a string one raised a TypeError; a NumPy integer opening was refused, one shorter than a batch (50)
+    crashed when it was complete (a traceback)."""
     for bad in (float("inf"), float("nan"), 5, "x", None):
         with pytest.raises(RobocalError, match="mean_run_length"):
             Monitor(monitor_result, mean_run_length=bad)
-    for bad in (5, 20.0, True, "50"):
+    for bad in (5, 50, 99, 120.0, True, "150"):  # fewer than two batches: an opening of 10 crashed at its end
         with pytest.raises(RobocalError, match="opening"):
             Monitor(monitor_result, opening=bad)
-    assert Monitor(monitor_result, opening=np.int64(50)).opening == 50
+    assert Monitor(monitor_result, opening=np.int64(150)).opening == 150
+    data, _ = simulate("ur10", "position", samples=110, seed=3, session=1)
+    monitor = Monitor(monitor_result, opening=MIN_OPENING, new_session=True)
+    monitor.update(data.q, data.y)
+    assert monitor.sigma is not None and monitor.inflation >= 1.0
 
 
 @settings(max_examples=60, deadline=None)
@@ -330,7 +335,7 @@ def test_the_monitors_options_are_checked_by_name(monitor_result):
 def test_malformed_samples_raise_a_robocal_error_or_are_refused(monitor_result, q, y):
     """Any shape, NaN, infinity, huge values: a RobocalError naming the problem, or the sample
     refused with a note; never another exception, never a crash."""
-    monitor = Monitor(monitor_result, opening=10)
+    monitor = Monitor(monitor_result, opening=MIN_OPENING)
     try:
         monitor.update(q, y)
     except RobocalError:

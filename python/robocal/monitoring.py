@@ -62,6 +62,9 @@ logger = logging.getLogger(__name__)
 
 #: Samples that set the innovations' scale and correlation (and the set-up with ``new_session``).
 OPENING = 200
+#: The fewest: two batches, the fewest a variance of batch means rests on (an opening shorter than a batch crashed
+#: the long-run variance; one batch measured no correlation and held the yardstick at 1).
+MIN_OPENING = 2 * BATCH
 #: Default mean number of samples between false alarms.
 MEAN_RUN_LENGTH = 100_000
 #: Fewest samples after a change's start before it may be tested (one bad sample is no change).
@@ -197,14 +200,15 @@ class Monitor:
     mean_run_length : float
         Mean samples between false alarms the thresholds are set for.
     opening : int
-        Samples that set the innovations' scale and correlation; no alarm before them.
+        Samples that set the innovations' scale and correlation; no alarm before them (at least
+        :data:`MIN_OPENING`).
     """
 
     def __init__(self, result, *, new_session: bool = False, mean_run_length: float = MEAN_RUN_LENGTH, opening: int = OPENING):
         # Finite: at an infinite one every threshold is infinite and no change is ever alarmed (a monitor that says nothing).
         if not as_positive(mean_run_length, "mean_run_length") >= 10:
             raise InvalidParameterError(f"`mean_run_length` must be at least 10 samples; got {mean_run_length!r}")
-        opening = as_count(opening, "opening", least=10)
+        opening = as_count(opening, "opening", least=MIN_OPENING)
         self.robot, self.doc = load_result(result)
         self.measurement = self.doc["measurement"]
         self.params = self.robot.params.copy()

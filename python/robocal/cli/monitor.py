@@ -20,7 +20,7 @@ from ..causes.candidates import acquisition_order
 from ..data.formats.canonical import canonical_columns, canonical_dataset
 from ..data.table import Table, check_header
 from ..exceptions import DataError
-from ..monitoring import MEAN_RUN_LENGTH, OPENING, Monitor
+from ..monitoring import MEAN_RUN_LENGTH, MIN_OPENING, OPENING, Monitor
 from ..outputs import Staged, printable
 from ..results import save_result
 from .arguments import add_angle_unit_argument
@@ -37,7 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--new-session", action="store_true", help="re-fit the session's set-up on the opening samples (default: the calibration's session goes on)"
     )
     parser.add_argument("--mean-run-length", type=float, default=MEAN_RUN_LENGTH, help=f"mean samples between false alarms (default {MEAN_RUN_LENGTH:,})")
-    parser.add_argument("--opening", type=int, default=OPENING, help=f"samples that set the innovations' scale; no alarm before them (default {OPENING})")
+    parser.add_argument(
+        "--opening",
+        type=int,
+        default=OPENING,
+        help=f"samples that set the innovations' scale; no alarm before them (default {OPENING}, at least {MIN_OPENING})",
+    )
     add_angle_unit_argument(parser)
 
 
