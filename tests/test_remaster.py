@@ -290,3 +290,13 @@ def test_a_re_mastered_result_re_masters_and_plans_as_the_result_it_came_from(ca
     planned = [z["after"] for z in robocal.plan(result=first, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
     original = [z["after"] for z in robocal.plan(result=result, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
     assert np.allclose(planned, original, rtol=0.5), (planned, original)  # the new set-up (a cable's anchor) changes the candidates
+
+
+def test_a_plan_of_too_few_poses_for_a_re_mastering_is_refused(case):
+    """``plan --criterion Ds --poses 1`` stated each zero's std (1-6 deg: the ridge's) for poses the re-mastering then
+    refuses (the new set-up needs more readings than its parameters)."""
+    robot, measurement, result, _, _ = case
+    least = {"position": 4, "cable": 5}[measurement]
+    with pytest.raises(InvalidParameterError, match=f"plan at least {least} poses"):
+        robocal.plan(result=result, poses=least - 1, criterion="Ds")
+    assert all(z["after"] is None or z["after"] > 0 for z in robocal.plan(result=result, poses=least, criterion="Ds").report["zeros"])
