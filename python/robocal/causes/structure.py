@@ -182,6 +182,12 @@ def affine_readings(structures: list[Structure], n_joints: int) -> tuple[np.ndar
     return np.diag(slope).copy(), offset
 
 
+def reading_limits(robot: Robot, structures: list[Structure]) -> list[tuple[float, float]]:
+    """Each joint's limits (of the model's angles) as the controller's readings (:func:`affine_readings`)."""
+    sign, offset = affine_readings(structures, robot.n_joints)
+    return [tuple(sorted((limit - offset[j]) / sign[j] for limit in joint.limits)) for j, joint in enumerate(robot.joints)]
+
+
 def robot_at_readings(robot: Robot, structures: list[Structure]) -> Robot:
     """The same tool frame as ``robot`` with the controller's readings as its joint variables:
     ``robot_at_readings(robot, s).fkine(r) == robot.fkine(to_model(r, s))``.
@@ -195,11 +201,10 @@ def robot_at_readings(robot: Robot, structures: list[Structure]) -> Robot:
     sign, offset = affine_readings(structures, robot.n_joints)
     p = robot.params.copy()
     joints = list(robot.joints)
-    for j, joint in enumerate(joints):
+    for j, (joint, limits) in enumerate(zip(robot.joints, reading_limits(robot, structures))):
         variable = robot.index(f"theta{j + 1}" if joint.kind == "revolute" else f"d{j + 1}")
         p[variable] += offset[j]
-        lower, upper = sorted(((limit - offset[j]) / sign[j] for limit in joint.limits))
-        joints[j] = replace(joint, limits=(lower, upper))
+        joints[j] = replace(joint, limits=limits)
         if sign[j] > 0:
             continue
         for name in ("theta", "d"):

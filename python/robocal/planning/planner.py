@@ -299,7 +299,7 @@ def plan(
     rng = seeded_rng(seed)
     sigma = DEFAULT_NOISE[measurement].sigma if noise is None else as_positive(noise, "noise")
     passes = default_passes(poses) if passes is None else as_count(passes, "passes", least=1, most=poses)
-    lower, upper = _ranges(robot, joint_ranges)
+    lower, upper = _ranges(robot, joint_ranges, structures)
     params, (cable, tracker, distances, box) = _checked_setup(
         robot, measurement, params, tool, anchor, tracker, tracker_range, box, cable_range, bool(datasets)
     )
