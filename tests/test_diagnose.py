@@ -654,3 +654,15 @@ def test_a_pure_numbers_quantity_is_printed_without_its_unit_1():
     assert (
         _quantities({"offset": Quantity(value=-90.0, unit="deg"), "scale": Quantity(value=2e-4, std=1e-5, unit="1")}) == "offset -90 deg, scale 0.0002 ± 1e-05"
     )
+
+
+def test_a_found_zero_offset_keeps_the_data_within_the_joint_limits():
+    """A UR10 joint read 90 deg over its angle was named 'joint_zero joint 2 offset=270' (the offsets tried are 90, 180
+    and 270): the same kinematics, but every model angle of the data beyond the 360 deg limits, and a plan from the
+    report drew its readings 360 deg off the controller's."""
+    data, _ = simulate("ur10", "position", samples=300, seed=2)
+    q = data.q.copy()
+    q[:, 1] += np.radians(90.0)
+    report = robocal.diagnose(replace(data, q=q), robot="ur10").to_dict()
+    assert report["model"]["structure"] == ["joint_zero joint 2 offset=-90"], report["model"]["structure"]
+    assert [e["label"] for e in report["effects"] if e["kind"] == "joint_zero"] == ["joint_zero joint 2 offset=-90"]

@@ -157,7 +157,8 @@ def within_limits(structures: list[Structure], q: np.ndarray, robot: Robot) -> l
             turns = np.arange(-3, 4)
             offsets = s.value + 2.0 * np.pi * turns
             inside = [int(np.count_nonzero((before + o >= lower) & (before + o <= upper))) for o in offsets]
-            s = replace(s, value=float(min(zip(offsets, inside), key=lambda t: (-t[1], abs(t[0])))[0]))
+            best = min(range(len(turns)), key=lambda k: (-inside[k], round(abs(offsets[k]), 9), abs(turns[k])))  # ties: as given
+            s = replace(s, value=float(offsets[best]))
         out.append(s)
     return out
 

@@ -26,7 +26,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import Problem
 from ..causes.candidates import acquisition_order
 from ..causes.problem import ExtendedProblem, reported_rmse
-from ..causes.structure import Structure, apply_all
+from ..causes.structure import Structure, apply_all, within_limits
 from ..data.dataset import Dataset
 from ..exceptions import DataError
 from ..physics import DEG
@@ -337,6 +337,15 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
 
     combined = screen_combinations(data, setup_rmse, seed)
     accepted, effects, rejected = search(data, fit, heldout, baseline, seed, extra=zero_errors(bad) + combined, setup_rmse=setup_rmse)
-    final = apply_all(data, accepted)
-    errors = errors_of.get(final.q.tobytes())
-    return final, effects, rejected, None if errors is None else (schemes, errors)
+    errors = errors_of.get(apply_all(data, accepted).q.tobytes())
+    # Each offset the whole turns that keep the model's angles within the limits (as calibrate takes them): the
+    # report's labels are what calibrate and plan read (a plan's readings drawn 360 deg off the controller's).
+    named = {a.label: b for a, b in zip(accepted, within_limits(accepted, data.q, robot))}
+    for effect in effects:
+        if effect["label"] in named:
+            effect["label"], effect["params"] = named[effect["label"]].label, named[effect["label"]].params
+        together = effect.get("significance", {}).get("together_with")
+        if together:
+            effect["significance"]["together_with"] = [named[t].label if t in named else t for t in together]
+    accepted = [named[a.label] for a in accepted]
+    return apply_all(data, accepted), effects, rejected, None if errors is None else (schemes, errors)
