@@ -666,3 +666,19 @@ def test_a_found_zero_offset_keeps_the_data_within_the_joint_limits():
     report = robocal.diagnose(replace(data, q=q), robot="ur10").to_dict()
     assert report["model"]["structure"] == ["joint_zero joint 2 offset=-90"], report["model"]["structure"]
     assert [e["label"] for e in report["effects"] if e["kind"] == "joint_zero"] == ["joint_zero joint 2 offset=-90"]
+
+
+def test_a_prismatic_joint_gets_no_zero_convention_in_deg():
+    """A zero convention's offset is an angle (deg): on a prismatic joint diagnose tried 90/180/270 'deg' (1.6-4.7 mm)
+    and calibrate took 'joint_zero joint 3 offset=10' as 0.17 mm, silently."""
+    from robocal.diagnosis import conventions
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows)
+    data, _ = simulate(robot, "position", samples=120, seed=1)
+    for h in conventions.hypotheses(data) + [s for c in conventions.combinations(data) for s in c]:
+        assert not (h.kind == "joint_zero" and h.joint == 2), h.label
+        assert not (h.kind == "joint_reference" and 2 in (h.joint, h.source)), h.label
+    with pytest.raises(InvalidParameterError, match="joint 3 of scara is prismatic"):
+        robocal.calibrate(data, robot=robot, causes=["joint_zero joint 3 offset=10"])
