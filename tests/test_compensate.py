@@ -200,3 +200,32 @@ def test_pose_targets_are_reached_with_joint_causes():
     doc = robocal.calibrate(data, robot="ur10", test_fraction=0.0, causes=causes).to_dict()
     assert [c["label"] for c in doc["causes"]] == causes
     _assert_pose_targets_reached(doc, 40, seed=6)
+
+
+def test_a_prismatic_robot_is_refused_before_its_targets_are_read(tmp_path):
+    """The targets' seed columns were judged as angles first: a prismatic joint's few mm were refused as radians in a
+    degree table ("convert them to degrees"), and once converted the robot was refused anyway."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows)
+    data, _ = simulate(robot, "position", samples=100, seed=1)
+    (tmp_path / "r.json").write_text(json.dumps(robocal.calibrate(data, robot=robot).to_dict()))
+    rng = np.random.default_rng(0)
+    q = np.column_stack([rng.uniform(-140, 140, (8, 2)), rng.uniform(0, 2, 8), rng.uniform(-170, 170, 8)])  # q3 in mm, a few
+    xyz = robot.fkine(np.column_stack([np.radians(q[:, :2]), q[:, 2], np.radians(q[:, 3])]), tool=True)[:, :3, 3]
+    np.savetxt(tmp_path / "t.csv", np.hstack([xyz, q]), delimiter=",", header="x,y,z,q1,q2,q3,q4", comments="")
+    with pytest.raises(InvalidParameterError, match="revolute joints only"):
+        compensate(str(tmp_path / "r.json"), str(tmp_path / "t.csv"))
+
+
+def test_seed_columns_partly_in_radians_are_refused_with_one_piece_of_advice(calibrated, tmp_path):
+    """The advice for a column in radians among degrees read "pass --angle-unit deg (or --angle-unit deg to confirm)"."""
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-170, 170, (8, 6))
+    q[:, 4] = rng.uniform(-1.5, 1.5, 8)
+    np.savetxt(tmp_path / "t.csv", np.hstack([rng.uniform(300, 600, (8, 3)), q]), delimiter=",", header="x,y,z,q1,q2,q3,q4,q5,q6", comments="")
+    with pytest.raises(DataError, match="q5") as caught:
+        compensate(str(calibrated[0]), str(tmp_path / "t.csv"))
+    assert str(caught.value).count("--angle-unit") == 1, caught.value
+    assert len(compensate(str(calibrated[0]), str(tmp_path / "t.csv"), angle_unit="deg")) == 8

@@ -643,3 +643,42 @@ def test_tolerance_prior_is_judged_on_each_held_out_check_until_one_rejects_it()
     entry = judge_tolerance_prior(checks(cheap), "position")
     assert entry["accepted"] and computed == ["random", "blocked", "groups"] and "reason" not in entry
     assert not judge_tolerance_prior([("rmse_loso", "leave-one-session-out", without, without * np.nan)], "position")["accepted"]
+
+
+def test_a_pure_numbers_quantity_is_printed_without_its_unit_1():
+    """A reading convention's sign printed "sign -1 1" (its unit, the pure number's "1")."""
+    from robocal.cli.diagnose import _quantities
+    from robocal.diagnosis_file import Quantity
+
+    assert _quantities({"sign": Quantity(value=-1.0, unit="1")}) == "sign -1"
+    assert (
+        _quantities({"offset": Quantity(value=-90.0, unit="deg"), "scale": Quantity(value=2e-4, std=1e-5, unit="1")}) == "offset -90 deg, scale 0.0002 ± 1e-05"
+    )
+
+
+def test_a_found_zero_offset_keeps_the_data_within_the_joint_limits():
+    """A UR10 joint read 90 deg over its angle was named 'joint_zero joint 2 offset=270' (the offsets tried are 90, 180
+    and 270): the same kinematics, but every model angle of the data beyond the 360 deg limits, and a plan from the
+    report drew its readings 360 deg off the controller's."""
+    data, _ = simulate("ur10", "position", samples=300, seed=2)
+    q = data.q.copy()
+    q[:, 1] += np.radians(90.0)
+    report = robocal.diagnose(replace(data, q=q), robot="ur10").to_dict()
+    assert report["model"]["structure"] == ["joint_zero joint 2 offset=-90"], report["model"]["structure"]
+    assert [e["label"] for e in report["effects"] if e["kind"] == "joint_zero"] == ["joint_zero joint 2 offset=-90"]
+
+
+def test_a_prismatic_joint_gets_no_zero_convention_in_deg():
+    """A zero convention's offset is an angle (deg): on a prismatic joint diagnose tried 90/180/270 'deg' (1.6-4.7 mm)
+    and calibrate took 'joint_zero joint 3 offset=10' as 0.17 mm, silently."""
+    from robocal.diagnosis import conventions
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows)
+    data, _ = simulate(robot, "position", samples=120, seed=1)
+    for h in conventions.hypotheses(data) + [s for c in conventions.combinations(data) for s in c]:
+        assert not (h.kind == "joint_zero" and h.joint == 2), h.label
+        assert not (h.kind == "joint_reference" and 2 in (h.joint, h.source)), h.label
+    with pytest.raises(InvalidParameterError, match="joint 3 of scara is prismatic"):
+        robocal.calibrate(data, robot=robot, causes=["joint_zero joint 3 offset=10"])

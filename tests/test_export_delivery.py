@@ -219,3 +219,24 @@ def test_the_nominal_robot_of_a_tracker_with_a_turned_probe_has_its_tool_orienta
     report = robocal.verify(result, str(series / "Series_B" / "measurements_joint_configurations.csv"), measurement="pose")
     assert report["nominal"]["metrics"]["rotation_rmse_deg"] < 1.0
     assert report["nominal"]["metrics"]["rmse"] > report["metrics"]["rmse"]
+
+
+def test_a_zero_offset_is_taken_the_turns_that_keep_the_readings_within_the_limits(tmp_path):
+    """A joint read 90 deg over its angle, given as the offset 270 deg (as diagnose names it: its offsets are 90, 180
+    and 270), put every model angle of the UR10's data beyond its 360 deg limits: the URDF's limits left out every
+    reading the robot took, and the monitor refused every sample of the calibration's own data."""
+    data, _ = simulate("ur10", "position", samples=250, seed=2)
+    readings = data.q.copy()
+    readings[:, 1] += np.radians(90.0)
+    assert (np.degrees(readings[:, 1]) + 270.0 > 360.0).any()
+    result = robocal.calibrate(replace(data, q=readings), robot="ur10", causes=["joint_zero joint 2 offset=270"]).to_dict()
+    assert result["structure"] == ["joint_zero joint 2 offset=-90"]
+    (tmp_path / "r.json").write_text(json.dumps(result))
+    assert main(["export", str(tmp_path / "r.json"), "--format", "urdf", "--out", str(tmp_path / "r.urdf")]) == 0
+    lower, upper = robocal.robot(str(tmp_path / "r.urdf")).joints[1].limits
+    assert (readings[:, 1] >= lower).all() and (readings[:, 1] <= upper).all(), (lower, upper)
+    from robocal.monitoring import Monitor
+
+    monitor = Monitor(result)
+    monitor.update(readings, data.y)
+    assert not monitor.refused, monitor.refused[:3]

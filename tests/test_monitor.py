@@ -18,7 +18,7 @@ from robocal.cli import main
 from robocal.data import write_canonical
 from robocal.exceptions import RobocalError, ShapeError
 from robocal.monitor_window import BATCH, WINDOW, LongRunVariance, quadratic_form, ridged_inverse
-from robocal.monitoring import FIT_RATIO, MAX_WAIT, OPENING, Monitor
+from robocal.monitoring import FIT_RATIO, MAX_WAIT, MIN_OPENING, OPENING, Monitor
 from robocal.results import load_result
 from robocal.simulation import simulate
 
@@ -310,6 +310,23 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
     assert monitor.samples == seen
 
 
+def test_the_monitors_options_are_checked_by_name(monitor_result):
+    """An infinite mean run length was taken: every threshold infinite, no change ever alarmed, the detection limits
+    "inf deg"; a string one raised a TypeError; a NumPy integer opening was refused, one shorter than a batch (50)
+    crashed when it was complete (a traceback)."""
+    for bad in (float("inf"), float("nan"), 5, "x", None):
+        with pytest.raises(RobocalError, match="mean_run_length"):
+            Monitor(monitor_result, mean_run_length=bad)
+    for bad in (5, 50, 99, 120.0, True, "150"):  # fewer than two batches: an opening of 10 crashed at its end
+        with pytest.raises(RobocalError, match="opening"):
+            Monitor(monitor_result, opening=bad)
+    assert Monitor(monitor_result, opening=np.int64(150)).opening == 150
+    data, _ = simulate("ur10", "position", samples=110, seed=3, session=1)
+    monitor = Monitor(monitor_result, opening=MIN_OPENING, new_session=True)
+    monitor.update(data.q, data.y)
+    assert monitor.sigma is not None and monitor.inflation >= 1.0
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     q=arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(1, 7)), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
@@ -318,7 +335,7 @@ def test_bad_samples_are_refused_and_the_stream_goes_on():
 def test_malformed_samples_raise_a_robocal_error_or_are_refused(monitor_result, q, y):
     """Any shape, NaN, infinity, huge values: a RobocalError naming the problem, or the sample
     refused with a note; never another exception, never a crash."""
-    monitor = Monitor(monitor_result, opening=10)
+    monitor = Monitor(monitor_result, opening=MIN_OPENING)
     try:
         monitor.update(q, y)
     except RobocalError:
@@ -441,3 +458,78 @@ def test_a_stream_on_standard_input_refuses_bad_lines_and_goes_on(tmp_path, caps
     assert "row 25 refused" in refused[2]
     assert "row 26 refused" in refused[3] and "clock goes backwards" in refused[3] and "'t'" in refused[3]
     assert out.startswith(f"{len(rows) - 1} samples, 0 alarms, 4 refused")
+
+
+@pytest.mark.parametrize("form", ["bom", "crlf", "cr", "quoted"])
+def test_a_stream_on_standard_input_is_read_as_the_same_file_is(tmp_path, capsys, monkeypatch, monitor_result, form):
+    """Standard input split its lines on LF alone and its cells on commas alone: with a BOM every line was refused
+    for the header's first name, quoted numbers were refused, CR-ended lines made one header and no sample (exit 0).
+    The file reader takes each of them; the stream now reads as the file does."""
+    import io
+
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(monitor_result))
+    stream, _ = simulate("ur10", "position", samples=230, seed=3, session=1)
+    write_canonical(stream, tmp_path / "s.csv")
+    lines = (tmp_path / "s.csv").read_text().splitlines()
+    text = {
+        "bom": "\ufeff" + "\n".join(lines),
+        "crlf": "\r\n".join(lines),
+        "cr": "\r".join(lines),
+        "quoted": "\n".join([lines[0]] + [",".join(f'"{c}"' for c in line.split(",")) for line in lines[1:]]),
+    }[form]
+    (tmp_path / "f.csv").write_text(text, newline="")
+    assert main(["monitor", str(result), str(tmp_path / "f.csv"), "--new-session", "--json-lines", str(tmp_path / "file.jsonl")]) == 0
+    from_file = capsys.readouterr().out
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(text.encode()), encoding="utf-8", newline="\n"))  # as Python opens it on POSIX
+    assert main(["monitor", str(result), "-", "--new-session", "--json-lines", str(tmp_path / "stdin.jsonl")]) == 0
+    out, err = capsys.readouterr()
+    assert out == from_file and out.startswith(f"{len(lines) - 1} samples, 0 alarms, 0 refused; ") and "refused" not in err, (out, err)
+
+
+@pytest.mark.parametrize(
+    "header, message",
+    [("q1;q2;q3;q4;q5;q6;x;y;z", "';'-separated"), ("Q1,Q2,Q3,Q4,Q5,Q6,X,Y,Z", "joint columns"), ("q1,q2,q3,q4,q5,q6,L", "'x', 'y', 'z'")],
+)
+def test_a_stream_whose_header_is_not_the_results_stops_at_once(tmp_path, capsys, monkeypatch, monitor_result, header, message):
+    """A header of another separator, case or measurement: every line was refused for it, one note each, and the
+    command ended well (exit 0) having monitored nothing. Now the header is an error on row 1."""
+    import io
+
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(monitor_result))
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n".join([header] + ["0,0,0,0,0,0,1,2,3"] * 5)))
+    assert main(["monitor", str(result), "-", "--json-lines", str(tmp_path / "a.jsonl")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("robocal: error: <stdin>, row 1") and message in err[0], err
+    assert not (tmp_path / "a.jsonl").exists()
+
+
+def test_a_prismatic_joints_zero_and_its_detection_limit_are_in_mm(tmp_path, capsys, monkeypatch):
+    """The summary's detection limits gave every joint's zero in deg: a prismatic joint's (mm) read through
+    ``degrees``, 57 times too large. Standard input read a prismatic joint's column as degrees: its 0.2 mm change
+    became 0.0035 mm, no alarm, the innovations' inflation 66."""
+    import io
+
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows).with_params(tool_x=20.0, tool_y=10.0, tool_z=30.0)
+    data, _ = simulate(robot, "position", samples=400, seed=1)
+    result = robocal.calibrate(data, robot=robot).to_dict()
+    stream, _ = simulate(robot, "position", samples=400, seed=1, session=1)
+    q = stream.q.copy()
+    q[300:, 2] -= 0.2  # the prismatic joint read 0.2 mm short from sample 300 on
+    monitor, alarms = _replay(result, q, stream.y)
+    alarms = [a for a in alarms if not a.provisional]
+    assert [(a.kind, a.joint, a.unit) for a in alarms] == [("joint_zero", 3, "mm")], [a.to_dict() for a in alarms]
+    assert abs(alarms[0].size[0] - 0.2) < 0.02
+    limits = {l["joint"]: l for l in monitor.summary()["detection_limits"] if l["kind"] == "joint_zero"}
+    assert limits[3]["unit"] == "mm" and limits[2]["unit"] == "deg"
+    assert limits[3]["size"] < alarms[0].size[0] / 1.5 <= alarms[0].evidence * limits[3]["size"], (limits[3], alarms[0].to_dict())
+    (tmp_path / "r.json").write_text(json.dumps(result))
+    write_canonical(replace(stream, q=q), tmp_path / "s.csv")
+    monkeypatch.setattr("sys.stdin", io.StringIO((tmp_path / "s.csv").read_text()))
+    assert main(["monitor", str(tmp_path / "r.json"), "-", "--new-session", "--json-lines", str(tmp_path / "a.jsonl")]) == 0
+    found = [json.loads(line) for line in (tmp_path / "a.jsonl").read_text().splitlines()]
+    assert [(a["kind"], a["joint"]) for a in found if not a["provisional"]] == [("joint_zero", 3)], found

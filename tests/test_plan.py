@@ -446,3 +446,23 @@ def test_the_inverse_half_is_a_generalised_inverse_and_the_pseudo_inverse_where_
     assert np.allclose(M @ null, 0.0, atol=1e-8 * max(1.0, np.abs(M).max()))
     if np.linalg.matrix_rank(M) == p - min(empty, p):
         np.testing.assert_allclose(G, np.linalg.pinv(M, hermitian=True), rtol=1e-6, atol=1e-9 * max(1.0, np.abs(G).max()))
+
+
+def test_a_plan_for_a_result_with_reading_conventions_keeps_the_model_within_its_limits():
+    """The joint limits bound the model's angles: a plan held the controller's readings to them, and for a UR10 read
+    90 deg off on joint 2 it planned model angles to 450 deg, beyond what the robot reaches (simulate refused them,
+    the monitor would refuse their samples)."""
+    from dataclasses import replace
+
+    from robocal.causes import structure
+    from robocal.results import load_result
+
+    data, _ = simulate("ur10", "position", samples=200, seed=3)
+    conventions = structure.parse_all(["joint_zero joint 2 offset=90"], 6)
+    result = robocal.calibrate(replace(data, q=structure.to_readings(data.q, conventions)), robot="ur10", causes=["joint_zero joint 2 offset=90"])
+    robot, doc = load_result(result.to_dict())
+    for criterion in ("D", "Ds"):
+        readings = plan(result=result.to_dict(), poses=40, criterion=criterion, **SMALL).q
+        model = structure.to_model(readings, structure.parse_all(doc["structure"], 6))
+        lower, upper = np.array([j.limits for j in robot.joints]).T
+        assert ((model >= lower - 1e-9) & (model <= upper + 1e-9)).all(), (criterion, np.degrees(model[:, 1]).max())

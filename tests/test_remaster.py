@@ -246,3 +246,60 @@ def test_the_plan_states_the_std_the_remastering_will(case):
         q[:, joint - 1] -= np.radians(CHANGE)
         stated = remaster(result, replace(data, q=q)).report["joints"][joint - 1]["std"]
         assert 0.6 < planned.report["zeros"][joint - 1]["after"] / stated < 1.5, (joint, planned.report["zeros"][joint - 1], stated)
+
+
+def _scara():
+    """A SCARA with a prismatic third joint: every axis vertical, so the set-up's base and tool heights are nearly
+    one column (the training data's set-up information conditioned about 1e12)."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    return Robot.from_dh("scara", rows).with_params(tool_x=20.0, tool_y=10.0, tool_z=30.0)
+
+
+def test_a_plan_for_a_prismatic_robot_whose_set_up_is_nearly_redundant(tmp_path, capsys):
+    """The result's information with the set-up eliminated had eigenvalues of -2e-6 of its largest (rounding), and
+    the plan's Cholesky factor of it failed (a traceback); the summary printed a prismatic joint's mm as deg."""
+    robot = _scara()
+    path, _ = simulate(robot, "position", samples=400, seed=3)
+    q = path.q.copy()
+    q[:, 2] = 55.0 + np.abs(np.cumsum(np.random.default_rng(3).normal(0.0, 0.087, len(q))))  # the vertical axis barely moves
+    data, _ = simulate(robot, "position", seed=3, poses=q)
+    write_canonical(data, tmp_path / "train.csv")
+    (tmp_path / "result.json").write_text(json.dumps(robocal.calibrate(str(tmp_path / "train.csv"), robot=robot).to_dict()))
+    assert main(["plan", "--from", str(tmp_path / "result.json"), "--poses", "12", "--criterion", "Ds", "--out", str(tmp_path / "p.csv")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "a re-mastering on these poses" in x)
+    zeros = {z["joint"]: z for z in robocal.plan(result=str(tmp_path / "result.json"), poses=12, criterion="Ds").report["zeros"]}
+    assert zeros[3]["unit"] == "mm" and zeros[2]["unit"] == "deg"
+    assert f"joint 3 {zeros[3]['after']:.2g} mm" in line and f"joint 2 {zeros[2]['after']:.2g} deg" in line, line
+
+
+def test_a_re_mastered_result_re_masters_and_plans_as_the_result_it_came_from(case):
+    """A re-mastered (or monitored) result holds the new session's set-up: its training data were read again at that
+    set-up, their residuals another session's (the UR10's tracker 116 mm away), and the result's covariance of the
+    robot with them: the stated stds were 1000x too large (0.8-2.7 deg instead of 0.0006-0.0023), and a later
+    re-mastering named no change, nor did the plan promise one."""
+    robot, measurement, result, poses, _ = case
+    first = remaster(result, _session(case, 3)).document
+    later = replace(_session(case, session=2), q=_session(case, 3, session=2).q.copy())
+    later.q[:, 1] -= np.radians(CHANGE)  # joint 2 moved too, since the first re-mastering
+    again = remaster(first, later).report
+    assert list(_moved(again)) == [2], again["joints"]
+    assert abs(_moved(again)[2]["change"] - CHANGE) < 5 * _moved(again)[2]["std"], _moved(again)[2]
+    direct = remaster(result, _session(case, 2, session=2)).report
+    for a, b in zip(again["joints"], direct["joints"]):
+        if b["detectable_std"] is not None:
+            assert 0.7 < a["detectable_std"] / b["detectable_std"] < 1.4, (a, b)
+    planned = [z["after"] for z in robocal.plan(result=first, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
+    original = [z["after"] for z in robocal.plan(result=result, poses=12, criterion="Ds").report["zeros"] if z["after"] is not None]
+    assert np.allclose(planned, original, rtol=0.5), (planned, original)  # the new set-up (a cable's anchor) changes the candidates
+
+
+def test_a_plan_of_too_few_poses_for_a_re_mastering_is_refused(case):
+    """``plan --criterion Ds --poses 1`` stated each zero's std (1-6 deg: the ridge's) for poses the re-mastering then
+    refuses (the new set-up needs more readings than its parameters)."""
+    robot, measurement, result, _, _ = case
+    least = {"position": 4, "cable": 5}[measurement]
+    with pytest.raises(InvalidParameterError, match=f"plan at least {least} poses"):
+        robocal.plan(result=result, poses=least - 1, criterion="Ds")
+    assert all(z["after"] is None or z["after"] > 0 for z in robocal.plan(result=result, poses=least, criterion="Ds").report["zeros"])

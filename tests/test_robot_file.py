@@ -184,3 +184,22 @@ def test_missing_optional_dependencies_say_what_to_install(monkeypatch, tmp_path
     assert isinstance(info.value, ImportError) and isinstance(info.value, RobocalError)
     with pytest.raises(MissingDependencyError, match=r"to_roboticstoolbox needs roboticstoolbox-python.*pip install 'robocal\[rtb\]'"):
         robocal.to_roboticstoolbox(robocal.robot("ur10"))
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yaml"])
+def test_a_document_saved_with_a_bom_reads_as_without(tmp_path, suffix):
+    """An editor's byte-order mark: a YAML robot file read, a JSON one (a result file edited in Notepad) was refused
+    ("Unexpected UTF-8 BOM"), though the CSV reader drops it."""
+    robot = robocal.robot("ur10")
+    plain = tmp_path / f"r{suffix}"
+    robocal.write_robot(robot, plain)
+    marked = tmp_path / f"bom{suffix}"
+    marked.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    assert np.array_equal(robocal.robot(str(marked)).params, robocal.robot(str(plain)).params)
+    if suffix == ".json":
+        from robocal.simulation import simulate
+
+        data, _ = simulate("ur10", "position", samples=60, seed=1)
+        result = json.dumps(robocal.calibrate(data, robot="ur10", test_fraction=0.0).to_dict()).encode()
+        (tmp_path / "result.json").write_bytes(b"\xef\xbb\xbf" + result)
+        assert load_result(str(tmp_path / "result.json"))[1] == json.loads(result)

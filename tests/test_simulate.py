@@ -19,6 +19,8 @@ from robocal.effects import parse_effect
 from robocal.physics import GRAVITY, MASS_MODELS, gravity_torques
 from robocal.exceptions import InvalidParameterError
 
+DEG_RAD = np.pi / 180.0
+
 M = 60  # samples of the per-effect tests
 
 
@@ -145,6 +147,34 @@ def test_joint_coupling():
     data, _, P = run("abb-irb120", "position", effects=["joint_coupling:joint=6,source=5,coefficient=1e-3"])
     q = with_joint_offset(data, 6, 1e-3 * data.q[:, 4])
     np.testing.assert_allclose(data.y, predict("abb-irb120", "position", q, P), rtol=0, atol=1e-9)
+
+
+def test_a_prismatic_joints_path_covers_its_range_as_a_revolute_ones():
+    """The random walk stepped every joint by radians(5): a prismatic joint by 0.087 mm, so 500 samples moved a
+    SCARA's 200 mm axis over 5 mm while its revolute joints crossed their ranges."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    data, _ = robocal.simulate(Robot.from_dh("scara", rows), "position", samples=400, seed=3)
+    spans = np.ptp(data.q, axis=0) / np.array([300.0 * DEG_RAD, 280.0 * DEG_RAD, 200.0, 360.0 * DEG_RAD])
+    assert spans[2] > 0.25 and spans[2] > 0.3 * spans[[0, 1, 3]].min(), spans
+
+
+def test_a_prismatic_joints_effects_are_in_mm_or_refused():
+    """A prismatic joint moves in mm: a backlash width or a harmonic amplitude in deg was read as rad of it (0.1 deg of
+    backlash simulated as 0.0017 mm, silently), a coupling carried mm into rad, and a scale's largest |Δq| was
+    reported in deg."""
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    robot = Robot.from_dh("scara", rows)
+    for effect in ("backlash:joint=3,width=0.1", "joint_periodic:joint=3,amplitude=0.01", "joint_coupling:joint=3,source=2,coefficient=1e-3"):
+        with pytest.raises(InvalidParameterError, match="joint 3|joints 3 and 2"):
+            robocal.simulate(robot, "position", samples=30, seed=1, effects=[effect])
+    data, truth = robocal.simulate(robot, "position", samples=30, seed=1, effects=["joint_scale:joint=3,scale=1e-3"])
+    magnitude = truth["effects"][0]["magnitude"]
+    assert magnitude["unit"] == "mm" and magnitude["value"] == pytest.approx(1e-3 * np.max(np.abs(data.q[:, 2])), rel=1e-6)
+    assert robocal.simulate(robot, "position", samples=30, seed=1, effects=["backlash:joint=2,width=0.1"])[1]["effects"][0]["magnitude"]["unit"] == "deg"
 
 
 def test_backlash_follows_the_approach_direction():

@@ -157,7 +157,8 @@ def _seed_joints(table: Table, joints: list, angle_unit: Optional[str]) -> tuple
     seeds = np.radians(seeds) if angle_unit in (None, "deg") else seeds
     check = angle_unit_check(seeds, angle_unit or "deg", rows)
     if not check["plausible"] and angle_unit is None:
-        raise DataError(f"seed joints: {check['message']}; pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)", table.path)
+        advice = f"pass --angle-unit {check['likely']} (or --angle-unit deg to confirm)" if check["likely"] != "deg" else "or pass --angle-unit deg to confirm"
+        raise DataError(f"seed joints: {check['message']}; {advice}", table.path)
     return seeds, rows
 
 
@@ -503,6 +504,7 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Opti
     """
     where = parse_frame(frame, user_frame)
     calibrated, doc = load_result(result)
+    joint_columns(calibrated)  # a robot it cannot solve for refused before its targets' joint columns are judged as angles
     framed = framed_robot(calibrated, doc, where)
     # The nominal model in the targets' frame: nominal kinematics with the frame's set-up (base
     # frame, tool), as a user's controller would have it after a base/tool calibration.

@@ -230,6 +230,16 @@ class JointEffect(Effect):
         """``Δq`` in rad, shape (m, N)."""
         raise NotImplementedError
 
+    def check(self, robot, measurement):
+        super().check(robot, measurement)
+        # A prismatic joint moves in mm: an angle key would be read as rad of it (backlash width=0.1 deg as 0.0017 mm).
+        angles = [k for k, key in self.keys.items() if key.unit == "deg"]
+        j = self.joint_index(robot) if "joint" in self.keys else None
+        if angles and j is not None and robot.joints[j].kind == "prismatic":
+            raise self.error(
+                f"joint {j + 1} of {robot.name} is prismatic (it moves in mm); {', '.join(map(repr, angles))} {'is' if len(angles) == 1 else 'are'} in deg"
+            )
+
     def offset_of_joint(self, acq: Acquisition, values: np.ndarray) -> np.ndarray:
         """A (m, N) offset that is ``values`` on this effect's joint and 0 elsewhere."""
         dq = np.zeros_like(acq.q)
@@ -239,6 +249,9 @@ class JointEffect(Effect):
     def apply(self, acq: Acquisition) -> dict:
         dq = self.offsets(acq)
         acq.dq += dq
+        j = self.joint_index(acq.robot) if "joint" in self.keys else None
+        if j is not None and acq.robot.joints[j].kind == "prismatic":
+            return _largest(dq, "mm", "largest |Δq|")
         return _largest(dq, "deg", "largest |Δq|", DEG)
 
 
@@ -359,8 +372,11 @@ class JointCoupling(JointEffect):
 
     def check(self, robot, measurement):
         super().check(robot, measurement)
-        if self.joint_index(robot, "source") == self.joint_index(robot):
+        source, joint = self.joint_index(robot, "source"), self.joint_index(robot)
+        if source == joint:
             raise self.error("key 'source' must name a joint other than 'joint'")
+        if robot.joints[source].kind != robot.joints[joint].kind:  # the coefficient would carry mm into rad
+            raise self.error(f"joints {joint + 1} and {source + 1} of {robot.name} are a {robot.joints[joint].kind} and a {robot.joints[source].kind} one")
 
     def offsets(self, acq):
         k = self.joint_index(acq.robot, "source")

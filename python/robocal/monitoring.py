@@ -53,7 +53,7 @@ from .causes import structure
 from .causes.candidates import COMPENSABLE, joint_offsets
 from .data.dataset import OBSERVATION_COLUMNS, Dataset
 from .exceptions import InvalidParameterError, ShapeError
-from .kernels import as_float_array
+from .kernels import as_count, as_float_array, as_positive
 from .monitor_window import BATCH, MEMORY_BATCHES, SEGMENT, WINDOW, LongRunVariance, StatisticScale, WindowSums, quadratic_form, ridged_inverse
 from .results import load_result
 from .serial_robot import RESIDUAL_WIDTH, setup_names, zero_names
@@ -62,6 +62,9 @@ logger = logging.getLogger(__name__)
 
 #: Samples that set the innovations' scale and correlation (and the set-up with ``new_session``).
 OPENING = 200
+#: The fewest: two batches, the fewest a variance of batch means rests on (an opening shorter than a batch crashed
+#: the long-run variance; one batch measured no correlation and held the yardstick at 1).
+MIN_OPENING = 2 * BATCH
 #: Default mean number of samples between false alarms.
 MEAN_RUN_LENGTH = 100_000
 #: Fewest samples after a change's start before it may be tested (one bad sample is no change).
@@ -197,14 +200,15 @@ class Monitor:
     mean_run_length : float
         Mean samples between false alarms the thresholds are set for.
     opening : int
-        Samples that set the innovations' scale and correlation; no alarm before them.
+        Samples that set the innovations' scale and correlation; no alarm before them (at least
+        :data:`MIN_OPENING`).
     """
 
     def __init__(self, result, *, new_session: bool = False, mean_run_length: float = MEAN_RUN_LENGTH, opening: int = OPENING):
-        if not mean_run_length >= 10:
+        # Finite: at an infinite one every threshold is infinite and no change is ever alarmed (a monitor that says nothing).
+        if not as_positive(mean_run_length, "mean_run_length") >= 10:
             raise InvalidParameterError(f"`mean_run_length` must be at least 10 samples; got {mean_run_length!r}")
-        if not isinstance(opening, int) or opening < 10:
-            raise InvalidParameterError(f"`opening` must be an integer of at least 10 samples; got {opening!r}")
+        opening = as_count(opening, "opening", least=MIN_OPENING)
         self.robot, self.doc = load_result(result)
         self.measurement = self.doc["measurement"]
         self.params = self.robot.params.copy()
@@ -626,6 +630,7 @@ class Monitor:
     # -- what it found -------------------------------------------------------------------------
     def summary(self) -> dict:
         scale = self._scale.scale(self.inflation)
+        units = {(c.kind, c.joint): self._unit(c) for c in self.changes}
         return {
             "samples": self.samples,
             "alarms": [a.to_dict() for a in self.alarms],
@@ -639,8 +644,8 @@ class Monitor:
                 {
                     "kind": kind,
                     "joint": joint,
-                    "size": (np.degrees(v) if kind == "joint_zero" else v) * math.sqrt(scale),
-                    "unit": "deg" if kind == "joint_zero" else "mm",
+                    "size": (np.degrees(v) if units[kind, joint] == "deg" else v) * math.sqrt(scale),
+                    "unit": units[kind, joint],
                     "within": LIMIT_SAMPLES,
                 }
                 for (kind, joint), v in self.limits.items()

@@ -45,7 +45,7 @@ from scipy.stats import chi2
 from .calibration.api import load_inputs
 from .calibration.metrics import metrics
 from .calibration.problem import Problem, fit_row_weights
-from .calibration.sessions import setup_eliminated
+from .calibration.sessions import schur_complement, setup_eliminated, training_fit
 from .causes.result_model import result_model
 from .data.dataset import Dataset
 from .data.identity import Fingerprint
@@ -118,16 +118,16 @@ def _result_covariance(doc: dict, robot: Robot, angle_unit) -> tuple[list, Optio
     train = train.subset(np.flatnonzero(np.isin(train.rows, d["rows_used"])))
     setup = [robot.index(n) for n in setup_names(robot, train.measurement)]
     own = [robot.index(n) for n in doc.get("free", []) if n in robot.param_names and robot.index(n) not in setup]
+    params = training_fit(robot, train, own + setup)
     w = fit_row_weights(train)
-    J = robot.jacobian(train.measurement, train.q, y=train.y, params=robot.params, cols=own + setup) * w[:, None]
-    r = robot.residuals(train.measurement, train.q, train.y, params=robot.params).ravel() * w
+    J = robot.jacobian(train.measurement, train.q, y=train.y, params=params, cols=own + setup) * w[:, None]
+    r = robot.residuals(train.measurement, train.q, train.y, params=params).ravel() * w
     s2 = float(r @ r) / max(r.size - len(own) - len(setup), 1)
     G = J.T @ J
     n = len(own)
-    schur = G[:n, :n] - G[:n, n:] @ np.linalg.pinv(G[n:, n:], hermitian=True) @ G[n:, :n]
     # Inverted on its positive eigenvalues: a covariance must be positive semi-definite, or σ²I + J C Jᵀ
     # may not be (pose data's rotation rows, weighed 200 mm/rad, made rounding errors of C count).
-    lam, U = np.linalg.eigh((schur + schur.T) / 2)
+    lam, U = np.linalg.eigh(schur_complement(G, range(n), range(n, len(G))))
     keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
     return own, s2 * (U[:, keep] / lam[keep]) @ U[:, keep].T, None
 

@@ -306,11 +306,12 @@ def load_document(source, what: str, called: str) -> object:
 
 
 def read_file(path, what: str = "robot file") -> str:
-    """The UTF-8 text of the ``what`` at ``path`` (:func:`robocal.files.read_regular`), or an
-    :class:`InvalidParameterError` naming the file and what is wrong with it."""
+    """The UTF-8 text of the ``what`` at ``path`` (:func:`robocal.files.read_regular`), a BOM dropped (an editor's, as
+    the CSV reader drops it: JSON refused it), or an :class:`InvalidParameterError` naming the file and what is wrong
+    with it."""
     data = read_regular(path, lambda problem: InvalidParameterError(f"{path}: {problem}"), what=what)
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise InvalidParameterError(f"{path}: not a {what} (not UTF-8 text: undecodable byte at offset {exc.start})") from None
 

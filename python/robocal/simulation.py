@@ -134,16 +134,19 @@ def acquisition_path(r: Robot, measurement: str, samples: int, rng: np.random.Ge
     Returns
     -------
     ndarray, shape (samples, N)
-        Joint values in rad.
+        Joint values in rad (mm for prismatic joints).
     """
     lo, hi = np.array([j.limits for j in r.joints]).T
+    # A prismatic joint (mm) steps the same share of its range as a revolute one of a turn: a step of
+    # radians(5) mm moved a SCARA's 200 mm axis over 5 mm in 500 samples, and its parameters went undetermined.
+    step = np.array([math.radians(step_deg) if j.kind == "revolute" else step_deg / 360.0 * (h - l) for j, l, h in zip(r.joints, lo, hi)])
     q = np.empty((samples, r.n_joints))
     for i in range(samples):
         for _ in range(ROUNDS):
             if i == 0:
                 candidates = rng.uniform(lo, hi, (CANDIDATES, r.n_joints))
             else:
-                candidates = _reflect(q[i - 1] + rng.normal(0.0, math.radians(step_deg), (CANDIDATES, r.n_joints)), lo, hi)
+                candidates = _reflect(q[i - 1] + rng.normal(0.0, 1.0, (CANDIDATES, r.n_joints)) * step, lo, hi)
             ok = np.flatnonzero(_valid(r, measurement, candidates))
             if ok.size:
                 q[i] = candidates[ok[0]]

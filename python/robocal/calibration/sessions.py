@@ -174,6 +174,32 @@ def setup_eliminated(S: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, dict]:
     return rest, absorbed
 
 
+def schur_complement(G: np.ndarray, keep, drop) -> np.ndarray:
+    """The information ``G[keep, keep] − G[keep, drop] G[drop, drop]⁺ G[drop, keep]`` on the entries
+    ``keep`` once ``drop`` (a session's set-up) is fitted anew: symmetric, its negative eigenvalues
+    set to zero. It is positive semi-definite in exact arithmetic; a set-up nearly redundant in
+    itself (a SCARA's base and tool heights: ``G[drop, drop]`` conditioned 1e12) left eigenvalues
+    of −2e-6 of the largest, and a Cholesky factor of a plan's prior failed."""
+    keep, drop = np.asarray(keep, dtype=int), np.asarray(drop, dtype=int)
+    S = G[np.ix_(keep, keep)]
+    if drop.size:
+        S = S - G[np.ix_(keep, drop)] @ np.linalg.pinv(G[np.ix_(drop, drop)], hermitian=True) @ G[np.ix_(drop, keep)]
+    lam, U = np.linalg.eigh((S + S.T) / 2)
+    return (U * np.clip(lam, 0.0, None)) @ U.T
+
+
+def training_fit(robot: Robot, data: Dataset, cols) -> np.ndarray:
+    """``robot.params`` with the entries ``cols`` (a result's estimated parameters and its session's set-up) fitted
+    again on ``data``, the result's training samples, from where the result holds them: its own fit, where its
+    residuals and Jacobian tell what it knows. A result re-mastered or monitored since holds a later session's set-up
+    and moved zeros; at those its training residuals were another session's (a tracker 116 mm away: its covariance
+    of the robot 10⁶ times too large, and a re-mastering from it named no change of 0.5°)."""
+    from .lm import levenberg_marquardt
+
+    problem = Problem(robot, data, np.asarray(cols, dtype=int), robot.params.copy())
+    return problem.full(levenberg_marquardt(problem, with_std=False).x)
+
+
 def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A problem's residuals at ``x`` as (data rows, prior rows)."""
     r = problem.residuals(x)

@@ -136,6 +136,11 @@ def calibrate(
     parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
+    wrong = [s.label for s in structures if s.kind == "joint_zero" and r.joints[s.joint].kind == "prismatic"]
+    if wrong:  # its offset is read in deg: 10 would move a prismatic joint by 0.17 mm
+        raise InvalidParameterError(f"{', '.join(wrong)}: a zero convention is an angle (deg); joint {wrong[0].split()[2]} of {r.name} is prismatic")
+    if structures:
+        structures = structure.within_limits(structures, np.vstack([d.q for d in datasets]) if several else dataset.q, r)
     if several:
         terms = session_terms(causes, labels, [d.source for d in datasets])
         return _fit_sessions(datasets, r, structures, labels, terms, kinematic_prior, test_fraction, seed, options)

@@ -143,6 +143,26 @@ def to_model(q: np.ndarray, structures: list[Structure]) -> np.ndarray:
     return q
 
 
+def within_limits(structures: list[Structure], q: np.ndarray, robot: Robot) -> list[Structure]:
+    """``structures`` with each revolute joint's zero offset taken the whole turns over that put the most model
+    angles of the readings ``q`` (m, N) within the robot's joint limits (then the smallest offset). The kinematics
+    see an offset only modulo a turn, the limits do not: a UR10 joint read 90° over its angle, given as an offset of
+    270°, put every model angle of its data beyond the ±360° limits — the monitor refused every sample, and the
+    exported URDF's limits left out every reading."""
+    out: list[Structure] = []
+    for s in structures:
+        if s.kind == "joint_zero" and robot.joints[s.joint].kind == "revolute":
+            lower, upper = robot.joints[s.joint].limits
+            before = to_model(q, out)[:, s.joint]
+            turns = np.arange(-3, 4)
+            offsets = s.value + 2.0 * np.pi * turns
+            inside = [int(np.count_nonzero((before + o >= lower) & (before + o <= upper))) for o in offsets]
+            best = min(range(len(turns)), key=lambda k: (-inside[k], round(abs(offsets[k]), 9), abs(turns[k])))  # ties: as given
+            s = replace(s, value=float(offsets[best]))
+        out.append(s)
+    return out
+
+
 def apply_all(data: Dataset, structures: list[Structure]) -> Dataset:
     """``data`` with its joint readings transformed by ``structures`` in order."""
     return replace(data, q=to_model(data.q, structures))
@@ -163,6 +183,12 @@ def affine_readings(structures: list[Structure], n_joints: int) -> tuple[np.ndar
     return np.diag(slope).copy(), offset
 
 
+def reading_limits(robot: Robot, structures: list[Structure]) -> list[tuple[float, float]]:
+    """Each joint's limits (of the model's angles) as the controller's readings (:func:`affine_readings`)."""
+    sign, offset = affine_readings(structures, robot.n_joints)
+    return [tuple(sorted((limit - offset[j]) / sign[j] for limit in joint.limits)) for j, joint in enumerate(robot.joints)]
+
+
 def robot_at_readings(robot: Robot, structures: list[Structure]) -> Robot:
     """The same tool frame as ``robot`` with the controller's readings as its joint variables:
     ``robot_at_readings(robot, s).fkine(r) == robot.fkine(to_model(r, s))``.
@@ -176,11 +202,10 @@ def robot_at_readings(robot: Robot, structures: list[Structure]) -> Robot:
     sign, offset = affine_readings(structures, robot.n_joints)
     p = robot.params.copy()
     joints = list(robot.joints)
-    for j, joint in enumerate(joints):
+    for j, (joint, limits) in enumerate(zip(robot.joints, reading_limits(robot, structures))):
         variable = robot.index(f"theta{j + 1}" if joint.kind == "revolute" else f"d{j + 1}")
         p[variable] += offset[j]
-        lower, upper = sorted(((limit - offset[j]) / sign[j] for limit in joint.limits))
-        joints[j] = replace(joint, limits=(lower, upper))
+        joints[j] = replace(joint, limits=limits)
         if sign[j] > 0:
             continue
         for name in ("theta", "d"):

@@ -24,7 +24,8 @@ def _quantities(params: Optional[dict]) -> str:
     for name, q in (params or {}).items():
         if isinstance(q, Quantity) and q.value is not None and np.isfinite(q.value):
             sd = f" ± {q.std:.2g}" if q.std is not None else ""
-            shown.append(f"{name} {q.value:.4g}{sd} {q.unit}".rstrip())
+            unit = "" if q.unit == "1" else q.unit  # a pure number: "sign -1", not "sign -1 1"
+            shown.append(f"{name} {q.value:.4g}{sd} {unit}".rstrip())
         elif isinstance(q, list):
             shown.append(f"{name} {q[:8]}{' ...' if len(q) > 8 else ''}")
     return ", ".join(shown)

@@ -11,18 +11,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import csv
 import json
 import sys
 
 from ..calibration.api import load_inputs
 from ..causes.candidates import acquisition_order
-from ..data.formats.canonical import canonical_dataset
-from ..data.table import Table
+from ..data.formats.canonical import canonical_columns, canonical_dataset
+from ..data.table import Table, check_header
 from ..exceptions import DataError
-from ..monitoring import MEAN_RUN_LENGTH, OPENING, Monitor
+from ..monitoring import MEAN_RUN_LENGTH, MIN_OPENING, OPENING, Monitor
 from ..outputs import Staged, printable
 from ..results import save_result
 from .arguments import add_angle_unit_argument
+
+STDIN = "<stdin>"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,34 +37,59 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--new-session", action="store_true", help="re-fit the session's set-up on the opening samples (default: the calibration's session goes on)"
     )
     parser.add_argument("--mean-run-length", type=float, default=MEAN_RUN_LENGTH, help=f"mean samples between false alarms (default {MEAN_RUN_LENGTH:,})")
-    parser.add_argument("--opening", type=int, default=OPENING, help=f"samples that set the innovations' scale; no alarm before them (default {OPENING})")
+    parser.add_argument(
+        "--opening",
+        type=int,
+        default=OPENING,
+        help=f"samples that set the innovations' scale; no alarm before them (default {OPENING}, at least {MIN_OPENING})",
+    )
     add_angle_unit_argument(parser)
 
 
+def _stdin_lines():
+    """``(number, line)`` of standard input as the lines come, numbered and split as the file
+    reader splits a file (``str.splitlines``: LF, CRLF and CR alike), an opening BOM dropped."""
+    number = 0
+    for chunk in sys.stdin:
+        for line in chunk.splitlines():
+            number += 1
+            yield number, line.removeprefix("\ufeff") if number == 1 else line
+
+
 def _stdin_samples(monitor: Monitor, angle_unit):
-    """``(q, y, row)`` of each line of a canonical CSV on standard input, as it comes; a line that
-    does not parse is refused with a note naming its row, and the stream goes on."""
+    """``(q, y, row)`` of each line of a canonical CSV on standard input, as it comes; a header
+    that is not a canonical one of the result's measurement stops the stream, a line that does
+    not parse is refused with a note naming its row, and the stream goes on."""
     header, last_t = None, -float("inf")
-    for number, line in enumerate(sys.stdin, start=1):
+    for number, line in _stdin_lines():
         if not line.strip():
             continue
-        cells = [c.strip() for c in line.rstrip("\n").split(",")]
-        if header is None:
-            header = cells
-            continue
         try:
-            sample = canonical_dataset(Table(header, [(number, cells)], "<stdin>"), angle_unit or "deg", monitor.measurement, None, False)
+            try:
+                cells = [c.strip() for c in next(csv.reader([line]))]  # quoted cells as a file's
+            except csv.Error as exc:  # a cell beyond csv's size limit
+                raise DataError(f"not a readable CSV line ({exc})", STDIN, number) from None
+            if header is None:  # checked once: else every line is refused for it
+                check_header(cells, STDIN, ",")
+                canonical_columns(Table(cells, [], STDIN), monitor.measurement)
+                header = cells
+                continue
+            sample = canonical_dataset(
+                Table(header, [(number, cells)], STDIN), angle_unit or "deg", monitor.measurement, None, False, prismatic=monitor.robot.prismatic
+            )
             if sample.t is not None and not sample.t[0] >= last_t:
                 # the stream is taken in the order it comes: a sample from the past is not acquisition order
-                raise DataError(f"the clock goes backwards: t = {sample.t[0]:g} after {last_t:g}", "<stdin>", number, "t")
+                raise DataError(f"the clock goes backwards: t = {sample.t[0]:g} after {last_t:g}", STDIN, number, "t")
         except DataError as exc:
+            if header is None:  # the stream cannot be read
+                raise
             monitor.refused.append(f"row {number} refused: {exc}")
             print(f"  row {number} refused: {printable(str(exc), one_line=True)}", file=sys.stderr)
             continue
         last_t = last_t if sample.t is None else float(sample.t[0])
         yield sample.q[0], sample.y[0], number
     if header is None:
-        raise DataError("no header line: a canonical CSV starts with its column names", "<stdin>", 1)
+        raise DataError("no header line: a canonical CSV starts with its column names", STDIN, 1)
 
 
 def run(args: argparse.Namespace) -> int:

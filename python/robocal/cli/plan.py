@@ -148,11 +148,14 @@ def _zeros_lines(report: dict) -> list[str]:
         return []
     n = report["poses"]
     apart = [z for z in report["zeros"] if z["after"] is not None]
+    # One unit after the figures, or each its own where a prismatic joint's (mm) stands among the others' (deg).
+    units = {z["unit"] for z in apart}
+    each = (lambda z: f" {z['unit']}") if len(units) > 1 else (lambda z: "")
     lines = [
         f"  a re-mastering on these poses: each zero's change ± "
-        + ", ".join(f"joint {z['joint']} {z['after']:.2g}" for z in apart)
-        + f" {apart[0]['unit'] if apart else 'deg'} ({n} random poses: "
-        + ", ".join(f"{z['random']:.2g}" for z in apart)
+        + ", ".join(f"joint {z['joint']} {z['after']:.2g}{each(z)}" for z in apart)
+        + f"{'' if len(units) > 1 else ' ' + (units.pop() if units else 'deg')} ({n} random poses: "
+        + ", ".join(f"{z['random']:.2g}{each(z)}" for z in apart)
         + ")"
     ]
     lines += [

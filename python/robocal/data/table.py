@@ -98,17 +98,7 @@ def split_delimited(text: str, delimiter: str, path):
     if not lines or not any(cell.strip() for cell in lines[0]):
         raise DataError("the file is empty (a header row is expected)", path, 1)
     header = [h.strip() for h in lines[0]]
-    if len(header) == 1:  # one column holding another separator: the file is of another format
-        seen = next((d for d in (",", ";", "\t") if d != delimiter and d in header[0]), None)
-        if seen is not None:
-            name = {",": "','", ";": "';'", "\t": "tab"}
-            raise DataError(
-                f"the header is a single column containing {name[seen]}: this file looks {name[seen]}-separated; "
-                f"the format it is read as is {name[delimiter]}-separated",
-                path,
-                1,
-            )
-    check_header(header, path)
+    check_header(header, path, delimiter)
     if body is not None:
         body.n_columns = len(header)
         return header, body
@@ -387,9 +377,20 @@ def _chunk_has_empty(chunk) -> bool:
     return bool((np.diff(_offsets(chunk)) == 0).any())
 
 
-def check_header(header: Sequence[str], path) -> None:
-    """A :class:`DataError` on row 1 naming the first column name that appears twice (which of
-    the two holds the data cannot be guessed). Linear in the number of columns."""
+def check_header(header: Sequence[str], path, delimiter: Optional[str] = None) -> None:
+    """A :class:`DataError` on row 1 for a header of one column holding another separator than
+    the text's ``delimiter`` (it is of another format), or naming the first column name that appears
+    twice (which of the two holds the data cannot be guessed). Linear in the number of columns."""
+    if delimiter is not None and len(header) == 1:
+        seen = next((d for d in (",", ";", "\t") if d != delimiter and d in header[0]), None)
+        if seen is not None:
+            name = {",": "','", ";": "';'", "\t": "tab"}
+            raise DataError(
+                f"the header is a single column containing {name[seen]}: this file looks {name[seen]}-separated; "
+                f"the format it is read as is {name[delimiter]}-separated",
+                path,
+                1,
+            )
     seen = set()
     for name in header:
         if name and name in seen:

@@ -26,7 +26,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import Problem
 from ..causes.candidates import acquisition_order
 from ..causes.problem import ExtendedProblem, reported_rmse
-from ..causes.structure import Structure, apply_all
+from ..causes.structure import Structure, apply_all, within_limits
 from ..data.dataset import Dataset
 from ..exceptions import DataError
 from ..physics import DEG
@@ -63,9 +63,16 @@ def coupled(j: int, s: int, n_joints: int) -> bool:
 def hypotheses(data: Dataset) -> list[Structure]:
     """Every single-joint hypothesis on the joints that move in ``data``."""
     moving = [j for j in range(data.n_joints) if np.ptp(data.q[:, j]) > MOVING_DEG * DEG]
-    out = [Structure("joint_zero", j, z * DEG) for j in moving for z in ZERO_OFFSETS]
+    revolute = [j for j in moving if j not in data.prismatic]  # a zero offset is a quarter turn: no mm of a prismatic joint
+    out = [Structure("joint_zero", j, z * DEG) for j in revolute for z in ZERO_OFFSETS]
     out += [Structure("joint_sign", j) for j in moving]
-    out += [Structure("joint_reference", j, c, s) for j in moving for s in moving if coupled(j, s, data.n_joints) for c in (1.0, -1.0)]
+    out += [
+        Structure("joint_reference", j, c, s)
+        for j in moving
+        for s in moving
+        if coupled(j, s, data.n_joints) and (j in data.prismatic) == (s in data.prismatic)  # a reading of the same unit
+        for c in (1.0, -1.0)
+    ]
     return out
 
 
@@ -99,7 +106,7 @@ def combinations(data: Dataset) -> list[tuple]:
     def options(j: int) -> list[tuple]:
         out = []
         for sign in (False, True):
-            for zero in (0.0,) + ZERO_OFFSETS:
+            for zero in (0.0,) + (ZERO_OFFSETS if j not in data.prismatic else ()):
                 parts = ((Structure("joint_sign", j),) if sign else ()) + ((Structure("joint_zero", j, zero * DEG),) if zero else ())
                 if parts:
                     out.append(parts)
@@ -336,7 +343,18 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
         return np.inf if problem is None else levenberg_marquardt(problem, max_nfev=SCREEN_NFEV // 2).metrics["train"]["rmse"]
 
     combined = screen_combinations(data, setup_rmse, seed)
-    accepted, effects, rejected = search(data, fit, heldout, baseline, seed, extra=zero_errors(bad) + combined, setup_rmse=setup_rmse)
-    final = apply_all(data, accepted)
-    errors = errors_of.get(final.q.tobytes())
-    return final, effects, rejected, None if errors is None else (schemes, errors)
+    accepted, effects, rejected = search(
+        data, fit, heldout, baseline, seed, extra=[z for z in zero_errors(bad) if robot.joints[z.joint].kind == "revolute"] + combined, setup_rmse=setup_rmse
+    )
+    errors = errors_of.get(apply_all(data, accepted).q.tobytes())
+    # Each offset the whole turns that keep the model's angles within the limits (as calibrate takes them): the
+    # report's labels are what calibrate and plan read (a plan's readings drawn 360 deg off the controller's).
+    named = {a.label: b for a, b in zip(accepted, within_limits(accepted, data.q, robot))}
+    for effect in effects:
+        if effect["label"] in named:
+            effect["label"], effect["params"] = named[effect["label"]].label, named[effect["label"]].params
+        together = effect.get("significance", {}).get("together_with")
+        if together:
+            effect["significance"]["together_with"] = [named[t].label if t in named else t for t in together]
+    accepted = [named[a.label] for a in accepted]
+    return apply_all(data, accepted), effects, rejected, None if errors is None else (schemes, errors)

@@ -40,10 +40,16 @@ NOT_CHECKED = (
 )
 
 
-def _ranges(robot: Robot, joint_ranges) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper bounds (rad; mm for prismatic joints) of every joint: the robot's limits,
-    narrowed by ``joint_ranges`` (1-based joint -> (lower, upper))."""
-    lo, hi = (np.array(v, dtype=np.float64) for v in zip(*(j.limits for j in robot.joints)))
+def _ranges(robot: Robot, joint_ranges, structures: list = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds (rad; mm for prismatic joints) of every joint's reading: the robot's limits (of its
+    model's angles) at the controller's readings (``structures``, its reading conventions), narrowed by
+    ``joint_ranges`` (1-based joint -> (lower, upper), readings)."""
+    limits = [j.limits for j in robot.joints]
+    if structures and not any(s.kind == "joint_reference" for s in structures):  # a joint read relative to another has no box
+        # The limits bound the model's angles: a UR10 joint read 90 deg off, held to -360..360 as read, was planned
+        # at model angles to -400 deg, beyond what the robot reaches (and what simulate, monitor and export allow).
+        limits = structure.reading_limits(robot, list(structures))
+    lo, hi = (np.array(v, dtype=np.float64) for v in zip(*limits))
     if joint_ranges is None:
         return lo, hi
     if not isinstance(joint_ranges, Mapping):

@@ -290,10 +290,16 @@ def plan(
         raise InvalidParameterError(f"unknown causes {unknown}: a cause is a label as robocal diagnose prints it (e.g. 'joint_compliance joint 2')")
     if criterion not in CRITERIA:
         raise InvalidParameterError(f"`criterion` must be one of {sorted(CRITERIA)}; got {criterion!r}")
+    setup, per_pose = setup_names(robot, measurement), RESIDUAL_WIDTH[measurement]
+    if criterion == "Ds" and poses * per_pose <= len(setup):  # the re-mastering would refuse them; their stds were the ridge's
+        raise InvalidParameterError(
+            f"{poses} poses give {poses * per_pose} readings: a re-mastering fits the new session's set-up ({len(setup)} parameters) "
+            f"on them and needs more; plan at least {len(setup) // per_pose + 1} poses"
+        )
     rng = seeded_rng(seed)
     sigma = DEFAULT_NOISE[measurement].sigma if noise is None else as_positive(noise, "noise")
     passes = default_passes(poses) if passes is None else as_count(passes, "passes", least=1, most=poses)
-    lower, upper = _ranges(robot, joint_ranges)
+    lower, upper = _ranges(robot, joint_ranges, structures)
     params, (cable, tracker, distances, box) = _checked_setup(
         robot, measurement, params, tool, anchor, tracker, tracker_range, box, cable_range, bool(datasets)
     )
@@ -327,10 +333,9 @@ def plan(
     work = _working(len(design.names), len(pool), poses, rng, notes)
     A = design.A[work]  # the candidates the design is chosen among
     required = _required(design, A, pool[work], np.vstack(seen) if seen else None, start, poses, notes)
-    readings_per_pose = RESIDUAL_WIDTH[measurement]
-    if measured is None and not from_result and poses * readings_per_pose <= len(design.names):
-        notes.append(f"{poses} poses give {poses * readings_per_pose} readings for {len(design.names)} parameters: too few to determine them all")
-    weights = workspace_weights(design.A, design.names, setup_names(robot, measurement))
+    if measured is None and not from_result and poses * per_pose <= len(design.names):
+        notes.append(f"{poses} poses give {poses * per_pose} readings for {len(design.names)} parameters: too few to determine them all")
+    weights = workspace_weights(design.A, design.names, setup)
     zeros = _zero_design(robot, measurement, params, pool) if criterion == "Ds" else None
     if zeros is not None and from_result:
         zeros = with_result_error(zeros, design, known.M)

@@ -21,8 +21,9 @@ from typing import Optional
 import numpy as np
 
 from ..calibration.api import load_inputs
+from ..calibration.lm import levenberg_marquardt
 from ..calibration.problem import Problem
-from ..calibration.sessions import SESSION_KINDS, is_private
+from ..calibration.sessions import SESSION_KINDS, is_private, schur_complement
 from ..causes import structure
 from ..causes.extended import extended_problem
 from ..kernels import is_sparse
@@ -96,18 +97,20 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
             p[robot.index(name)] = value
         base = Problem(robot, data.subset(idx), free=cols, start=p)
         model = extended_problem(base, data, idx, design.labels + list(s.get("terms", [])), every=False, noise=sigma, fitted=design.fitted)
-        J = model.jacobian(model.x0)[: len(idx) * model.k]  # the data rows: the maps' roughness is the design's prior, counted once
+        known = _result_x(model, fitted, number)
+        # The training data's own fit from the result's values (see robocal.calibration.sessions.training_fit): a result
+        # re-mastered or monitored since holds a later session's set-up, at which these residuals were metres.
+        x = model.x0 if known is None else levenberg_marquardt(model, x0=known, with_std=False).x
+        J = model.jacobian(x)[: len(idx) * model.k]  # the data rows: the maps' roughness is the design's prior, counted once
         G = J.T @ J
         G = G.toarray() if is_sparse(G) else np.asarray(G)
         names = model.names
         own = np.array([n in at and not is_private(n, measurement) for n in names])  # the rest is this session's: eliminated
         r, e = np.flatnonzero(own), np.flatnonzero(~own)
-        S = G[np.ix_(r, r)] - G[np.ix_(r, e)] @ np.linalg.pinv(G[np.ix_(e, e)]) @ G[np.ix_(e, r)] if e.size else G[np.ix_(r, r)]
         to = [at[names[i]] for i in r]
-        M[np.ix_(to, to)] += (S + S.T) / 2
+        M[np.ix_(to, to)] += schur_complement(G, r, e)
         angles.append(data.q[idx])
-        x = _result_x(model, fitted, number)
-        if x is not None and squares is not None:
+        if known is not None and squares is not None:
             weighted = model.data_residuals(x) * model.row_weights  # as the fit weighs them (pose data's rotation rows)
             squares, rows = squares + float(weighted @ weighted), rows + weighted.size
         else:

@@ -68,12 +68,9 @@ def read_canonical(
     return canonical_dataset(read_delimited(path) if table is None else table, angle_unit, measurement, robot, exclude_bad_rows, prismatic=prismatic)
 
 
-def canonical_dataset(
-    table: Table, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool, *, prismatic: tuple = ()
-) -> Dataset:
-    """The :class:`Dataset` of a canonical :class:`~robocal.data.table.Table` (from a file, a
-    DataFrame or a line of a stream; its ``path`` names the source in errors); the ``prismatic``
-    joints' columns (0-based) are mm, never converted from degrees."""
+def canonical_columns(table: Table, measurement: Optional[str]) -> tuple[list, str, list]:
+    """The joint columns, the measurement and every numeric column read of a canonical header
+    (``table.header``); a :class:`DataError` on row 1 for a header that is not one."""
     header, path = table.header, table.path
     joints = table.joint_columns()
     expected = [f"q{i}" for i in range(1, len(joints) + 1)]
@@ -82,9 +79,19 @@ def canonical_dataset(
     measurement = measurement or _measurement_from_header(header, path)
     if not isinstance(measurement, str) or measurement not in OBSERVATION_COLUMNS:
         raise DataError(f"`measurement` must be one of {tuple(OBSERVATION_COLUMNS)}; got {measurement!r}", path)
+    table.require(OBSERVATION_COLUMNS[measurement], f"a {measurement} file")
+    return joints, measurement, joints + list(OBSERVATION_COLUMNS[measurement]) + [c for c in NUMERIC_OPTIONAL if c in header]
+
+
+def canonical_dataset(
+    table: Table, angle_unit: str, measurement: Optional[str], robot: Optional[str], exclude_bad_rows: bool, *, prismatic: tuple = ()
+) -> Dataset:
+    """The :class:`Dataset` of a canonical :class:`~robocal.data.table.Table` (from a file, a
+    DataFrame or a line of a stream; its ``path`` names the source in errors); the ``prismatic``
+    joints' columns (0-based) are mm, never converted from degrees."""
+    header, path = table.header, table.path
+    joints, measurement, wanted = canonical_columns(table, measurement)
     obs = OBSERVATION_COLUMNS[measurement]
-    table.require(obs, f"a {measurement} file")
-    wanted = joints + list(obs) + [c for c in NUMERIC_OPTIONAL if c in header]
     known = set(wanted) | set(OPTIONAL_COLUMNS)  # the sample label is text, documented and not used
     ignored = [h for h in header if h not in known]
     values, rows, excluded = table.numeric(wanted, allow_nonfinite=("temp",), exclude_bad_rows=exclude_bad_rows)
