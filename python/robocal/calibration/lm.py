@@ -216,8 +216,8 @@ def _minimise(
             scale = squares if scale is None else np.maximum(scale, squares)
             d = np.sqrt(np.where(scale > 0, scale, 1.0))
             factored = _factor(Jw, d, gram)
-            # Qᵀr; the normal equations' factorisation takes it from Jᵀr = g, which it would compute again
-            c = factored.project_products(g / d) if isinstance(factored, _DampedGram) else factored.project(rw)
+            # Qᵀr; a sparse J's factorisation takes it from Jᵀr = g, which it would compute again
+            c = factored.project_products(g / d) if is_sparse(Jw) else factored.project(rw)
             if statistical_stop:
                 if cost == 0.0:
                     success, message = True, "the residuals are zero"
