@@ -45,7 +45,8 @@ from scipy.stats import chi2
 from .calibration.api import load_inputs
 from .calibration.metrics import metrics
 from .calibration.problem import Problem, fit_row_weights
-from .calibration.sessions import schur_complement, setup_eliminated, training_fit
+from .calibration.lm import levenberg_marquardt
+from .calibration.sessions import schur_complement, setup_eliminated
 from .causes.result_model import result_model
 from .data.dataset import Dataset
 from .data.identity import Fingerprint
@@ -118,7 +119,11 @@ def _result_covariance(doc: dict, robot: Robot, angle_unit) -> tuple[list, Optio
     train = train.subset(np.flatnonzero(np.isin(train.rows, d["rows_used"])))
     setup = [robot.index(n) for n in setup_names(robot, train.measurement)]
     own = [robot.index(n) for n in doc.get("free", []) if n in robot.param_names and robot.index(n) not in setup]
-    params = training_fit(robot, train, own + setup)
+    # Fitted again from the result's values: a result re-mastered or monitored since holds a later session's set-up
+    # and moved zeros, at which its training residuals were another session's (a tracker 116 mm away: the robot's
+    # covariance 10⁶ times too large, and a re-mastering from it named no change of 0.5°).
+    problem = Problem(robot, train, np.asarray(own + setup, dtype=int), robot.params.copy())
+    params = problem.full(levenberg_marquardt(problem, with_std=False).x)
     w = fit_row_weights(train)
     J = robot.jacobian(train.measurement, train.q, y=train.y, params=params, cols=own + setup) * w[:, None]
     r = robot.residuals(train.measurement, train.q, train.y, params=params).ravel() * w

@@ -188,18 +188,6 @@ def schur_complement(G: np.ndarray, keep, drop) -> np.ndarray:
     return (U * np.clip(lam, 0.0, None)) @ U.T
 
 
-def training_fit(robot: Robot, data: Dataset, cols) -> np.ndarray:
-    """``robot.params`` with the entries ``cols`` (a result's estimated parameters and its session's set-up) fitted
-    again on ``data``, the result's training samples, from where the result holds them: its own fit, where its
-    residuals and Jacobian tell what it knows. A result re-mastered or monitored since holds a later session's set-up
-    and moved zeros; at those its training residuals were another session's (a tracker 116 mm away: its covariance
-    of the robot 10⁶ times too large, and a re-mastering from it named no change of 0.5°)."""
-    from .lm import levenberg_marquardt
-
-    problem = Problem(robot, data, np.asarray(cols, dtype=int), robot.params.copy())
-    return problem.full(levenberg_marquardt(problem, with_std=False).x)
-
-
 def _split(problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A problem's residuals at ``x`` as (data rows, prior rows)."""
     r = problem.residuals(x)

@@ -98,7 +98,7 @@ def _result_information(doc: dict, robot: Robot, params: np.ndarray, design: _De
         base = Problem(robot, data.subset(idx), free=cols, start=p)
         model = extended_problem(base, data, idx, design.labels + list(s.get("terms", [])), every=False, noise=sigma, fitted=design.fitted)
         known = _result_x(model, fitted, number)
-        # The training data's own fit from the result's values (see robocal.calibration.sessions.training_fit): a result
+        # The training data's own fit from the result's values (as robocal.remastering's covariance does): a result
         # re-mastered or monitored since holds a later session's set-up, at which these residuals were metres.
         x = model.x0 if known is None else levenberg_marquardt(model, x0=known, with_std=False).x
         J = model.jacobian(x)[: len(idx) * model.k]  # the data rows: the maps' roughness is the design's prior, counted once
