@@ -123,6 +123,15 @@ def test_a_result_without_readable_training_data_says_its_error_is_not_counted(c
     assert any("own error is not counted" in n for n in report["notes"])
 
 
+def test_a_result_calibrated_from_a_relative_path_finds_its_training_data_from_another_folder(case, tmp_path, monkeypatch):
+    robot, _, _, _, folder = case
+    monkeypatch.chdir(folder)
+    result = robocal.calibrate("train.csv", robot=robot).to_dict()
+    assert result["dataset"]["source"] == str(folder / "train.csv")
+    monkeypatch.chdir(tmp_path)  # another folder: a relative record would no longer find the file
+    assert remaster(result, _session(case)).report["result_error_counted"]
+
+
 def test_bad_arguments_are_refused(case):
     with pytest.raises(InvalidParameterError, match="alpha"):
         remaster(case[2], _session(case), alpha=1.5)

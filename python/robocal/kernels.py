@@ -27,12 +27,13 @@ QUATERNION_NORM_TOL = 1e-3
 
 
 def _real_array(value, name: str) -> np.ndarray:
-    """``value`` as a float64 array of any shape. Complex values are refused rather than cast
-    (the cast would silently drop the imaginary part)."""
+    """``value`` as a float64 array of any shape. Complex, boolean, text and date values are refused
+    rather than cast: the cast would silently drop an imaginary part, or read a mask or a string as
+    numbers."""
     try:
         array = np.asarray(value)
-        if array.dtype.kind == "c":
-            raise TypeError(f"complex dtype {array.dtype}")
+        if array.dtype.kind in "bcUSVmM":
+            raise TypeError(f"{array.dtype} values")
         return array.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
         raise InvalidParameterError(f"`{name}` must be numeric array-like; got {type(value).__name__} ({exc})") from None

@@ -53,7 +53,7 @@ from .data.identity import Fingerprint
 from .exceptions import InvalidParameterError
 from .kernels import as_positive
 from .physics import DEG
-from .results import file_sha256, load_result, unread_training
+from .results import load_result, recorded_source, unread_training
 from .robot import RESIDUAL_WIDTH, Robot, setup_names, zero_names
 
 logger = logging.getLogger(__name__)
@@ -294,6 +294,7 @@ def remaster(
             + ("; re-mastered, the RMSE is even larger than with the set-up alone: the zeros found are not to be trusted" if worse and moved else "")
         )
 
+    data_file = recorded_source(dataset.source)
     report = {
         "joints": entries,
         "alpha": float(alpha),
@@ -305,8 +306,8 @@ def remaster(
         "rmse": figures,
         "fit": {"chi2": chi, "dof": dof, "p_value": p_value},
         "samples": len(links),
-        "data": dataset.source,
-        "sha256": file_sha256(dataset.source) if dataset.source else None,
+        "data": data_file["source"],
+        "sha256": data_file["sha256"],
         "fingerprint": Fingerprint.of(modelled.read).to_dict(),  # verify recognises these points: they are no held-out data
         "result": None if isinstance(result, dict) else str(result),
         "notes": notes,

@@ -30,6 +30,7 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 from typing import Optional
 
@@ -56,6 +57,14 @@ def file_sha256(path) -> Optional[str]:
         return None
 
 
+def recorded_source(source) -> dict:
+    """A data file as a result records it: its absolute path (so that a result read from another
+    folder still finds it) and its SHA-256; both None for data given in memory."""
+    if not source:
+        return {"source": None, "sha256": None}
+    return {"source": os.path.abspath(source), "sha256": file_sha256(source)}
+
+
 def training_fingerprint(train) -> Optional[dict]:
     """What a result records to recognise its training samples in any file (``verify``):
     :class:`~robocal.data.identity.Fingerprint` of ``train`` (a Dataset, or None)."""
@@ -69,15 +78,13 @@ def result_document(core: dict, robot: Robot, train=None, test=None) -> dict:
     doc = dict(core)
     for p in doc["parameters"]:
         p["deviation"] = p["value"] - p["nominal"]
-    source = train.source if train is not None else None
     doc = {
         "schema": SCHEMA,
         "robocal_version": __version__,
         **doc,
         "robot_model": robot_model(robot),
         "dataset": {
-            "source": source,
-            "sha256": file_sha256(source) if source else None,
+            **recorded_source(train.source if train is not None else None),
             "rows_used": [int(r) for r in train.rows] if train is not None else None,
             "rows_held_out": [int(r) for r in test.rows] if test is not None else [],
             "rows_excluded": list(train.excluded) if train is not None else [],

@@ -27,7 +27,7 @@ from ..data.splits import configuration_groups, random_split
 from ..diagnosis_file import DiagnosisReport, load_diagnosis
 from ..exceptions import InvalidParameterError
 from ..serial_robot import Robot
-from ..results import file_sha256, training_fingerprint
+from ..results import file_sha256, recorded_source, training_fingerprint
 from . import structure
 from .candidates import (
     JOINT_KINDS,
@@ -264,8 +264,7 @@ def _fit_sessions(
     for s, (d, (train, test), problem, own) in enumerate(zip(datasets, splits, problems, terms)):
         x = stacked.session_x(result.x, s)
         entry = {
-            "source": d.source,
-            "sha256": file_sha256(d.source) if d.source else None,
+            **recorded_source(d.source),
             "samples": len(d),
             "rows_used": [int(v) for v in d.rows[train]],
             "rows_held_out": [int(v) for v in d.rows[test]] if test is not None else [],
