@@ -99,6 +99,24 @@ def test_cli_calibrates_sessions_and_refuses_a_file_twice(tmp_path, capsys):
     assert "the same samples" in err and "Traceback" not in err
 
 
+def test_sessions_recorded_in_other_angle_units_are_read_each_in_its_own(tmp_path, capsys):
+    data, _ = sessions(n=2, samples=120, effects=())
+    files = [write_canonical(data[0], tmp_path / "deg.csv"), write_canonical(data[1], tmp_path / "rad.csv", angle_unit="rad")]
+    both = [str(f) for f in files]
+    # Before, one unit for both: the radian file could only be refused, naming it.
+    assert main(["calibrate", *both, "--robot", "ur10", "--quiet"]) == 2
+    assert "rad.csv" in capsys.readouterr().err
+    out = tmp_path / "r.json"
+    assert main(["calibrate", *both, "--robot", "ur10", "--angle-unit", "deg,rad", "--out", str(out), "--quiet"]) == 0
+    each = robocal.calibrate(data, robot="ur10").to_dict()
+    assert json.loads(out.read_text())["metrics"]["train"]["rmse"] == pytest.approx(each["metrics"]["train"]["rmse"], rel=1e-6)
+    assert main(["calibrate", *both, "--robot", "ur10", "--angle-unit", "deg,rad,deg", "--quiet"]) == 2
+    assert "3 units for 2 sessions" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse's usage error
+        main(["calibrate", *both, "--robot", "ur10", "--angle-unit", "deg,grad", "--quiet"])
+    assert "deg or rad; got 'grad'" in capsys.readouterr().err
+
+
 def test_verify_on_a_session_the_robot_was_fitted_on_says_so(tmp_path):
     data, _ = sessions(n=2, samples=120)
     files = [write_canonical(d, tmp_path / f"s{i}.csv") for i, d in enumerate(data)]

@@ -27,12 +27,12 @@ QUATERNION_NORM_TOL = 1e-3
 
 
 def _real_array(value, name: str) -> np.ndarray:
-    """``value`` as a float64 array of any shape. Complex, boolean, text and date values are refused
-    rather than cast: the cast would silently drop an imaginary part, or read a mask or a string as
-    numbers."""
+    """``value`` as a float64 array of any shape. Complex, boolean and date values are refused
+    rather than cast: the cast would silently drop an imaginary part, or read a mask or a time as
+    numbers. Numbers written as text ("0.2") are read, as users pass them."""
     try:
         array = np.asarray(value)
-        if array.dtype.kind in "bcUSVmM":
+        if array.dtype.kind in "bcVmM":
             raise TypeError(f"{array.dtype} values")
         return array.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:

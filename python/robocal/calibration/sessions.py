@@ -41,10 +41,15 @@ def is_private(name: str, measurement: str) -> bool:
 
 def load_sessions(data, robot=None, measurement=None, angle_unit=None, purpose: str = "a multi-session fit") -> tuple[list[Dataset], Robot]:
     """The sessions of ``data`` (a list of at least two files or Datasets) and their robot:
-    each session given once, all of one robot and one measurement (else an error naming them)."""
+    each session given once, all of one robot and one measurement (else an error naming them).
+    ``angle_unit`` is one unit for every session or a list of one per session (sessions recorded
+    by different tools)."""
     if not isinstance(data, (list, tuple)) or len(data) < 2:
         raise InvalidParameterError(f"{purpose} needs a list of at least two sessions; got {data!r}")
-    loaded = [load_inputs(d, robot, measurement, angle_unit) for d in data]
+    units = list(angle_unit) if isinstance(angle_unit, (list, tuple)) else [angle_unit] * len(data)
+    if len(units) != len(data):
+        raise InvalidParameterError(f"`angle_unit` gives {len(units)} units for {len(data)} sessions: give one for all, or one per session in their order")
+    loaded = [load_inputs(d, robot, measurement, unit) for d, unit in zip(data, units)]
     require_distinct_sessions([d for d, _ in loaded])  # one session twice: its held-out figure would be a training error
     rob, kind = loaded[0][1], loaded[0][0].measurement
     for i, (d, r) in enumerate(loaded[1:], start=2):

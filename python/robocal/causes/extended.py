@@ -106,9 +106,10 @@ def calibrate(
         ``kinematic_prior`` is given — are taken. Reading conventions (``joint_zero``,
         ``joint_sign``, ``joint_reference``) transform the joint readings before the fit. Fitted with the geometric parameters by ``method="lm"``; the result
         JSON then has ``causes`` with their physical parameters.
-    angle_unit : {"deg", "rad"}, optional
+    angle_unit : {"deg", "rad"} or list of them, optional
         Unit of the joint columns of a canonical file (degrees by default; values implausible
-        for the default unit are refused, see :func:`robocal.data.load`).
+        for the default unit are refused, see :func:`robocal.data.load`); of several sessions,
+        one for all or a list of one per session.
     **options
         Passed to the method.
 

@@ -36,8 +36,26 @@ def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) 
         parser.add_argument("data", help="measurement file (canonical CSV or a public dataset)")
     parser.add_argument("--robot", help="robot name, or a robot / result .json/.yaml, exported table or .urdf file (default: the one the data name)")
     parser.add_argument("--measurement", choices=["cable", "position", "pose"])
-    add_angle_unit_argument(parser)
+    if sessions:
+        parser.add_argument(
+            "--angle-unit",
+            type=angle_units,
+            metavar="UNIT[,UNIT...]",
+            help="unit of the q columns of canonical files, deg or rad: one for all files, or one per file in their order "
+            "(default deg; values implausible for the default are refused)",
+        )
+    else:
+        add_angle_unit_argument(parser)
 
 
 def add_angle_unit_argument(parser: argparse.ArgumentParser, what: str = "q columns of a canonical file") -> None:
     parser.add_argument("--angle-unit", choices=("deg", "rad"), help=f"unit of the {what} (default deg; values implausible for the default are refused)")
+
+
+def angle_units(text: str):
+    """``--angle-unit`` of a command taking several files: one unit, or a list of one per file."""
+    units = [u.strip() for u in text.split(",")]
+    wrong = [u for u in units if u not in ("deg", "rad")]
+    if wrong:
+        raise argparse.ArgumentTypeError(f"each unit must be deg or rad; got {wrong[0]!r}")
+    return units[0] if len(units) == 1 else units

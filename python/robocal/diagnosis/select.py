@@ -329,8 +329,9 @@ def diagnose(
         A label per sample (session, series): adds leave-one-group-out folds.
     seed : int
         Seeds the random folds.
-    angle_unit : {"deg", "rad"}, optional
-        Unit of a canonical file's joint columns (see :func:`robocal.data.load`).
+    angle_unit : {"deg", "rad"} or list of them, optional
+        Unit of a canonical file's joint columns (see :func:`robocal.data.load`); of several
+        sessions, one for all or a list of one per session.
     maps : bool
         After the named causes, try a joint error map per joint (:mod:`.maps`; default).
 
