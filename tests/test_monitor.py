@@ -487,6 +487,26 @@ def test_a_stream_on_standard_input_is_read_as_the_same_file_is(tmp_path, capsys
     assert out == from_file and out.startswith(f"{len(lines) - 1} samples, 0 alarms, 0 refused; ") and "refused" not in err, (out, err)
 
 
+def test_a_recorded_file_is_replayed_as_its_stream_a_bad_row_refused_not_the_file(tmp_path, capsys, monkeypatch, monitor_result):
+    """A row that does not parse stopped a file at once, while the same stream refused it and went on."""
+    import io
+
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps(monitor_result))
+    stream, _ = simulate("ur10", "position", samples=230, seed=3, session=1)
+    write_canonical(stream, tmp_path / "s.csv")
+    lines = (tmp_path / "s.csv").read_text().splitlines()
+    lines[40] = lines[40].replace(",", ",x", 1)
+    (tmp_path / "f.csv").write_text("\n".join(lines))
+    assert main(["monitor", str(result), str(tmp_path / "f.csv"), "--new-session"]) == 0
+    from_file = capsys.readouterr()
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n".join(lines)))
+    assert main(["monitor", str(result), "-", "--new-session"]) == 0
+    from_stdin = capsys.readouterr()
+    assert from_file.out == from_stdin.out and from_file.out.startswith(f"{len(lines) - 2} samples, 0 alarms, 1 refused; ")
+    assert from_file.err.replace(str(tmp_path / "f.csv"), "<stdin>") == from_stdin.err and "row 41 refused" in from_file.err
+
+
 @pytest.mark.parametrize(
     "header, message",
     [("q1;q2;q3;q4;q5;q6;x;y;z", "';'-separated"), ("Q1,Q2,Q3,Q4,Q5,Q6,X,Y,Z", "joint columns"), ("q1,q2,q3,q4,q5,q6,L", "'x', 'y', 'z'")],

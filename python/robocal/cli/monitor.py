@@ -17,6 +17,7 @@ import sys
 
 from ..calibration.api import load_inputs
 from ..causes.candidates import acquisition_order
+from ..data import load
 from ..data.formats.canonical import canonical_columns, canonical_dataset
 from ..data.table import Table, check_header
 from ..exceptions import DataError
@@ -83,8 +84,7 @@ def _stdin_samples(monitor: Monitor, angle_unit):
         except DataError as exc:
             if header is None:  # the stream cannot be read
                 raise
-            monitor.refused.append(f"row {number} refused: {exc}")
-            print(f"  row {number} refused: {printable(str(exc), one_line=True)}", file=sys.stderr)
+            _refuse(monitor, number, exc)
             continue
         last_t = last_t if sample.t is None else float(sample.t[0])
         yield sample.q[0], sample.y[0], number
@@ -92,13 +92,28 @@ def _stdin_samples(monitor: Monitor, angle_unit):
         raise DataError("no header line: a canonical CSV starts with its column names", STDIN, 1)
 
 
+def _refuse(monitor: Monitor, row: int, why: DataError) -> None:
+    """A row that does not parse, noted where the monitor's own refusals are, and the stream goes on."""
+    monitor.refused.append(f"row {row} refused: {why}")
+    print(f"  row {row} refused: {printable(str(why), one_line=True)}", file=sys.stderr)
+
+
+def _file_samples(monitor: Monitor, path, angle_unit):
+    """``(q, y, row)`` of a recorded file in acquisition order, replayed as its stream would be:
+    a row that does not parse is refused with a note as on standard input, not the whole file."""
+    data = load(path, measurement=monitor.measurement, angle_unit=angle_unit, robot=monitor.robot, exclude_bad_rows=True)
+    data, _ = load_inputs(data, monitor.robot, monitor.measurement)
+    for bad in data.excluded:
+        _refuse(monitor, bad["row"], DataError(bad["reason"], path, bad["row"], bad.get("column")))
+    return ((data.q[i], data.y[i], int(data.rows[i])) for i in acquisition_order(data))
+
+
 def run(args: argparse.Namespace) -> int:
     monitor = Monitor(args.result, new_session=args.new_session, mean_run_length=args.mean_run_length, opening=args.opening)
     if args.data == "-":
         samples = _stdin_samples(monitor, args.angle_unit)
     else:
-        data, _ = load_inputs(args.data, monitor.robot, monitor.measurement, args.angle_unit)
-        samples = ((data.q[i], data.y[i], int(data.rows[i])) for i in acquisition_order(data))
+        samples = _file_samples(monitor, args.data, args.angle_unit)
     with contextlib.ExitStack() as stack:  # the JSON lines file is complete, and replaces any old one, when the stream ends
         out = stack.enter_context(stack.enter_context(Staged(args.json_lines)).tmp.open("w")) if args.json_lines else None
         for q, y, row in samples:
