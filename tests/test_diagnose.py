@@ -668,14 +668,43 @@ def test_a_found_zero_offset_keeps_the_data_within_the_joint_limits():
     assert [e["label"] for e in report["effects"] if e["kind"] == "joint_zero"] == ["joint_zero joint 2 offset=-90"]
 
 
+def _scara():
+    from robocal.serial_robot import Robot
+
+    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
+    return Robot.from_dh("scara", rows)
+
+
+def test_a_prismatic_joints_scale_error_is_found_as_its_scale():
+    """A joint cause's Δq moved the chain through the joint's theta even when the joint is prismatic (its reading
+    adds to d): a SCARA's 0.2 % scale error of its vertical screw was named a wander or a rigid step."""
+    from robocal.causes.candidates import library
+
+    robot = _scara()
+    data, _ = simulate(robot, "position", samples=400, seed=1, effects=["joint_scale:joint=3,scale=0.002"])
+    report = robocal.diagnose(data, robot=robot).to_dict()
+    assert [e["label"] for e in report["effects"]] == ["joint_scale joint 3"]
+    assert report["effects"][0]["params"]["scale"]["value"] == pytest.approx(0.002, rel=0.1)
+    # What has no meaning for a reading in mm is not offered: harmonics of a turn, a coupling to an angle.
+    offered = [c.label for c in library(robot, data, []) if c.joint == 2]
+    assert not [c for c in offered if c.startswith("joint_periodic")] and "joint_coupling joint 3 source=4" not in offered
+    assert "joint_scale joint 3" in offered and "backlash joint 3" in offered
+
+
+def test_a_prismatic_joints_lost_motion_is_in_mm():
+    from robocal.causes.candidates import Candidate
+
+    robot = _scara()
+    width, _ = Candidate("backlash", 2, "joints", np.ones((3, 1))).physical(np.array([-0.025]), None, robot, robot.params)
+    assert width["width"]["value"] == pytest.approx(0.05) and width["width"]["unit"] == "mm"
+
+
 def test_a_prismatic_joint_gets_no_zero_convention_in_deg():
     """A zero convention's offset is an angle (deg): on a prismatic joint diagnose tried 90/180/270 'deg' (1.6-4.7 mm)
     and calibrate took 'joint_zero joint 3 offset=10' as 0.17 mm, silently."""
     from robocal.diagnosis import conventions
-    from robocal.serial_robot import Robot
 
-    rows = [(0, 400, 300, 0, (-150, 150)), (180, 300, 0, 0, (-140, 140)), (0, 0, 0, 0, (0, 200), False, "prismatic"), (0, 0, 50, 0)]
-    robot = Robot.from_dh("scara", rows)
+    robot = _scara()
     data, _ = simulate(robot, "position", samples=120, seed=1)
     for h in conventions.hypotheses(data) + [s for c in conventions.combinations(data) for s in c]:
         assert not (h.kind == "joint_zero" and h.joint == 2), h.label

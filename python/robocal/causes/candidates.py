@@ -151,12 +151,14 @@ class Candidate:
             # b < 0 it leads (the encoder behind an elastic stage, a servo's following error,
             # preload). Both are named, with the sign; only the size is limited.
             width = -2.0 * c[0]
+            # A prismatic joint's reading is mm: its lost motion too (a screw's), limited as a sensor's error.
+            scale, unit, limit = (1.0, "mm", LIMITS["sensor_mm"]) if robot.joints[self.joint].kind == "prismatic" else (1.0 / DEG, "deg", LIMITS["angle"])
             out = {
-                "width": q(width / DEG, 2.0 * s[0] / DEG, "deg"),
+                "width": q(width * scale, 2.0 * s[0] * scale, unit),
                 "direction": q(1.0 if width > 0 else -1.0, np.nan, "(+1: the link lags its reading, -1: it leads)"),
             }
-            bad = not abs(width) < LIMITS["angle"]
-            return out, (f"width {width / DEG:.3g} deg is not within ±{LIMITS['angle'] / DEG:g} deg" if bad else None)
+            bad = not abs(width) < limit
+            return out, (f"width {width * scale:.3g} {unit} is not within ±{limit * scale:g} {unit}" if bad else None)
         if curved_drift(self):  # the change over the session and its mean rate
             offsets = self.basis @ c  # (m, k): the sensor's offset at every sample
             first, last = self.detail["first"], self.detail["last"]
@@ -671,9 +673,11 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     for j in moving:
         if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
             out.append(joint_candidate("joint_compliance", j))
-        out += [periodic_candidate(robot, data, j, h) for h in LIBRARY_HARMONICS]
+        if robot.joints[j].kind == "revolute":  # harmonics of a turn: a prismatic joint's mm make no turn
+            out += [periodic_candidate(robot, data, j, h) for h in LIBRARY_HARMONICS]
         out.append(joint_candidate("joint_scale", j))
-        out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j]
+        # A reading coupled to another of its unit: the simulator's and the report's coefficient is a ratio.
+        out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j and robot.joints[s].kind == robot.joints[j].kind]
         out.append(joint_candidate("backlash", j))
     out.append(drift_candidate(data))
     if data.temp is not None and np.ptp(data.temp) > 0:

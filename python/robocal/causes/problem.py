@@ -102,9 +102,9 @@ class ExtendedProblem:
         # The base problem's priors (name -> (mean, sigma)) act on the same names here.
         names = self.names
         self._prior = [(names.index(n), m, sd) for n, (m, sd) in base.prior.items() if n in names]
-        theta = {self.robot.index(f"theta{j + 1}") for j in range(self.robot.n_joints)}
         self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
-        self._theta = sorted(theta)
+        # The parameter each joint's reading adds to: a joint cause's Δq moves the chain as it does.
+        self._joint_variables = [self.robot.index(f"{'d' if j.kind == 'prismatic' else 'theta'}{i + 1}") for i, j in enumerate(self.robot.joints)]
         # Joint maps' sparse basis rows (per cause) and the Jacobian's rows beyond the data, built
         # on first use: the samples of a problem do not change.
         self._sample_rows: dict = {}
@@ -182,16 +182,17 @@ class ExtendedProblem:
         return _rows_of(self._sample_rows, cause.basis, self.idx)
 
     def jacobian_parts(self, x: np.ndarray, extra: list[int]) -> tuple[np.ndarray, np.ndarray, dict]:
-        """Rust Jacobian over ``free``, all ``theta`` columns, the link lengths and ``extra``:
-        the free columns, the full parameters and the parts ``theta``, ``lengths`` and ``extra``
+        """Rust Jacobian over ``free``, every joint variable's column (``theta``, or ``d`` of a
+        prismatic joint), the link lengths and ``extra``: the free columns, the full parameters
+        and the parts ``joints``, ``lengths`` and ``extra``
         that :meth:`columns` builds a cause's columns from. Computed once for many candidates at
         the same ``x``: one Jacobian of the whole chain serves them all."""
         p = self.full(x)
-        J = self._chain_jacobian(x, p, list(self.free) + self._theta + self._lengths + list(extra))
+        J = self._chain_jacobian(x, p, list(self.free) + self._joint_variables + self._lengths + list(extra))
         at = len(self.free)
-        lengths_at = at + len(self._theta)
+        lengths_at = at + len(self._joint_variables)
         extra_at = lengths_at + len(self._lengths)
-        parts = {"theta": J[:, at:lengths_at], "lengths": J[:, lengths_at:extra_at], "extra": J[:, extra_at:]}
+        parts = {"joints": J[:, at:lengths_at], "lengths": J[:, lengths_at:extra_at], "extra": J[:, extra_at:]}
         return J[:, :at], p, parts
 
     def columns(self, x: np.ndarray, cause: Candidate, parts: dict = None, p: np.ndarray = None) -> np.ndarray:
@@ -202,7 +203,7 @@ class ExtendedProblem:
             if cause.stage == "parameters":
                 return parts["extra"]
         if cause.stage == "joints":
-            dh_dq = parts["theta"][:, cause.joint]
+            dh_dq = parts["joints"][:, cause.joint]
             if is_sparse(cause.basis):  # a joint map: four spline coefficients per sample, each row scaled by ∂h/∂q_j
                 from scipy import sparse
 

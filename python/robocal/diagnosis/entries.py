@@ -72,7 +72,7 @@ def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:
     r = all_residuals(model, x)
     budget["revisits"] = repeatability(dataset.q[keep], r[keep, :3])
     _, _, parts = model.jacobian_parts(x, [])
-    dh_dq = parts["theta"] * model.row_weights[:, None]  # weighted as the fit weighs the residuals
+    dh_dq = parts["joints"] * model.row_weights[:, None]  # weighted as the fit weighs the residuals
     weighted = r[keep].ravel() * model.row_weights
     leftover = residual_verdict(dataset, keep, r[keep], reported_rmse(state.cv["random"]), budget, weighted=weighted, dh_dq=dh_dq)
     return budget, leftover, r / robust_sigma(r[keep])

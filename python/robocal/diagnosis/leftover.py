@@ -61,13 +61,14 @@ SCAN_CHUNK = 32
 SCAN_LEVEL = 1e-3
 
 
-def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, inflation: float = 1.0) -> Optional[dict]:
+def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, inflation: float = 1.0, prismatic=()) -> Optional[dict]:
     """The strongest error periodic in one joint's angle that the residuals still hold.
 
     ``q`` (m, N) the samples' joint angles, ``weighted`` (m, k) their residuals as the fit weighs
     them, ``dh_dq`` (m·k, N) the measurement's derivatives by each joint angle, weighted alike;
     ``inflation`` the variance inflation of residuals alike in time
-    (:func:`~.wander.time_inflation`). For every moving joint and harmonic ``h`` of
+    (:func:`~.wander.time_inflation`); ``prismatic`` the joints not scanned (their readings are
+    mm: no turn to be periodic in). For every moving revolute joint and harmonic ``h`` of
     :data:`SCAN_HARMONICS`, the error ``a·sin(h·q_j) + b·cos(h·q_j)`` of joint ``j`` is fitted to
     the residuals alone (its columns not projected off the model's: the gain found is at most
     what the full refit would give) and judged by the extra-sum-of-squares F test. Returns the
@@ -89,7 +90,7 @@ def periodic_leftover(q: np.ndarray, weighted: np.ndarray, dh_dq: np.ndarray, in
     best = None
     tried = 0
     for j in range(q.shape[1]):
-        if np.ptp(q[:, j]) <= 1e-6:
+        if np.ptp(q[:, j]) <= 1e-6 or j in prismatic:
             continue
         t = dh_dq[:, j].reshape(len(q), k)
         a, b = np.sum(t * r, axis=1), np.sum(t * t, axis=1)  # per sample: Σ ∂h/∂q·r and Σ (∂h/∂q)²
@@ -196,7 +197,7 @@ def residual_verdict(
     scan for a periodic error of one joint (:func:`periodic_leftover`) too."""
     correlation = residual_correlation(data, idx, residuals)
     sensor = sensor_correlation(data, idx, residuals, correlation)
-    periodic = None if weighted is None or dh_dq is None else periodic_leftover(data.q[idx], weighted, dh_dq, time_inflation(correlation))
+    periodic = None if weighted is None or dh_dq is None else periodic_leftover(data.q[idx], weighted, dh_dq, time_inflation(correlation), data.prismatic)
     findings = []
     reference, what = noise_reference(budget)
     if reference is not None and rmse > FLOOR_MULTIPLE * reference:
