@@ -111,7 +111,11 @@ def test_sessions_recorded_in_other_angle_units_are_read_each_in_its_own(tmp_pat
     each = robocal.calibrate(data, robot="ur10").to_dict()
     assert json.loads(out.read_text())["metrics"]["train"]["rmse"] == pytest.approx(each["metrics"]["train"]["rmse"], rel=1e-6)
     assert main(["calibrate", *both, "--robot", "ur10", "--angle-unit", "deg,rad,deg", "--quiet"]) == 2
-    assert "3 units for 2 sessions" in capsys.readouterr().err
+    assert "3 units for 2 file(s)" in capsys.readouterr().err
+    assert main(["calibrate", both[0], "--robot", "ur10", "--angle-unit", "deg,rad", "--quiet"]) == 2
+    assert "2 units for 1 file(s)" in capsys.readouterr().err
+    with pytest.raises(InvalidParameterError, match="3 units for 2 sessions"):
+        robocal.calibrate(both, robot="ur10", angle_unit=["deg", "rad", "deg"])
     with pytest.raises(SystemExit):  # argparse's usage error
         main(["calibrate", *both, "--robot", "ur10", "--angle-unit", "deg,grad", "--quiet"])
     assert "deg or rad; got 'grad'" in capsys.readouterr().err

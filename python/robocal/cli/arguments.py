@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..calibration.problem import KINEMATIC_PRIOR_RANGE
+from ..exceptions import InvalidParameterError
 
 
 def _mm_deg(text: str) -> tuple[float, float]:
@@ -50,6 +51,16 @@ def add_data_arguments(parser: argparse.ArgumentParser, sessions: bool = False) 
 
 def add_angle_unit_argument(parser: argparse.ArgumentParser, what: str = "q columns of a canonical file") -> None:
     parser.add_argument("--angle-unit", choices=("deg", "rad"), help=f"unit of the {what} (default deg; values implausible for the default are refused)")
+
+
+def files_angle_unit(args: argparse.Namespace):
+    """``--angle-unit`` of a command taking several files (``args.data``), its count checked against them."""
+    unit = args.angle_unit
+    if isinstance(unit, list) and len(unit) != len(args.data):
+        raise InvalidParameterError(
+            f"--angle-unit gives {len(unit)} units for {len(args.data)} file(s): give one for all, or one per file in their order"
+        )
+    return unit
 
 
 def angle_units(text: str):

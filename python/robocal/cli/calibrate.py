@@ -13,7 +13,7 @@ from ..exceptions import InvalidParameterError
 from ..outputs import printable
 from ..remastering import remaster
 from ..results import load_result, save_result
-from .arguments import add_data_arguments, add_kinematic_prior_argument
+from .arguments import add_data_arguments, add_kinematic_prior_argument, files_angle_unit
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         test_fraction=0.2 if args.test_fraction is None else args.test_fraction,
         seed=0 if args.seed is None else args.seed,
         kinematic_prior=args.kinematic_prior,
-        angle_unit=args.angle_unit,
+        angle_unit=files_angle_unit(args),
         causes=report or args.causes or None,
         **({"loss": args.loss} if args.loss != "linear" else {}),
     )
@@ -142,7 +142,7 @@ def _remaster(args: argparse.Namespace) -> int:
         if args.robot != named:
             raise InvalidParameterError(f"--robot {args.robot}: a re-mastering (--prior) is of the result's robot, {named!r}; omit --robot or give that one")
     level = {} if args.alpha is None else {"alpha": args.alpha}
-    found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=args.angle_unit, **level)
+    found = remaster(args.prior, args.data[0], measurement=args.measurement, angle_unit=files_angle_unit(args), **level)
     if args.out:
         save_result(found.document, args.out)
     if args.json:

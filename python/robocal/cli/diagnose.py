@@ -16,7 +16,7 @@ from ..diagnosis_file import Effect, Figures, Quantity, load_diagnosis
 from ..outputs import make_folder, printable, save_figure, write_text
 from ..report.figures import diagnosis_figure, map_figure
 from ..report.text import alike_words, correlation_words, map_tables, settling_words
-from .arguments import add_data_arguments
+from .arguments import add_data_arguments, files_angle_unit
 
 
 def _quantities(params: Optional[dict]) -> str:
@@ -222,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         alpha=args.alpha,
         hayati=not args.plain_dh,
         seed=args.seed,
-        angle_unit=args.angle_unit,
+        angle_unit=files_angle_unit(args),
         maps=not args.no_maps,
     )
     report = d.to_dict()
