@@ -93,6 +93,21 @@ def test_an_output_that_is_an_input_is_refused_and_the_input_kept(inputs, capsys
     assert snapshot(inputs) == before
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "{w}/result.json", "--format", "urdf", "--out", "{w}/d.csv"],
+        ["compensate", "{w}/result.json", "{w}/targets.csv", "--out", "{w}/d.csv"],
+        ["plan", "--from", "{w}/result.json", "--poses", "12", "--out", "{w}/d.csv"],
+    ],
+)
+def test_an_output_that_is_a_results_training_data_is_refused(inputs, capsys, argv):
+    """`export result.json --out data.csv` replaced the data the result was fitted on (and records by SHA-256)."""
+    before = snapshot(inputs)
+    refused([a.format(w=inputs) for a in argv], capsys, "training data of", "result.json", "destroy")
+    assert snapshot(inputs) == before
+
+
 def test_a_hard_link_to_an_input_is_the_input(inputs, tmp_path, capsys):
     link = tmp_path / "alias.csv"
     os.link(inputs / "d.csv", link)

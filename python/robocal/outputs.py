@@ -82,7 +82,7 @@ def _writable_folder(folder: Path, what) -> None:
         raise OutputError(f"{what}: the folder {folder} is not writable")
 
 
-def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable = (), force: bool = False) -> list[FolderClaim]:
+def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable = (), force: bool = False, recorded: dict = None) -> list[FolderClaim]:
     """Refuses outputs that would destroy an input or cannot be written, before any work, and
     claims the output folders.
 
@@ -90,6 +90,9 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
     ----------
     inputs : iterable of path
         Files read by the command (names that are not paths, such as a built-in robot, are skipped).
+    recorded : dict, optional
+        Data files an input depends on (a result's training data: its path -> the result's),
+        not to be replaced either.
     files : iterable of path
         Output files (``None`` and ``"-"``, standard output, are skipped).
     folders : iterable of path
@@ -119,6 +122,9 @@ def check_outputs(inputs: Iterable = (), files: Iterable = (), folders: Iterable
         clash = next((s for s in sources if same_file(out, s)), None)
         if clash is not None:
             raise OutputError(f"{out}: this output is the input {clash}; writing it would destroy the input, choose another path")
+        owner = next((o for d, o in (recorded or {}).items() if same_file(out, d)), None)
+        if owner is not None:
+            raise OutputError(f"{out}: this output is the training data of {owner}; writing it would destroy them, choose another path")
         other = next((o for o in files[:i] if same_file(out, o)), None)
         if other is not None:
             raise OutputError(f"{out}: the same file is given for two outputs")

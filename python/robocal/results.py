@@ -30,6 +30,7 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from pathlib import Path
 from typing import Optional
@@ -63,6 +64,28 @@ def recorded_source(source) -> dict:
     if not source:
         return {"source": None, "sha256": None}
     return {"source": os.path.abspath(source), "sha256": file_sha256(source)}
+
+
+def recorded_data_files(paths) -> dict:
+    """The training data files the result files among ``paths`` record (path -> the result's
+    path), which an output must not replace: the result would no longer find its data. What is
+    not a readable result records none."""
+    out = {}
+    for path in paths:
+        if not isinstance(path, (str, os.PathLike)) or not str(path).endswith(".json") or not os.path.isfile(path):
+            continue
+        try:
+            doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+        except (OSError, ValueError):
+            continue
+        if not isinstance(doc, dict):
+            continue
+        provenance = [doc.get("dataset")] + (doc.get("sessions") if isinstance(doc.get("sessions"), list) else [])
+        for entry in provenance:
+            source = entry.get("source") if isinstance(entry, dict) else None
+            if isinstance(source, str) and os.path.isfile(source):
+                out[source] = str(path)
+    return out
 
 
 def training_fingerprint(train) -> Optional[dict]:

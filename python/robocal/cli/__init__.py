@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from .. import __version__, progress
 from ..exceptions import RobocalError
 from ..outputs import PrintableStream, check_outputs, printable
+from ..results import recorded_data_files
 
 
 @dataclass(frozen=True)
@@ -155,8 +156,10 @@ def _run(argv: list[str]) -> int:
     stdout = sys.stdout
     sys.stdout = PrintableStream(stdout)  # names and columns from files may hold terminal escapes
     try:
+        inputs = [getattr(args, a, None) for a in paths.inputs]
         claims = check_outputs(
-            inputs=[getattr(args, a, None) for a in paths.inputs],
+            inputs=inputs,
+            recorded=recorded_data_files(inputs),
             files=[getattr(args, a, None) for a in paths.files],
             folders=[getattr(args, a, None) for a in paths.folders],
             force=getattr(args, "force", False),

@@ -57,9 +57,7 @@ def files_angle_unit(args: argparse.Namespace):
     """``--angle-unit`` of a command taking several files (``args.data``), its count checked against them."""
     unit = args.angle_unit
     if isinstance(unit, list) and len(unit) != len(args.data):
-        raise InvalidParameterError(
-            f"--angle-unit gives {len(unit)} units for {len(args.data)} file(s): give one for all, or one per file in their order"
-        )
+        raise InvalidParameterError(f"--angle-unit gives {len(unit)} units for {len(args.data)} file(s): give one for all, or one per file in their order")
     return unit
 
 
