@@ -711,3 +711,5 @@ def test_a_prismatic_joint_gets_no_zero_convention_in_deg():
         assert not (h.kind == "joint_reference" and 2 in (h.joint, h.source)), h.label
     with pytest.raises(InvalidParameterError, match="joint 3 of scara is prismatic"):
         robocal.calibrate(data, robot=robot, causes=["joint_zero joint 3 offset=10"])
+    with pytest.raises(InvalidParameterError, match="harmonics of a turn; joint 3 of scara is prismatic"):
+        robocal.calibrate(data, robot=robot, causes=["joint_periodic joint 3 harmonic=1"])

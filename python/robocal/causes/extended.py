@@ -140,6 +140,9 @@ def calibrate(
     wrong = [s.label for s in structures if s.kind == "joint_zero" and r.joints[s.joint].kind == "prismatic"]
     if wrong:  # its offset is read in deg: 10 would move a prismatic joint by 0.17 mm
         raise InvalidParameterError(f"{', '.join(wrong)}: a zero convention is an angle (deg); joint {wrong[0].split()[2]} of {r.name} is prismatic")
+    turns = [label for label in labels if (m := re.match(r"joint_periodic joint (\d+) ", label)) and int(m.group(1)) - 1 in r.prismatic]
+    if turns:  # harmonics of a turn: a prismatic joint's reading (mm) makes none
+        raise InvalidParameterError(f"{', '.join(turns)}: a periodic error is in harmonics of a turn; joint {turns[0].split()[2]} of {r.name} is prismatic")
     if structures:
         structures = structure.within_limits(structures, np.vstack([d.q for d in datasets]) if several else dataset.q, r)
     if several:
