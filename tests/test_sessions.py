@@ -94,19 +94,22 @@ def test_sessions_must_be_of_one_robot_and_measurement():
         robocal.diagnosis.diagnose_sessions([a])
 
 
-def test_cli_diagnoses_several_files(tmp_path, capsys):
-    paths = []
+def test_cli_diagnoses_several_files(tmp_path, capsys, monkeypatch):
     for s, data in enumerate(_sessions("ur10", "position", [CASES[0][2]], samples=300)):
-        paths.append(tmp_path / f"s{s}.csv")
-        write_canonical(data, paths[-1])
+        write_canonical(data, tmp_path / f"s{s}.csv")
+    paths = [f"s{s}.csv" for s in range(3)]  # relative, as typed in the data's folder
     out = tmp_path / "report.json"
-    assert main(["diagnose", *map(str, paths), "--robot", "ur10", "--json", str(out), "--out", str(tmp_path / "figures"), "--quiet"]) == 0
+    monkeypatch.chdir(tmp_path)
+    assert main(["diagnose", *paths, "--robot", "ur10", "--json", str(out), "--out", str(tmp_path / "figures"), "--quiet"]) == 0
     assert (tmp_path / "figures" / "heldout_rmse.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = capsys.readouterr().out
     assert "3 sessions" in text and "leave-one-session-out" in text
     report = json.loads(out.read_text())
     assert report["model"]["causes"] == [CASES[0][3]] and len(report["sessions"]) == 3
     assert np.isfinite(report["final"]["rmse_loso"])
+    # The report finds its sessions from another folder: calibrate --causes matches them by file.
+    monkeypatch.chdir(tmp_path / "figures")
+    assert main(["calibrate", *[f"../{p}" for p in paths[:2]], "--robot", "ur10", "--causes", str(out), "--quiet"]) == 0
 
 
 def test_a_reading_convention_of_the_controller_is_carried():
