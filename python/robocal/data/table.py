@@ -82,7 +82,9 @@ def read_text(path) -> str:
     try:  # bytes then decode: no newline translation to pay for (str.splitlines reads CRLF and CR alike)
         return read_data(path).decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise DataError(f"not a UTF-8 text file (undecodable byte at offset {exc.start})", path) from None
+        utf16 = read_data(path)[:2] in (b"\xff\xfe", b"\xfe\xff")  # what spreadsheets write as "Unicode text"
+        hint = ": it starts with a UTF-16 byte-order mark; save it as UTF-8 (CSV UTF-8)" if utf16 else ""
+        raise DataError(f"not a UTF-8 text file (undecodable byte at offset {exc.start}){hint}", path) from None
 
 
 def split_delimited(text: str, delimiter: str, path):
@@ -534,7 +536,10 @@ def numeric_columns(
                 raise
             excluded.append({"row": row_number, "column": exc.column, "reason": exc.message})
     if not rows:
-        raise DataError("no valid data rows" + (f" ({len(excluded)} rows with bad cells excluded)" if excluded else ""), path, 2)
+        first = excluded[0] if excluded else None
+        where = f"row {first['row']}" + (f", column {first['column']!r}" if first and first["column"] else "") if first else ""
+        why = f" ({len(excluded)} rows with bad cells excluded; the first, {where}: {first['reason']})" if first else ""
+        raise DataError("no valid data rows" + why, path, 2)
     return np.array(values, dtype=np.float64), np.array(rows, dtype=np.int64), excluded
 
 
