@@ -1,5 +1,5 @@
 """Where one ``robocal.calibrate(csv, robot="hsr-jr680")`` spends its time (issue 53), section by
-section: the wall time of each step, the part of it spent in compiled code (the Rust core and
+section: the wall time of each step and how often it ran, the part of it spent in compiled code (the Rust core and
 pyarrow's CSV reader) and the rest (Python and NumPy), medians over repeated runs in this one
 process. Unlike a profiler, nothing but the listed functions is instrumented, so small Python
 calls are not inflated.
@@ -36,9 +36,13 @@ SECTIONS = [
     ("robocal.calibration.api", "configuration_groups", "· configuration groups"),
     ("robocal.calibration.api", "random_split", "· random split"),
     ("robocal.calibration.api", "check_observations", "· check the observations (nominal tool points)"),
-    ("robocal.calibration.problem", "start_parameters", "· start: set-up fit (8 passes)"),
+    ("robocal.calibration.problem", "start_parameters", "· start: set-up fit (Gauss-Newton passes on a subsample)"),
     ("robocal.serial_robot", "identifiability", "· identifiability analysis"),
     ("robocal.calibration.api", "fit", "LM and result (covariance, training metrics)"),
+    ("robocal.calibration.lm", "normal_equations", "· normal equations JᵀJ, Jᵀr"),
+    ("robocal.calibration.lm", "_factor", "· their scaling and factor (eigenvalues, Cholesky)"),
+    ("robocal.calibration.lm", "_refused_as_none", "· trial points: probe residuals, then residuals and Jacobian"),
+    ("robocal.calibration.lm", "_product", "· products with J (Qᵀr, J·v: NumPy)"),
     ("robocal.causes.extended", "_held_out", "held-out metrics"),
 ]
 
@@ -49,12 +53,12 @@ def _faults() -> int:
 
 def instrument() -> tuple[dict, dict]:
     """Wraps the compiled calls (accumulating into ``native["s"]``) and the sections; returns
-    ``(native, sections)``, the latter ``label -> [wall, native]`` of the current run."""
+    ``(native, sections)``, the latter ``label -> [wall, native, calls]`` of the current run."""
     import pyarrow.csv
     from robocal import _robocal
     from robocal.serial_robot import Robot
 
-    native, sections = {"s": 0.0}, defaultdict(lambda: [0.0, 0.0])
+    native, sections = {"s": 0.0}, defaultdict(lambda: [0.0, 0.0, 0])
 
     def compiled(f):
         def timed(*args, **kwargs):
@@ -82,6 +86,7 @@ def instrument() -> tuple[dict, dict]:
             finally:
                 sections[label][0] += time.perf_counter() - start
                 sections[label][1] += native["s"] - inside
+                sections[label][2] += 1
 
         return timed
 
@@ -112,8 +117,8 @@ def main() -> None:
             sections.clear()
             start = time.perf_counter()
             robocal.calibrate(csv, robot="hsr-jr680")
-            runs["total"].append((time.perf_counter() - start, native["s"]))
-            runs["faults"].append((_faults() - faults, 0))
+            runs["total"].append((time.perf_counter() - start, native["s"], 1))
+            runs["faults"].append((_faults() - faults, 0, 0))
             for label, times in sections.items():
                 runs[label].append(tuple(times))
     median = {k: np.median(np.array(v), axis=0) for k, v in runs.items()}
@@ -121,12 +126,12 @@ def main() -> None:
         f"`robocal.calibrate` on {args.samples:,} simulated cable samples: medians of {args.runs} runs; load average {load} → {load_text(all_three=True)}; "
         f"{int(median['faults'][0])} minor page faults per run.\n"
     )
-    print("| section | wall (ms) | compiled (ms) | Python and NumPy (ms) |")
-    print("|---|---:|---:|---:|")
+    print("| section | calls | wall (ms) | compiled (ms) | Python and NumPy (ms) |")
+    print("|---|---:|---:|---:|---:|")
     for label in ["total"] + [s[2] for s in SECTIONS]:
         if label in median:
-            wall, inside = median[label] * 1e3
-            print(f"| {label} | {wall:.2f} | {inside:.2f} | {wall - inside:.2f} |")
+            wall, inside = median[label][:2] * 1e3
+            print(f"| {label} | {median[label][2]:.0f} | {wall:.2f} | {inside:.2f} | {wall - inside:.2f} |")
 
 
 if __name__ == "__main__":

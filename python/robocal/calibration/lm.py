@@ -365,6 +365,7 @@ class _DampedGram:
 
         self.normal, self.transpose_times = normal, transpose_times
         self.L = cholesky(normal, lower=True)
+        self._damped = (None, None)  # (λ, the factor of N + λI): a step and its acceleration share λ
 
     def project(self, b: np.ndarray) -> np.ndarray:
         return self.project_products(self.transpose_times(b))
@@ -378,7 +379,9 @@ class _DampedGram:
     def solve(self, c: np.ndarray, lam: float) -> np.ndarray:
         from scipy.linalg import cho_factor, cho_solve
 
-        return cho_solve(cho_factor(self.normal + lam * np.eye(len(self.normal)), lower=True), self.L @ c)
+        if self._damped[0] != lam:
+            self._damped = (lam, cho_factor(self.normal + lam * np.eye(len(self.normal)), lower=True))
+        return cho_solve(self._damped[1], self.L @ c)
 
 
 def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:

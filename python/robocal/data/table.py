@@ -228,11 +228,10 @@ class DelimitedBody(ColumnarBody):
         if not data.isascii() and any(c in text for c in _UNICODE_BREAKS):
             return None
         buf = np.frombuffer(data, dtype=np.uint8)
-        if b"\r" in data:  # CR only in CRLF, which both readers take as one line end
-            cr = np.flatnonzero(buf == 13)
-            if cr[-1] + 1 == len(buf) or (buf[cr + 1] != 10).any():
-                return None
         newlines = np.flatnonzero(buf == 10)
+        # CR only in CRLF, which both readers take as one line end: every CR is one that ends before a LF
+        if b"\r" in data and np.count_nonzero(buf == 13) != np.count_nonzero(buf[newlines[newlines > 0] - 1] == 13):
+            return None
         longest = np.diff(newlines, prepend=-1, append=len(data)).max() if data else 0
         if longest > csv.field_size_limit() or not data[:first].strip():
             return None  # csv.reader refuses over-long fields; a blank first line is the empty-file error
