@@ -285,6 +285,14 @@ def test_unknown_format_says_what_was_found(tmp_path):
         load(tmp_path / "b.csv")
     with pytest.raises(DataError, match="cannot read the file"):
         load(tmp_path / "missing.csv")
+    (tmp_path / "u.csv").write_text("q1,q2,q3,q4,q5,q6,L\n1,2,3,4,5,6,7\n", encoding="utf-16")
+    with pytest.raises(DataError, match="UTF-16 byte-order mark; save it as UTF-8"):
+        load(tmp_path / "u.csv")
+
+
+def test_a_file_of_only_bad_rows_names_the_first(tmp_path):
+    with pytest.raises(DataError, match=r"no valid data rows \(2 rows with bad cells excluded; the first, row 2, column 'q3': expected a number; got 'x'\)"):
+        load(write(tmp_path, "q1,q2,q3,q4,q5,q6,L\n1,2,x,4,5,6,7\n1,2,y,4,5,6,7\n"), exclude_bad_rows=True)
 
 
 def test_robot_joint_count_must_match(tmp_path):
