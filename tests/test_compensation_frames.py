@@ -159,7 +159,7 @@ def test_nearest_turn_of_absurd_angles_is_within_the_limits(q, toward):
     assert -2 * np.pi <= out <= 2 * np.pi
 
 
-@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(u=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6), s=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6))
 def test_no_command_is_more_than_half_a_turn_from_its_seed_where_an_equivalent_is(far, u, s):
     """Random target joints and random seeds within the limits: a joint further than 180° from

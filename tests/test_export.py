@@ -291,7 +291,7 @@ def test_robot_reads_what_export_writes(calibrated, convention, table_format, tm
         robocal.robot(str(tmp_path / "other.json"))
 
 
-@settings(deadline=None, max_examples=20, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(deadline=None, max_examples=20, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(
     fmt=st.sampled_from(["dh", "urdf"]),
     table_format=st.sampled_from([None, "csv", "json"]),

@@ -215,7 +215,7 @@ def test_bad_files_name_file_row_and_column(tmp_path, reader, text, message, row
 SEPARATOR_NAMES = {",": "','", ";": "';'", "\t": "tab"}
 
 
-@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(
     st.sampled_from([(read_hsr, ",", "q1,q2,q3,q4,q5,q6,L"), (read_canonical, ",", "q1,q2,q3,q4,q5,q6,L"), (read_ipa, ";", IPA_HEADER)]),
     st.sampled_from([",", ";", "\t"]),

@@ -266,7 +266,7 @@ def test_row18_every_reachable_pose_target_is_reached(position_result):
 
 
 # -- fuzz, one per class -------------------------------------------------------------------------
-FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 
 @FUZZ

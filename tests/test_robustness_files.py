@@ -320,7 +320,7 @@ KINDS = [
 ]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(kind=st.sampled_from(KINDS), k=st.integers(0, 200), seed=st.integers(0, 2**16))
 def test_corrupted_result_files_are_read_alike_or_refused_naming_the_file(files, kind, k, seed):
     original, doc = load_result(files / "res.json")
@@ -340,7 +340,7 @@ def test_corrupted_result_files_are_read_alike_or_refused_naming_the_file(files,
     np.testing.assert_array_equal(robot.params, original.params)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(k=st.integers(0, 10_000), cut=st.integers(1, 40), suffix=st.sampled_from([".json", ".yaml"]))
 def test_truncated_or_nested_robot_files_never_give_a_traceback(files, k, cut, suffix):
     """A robot file cut short, wrapped in brackets, or with one character doubled: read as a
