@@ -1,7 +1,7 @@
 """Where the sensor may have stepped: change points of a fit's residuals in acquisition order,
 each proposed as a step candidate (:func:`robocal.causes.candidates.step_candidate`) that the
-selection tests like any other cause — and the gradual changes a step must beat to be named
-(:func:`ramps`)."""
+selection tests like any other cause — the gradual changes a step must beat to be named
+(:func:`ramps`), and the smooth ones it is stated against (:func:`transitions`)."""
 
 from __future__ import annotations
 
@@ -81,4 +81,31 @@ def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
         for a in range(len(shifts)):
             basis[:, a, a] = shape / max(float(shape.max()), 1.0)
         out.append(Candidate("ramp", None, "observations", basis, detail={"sample": step.detail["sample"], "side": side}))
+    return out
+
+
+#: Widths (shares of the session's acquisition span) of the smooth level changes a step is set
+#: against (:func:`transitions`): a slow wave of a drift crosses its mean over a fifth to a half of
+#: a session.
+TRANSITION_WIDTHS = (0.15, 0.4)
+
+
+def transitions(data: Dataset, step: Candidate) -> list[Candidate]:
+    """The smooth alternatives to ``step``: the level changing as ``tanh`` of the acquisition
+    position through its sample, over :data:`TRANSITION_WIDTHS` of the session, on the step's
+    axes. Screened beside the step, never named, never a reason to refuse it (a true step of 1-3
+    times its detection limit is not told from them either, the matched section of
+    benches/discovery.py): a step that does not beat them is named with them as what the data
+    cannot tell it from — a level that changed smoothly (a drift), not at once."""
+    position = acquisition_position(data)
+    at = position[step.detail["sample"]]
+    span = max(float(np.ptp(position)), 1.0)
+    shifts = [a for a in step.detail["axes"] if a in SHIFT_AXES]
+    out = []
+    for width in TRANSITION_WIDTHS:
+        shape = np.tanh((position - at) / (width * span))
+        basis = np.zeros(step.basis.shape[:2] + (len(shifts),))
+        for a in range(len(shifts)):
+            basis[:, a, a] = shape
+        out.append(Candidate("transition", None, "observations", basis, detail={"sample": step.detail["sample"], "width": width}))
     return out

@@ -83,7 +83,7 @@ from ..progress import progress, stage
 from ..robot import Robot
 from ..stats import paired_z, rmse_of_squares
 from . import conventions
-from .change_points import ramps, step_candidates
+from .change_points import ramps, step_candidates, transitions
 from .entries import baseline_entry, describe_causes, final_entry, final_residuals, one_claim_per_joint
 from .leftover import unexplained
 from .maps import map_stage, merge_harmonics
@@ -553,6 +553,9 @@ class Round:
     #: Per step (label): by how many standard errors the step's held-out errors on the random
     #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
     jump_z: dict = field(default_factory=dict)
+    #: Per step (label): the same against its smooth level changes (:func:`~.change_points.transitions`):
+    #: below :data:`SHAPE_Z` the step is named with "drift" as what the data cannot tell it from.
+    smooth_z: dict = field(default_factory=dict)
     #: Per shape of a joint or compliance screened (label): its held-out squared errors on the
     #: random folds (what :meth:`told_apart` compares).
     shape_errs: dict = field(default_factory=dict)
@@ -691,6 +694,8 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # differ (around the step); the public D2 file's 2.9 mm jump of the cable zero, 1.6
         # standard errors so scaled, beats its ramp by 8.3.
         screening.jump_z[c.label] = paired_z(best[on], step_errs[c.label][on])
+        smooth = [screen.errors(ext.weighted_columns(x, t, parts, p))["random"] for t in transitions(state.dataset, c)]
+        screening.smooth_z[c.label] = min(paired_z(e[on], step_errs[c.label][on]) for e in smooth)
         shift = c.label.replace(" frame=rigid", "")
         if shift != c.label and shift in step_errs:
             screening.turn_z[c.label] = paired_z(step_errs[shift][on], step_errs[c.label][on])
@@ -948,7 +953,10 @@ def alike_shapes(screening: Round, c: Candidate, on: np.ndarray) -> list:
     joint's driven by the same joint's angle (:data:`READING_SHAPES`, :func:`driving_joint`),
     whose held-out errors in the round's screening ``c``'s do not beat by :data:`SHAPE_Z`
     standard errors on the samples ``on``: alternatives the data cannot tell from ``c``. The
-    claim is then "one of these", as a convention's is."""
+    claim is then "one of these", as a convention's is. Of a step: a drift, where it does not
+    beat a smooth level change through its sample (:attr:`Round.smooth_z`)."""
+    if c.kind == "step":
+        return ["drift"] if screening.smooth_z.get(c.label, np.inf) < SHAPE_Z else []
     if c.kind not in READING_SHAPES:
         return []
     return [
