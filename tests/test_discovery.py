@@ -485,3 +485,19 @@ def robot_of(data):
     from robocal.robot import robot
 
     return robot(data.robot)
+
+
+def test_a_step_cut_from_a_slow_wave_is_stated_as_a_level_change_the_data_cannot_place_in_time():
+    """A drift with a slow wave (made outside robocal's candidates: a ramp plus a sine of a third of it, period two thirds
+    of the session, along a tracker direction) was named a step and nothing else, as if the level had jumped. It is still
+    named (a true step of 1-3 times its limit is not told from a smooth change either), but with "drift" as what the data
+    cannot tell it from; a sharp step of the same size is not."""
+    data, _ = simulate("hsr-jr680", "position", samples=300, seed=8)
+    t = np.linspace(0.0, 1.0, len(data))
+    wave = 0.05 * (t + 0.36 * np.sin(2.0 * np.pi * t / 0.645 + 1.13))
+    named = diagnose(replace(data, y=data.y + np.outer(wave, [-0.3356, 0.3077, 0.8903])), robot="hsr-jr680").effects
+    steps = [e for e in named if e["kind"] == "step"]
+    assert steps and all(e["significance"]["undetermined_between"] == ["drift"] for e in steps), [e["label"] for e in named]
+    sharp, _ = simulate("hsr-jr680", "position", samples=300, seed=8, effects=["step:sample=150,size=0.1"])
+    [step] = [e for e in diagnose(sharp, robot="hsr-jr680").effects if e["kind"] == "step"]
+    assert step["params"]["sample"]["value"] == 150 and step["significance"]["undetermined_between"] == []
