@@ -130,11 +130,9 @@ def _result_covariance(doc: dict, robot: Robot, angle_unit) -> tuple[list, Optio
     s2 = float(r @ r) / max(r.size - len(own) - len(setup), 1)
     G = J.T @ J
     n = len(own)
-    # Inverted on its positive eigenvalues: a covariance must be positive semi-definite, or σ²I + J C Jᵀ
-    # may not be (pose data's rotation rows, weighed 200 mm/rad, made rounding errors of C count).
-    lam, U = np.linalg.eigh(schur_complement(G, range(n), range(n, len(G))))
-    keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
-    return own, s2 * (U[:, keep] / lam[keep]) @ U[:, keep].T, None
+    # The information is positive semi-definite (schur_complement), its pseudo-inverse too: a covariance must be, or
+    # σ²I + J C Jᵀ may not be (pose data's rotation rows, weighed 200 mm/rad, made rounding errors of C count).
+    return own, s2 * np.linalg.pinv(schur_complement(G, range(n), range(n, len(G))), rcond=1e-12, hermitian=True), None
 
 
 @dataclass
