@@ -48,7 +48,7 @@ from ..data.dataset import Dataset
 from ..diagnosis.leftover import leftover_words
 from ..diagnosis_file import DiagnosisReport, Quantity, load_diagnosis
 from ..exceptions import InvalidParameterError, RobocalError
-from ..outputs import make_folder, write_text
+from ..outputs import make_folder, printable, write_text
 from ..results import file_sha256, load_result, result_sessions, session_robot
 from ..serial_robot import Robot
 from .figures import (
@@ -69,7 +69,9 @@ logger = logging.getLogger(__name__)
 
 
 def _esc(value) -> str:
-    return html.escape(str(value), quote=True)
+    # Text from files (a robot's name, a path) may hold terminal controls: shown as escapes, as the
+    # CLI prints them, so that neither a browser's page nor `cat index.html` acts on them.
+    return html.escape(printable(value), quote=True)
 
 
 def _num(value, digits: int = 4) -> str:
