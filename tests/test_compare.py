@@ -15,6 +15,7 @@ from robocal.calibration import api
 from robocal.cli import main
 from robocal.compare import compare, default_methods, method_label, wilcoxon_row
 from robocal.data import write_canonical
+from robocal.exceptions import InvalidParameterError
 from robocal.simulation import simulate
 
 FAST = ["lm", "lm-paper", "vslm", "ukf", "ukf-vslm", "rbf"]
@@ -197,3 +198,17 @@ def test_cli_prints_stage_lines_where_no_bar_is_drawn(data, tmp_path, capsys, qu
     assert lines == [] if quiet else [line for line in lines if re.fullmatch(r"robocal: compare: splits: 2 splits in \d+\.\d s", line)] == lines != []
     compare(data, methods=["lm"], protocol="80-20", repeats=2)
     assert capsys.readouterr().err == ""
+
+
+def test_cli_refusals_name_the_options_and_the_paper_s_labels(data, tmp_path, capsys):
+    """The tables say "M1 EKF": a method asked by its label is refused naming each method's label;
+    more folds than samples named `k`, an argument of the library, not --repeats."""
+    path = tmp_path / "sim.csv"
+    write_canonical(data, path)
+    argv = ["compare", str(path), "--robot", "hsr-jr680", "--out", str(tmp_path / "c")]
+    assert main(argv + ["--methods", "M1"]) == 2
+    assert "unknown methods ['M1']; choose from bas (M2), de (M7), ekf (M1), lm, " in capsys.readouterr().err
+    assert main(argv + ["--protocol", "kfold", "--repeats", "500"]) == 2
+    assert "`--repeats` must be an integer in [2, m=140]; got 500" in capsys.readouterr().err
+    with pytest.raises(InvalidParameterError, match="no method given; choose from bas"):
+        compare(data, methods=[])

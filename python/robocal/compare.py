@@ -35,7 +35,7 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, held_out_residuals, load_inputs
+from .calibration.api import METHODS, held_out_residuals, load_inputs, method_choices
 from .calibration.metrics import metrics, sample_errors
 from .calibration.problem import Problem
 from .calibration.rbf import RBFResult
@@ -191,7 +191,7 @@ def compare(
     methods = list(dict.fromkeys(methods)) if methods is not None else default_methods()
     unknown = [m for m in methods if m not in METHODS]
     if unknown or not methods:
-        raise InvalidParameterError(f"unknown methods {unknown}; choose from {sorted(METHODS)}")
+        raise InvalidParameterError(f"{f'unknown methods {unknown}' if unknown else 'no method given'}; choose from {method_choices()}")
     if protocol not in PROTOCOLS:
         raise InvalidParameterError(f"unknown protocol {protocol!r}; choose one of {PROTOCOLS}")
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:

@@ -33,6 +33,12 @@ METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
 }
 
 
+def method_choices() -> str:
+    """The method names with the paper's labels, for help and errors (the tables say "M1 EKF"):
+    ``"bas (M2), de (M7), ekf (M1), lm, ..."``."""
+    return ", ".join(name if label == "-" else f"{name} ({label})" for name, (label, _, _) in sorted(METHODS.items()))
+
+
 def load_inputs(
     data: Union[str, Path, Dataset], robot: Union[str, Robot, None] = None, measurement: Optional[str] = None, angle_unit: Optional[str] = None
 ) -> tuple[Dataset, Robot]:
@@ -127,7 +133,7 @@ def fit(problem: Problem, method: str, seed: int, options: dict) -> CalibrationR
 
 def check_method(method) -> None:
     if not isinstance(method, str) or method not in METHODS:
-        raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+        raise InvalidParameterError(f"unknown method {method!r}; choose one of {method_choices()}")
 
 
 def check_test_fraction(test_fraction) -> float:
