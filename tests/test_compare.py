@@ -212,3 +212,22 @@ def test_cli_refusals_name_the_options_and_the_paper_s_labels(data, tmp_path, ca
     assert "`--repeats` must be an integer in [2, m=140]; got 500" in capsys.readouterr().err
     with pytest.raises(InvalidParameterError, match="no method given; choose from bas"):
         compare(data, methods=[])
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        ({"kinematic_prior": (-1, 1)}, "`kinematic_prior` must be"),  # was: every run a failure, exit 1
+        ({"seed": "a"}, "`seed` must be None or an integer"),  # was: TypeError from the split
+        ({"subset": 130.5}, r"`subset` must lie in \[2, 140\]"),  # was: TypeError from NumPy
+        ({"method_options": {"ekff": {}}}, r"`method_options` names unknown methods \['ekff'\]"),  # was: ignored
+    ],
+)
+def test_arguments_are_refused_before_any_run(data, bad, message):
+    with pytest.raises(InvalidParameterError, match=message):
+        compare(data, methods=["lm"], repeats=1, **bad)
+
+
+def test_one_method_may_be_named_by_a_string_and_numpy_integers_count(data):
+    result = compare(data, methods="lm", repeats=np.int64(1))  # was: "unknown methods ['l', 'm']"
+    assert result.methods == ["lm"] and result.config["repeats"] == 1

@@ -71,7 +71,7 @@ def load_inputs(
             raise InvalidParameterError("the data do not name their robot: pass `robot`")
         robot = dataset.robot
     model = robot if isinstance(robot, Robot) else load_robot(robot)
-    if named is None and not isinstance(robot, str):  # a string was checked against the file by `load`
+    if named is None and (isinstance(data, Dataset) or not isinstance(robot, str)):  # `load` checked a file against a name
         named = dataset.robot
     _check_named_robot(dataset, named, model)
     return dataset, model
