@@ -158,14 +158,26 @@ def save_result(document: dict, path) -> Path:
     return write_json(path, document)
 
 
-def load_result(source) -> tuple[Robot, dict]:
+def load_result(source, *, corrector: bool = False) -> tuple[Robot, dict]:
     """The calibrated robot and the document of a result file (path or dict).
+
+    ``corrector``: accept a result whose model is not all in its file, a corrector of the nominal
+    model (method ``rbf``: its network is not written); only what shows the recorded figures does.
 
     Raises
     ------
     InvalidParameterError
         Naming the file and what is wrong with it (unreadable, not JSON, another schema,
-        missing or malformed keys).
+        missing or malformed keys, a corrector unless ``corrector``).
     """
     doc = load_document(source, "robocal result file", "result")
-    return calibrated_robot(doc, "result" if isinstance(source, dict) else str(source)), doc
+    where = "result" if isinstance(source, dict) else str(source)
+    robot = calibrated_robot(doc, where)
+    if doc.get("corrector") and not corrector:
+        # Its robot is the nominal one: verify, export, compensate ... would apply that under the result's name.
+        raise InvalidParameterError(
+            f"{where}: a result of method {doc.get('method')!r}, a corrector of the nominal model whose correction the file "
+            "does not hold: applied to new data it is the nominal robot; calibrate with a method that identifies the "
+            "parameters (`robocal report` shows its recorded figures)"
+        )
+    return robot, doc

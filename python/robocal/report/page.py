@@ -739,7 +739,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     DataError
         An explicitly given ``data`` file cannot be read.
     """
-    robot, doc = load_result(result)
+    robot, doc = load_result(result, corrector=True)
     implausible = checked_implausible(robot, doc)
     diag = None if diagnosis is None else load_diagnosis(diagnosis).check_robot(robot.name).needs_figures("report --diagnosis")
     d = _load_data(doc, data, angle_unit, robot)
