@@ -57,6 +57,8 @@ def test_result_file_loads_back_into_the_same_model(result_file):
         (lambda d: d.pop("robot_model"), "robot_model"),
         (lambda d: d["parameters"].pop(3), "parameters lack"),
         (lambda d: d["parameters"][0].update(value=float("nan")), "not finite"),
+        # a hand edit to degrees was read as radians
+        (lambda d: d["parameters"][0].update(unit="deg"), "parameter alpha1 has unit 'deg'; a result file holds it in 'rad'"),
     ],
 )
 def test_corrupt_result_files_are_named(result_file, tmp_path, mutate, message):

@@ -179,6 +179,12 @@ def calibrated_robot(doc: dict, where: str) -> Robot:
     missing = [n for n in robot.param_names if n not in calibrated]
     if missing:
         not_a_result(where, f"parameters lack {missing[:5]}")
+    units = {p.name: p.unit for p in spec.parameters}
+    # The values are read in the robot's units whatever the key says: a hand-edited 'deg' would be taken as rad.
+    other = [(n, u) for n, u in zip(robot.param_names, robot.param_units) if units[n] != u]
+    if other:
+        (name, unit), *_ = other
+        not_a_result(where, f"parameter {name} has unit {units[name]!r}; a result file holds it in {unit!r}")
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         not_a_result(where, f"the value of {robot.param_names[int(np.flatnonzero(~np.isfinite(values))[0])]} is not finite")
