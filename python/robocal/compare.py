@@ -203,7 +203,7 @@ def compare(
     if unknown := [m for m in method_options if m not in METHODS]:
         raise InvalidParameterError(f"`method_options` names unknown methods {unknown}; choose from {method_choices()}")
     dataset, robot_model = load_inputs(data, robot, measurement, angle_unit)
-    notes = []
+    notes = list(dataset.notes)  # the reader's: angles kept in an implausible unit as asked, the sheet read ...
     if subset is not None:
         if isinstance(subset, bool) or not isinstance(subset, (int, np.integer)) or not 2 <= subset <= len(dataset):
             raise InvalidParameterError(f"`subset` must lie in [2, {len(dataset)}]; got {subset}")
