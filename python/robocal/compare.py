@@ -217,6 +217,7 @@ def compare(
         split = {"index": k, "train": train_idx.tolist(), "test": test_idx.tolist(), "test_rows": test.rows.tolist()}
         try:  # the start point and free set, shared by all methods on this split
             problem = Problem.build(robot_model, train, kinematic_prior=kinematic_prior)
+            problem.require_dof()  # as calibrate: a split without more residuals than parameters is fitted exactly, learns nothing
             before = problem.with_data(test).data_residuals(problem.x0)
             split.update(
                 error=None,
