@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import robocal
+from robocal.cli import main
 from robocal.data import Dataset, write_canonical
 from robocal.cli.inspect import add_arguments, format_report, run
 from robocal.inspection import inspect
@@ -156,3 +157,9 @@ def test_rows_within_2_pi_as_often_as_chance_gives_are_no_radians():
     six = rng.uniform(-170.0, 170.0, (200, 6))
     six[10:12] = np.radians(six[10:12])
     assert angle_unit_check(np.radians(six), "deg")["message"].startswith("rows 12-13 (2 rows)")
+
+
+def test_a_bad_sigmas_is_named_once_in_the_command_line_s_words(tmp_path, capsys):
+    path = write_canonical(robocal.simulate("hsr-jr680", "cable", samples=30, seed=1)[0], tmp_path / "a.csv")
+    assert main(["inspect", str(path), "--robot", "hsr-jr680", "--sigmas", "0"]) == 2
+    assert "robocal: error: `--sigmas`, the outlier threshold in robust standard deviations, must be finite and > 0; got 0" in capsys.readouterr().err
