@@ -90,5 +90,8 @@ def test_a_corrector_result_is_refused_where_its_model_would_be_applied(result_f
         load_result(doc)
     with pytest.raises(InvalidParameterError, match="corrector of the nominal model"):
         robocal.verify(doc, str(csv))
+    (tmp_path / "rbf.json").write_text(json.dumps(doc))
+    with pytest.raises(InvalidParameterError, match="corrector of the nominal model"):
+        robocal.robot(str(tmp_path / "rbf.json"))  # as a robot file (--robot): the same
     assert load_result(doc, corrector=True)[1]["corrector"]["kind"] == "rbf"
     assert report(doc, tmp_path / "page").is_file()

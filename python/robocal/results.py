@@ -170,13 +170,4 @@ def load_result(source, *, corrector: bool = False) -> tuple[Robot, dict]:
         missing or malformed keys, a corrector unless ``corrector``).
     """
     doc = load_document(source, "robocal result file", "result")
-    where = "result" if isinstance(source, dict) else str(source)
-    robot = calibrated_robot(doc, where)
-    if doc.get("corrector") and not corrector:
-        # Its robot is the nominal one: verify, export, compensate ... would apply that under the result's name.
-        raise InvalidParameterError(
-            f"{where}: a result of method {doc.get('method')!r}, a corrector of the nominal model whose correction the file "
-            "does not hold: applied to new data it is the nominal robot; calibrate with a method that identifies the "
-            "parameters (`robocal report` shows its recorded figures)"
-        )
-    return robot, doc
+    return calibrated_robot(doc, "result" if isinstance(source, dict) else str(source), corrector=corrector), doc

@@ -148,15 +148,16 @@ def not_a_result(where: str, why: str):
     raise InvalidParameterError(f"{where}: not a robocal result file ({why})")
 
 
-def calibrated_robot(doc: dict, where: str) -> Robot:
+def calibrated_robot(doc: dict, where: str, corrector: bool = False) -> Robot:
     """The calibrated robot of a result document: its ``robot_model`` with every parameter at its
-    calibrated ``value``.
+    calibrated ``value``. ``corrector``: accept a corrector of the nominal model (method ``rbf``),
+    whose network the document does not hold.
 
     Raises
     ------
     InvalidParameterError
         Naming ``where`` (the file) and what is wrong: another schema, missing or malformed keys,
-        a parameter missing or not finite.
+        a parameter missing or not finite, a corrector unless ``corrector``.
     """
     if not isinstance(doc, dict):
         not_a_result(where, "the top level is not an object")
@@ -188,6 +189,13 @@ def calibrated_robot(doc: dict, where: str) -> Robot:
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         not_a_result(where, f"the value of {robot.param_names[int(np.flatnonzero(~np.isfinite(values))[0])]} is not finite")
+    if doc.get("corrector") and not corrector:
+        # Its robot is the nominal one: verify, export, compensate, a robot file ... would apply that under the result's name.
+        raise InvalidParameterError(
+            f"{where}: a result of method {doc.get('method')!r}, a corrector of the nominal model whose correction the file "
+            "does not hold: applied to new data it is the nominal robot; calibrate with a method that identifies the "
+            "parameters (`robocal report` shows its recorded figures)"
+        )
     return built(where, robot.name, robot.joints, values, robot.mass_model)
 
 
