@@ -480,7 +480,7 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Opti
     ----------
     result : path or dict
         A result file (:func:`robocal.results.load_result`).
-    targets : path, array_like (m, 3 | 7) or one row (3 | 7,), Targets or JointProgram
+    targets : path, array_like (m, 3 | 7), Targets or JointProgram
         A targets CSV (:func:`read_targets`), target rows ``x, y, z`` [``qw, qx, qy, qz``] (mm),
         :class:`Targets`, or a robot program's joint targets (:class:`JointProgram`; a CSV of
         ``q1..qN`` alone): the poses the nominal model reaches there, the program's joints as seeds.
