@@ -61,13 +61,6 @@ def test_unreachable_targets_are_reported_not_dropped(calibrated, tmp_path):
     assert rows[1]["status"].startswith("unreachable")
 
 
-def test_one_target_may_be_a_single_row(calibrated):
-    """fkine takes one joint vector; compensate refused one target as "`targets y` must have shape (m, 3)"."""
-    path, _, _ = calibrated
-    one, two = compensate(path, [400.0, 300.0, 500.0]), compensate(path, [[400.0, 300.0, 500.0]])
-    assert len(one) == 1 and one[0]["status"] == "ok" and one[0]["q"] == two[0]["q"]
-
-
 def test_cli_writes_one_row_per_target(calibrated, tmp_path, capsys):
     from robocal.cli import main
 

@@ -515,7 +515,6 @@ def compensate(result, targets, *, angle_unit: Optional[str] = None, frame: Opti
         targets = read_targets(targets, calibrated.n_joints, angle_unit)
     elif not isinstance(targets, (Targets, JointProgram)):  # an array of x, y, z [qw, qx, qy, qz] rows; shape checked by Targets
         y = as_float_array(targets, "targets")
-        y = y[None] if y.ndim == 1 else y  # one target, as fkine takes one joint vector
         targets = Targets(y, None, np.arange(2, 2 + (len(y) if y.ndim else 0)))
     conventions = structure.parse_all(doc.get("structure", []), calibrated.n_joints)
     if isinstance(targets, JointProgram):  # where the nominal model puts the tool at the program's joints: the poses to reach
