@@ -224,7 +224,7 @@ def test_row22_bounds_excluding_the_nominal_are_no_success(position):
 # -- messages and options ------------------------------------------------------------------------
 @pytest.mark.parametrize("sigmas", [0, -5, float("nan")])
 def test_row16_inspect_sigmas_must_be_positive(cable, sigmas):
-    with pytest.raises(InvalidParameterError, match="`sigmas` \\(--sigmas\\)"):
+    with pytest.raises(InvalidParameterError, match="`sigmas`, the outlier threshold"):
         inspect(cable, robot="hsr-jr680", sigmas=sigmas)
 
 
