@@ -241,6 +241,16 @@ def test_report_reads_only_the_file_whose_hash_the_result_records(inputs, tmp_pa
     assert "TOP-SECRET" not in (tmp_path / "html2" / "index.html").read_text()
 
 
+def test_report_writes_terminal_controls_from_a_result_as_escapes(inputs, tmp_path, capsys):
+    doc = json.loads((inputs / "result.json").read_text())
+    doc["robot"] = "arm\x1b[2J\u202eX"  # erase the screen; show what follows reversed
+    forged = tmp_path / "forged.json"
+    forged.write_text(json.dumps(doc))
+    assert run(["report", forged, "--out", tmp_path / "html"], capsys)[0] == 0
+    page = (tmp_path / "html" / "index.html").read_text()
+    assert "\x1b" not in page and "\u202e" not in page and r"arm\x1b[2J\u202eX" in page
+
+
 def test_report_of_a_result_with_a_text_value_is_an_error(inputs, tmp_path, capsys):
     doc = json.loads((inputs / "result.json").read_text())
     doc["parameters"][0]["value"] = "250"

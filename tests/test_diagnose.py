@@ -283,6 +283,9 @@ def test_calibrate_fits_the_extended_model_from_a_diagnose_report(tmp_path):
     assert json.loads((tmp_path / "r.json").read_text())["causes"][0]["label"] == "joint_periodic joint 3 harmonic=2"
     with pytest.raises(InvalidParameterError, match="unknown causes"):
         robocal.calibrate(data, causes=["joint_periodic joint 9 harmonic=1"])
+    # a label without its harmonic is answered with the labels nearest to it, not the first six of all
+    with pytest.raises(InvalidParameterError, match=r"unknown causes \['joint_periodic joint 3'\] for these data; known: \['joint_periodic joint"):
+        robocal.calibrate(data, causes=["joint_periodic joint 3"])
     with pytest.raises(InvalidParameterError, match="'lm' only"):
         robocal.calibrate(data, method="ukf", causes=report)
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import robocal
+from robocal.cli import main
 from robocal.data import Dataset, write_canonical
 from robocal.cli.inspect import add_arguments, format_report, run
 from robocal.inspection import inspect
@@ -143,3 +144,22 @@ def test_angle_unit_check_names_the_rows_and_the_columns_in_radians_in_a_degree_
     check = angle_unit_check(np.radians(column), "deg")
     assert check["partial"] and check["message"].startswith("column(s) q5 stay within")
     assert angle_unit_check(np.radians(degrees), "deg")["plausible"]
+
+
+def test_rows_within_2_pi_as_often_as_chance_gives_are_no_radians():
+    """A one-joint arm of ±57°: one row in 9 is within ±6.3° by chance. Its own simulated data were
+    refused as radians rows; a few rows in radians among six joints are still named."""
+    from robocal.data.dataset import angle_unit_check
+
+    rng = np.random.default_rng(1)
+    one = rng.uniform(-57.0, 57.0, (200, 1))
+    assert angle_unit_check(np.radians(one), "deg")["plausible"]
+    six = rng.uniform(-170.0, 170.0, (200, 6))
+    six[10:12] = np.radians(six[10:12])
+    assert angle_unit_check(np.radians(six), "deg")["message"].startswith("rows 12-13 (2 rows)")
+
+
+def test_a_bad_sigmas_is_named_once_in_the_command_line_s_words(tmp_path, capsys):
+    path = write_canonical(robocal.simulate("hsr-jr680", "cable", samples=30, seed=1)[0], tmp_path / "a.csv")
+    assert main(["inspect", str(path), "--robot", "hsr-jr680", "--sigmas", "0"]) == 2
+    assert "robocal: error: `--sigmas`, the outlier threshold in robust standard deviations, must be finite and > 0; got 0" in capsys.readouterr().err

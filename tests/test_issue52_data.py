@@ -274,6 +274,15 @@ def test_row2_report_of_sessions_checks_each_against_its_own_metrics(two_session
     assert "session 1&#x27;s samples only" in page  # ISO 9283 distances never compare two set-ups
 
 
+def test_row2_report_data_of_a_later_session_is_shown_at_its_own_set_up(two_sessions, cable, tmp_path):
+    """--data of session 2's file was "not verified to be the file calibrated on" and its figures
+    taken at session 1's set-up: 0.55 mm calibrated where the fit left 0.03 mm."""
+    page = report(two_sessions, tmp_path / "rep", data=str(cable / "b.csv")).read_text()
+    second = json.loads(two_sessions.read_text())["sessions"][1]["metrics"]["test"]
+    assert "the file of session 2 (sha256 matches)" in page and "session 2&#x27;s samples only" in page
+    assert f"the {second['n']} held-out samples" in page and f"RMS {second['rmse']:.4f}" in page
+
+
 def test_row2_an_edited_session_or_pooled_metric_is_still_found(two_sessions, tmp_path):
     doc = json.loads(two_sessions.read_text())
     doc["sessions"][1]["metrics"]["test"]["rmse"] *= 2

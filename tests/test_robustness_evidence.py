@@ -124,8 +124,16 @@ def test_row13_data_of_another_built_in_robot_are_refused(position):
         calibrate(frame, robot="ur10")
 
 
+def test_row13_a_dataset_of_another_built_in_robot_is_refused_by_name_too(cable):
+    """A robot given by name was checked only against a file (by the reader): simulated HSR data
+    in memory were calibrated as an IRB 120 and diagnosed at 4.5 mm without a word."""
+    for fit in (calibrate, robocal.diagnose):
+        with pytest.raises(InvalidParameterError, match="are of robot 'hsr-jr680'; the robot given is 'abb-irb120'"):
+            fit(replace(cable, robot="hsr-jr680"), robot="abb-irb120")
+
+
 def test_row13_a_wrong_robot_geometry_names_the_likely_cause(position):
-    result = calibrate(position, robot="hsr-jr680")
+    result = calibrate(replace(position, robot=None), robot="hsr-jr680")  # data that do not name their robot
     from robocal.calibration.result import describe_implausible
 
     assert "another robot than the one given" in describe_implausible(result.implausible())
@@ -216,7 +224,7 @@ def test_row22_bounds_excluding_the_nominal_are_no_success(position):
 # -- messages and options ------------------------------------------------------------------------
 @pytest.mark.parametrize("sigmas", [0, -5, float("nan")])
 def test_row16_inspect_sigmas_must_be_positive(cable, sigmas):
-    with pytest.raises(InvalidParameterError, match="`sigmas` \\(--sigmas\\)"):
+    with pytest.raises(InvalidParameterError, match="`sigmas`, the outlier threshold"):
         inspect(cable, robot="hsr-jr680", sigmas=sigmas)
 
 

@@ -335,6 +335,9 @@ def test_bad_arguments():
         sim.simulate(samples=5, noise={"sd": 1})
     with pytest.raises(InvalidParameterError, match="outside the HY150-2000 range"):
         sim.simulate("hsr-jr680", "cable", samples=50, effects=["drift:rate=100000"])
+    # without effects it is the noise: the message blamed "the effects []"
+    with pytest.raises(InvalidParameterError, match=r"outside the HY150-2000 range .* with the effects \[\] and noise sigma 1e\+09 mm"):
+        sim.simulate("hsr-jr680", "cable", samples=50, noise=1e9)
 
 
 # -- files and command line -----------------------------------------------------------------------

@@ -35,13 +35,13 @@ from typing import Optional, Union
 import numpy as np
 from scipy.stats import rankdata, wilcoxon
 
-from .calibration.api import METHODS, held_out_residuals, load_inputs
+from .calibration.api import METHODS, held_out_residuals, load_inputs, method_choices
 from .calibration.metrics import metrics, sample_errors
-from .calibration.problem import Problem
+from .calibration.problem import Problem, kinematic_prior_sigmas
 from .calibration.rbf import RBFResult
 from .data.dataset import Dataset
 from .data.splits import chronological, configuration_groups, kfold, paper_split, random_split
-from .kernels import seeded_rng
+from .kernels import as_count, check_seed, seeded_rng
 from .exceptions import InvalidParameterError
 from .outputs import make_folder, save_figure, write_json, write_text
 from .progress import progress
@@ -165,7 +165,7 @@ def compare(
     robot : str or Robot, optional
         Default: the robot recorded in the data.
     measurement : {"cable", "position", "pose"}, optional
-    methods : list of str, optional
+    methods : str or list of str, optional
         Names in :data:`~robocal.calibration.api.METHODS`; default :func:`default_methods`.
     protocol : {"paper", "kfold", "80-20", "chronological"}
         See :func:`make_splits`.
@@ -188,19 +188,24 @@ def compare(
     -------
     ComparisonResult
     """
+    methods = [methods] if isinstance(methods, str) else methods  # one name, not its letters
     methods = list(dict.fromkeys(methods)) if methods is not None else default_methods()
     unknown = [m for m in methods if m not in METHODS]
     if unknown or not methods:
-        raise InvalidParameterError(f"unknown methods {unknown}; choose from {sorted(METHODS)}")
+        raise InvalidParameterError(f"{f'unknown methods {unknown}' if unknown else 'no method given'}; choose from {method_choices()}")
     if protocol not in PROTOCOLS:
         raise InvalidParameterError(f"unknown protocol {protocol!r}; choose one of {PROTOCOLS}")
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise InvalidParameterError(f"`repeats` must be a positive integer; got {repeats!r}")
+    repeats = as_count(repeats, "repeats")
+    check_seed(seed)
+    if kinematic_prior is not None:  # up front: in each split's set-up, it made every run a failure
+        kinematic_prior_sigmas(kinematic_prior)
     method_options = dict(method_options or {})
+    if unknown := [m for m in method_options if m not in METHODS]:
+        raise InvalidParameterError(f"`method_options` names unknown methods {unknown}; choose from {method_choices()}")
     dataset, robot_model = load_inputs(data, robot, measurement, angle_unit)
-    notes = []
+    notes = list(dataset.notes)  # the reader's: angles kept in an implausible unit as asked, the sheet read ...
     if subset is not None:
-        if not 2 <= subset <= len(dataset):
+        if isinstance(subset, bool) or not isinstance(subset, (int, np.integer)) or not 2 <= subset <= len(dataset):
             raise InvalidParameterError(f"`subset` must lie in [2, {len(dataset)}]; got {subset}")
         dataset = dataset.subset(np.sort(seeded_rng(seed).choice(len(dataset), size=subset, replace=False)))
         notes.append(f"a random subset of {subset} samples (seed {seed}) was drawn before splitting")
@@ -212,6 +217,7 @@ def compare(
         split = {"index": k, "train": train_idx.tolist(), "test": test_idx.tolist(), "test_rows": test.rows.tolist()}
         try:  # the start point and free set, shared by all methods on this split
             problem = Problem.build(robot_model, train, kinematic_prior=kinematic_prior)
+            problem.require_dof()  # as calibrate: a split without more residuals than parameters is fitted exactly, learns nothing
             before = problem.with_data(test).data_residuals(problem.x0)
             split.update(
                 error=None,

@@ -69,7 +69,7 @@ def inspect(
     """
     sigmas = as_float(sigmas, "sigmas")
     if not (np.isfinite(sigmas) and sigmas > 0):  # 0 or less calls every sample an outlier
-        raise InvalidParameterError(f"`sigmas` (--sigmas), the outlier threshold in robust standard deviations, must be finite and > 0; got {sigmas:g}")
+        raise InvalidParameterError(f"`sigmas`, the outlier threshold in robust standard deviations, must be finite and > 0; got {sigmas:g}")
     if isinstance(source, Dataset):
         dataset, fmt, unit = source, None, "rad"
     else:

@@ -30,7 +30,6 @@ reads it back into a :class:`Robot` with the calibrated parameters — what ``co
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 from pathlib import Path
 from typing import Optional
@@ -42,7 +41,7 @@ from .data.identity import MAX_KEYS, Fingerprint
 from .exceptions import InvalidParameterError
 from .outputs import write_json
 from .robot_file import RESULT_SCHEMA as SCHEMA
-from .robot_file import calibrated_robot, load_document, robot_document
+from .robot_file import calibrated_robot, load_document, read_document, robot_document
 from .serial_robot import Robot
 
 
@@ -74,9 +73,9 @@ def recorded_data_files(paths) -> dict:
     for path in paths:
         if not isinstance(path, (str, os.PathLike)) or not str(path).endswith(".json") or not os.path.isfile(path):
             continue
-        try:
-            doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
-        except (OSError, ValueError):
+        try:  # the one reader of documents: a file nested 100 000 deep ended in a RecursionError here
+            doc = read_document(path, "result file")
+        except InvalidParameterError:
             continue
         if not isinstance(doc, dict):
             continue
@@ -158,14 +157,17 @@ def save_result(document: dict, path) -> Path:
     return write_json(path, document)
 
 
-def load_result(source) -> tuple[Robot, dict]:
+def load_result(source, *, corrector: bool = False) -> tuple[Robot, dict]:
     """The calibrated robot and the document of a result file (path or dict).
+
+    ``corrector``: accept a result whose model is not all in its file, a corrector of the nominal
+    model (method ``rbf``: its network is not written); only what shows the recorded figures does.
 
     Raises
     ------
     InvalidParameterError
         Naming the file and what is wrong with it (unreadable, not JSON, another schema,
-        missing or malformed keys).
+        missing or malformed keys, a corrector unless ``corrector``).
     """
     doc = load_document(source, "robocal result file", "result")
-    return calibrated_robot(doc, "result" if isinstance(source, dict) else str(source)), doc
+    return calibrated_robot(doc, "result" if isinstance(source, dict) else str(source), corrector=corrector), doc

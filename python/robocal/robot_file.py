@@ -148,15 +148,16 @@ def not_a_result(where: str, why: str):
     raise InvalidParameterError(f"{where}: not a robocal result file ({why})")
 
 
-def calibrated_robot(doc: dict, where: str) -> Robot:
+def calibrated_robot(doc: dict, where: str, corrector: bool = False) -> Robot:
     """The calibrated robot of a result document: its ``robot_model`` with every parameter at its
-    calibrated ``value``.
+    calibrated ``value``. ``corrector``: accept a corrector of the nominal model (method ``rbf``),
+    whose network the document does not hold.
 
     Raises
     ------
     InvalidParameterError
         Naming ``where`` (the file) and what is wrong: another schema, missing or malformed keys,
-        a parameter missing or not finite.
+        a parameter missing or not finite, a corrector unless ``corrector``.
     """
     if not isinstance(doc, dict):
         not_a_result(where, "the top level is not an object")
@@ -179,9 +180,22 @@ def calibrated_robot(doc: dict, where: str) -> Robot:
     missing = [n for n in robot.param_names if n not in calibrated]
     if missing:
         not_a_result(where, f"parameters lack {missing[:5]}")
+    units = {p.name: p.unit for p in spec.parameters}
+    # The values are read in the robot's units whatever the key says: a hand-edited 'deg' would be taken as rad.
+    other = [(n, u) for n, u in zip(robot.param_names, robot.param_units) if units[n] != u]
+    if other:
+        (name, unit), *_ = other
+        not_a_result(where, f"parameter {name} has unit {units[name]!r}; a result file holds it in {unit!r}")
     values = np.array([calibrated[n] for n in robot.param_names])
     if not np.all(np.isfinite(values)):
         not_a_result(where, f"the value of {robot.param_names[int(np.flatnonzero(~np.isfinite(values))[0])]} is not finite")
+    if doc.get("corrector") and not corrector:
+        # Its robot is the nominal one: verify, export, compensate, a robot file ... would apply that under the result's name.
+        raise InvalidParameterError(
+            f"{where}: a result of method {doc.get('method')!r}, a corrector of the nominal model whose correction the file "
+            "does not hold: applied to new data it is the nominal robot; calibrate with a method that identifies the "
+            "parameters (`robocal report` shows its recorded figures)"
+        )
     return built(where, robot.name, robot.joints, values, robot.mass_model)
 
 

@@ -359,8 +359,9 @@ def simulate(
         outside = np.flatnonzero((y[:, 0] < CABLE_RANGE[0]) | (y[:, 0] > CABLE_RANGE[1]))
         if outside.size:
             raise InvalidParameterError(
-                f"the effects {[e.spec for e in chosen]} push {outside.size} readings outside the {CABLE_SENSOR} range "
-                f"{CABLE_RANGE[0]:g}..{CABLE_RANGE[1]:g} mm (e.g. sample {outside[0]}: {y[outside[0], 0]:.3f} mm)"
+                f"{outside.size} simulated readings fall outside the {CABLE_SENSOR} range {CABLE_RANGE[0]:g}..{CABLE_RANGE[1]:g} mm "
+                f"(e.g. sample {outside[0]}: {y[outside[0], 0]:.3f} mm) with the effects {[e.spec for e in chosen]} "
+                f"and noise sigma {noise.sigma:g} mm"
             )
 
     note = f"simulated by robocal.simulation (seed {seeds.entropy})"

@@ -133,7 +133,9 @@ def serial_chain(joints, where: str, tip: Optional[str] = None) -> list:
         children = by_parent[link]
         if len(children) > 1:
             raise InvalidParameterError(
-                f"{where}: not a serial chain: link {link!r} branches into joints {[j.name for j in children]}; name the tip link to follow one branch"
+                f"{where}: not a serial chain: link {link!r} branches into joints {[j.name for j in children]}; name the tip link "
+                f"to follow one branch (one of {sorted(set(by_child) - set(by_parent))}): robocal.urdf.read_urdf(path, tip=...), "
+                "and robocal.write_robot(that, 'arm.json') for the command line"
             )
         chain.append(children[0])
         link = children[0].child

@@ -33,6 +33,12 @@ METHODS: dict[str, tuple[str, str, Callable[..., CalibrationResult]]] = {
 }
 
 
+def method_choices() -> str:
+    """The method names with the paper's labels, for help and errors (the tables say "M1 EKF"):
+    ``"bas (M2), de (M7), ekf (M1), lm, ..."``."""
+    return ", ".join(name if label == "-" else f"{name} ({label})" for name, (label, _, _) in sorted(METHODS.items()))
+
+
 def load_inputs(
     data: Union[str, Path, Dataset], robot: Union[str, Robot, None] = None, measurement: Optional[str] = None, angle_unit: Optional[str] = None
 ) -> tuple[Dataset, Robot]:
@@ -65,7 +71,7 @@ def load_inputs(
             raise InvalidParameterError("the data do not name their robot: pass `robot`")
         robot = dataset.robot
     model = robot if isinstance(robot, Robot) else load_robot(robot)
-    if named is None and not isinstance(robot, str):  # a string was checked against the file by `load`
+    if named is None and (isinstance(data, Dataset) or not isinstance(robot, str)):  # `load` checked a file against a name
         named = dataset.robot
     _check_named_robot(dataset, named, model)
     return dataset, model
@@ -127,7 +133,7 @@ def fit(problem: Problem, method: str, seed: int, options: dict) -> CalibrationR
 
 def check_method(method) -> None:
     if not isinstance(method, str) or method not in METHODS:
-        raise InvalidParameterError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+        raise InvalidParameterError(f"unknown method {method!r}; choose one of {method_choices()}")
 
 
 def check_test_fraction(test_fraction) -> float:

@@ -9,6 +9,7 @@ cause model (:class:`~robocal.causes.problem.ExtendedProblem`) and is what
 
 from __future__ import annotations
 
+import difflib
 import logging
 import re
 from pathlib import Path
@@ -435,5 +436,7 @@ def extended_problem(
             pool[label] = map_candidate(dataset, j, float(joint_map.group(2)), float(joint_map.group(3)), noise, angles)
     unknown = [c for c in causes if c not in pool]
     if unknown and every:
-        raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {sorted(pool)[:6]} ... ({len(pool)} in all)")
+        # The labels nearest to the asked ones: the first six of 66 in order said nothing of `joint_periodic joint 2`'s.
+        near = sorted({m for c in unknown for m in difflib.get_close_matches(c, list(pool), n=3, cutoff=0.6)})
+        raise InvalidParameterError(f"unknown causes {unknown} for these data; known: {near or sorted(pool)[:6]} ... ({len(pool)} in all)")
     return ExtendedProblem(problem, [pool[c] for c in causes if c in pool], dataset, idx)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..calibration.api import METHODS
+from ..calibration.api import method_choices
 from ..calibration.result import describe_implausible, verdict
 from ..causes.extended import calibrate
 from ..diagnosis_file import load_diagnosis
@@ -18,7 +18,7 @@ from .arguments import add_data_arguments, add_kinematic_prior_argument, files_a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_data_arguments(parser, sessions=True)
-    parser.add_argument("--method", default="lm", help=f"one of {sorted(METHODS)} (default lm)")
+    parser.add_argument("--method", default="lm", help=f"one of {method_choices()} (default lm)")
     parser.add_argument("--test-fraction", type=float, help="held-out share, seeded random split (default 0.2)")
     parser.add_argument("--seed", type=int, help="seed of the held-out split (default 0)")
     add_kinematic_prior_argument(parser)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..calibration.api import METHODS
+from ..calibration.api import method_choices
 from ..compare import PROTOCOLS, compare
 from ..exceptions import InvalidParameterError
 from .arguments import add_data_arguments, add_kinematic_prior_argument
@@ -28,11 +28,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "80-20: random 80/20 per repeat; chronological: last 20%% held out (default paper)",
     )
     parser.add_argument("--repeats", type=int, default=5, help="splits (paper, 80-20) or folds (kfold) (default 5)")
-    parser.add_argument("--methods", nargs="+", metavar="METHOD", help=f"default: M1..M9 and lm; any of {sorted(METHODS)}")
+    parser.add_argument("--methods", nargs="+", metavar="METHOD", help=f"default: M1..M9 and lm; any of {method_choices()}")
     parser.add_argument("--subset", type=int, help="first draw this many samples at random (e.g. 200 of UR10 Series A)")
     parser.add_argument("--seed", type=int, default=0)
     add_kinematic_prior_argument(parser)
     parser.add_argument("--out", required=True, help="output folder for the tables, figures and comparison.json")
+
+
+#: compare()'s arguments that no option of the same name sets (for :func:`robocal.cli.cli_words`).
+API_WORDS = {"k": "--repeats"}
 
 
 def run(args: argparse.Namespace) -> int:

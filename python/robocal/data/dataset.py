@@ -46,6 +46,10 @@ MAX_PLAUSIBLE_RAD = 4 * math.pi
 #: joint within ±6.3° almost never; a joint that varies but stays within ±6.3° while the others
 #: sweep tens of degrees is a column converted in one place and not in another).
 PARTIAL_RADIANS_CONTRAST_DEG = 20.0
+#: Such rows also come by chance, as often as every joint is within ±2π at once (one row in 9 of a
+#: one-joint arm of ±57°, whose own simulated data were refused): they are named only when as many
+#: would come by chance, the joints taken independent, with at most this probability.
+PARTIAL_RADIANS_ROWS_P = 1e-6
 
 
 def row_ranges(rows) -> str:
@@ -59,6 +63,15 @@ def row_ranges(rows) -> str:
     return ", ".join(runs[:5]) + (", ..." if len(runs) > 5 else "")
 
 
+def _beyond_chance(small: int, by_joint: np.ndarray) -> bool:
+    """Whether ``small`` rows with every joint within ±2π are more than independent joints
+    (``by_joint``: |values|, (N, m)) give by chance (:data:`PARTIAL_RADIANS_ROWS_P`)."""
+    from scipy.special import pdtrc  # Poisson upper tail; here, as the check runs on few files
+
+    chance = by_joint.shape[1] * float(np.prod((by_joint <= 2 * math.pi).mean(axis=1)))
+    return float(pdtrc(small - 1, chance)) < PARTIAL_RADIANS_ROWS_P
+
+
 def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     """A message naming the rows or the columns of a degree table (``values``: |file values|,
     (m, N)) that look like radians while the rest does not, or None."""
@@ -70,7 +83,7 @@ def _radians_in_part(values: np.ndarray, rows=None) -> str | None:
     row_max = by_joint.max(axis=0)
     small = (row_max <= 2 * math.pi) & (row_max > 0.5)  # within ±2π but not a pose at the zeros
     wide = row_max > PARTIAL_RADIANS_CONTRAST_DEG
-    if small.sum() >= 2 and wide.sum() >= 2:
+    if small.sum() >= 2 and wide.sum() >= 2 and _beyond_chance(int(small.sum()), by_joint):
         return (
             f"rows {row_ranges(rows[small])} ({int(small.sum())} rows): every joint value within ±2 pi (at most {row_max[small].max():.4g}) "
             f"while the other rows reach {row_max[wide].max():.4g} deg: these rows look like radians in a degree table; "

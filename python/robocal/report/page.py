@@ -48,7 +48,7 @@ from ..data.dataset import Dataset
 from ..diagnosis.leftover import leftover_words
 from ..diagnosis_file import DiagnosisReport, Quantity, load_diagnosis
 from ..exceptions import InvalidParameterError, RobocalError
-from ..outputs import make_folder, write_text
+from ..outputs import make_folder, printable, write_text
 from ..results import file_sha256, load_result, result_sessions, session_robot
 from ..serial_robot import Robot
 from .figures import (
@@ -69,7 +69,9 @@ logger = logging.getLogger(__name__)
 
 
 def _esc(value) -> str:
-    return html.escape(str(value), quote=True)
+    # Text from files (a robot's name, a path) may hold terminal controls: shown as escapes, as the
+    # CLI prints them, so that neither a browser's page nor `cat index.html` acts on them.
+    return html.escape(printable(value), quote=True)
 
 
 def _num(value, digits: int = 4) -> str:
@@ -93,6 +95,7 @@ class _Data:
     path: Optional[str] = None
     notes: list = field(default_factory=list)
     same_file: bool = False
+    session: int = 0  # of a multi-session result, the one (0-based) whose file it is
 
 
 def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optional[Robot] = None) -> _Data:
@@ -108,7 +111,9 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
     if data is not None:
         # An explicit file must load: its errors are the caller's to see.
         dataset, _ = load_inputs(data, robot, doc["measurement"], angle_unit)
-        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=_same_file(_fitted(doc), data))
+        session = _session_of(doc, data)
+        same = session is not None or _same_file(_fitted(doc), data)
+        return _Data(dataset, str(data), [f"measurements from {data} (given with --data)", *dataset.notes], same_file=same, session=session or 0)
     if _monitored(doc):
         return _Data(
             notes=[
@@ -117,6 +122,15 @@ def _load_data(doc: dict, data, angle_unit: Optional[str] = None, robot: Optiona
             ]
         )
     return _load_recorded(_fitted(doc), doc["measurement"], robot)
+
+
+def _session_of(doc: dict, path) -> Optional[int]:
+    """The session (0-based) of a multi-session result whose file ``path`` is, byte for byte; None
+    for another file, or a result re-mastered or monitored since (its set-up is then another's)."""
+    if doc.get("remaster") or _monitored(doc):
+        return None
+    digest = file_sha256(path)
+    return next((s for s, fitted in enumerate(result_sessions(doc)) if fitted.get("sha256") == digest), None)
 
 
 def _monitored(doc: dict) -> bool:
@@ -240,10 +254,10 @@ def _acceptance(ev: _Evaluation) -> tuple[dict, str]:
     return figures, which
 
 
-def _acceptance_section(ev: _Evaluation, out: Path, several: bool = False) -> str:
+def _acceptance_section(ev: _Evaluation, out: Path, several: bool = False, session: int = 0) -> str:
     figures, which = _acceptance(ev)
     if several:  # each session has its own set-up: distances between targets of two sessions mean nothing
-        which = f"session 1's samples only (each session has its own set-up): {which}"
+        which = f"session {session + 1}'s samples only (each session has its own set-up): {which}"
     rows = [[_esc(name), _esc(value)] for name, value in summary_rows(figures)]
     maps = any(c.get("kind") == "joint_map" for c in ev.model.carried)
     caption = "Accuracy of each target: the distance from the barycentre of its measurements to the calibrated model's prediction" + (
@@ -331,6 +345,7 @@ def _data_row(data: _Data, fitted: str) -> str:
     """What the figures were computed on; ``fitted``: what the result's set-up was fitted on."""
     if data.dataset is None:
         return "no measurements (see the note under Figures)"
+    fitted = f"the file of session {data.session + 1}" if data.session else fitted
     where = data.path or "a Dataset"
     same = f"{fitted} (sha256 matches)" if data.same_file else f"not verified to be {fitted}"
     return f"{where}, {len(data.dataset)} samples; {same}"
@@ -737,7 +752,7 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
     DataError
         An explicitly given ``data`` file cannot be read.
     """
-    robot, doc = load_result(result)
+    robot, doc = load_result(result, corrector=True)
     implausible = checked_implausible(robot, doc)
     diag = None if diagnosis is None else load_diagnosis(diagnosis).check_robot(robot.name).needs_figures("report --diagnosis")
     d = _load_data(doc, data, angle_unit, robot)
@@ -748,7 +763,9 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 
     ev = None
     if d.dataset is not None:
-        ev = _evaluate(robot, doc, d.dataset, d.same_file)
+        # --data of a multi-session result's later session: at that session's own set-up (its held-out rows marked)
+        own, fitted = (session_robot(robot, doc, d.session), result_sessions(doc)[d.session]) if d.session else (robot, None)
+        ev = _evaluate(own, doc, d.dataset, d.same_file, fitted)
         recorded = _fitted(doc).get("sha256")
         if d.path is not None and not d.same_file:
             notes.append(
@@ -851,10 +868,10 @@ def report(result, out, data: Union[str, Path, Dataset, None] = None, diagnosis:
 <p class="verdict"><strong>Verdict: {_esc(verdict(doc)[0])}</strong>: {_esc(verdict(doc)[1])}.</p>
 {_header(doc, d)}
 <h2>Accuracy</h2>
-{_metrics(doc, *checked_metrics(doc, ev, d.dataset, others))}
+{_metrics(doc, *checked_metrics(doc, None if d.session else ev, d.dataset, others))}
 {_remastering(doc)}
 {_monitoring(doc)}
-{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(result_sessions(doc)) > 1)}
+{"" if ev is None else "<h2>Acceptance (ISO 9283)</h2>" + _acceptance_section(ev, out, several=len(result_sessions(doc)) > 1, session=d.session)}
 <h2>Plausibility</h2>
 {_implausible(*implausible)}
 <h2>Figures</h2>
