@@ -57,12 +57,15 @@ def file_sha256(path) -> Optional[str]:
         return None
 
 
+def recorded_path(source) -> Optional[str]:
+    """A data file's path as results and reports record it: absolute, so that it is found from any
+    folder; None for data given in memory."""
+    return os.path.abspath(source) if source else None
+
+
 def recorded_source(source) -> dict:
-    """A data file as a result records it: its absolute path (so that a result read from another
-    folder still finds it) and its SHA-256; both None for data given in memory."""
-    if not source:
-        return {"source": None, "sha256": None}
-    return {"source": os.path.abspath(source), "sha256": file_sha256(source)}
+    """A data file as a result records it: :func:`recorded_path` and its SHA-256."""
+    return {"source": recorded_path(source), "sha256": file_sha256(source) if source else None}
 
 
 def recorded_data_files(paths) -> dict:

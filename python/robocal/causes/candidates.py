@@ -152,7 +152,7 @@ class Candidate:
             # preload). Both are named, with the sign; only the size is limited.
             width = -2.0 * c[0]
             # A prismatic joint's reading is mm: its lost motion too (a screw's), limited as a sensor's error.
-            scale, unit, limit = (1.0, "mm", LIMITS["sensor_mm"]) if robot.joints[self.joint].kind == "prismatic" else (1.0 / DEG, "deg", LIMITS["angle"])
+            scale, unit, limit = (1.0, "mm", LIMITS["sensor_mm"]) if self.joint in robot.prismatic else (1.0 / DEG, "deg", LIMITS["angle"])
             out = {
                 "width": q(width * scale, 2.0 * s[0] * scale, unit),
                 "direction": q(1.0 if width > 0 else -1.0, np.nan, "(+1: the link lags its reading, -1: it leads)"),
@@ -673,11 +673,11 @@ def library(robot: Robot, data: Dataset, considered: list[str], hayati: bool = T
     for j in moving:
         if tau is not None and np.ptp(tau[:, j]) > 1e-3 * max(1.0, np.max(np.abs(tau))):
             out.append(joint_candidate("joint_compliance", j))
-        if robot.joints[j].kind == "revolute":  # harmonics of a turn: a prismatic joint's mm make no turn
+        if j not in robot.prismatic:  # harmonics of a turn: a prismatic joint's mm make no turn
             out += [periodic_candidate(robot, data, j, h) for h in LIBRARY_HARMONICS]
         out.append(joint_candidate("joint_scale", j))
         # A reading coupled to another of its unit: the simulator's and the report's coefficient is a ratio.
-        out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j and robot.joints[s].kind == robot.joints[j].kind]
+        out += [joint_candidate("joint_coupling", j, source=s + 1) for s in moving if s != j and (s in robot.prismatic) == (j in robot.prismatic)]
         out.append(joint_candidate("backlash", j))
     out.append(drift_candidate(data))
     if data.temp is not None and np.ptp(data.temp) > 0:

@@ -138,12 +138,9 @@ def calibrate(
     parsed = [(label, structure.parse(label, r.n_joints)) for label in labels]
     structures = [s for _, s in parsed if s is not None]
     labels = [label for label, s in parsed if s is None]
-    wrong = [s.label for s in structures if s.kind == "joint_zero" and r.joints[s.joint].kind == "prismatic"]
+    wrong = [s.label for s in structures if s.kind == "joint_zero" and s.joint in r.prismatic]
     if wrong:  # its offset is read in deg: 10 would move a prismatic joint by 0.17 mm
         raise InvalidParameterError(f"{', '.join(wrong)}: a zero convention is an angle (deg); joint {wrong[0].split()[2]} of {r.name} is prismatic")
-    turns = [label for label in labels if (m := re.match(r"joint_periodic joint (\d+) ", label)) and int(m.group(1)) - 1 in r.prismatic]
-    if turns:  # harmonics of a turn: a prismatic joint's reading (mm) makes none
-        raise InvalidParameterError(f"{', '.join(turns)}: a periodic error is in harmonics of a turn; joint {turns[0].split()[2]} of {r.name} is prismatic")
     if structures:
         structures = structure.within_limits(structures, np.vstack([d.q for d in datasets]) if several else dataset.q, r)
     if several:
@@ -419,6 +416,10 @@ def extended_problem(
             pool[label] = tracker_azimuth_candidate(dataset, np.array([float(azimuth.group(2)), float(azimuth.group(3))]), int(azimuth.group(1)))
         periodic = re.fullmatch(r"joint_periodic joint (\d+) harmonic=(\d+)", label)
         if periodic and 1 <= int(periodic.group(1)) <= problem.robot.n_joints and label not in pool:  # a harmonic found in the place of several
+            if int(periodic.group(1)) - 1 in problem.robot.prismatic:  # harmonics of a turn: a prismatic joint's reading (mm) makes none
+                raise InvalidParameterError(
+                    f"{label}: a periodic error is in harmonics of a turn; joint {periodic.group(1)} of {problem.robot.name} is prismatic"
+                )
             pool[label] = periodic_candidate(problem.robot, dataset, int(periodic.group(1)) - 1, int(periodic.group(2)))
         free = re.fullmatch(r"joint_compliance joint (\d+) masses=free", label)
         if free and 1 <= int(free.group(1)) <= problem.robot.n_joints and has_mass_model(problem.robot):  # a compliance on any masses

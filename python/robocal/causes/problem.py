@@ -104,7 +104,7 @@ class ExtendedProblem:
         self._prior = [(names.index(n), m, sd) for n, (m, sd) in base.prior.items() if n in names]
         self._lengths = [self.robot.index(f"{p}{j + 1}") for j in range(self.robot.n_joints) for p in ("a", "d")]
         # The parameter each joint's reading adds to: a joint cause's Δq moves the chain as it does.
-        self._joint_variables = [self.robot.index(f"{'d' if j.kind == 'prismatic' else 'theta'}{i + 1}") for i, j in enumerate(self.robot.joints)]
+        self._joint_variables = [self.robot.index(f"{'d' if j in self.robot.prismatic else 'theta'}{j + 1}") for j in range(self.robot.n_joints)]
         # Joint maps' sparse basis rows (per cause) and the Jacobian's rows beyond the data, built
         # on first use: the samples of a problem do not change.
         self._sample_rows: dict = {}

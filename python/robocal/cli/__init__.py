@@ -157,10 +157,12 @@ def _run(argv: list[str]) -> int:
     sys.stdout = PrintableStream(stdout)  # names and columns from files may hold terminal escapes
     try:
         inputs = [getattr(args, a, None) for a in paths.inputs]
+        files = [getattr(args, a, None) for a in paths.files]
         claims = check_outputs(
             inputs=inputs,
-            recorded=recorded_data_files(inputs),
-            files=[getattr(args, a, None) for a in paths.files],
+            # a result's training data, read from it only when a file is written (the command reads the result again)
+            recorded=recorded_data_files(inputs) if any(f not in (None, "", "-") for f in files) else {},
+            files=files,
             folders=[getattr(args, a, None) for a in paths.folders],
             force=getattr(args, "force", False),
         )

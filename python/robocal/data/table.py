@@ -79,10 +79,11 @@ def read_data(path) -> bytes:
 def read_text(path) -> str:
     """The file's text (UTF-8, an optional BOM removed), or a :class:`DataError`."""
     path = Path(path)
+    data = read_data(path)
     try:  # bytes then decode: no newline translation to pay for (str.splitlines reads CRLF and CR alike)
-        return read_data(path).decode("utf-8-sig")
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        utf16 = read_data(path)[:2] in (b"\xff\xfe", b"\xfe\xff")  # what spreadsheets write as "Unicode text"
+        utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")  # what spreadsheets write as "Unicode text"
         hint = ": it starts with a UTF-16 byte-order mark; save it as UTF-8 (CSV UTF-8)" if utf16 else ""
         raise DataError(f"not a UTF-8 text file (undecodable byte at offset {exc.start}){hint}", path) from None
 
@@ -535,9 +536,11 @@ def numeric_columns(
                 raise
             excluded.append({"row": row_number, "column": exc.column, "reason": exc.message})
     if not rows:
-        first = excluded[0] if excluded else None
-        where = f"row {first['row']}" + (f", column {first['column']!r}" if first and first["column"] else "") if first else ""
-        why = f" ({len(excluded)} rows with bad cells excluded; the first, {where}: {first['reason']})" if first else ""
+        why = ""
+        if excluded:
+            first = excluded[0]
+            where = f"row {first['row']}" + (f", column {first['column']!r}" if first["column"] else "")
+            why = f" ({len(excluded)} rows with bad cells excluded; the first, {where}: {first['reason']})"
         raise DataError("no valid data rows" + why, path, 2)
     return np.array(values, dtype=np.float64), np.array(rows, dtype=np.int64), excluded
 

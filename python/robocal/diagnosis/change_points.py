@@ -74,14 +74,22 @@ def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
     level jumped, which a ramp from the same sample must not explain as well."""
     position = acquisition_position(data)
     at = position[step.detail["sample"]]
-    shifts = [a for a in step.detail["axes"] if a in SHIFT_AXES]  # a ramp shifts: the readings' level changes
-    out = []
-    for side, shape in (("after", np.maximum(position - at, 0.0)), ("before", np.maximum(at - position, 0.0))):
-        basis = np.zeros(step.basis.shape[:2] + (len(shifts),))
-        for a in range(len(shifts)):
-            basis[:, a, a] = shape / max(float(shape.max()), 1.0)
-        out.append(Candidate("ramp", None, "observations", basis, detail={"sample": step.detail["sample"], "side": side}))
-    return out
+    return [
+        Candidate(
+            "ramp", None, "observations", _level_change(step, shape / max(float(shape.max()), 1.0)), detail={"sample": step.detail["sample"], "side": side}
+        )
+        for side, shape in (("after", np.maximum(position - at, 0.0)), ("before", np.maximum(at - position, 0.0)))
+    ]
+
+
+def _level_change(step: Candidate, shape: np.ndarray) -> np.ndarray:
+    """The basis (M, k, n) of the readings' level changing by ``shape`` (M,) on each axis ``step``
+    shifts (not a rigid step's turns: an alternative to a step shifts the level)."""
+    shifts = [a for a in step.detail["axes"] if a in SHIFT_AXES]
+    basis = np.zeros(step.basis.shape[:2] + (len(shifts),))
+    for a in range(len(shifts)):
+        basis[:, a, a] = shape
+    return basis
 
 
 #: Widths (shares of the session's acquisition span) of the smooth level changes a step is set
@@ -100,12 +108,13 @@ def transitions(data: Dataset, step: Candidate) -> list[Candidate]:
     position = acquisition_position(data)
     at = position[step.detail["sample"]]
     span = max(float(np.ptp(position)), 1.0)
-    shifts = [a for a in step.detail["axes"] if a in SHIFT_AXES]
-    out = []
-    for width in TRANSITION_WIDTHS:
-        shape = np.tanh((position - at) / (width * span))
-        basis = np.zeros(step.basis.shape[:2] + (len(shifts),))
-        for a in range(len(shifts)):
-            basis[:, a, a] = shape
-        out.append(Candidate("transition", None, "observations", basis, detail={"sample": step.detail["sample"], "width": width}))
-    return out
+    return [
+        Candidate(
+            "transition",
+            None,
+            "observations",
+            _level_change(step, np.tanh((position - at) / (width * span))),
+            detail={"sample": step.detail["sample"], "width": width},
+        )
+        for width in TRANSITION_WIDTHS
+    ]

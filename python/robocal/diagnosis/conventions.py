@@ -344,7 +344,7 @@ def reading_conventions(robot: Robot, data: Dataset, mask: np.ndarray, folds: in
 
     combined = screen_combinations(data, setup_rmse, seed)
     accepted, effects, rejected = search(
-        data, fit, heldout, baseline, seed, extra=[z for z in zero_errors(bad) if robot.joints[z.joint].kind == "revolute"] + combined, setup_rmse=setup_rmse
+        data, fit, heldout, baseline, seed, extra=[z for z in zero_errors(bad) if z.joint not in data.prismatic] + combined, setup_rmse=setup_rmse
     )
     errors = errors_of.get(apply_all(data, accepted).q.tobytes())
     # Each offset the whole turns that keep the model's angles within the limits (as calibrate takes them): the

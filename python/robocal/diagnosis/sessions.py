@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import inspect
 import logging
-import os
 import time
 from dataclasses import dataclass, field, replace
 from typing import Optional
@@ -36,6 +35,7 @@ from ..kernels import as_count, is_sparse, truncated_svd, unit_columns
 from ..data.dataset import Dataset
 from ..diagnosis_file import load_diagnosis
 from ..exceptions import InvalidParameterError
+from ..results import recorded_path
 from ..physics import DEG
 from ..progress import progress
 from ..threads import thread_map
@@ -279,7 +279,7 @@ class SessionsDiagnosis:
             "robot": self.robot.name,
             "measurement": self.measurement,
             "samples": sum(len(s.data) for s in self.sessions),
-            "sessions": [{"source": _absolute(s.data.source), "samples": len(s.data), "diagnosis": s.diagnosis.to_dict()} for s in self.sessions],
+            "sessions": [{"source": recorded_path(s.data.source), "samples": len(s.data), "diagnosis": s.diagnosis.to_dict()} for s in self.sessions],
             "baseline": self.baseline,
             "effects": self.effects,
             "rejected": self.rejected,
@@ -461,7 +461,7 @@ def diagnose_sessions(data: list, robot=None, measurement: Optional[str] = None,
             "parameters": parameters,
             "kinematic_prior": [physical["sigma_mm"], physical["sigma_deg"]] if physical and physical["accepted"] else None,
             # absolute: calibrate --causes matches its sessions to these files from any folder
-            "sessions": [{"source": _absolute(s.data.source), "causes": [c.label for c in s.terms]} for s in sessions],
+            "sessions": [{"source": recorded_path(s.data.source), "causes": [c.label for c in s.terms]} for s in sessions],
         },
         time_s=time.perf_counter() - t0,
     )
@@ -504,8 +504,3 @@ def _entry(measurement: str, label: str, candidate, where: list, before: list, a
     if reason is not None:
         entry["reason"] = reason
     return entry
-
-
-def _absolute(source):
-    """A session's file as the report records it: absolute, so that it is found from any folder."""
-    return None if source is None else os.path.abspath(source)
