@@ -208,6 +208,10 @@ class Robot:
         params = self.params.copy()
         for name, value in values.items():
             params[self.index(name)] = as_float(value, name)
+        return self.with_vector(params)
+
+    def with_vector(self, params) -> "Robot":
+        """A copy with the parameter vector ``params`` (:attr:`param_names`' order; a fit's)."""
         return Robot(self.name, self.joints, params, self.mass_model)
 
     def _check_params(self, params, arg: str) -> np.ndarray:

@@ -392,12 +392,14 @@ def extended_problem(
     out, not refused. ``fitted``: label -> ``detail`` of joint maps fitted before (a result's):
     such a map keeps its range and knots (:func:`~robocal.causes.candidates.fitted_map`)."""
     pool = {c.label: c for c in library(problem.robot, dataset, list(problem.names) + list(problem.fixed))}
+    directions = None
     for label in causes:  # steps sit where diagnose found them, maps span the fitted samples: their label says how
         step = re.fullmatch(r"step sample=(\d+) row=\d+( frame=rigid)?", label)
         if step:
             rigid = bool(step.group(2))
-            directions = cable_directions(dataset, problem.robot) if rigid and dataset.measurement == "cable" else None
-            pool[label] = step_candidate(dataset, int(step.group(1)), rigid, directions)
+            if rigid and dataset.measurement == "cable" and directions is None:  # the cable's directions to the fitted tool points
+                directions = cable_directions(dataset, problem.robot.with_vector(problem.full(levenberg_marquardt(problem).x)))
+            pool[label] = step_candidate(dataset, int(step.group(1)), rigid, directions if rigid else None)
         wander = re.fullmatch(r"wander spacing=([0-9.]+)(?: roughness=([0-9.eE+-]+))?( trend=kept)?", label)
         if wander:  # the session's own wander, refitted on these data (a term of the session, never carried)
             roughness = float(wander.group(2)) if wander.group(2) else ROUGHNESS

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..causes.candidates import SHIFT_AXES, Candidate, acquisition_order, acquisition_position, cable_directions, step_candidate
 from ..data.dataset import Dataset
+from ..kernels import is_sparse
 from ..serial_robot import Robot
 
 #: Change points proposed per diagnosis: ruptures' binary segmentation asked for this many.
@@ -41,12 +42,15 @@ def _summed_l2_cost():
     return SummedL2()
 
 
-def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot: Optional[Robot] = None) -> list[Candidate]:
+def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot: Optional[Robot] = None, jacobian=None) -> list[Candidate]:
     """Steps at the change points of a fit's residuals (``residuals`` (len(idx), k) of the
     samples ``idx``) in acquisition order: ruptures' binary segmentation with the l2 cost on the
     residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
     the samples (and 5). Each becomes two candidates that the selection tests like any other: the
-    readings shifted, and the sensor moved as a rigid body (:func:`step_candidate`)."""
+    readings shifted, and the sensor moved as a rigid body (:func:`step_candidate`; a cable's
+    directions to the tool points of ``robot``, the fitted one). The rigid move is also proposed
+    where its columns beside the model's ``jacobian`` (its rows of ``idx``, as weighted as
+    ``residuals``) explain most (:func:`best_place`)."""
     import ruptures  # imported on use: only a diagnosis needs it
 
     order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
@@ -64,7 +68,39 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     # a cable's move needs its directions, a robot's tool points
     directions = cable_directions(data, robot) if data.measurement == "cable" else None
     moves = (False,) if data.measurement == "cable" and directions is None else (False, True)
-    return [step_candidate(data, int(idx[order[b]]), rigid, directions) for b in breaks if b < m for rigid in moves]
+    places = {(b, rigid) for b in breaks if b < m for rigid in moves}
+    # A rigid move need not change the readings' mean: a cable's anchor moved across the cable
+    # lengthens some readings and shortens others, and the model's geometry takes most of it up.
+    # Its place is where its own columns, beside the model's, explain most (a cable sensor knocked
+    # 5-8 times its detection limit was placed 13-100 samples off by the mean's change points,
+    # the mismatch section of benches/discovery.py).
+    if True in moves and jacobian is not None:
+        whole = step_candidate(data, int(idx[order[1]]), True, directions).basis[idx][order][:, :3]
+        model = np.asarray(jacobian.toarray() if is_sparse(jacobian) else jacobian).reshape(len(idx), -1, jacobian.shape[1])[order][:, :3]
+        places.add((best_place(whole, model, residuals[order][:, :3], min_size), True))
+    return [step_candidate(data, int(idx[order[b]]), rigid, directions) for b, rigid in sorted(places)]
+
+
+def best_place(basis: np.ndarray, model: np.ndarray, residuals: np.ndarray, min_size: int) -> int:
+    """The split ``s`` (``min_size`` ≤ s ≤ m − ``min_size``) where the columns ``basis`` (m, k, n),
+    zero before ``s``, fitted beside the ``model``'s (m, k, p) remove most of ``residuals`` (m, k):
+    the scan statistic of a change in a regression, from suffix sums."""
+    m, n = len(residuals), basis.shape[2]
+    flat_model, flat_left = model.reshape(-1, model.shape[2]), residuals.reshape(-1)
+    inverse = np.linalg.pinv(flat_model.T @ flat_model)
+    left = flat_left - flat_model @ (inverse @ (flat_model.T @ flat_left))  # what the model leaves on these rows
+
+    def suffix(terms: np.ndarray) -> np.ndarray:
+        return np.cumsum(terms[::-1], axis=0)[::-1]
+
+    split = np.arange(min_size, m - min_size + 1)
+    normal = suffix(np.einsum("mki,mkj->mij", basis, basis))[split]
+    cross = suffix(np.einsum("mkp,mkj->mpj", model, basis))[split]
+    moment = suffix(np.einsum("mki,mk->mi", basis, left.reshape(m, -1)))[split]
+    schur = normal - np.einsum("spi,pq,sqj->sij", cross, inverse, cross)
+    schur += 1e-9 * np.trace(normal, axis1=1, axis2=2)[:, None, None] * np.eye(n) + 1e-300 * np.eye(n)
+    explained = np.einsum("si,si->s", moment, np.linalg.solve(schur, moment[..., None])[..., 0])
+    return int(split[np.argmax(explained)])
 
 
 def ramps(data: Dataset, step: Candidate) -> list[Candidate]:
