@@ -49,8 +49,8 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     the samples (and 5). Each becomes two candidates that the selection tests like any other: the
     readings shifted, and the sensor moved as a rigid body (:func:`step_candidate`; a cable's
     directions to the tool points of ``robot``, the fitted one). The rigid move is also proposed
-    where its columns beside the model's ``jacobian`` (its rows of ``idx``, as weighted as
-    ``residuals``) explain most (:func:`best_place`)."""
+    where its columns beside the robot's columns of the model's ``jacobian`` (its rows of
+    ``idx``, weighted as ``residuals`` are) explain most (:func:`best_place`)."""
     import ruptures  # imported on use: only a diagnosis needs it
 
     order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
@@ -76,7 +76,8 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     # the mismatch section of benches/discovery.py).
     if True in moves and jacobian is not None:
         whole = step_candidate(data, int(idx[order[1]]), True, directions).basis[idx][order][:, :3]
-        model = np.asarray(jacobian.toarray() if is_sparse(jacobian) else jacobian).reshape(len(idx), -1, jacobian.shape[1])[order][:, :3]
+        model = np.asarray(jacobian.toarray() if is_sparse(jacobian) else jacobian)
+        model = model.reshape(len(idx), -1, model.shape[1])[order][:, :3]
         places.add((best_place(whole, model, residuals[order][:, :3], min_size), True))
     return [step_candidate(data, int(idx[order[b]]), rigid, directions) for b, rigid in sorted(places)]
 
@@ -84,21 +85,24 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
 def best_place(basis: np.ndarray, model: np.ndarray, residuals: np.ndarray, min_size: int) -> int:
     """The split ``s`` (``min_size`` ≤ s ≤ m − ``min_size``) where the columns ``basis`` (m, k, n),
     zero before ``s``, fitted beside the ``model``'s (m, k, p) remove most of ``residuals`` (m, k):
-    the scan statistic of a change in a regression, from suffix sums."""
+    the scan statistic of a change in a regression, from suffix sums over an orthonormal basis of
+    the model's columns (O(m·p·n²) for every split)."""
     m, n = len(residuals), basis.shape[2]
-    flat_model, flat_left = model.reshape(-1, model.shape[2]), residuals.reshape(-1)
-    inverse = np.linalg.pinv(flat_model.T @ flat_model)
-    left = flat_left - flat_model @ (inverse @ (flat_model.T @ flat_left))  # what the model leaves on these rows
+    flat_model = model.reshape(-1, model.shape[2])
+    q, diagonal = np.linalg.qr(flat_model)
+    q = q[:, np.abs(np.diag(diagonal)) > 1e-10 * max(float(np.abs(np.diag(diagonal)).max(initial=0.0)), 1e-300)]
+    left = residuals.reshape(-1) - q @ (q.T @ residuals.reshape(-1))  # what the model leaves on these rows
+    q = q.reshape(m, -1, q.shape[1])
 
     def suffix(terms: np.ndarray) -> np.ndarray:
         return np.cumsum(terms[::-1], axis=0)[::-1]
 
     split = np.arange(min_size, m - min_size + 1)
     normal = suffix(np.einsum("mki,mkj->mij", basis, basis))[split]
-    cross = suffix(np.einsum("mkp,mkj->mpj", model, basis))[split]
+    cross = suffix(np.einsum("mkp,mkj->mpj", q, basis))[split]  # the step's columns along the model's
     moment = suffix(np.einsum("mki,mk->mi", basis, left.reshape(m, -1)))[split]
-    schur = normal - np.einsum("spi,pq,sqj->sij", cross, inverse, cross)
-    schur += 1e-9 * np.trace(normal, axis1=1, axis2=2)[:, None, None] * np.eye(n) + 1e-300 * np.eye(n)
+    schur = normal - np.einsum("spi,spj->sij", cross, cross)
+    schur += (1e-9 * np.trace(normal, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(n)
     explained = np.einsum("si,si->s", moment, np.linalg.solve(schur, moment[..., None])[..., 0])
     return int(split[np.argmax(explained)])
 

@@ -751,7 +751,9 @@ def round_candidates(state: Pass, pool: list, J, residual: np.ndarray, residual_
     taken = {c.detail["sample"] for c in causes if c.kind == "step"}
     pool = [c for c in pool if c.kind != "step"] + [
         c
-        for c in step_candidates(state.dataset, keep, residual.reshape(len(keep), k), state.robot.with_vector(state.model.full(state.x)), J)
+        for c in step_candidates(
+            state.dataset, keep, residual.reshape(len(keep), k), state.robot.with_vector(state.model.full(state.x)), J[:, : len(state.model.free)]
+        )
         if c.detail["sample"] not in taken
     ]
     pool = [c for c in pool if c.kind not in SENSOR_KINDS] + sensor_candidates(state.dataset, keep, J, residual, [c for c in causes if c.kind in SENSOR_KINDS])
