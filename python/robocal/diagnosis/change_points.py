@@ -48,9 +48,9 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     residuals scaled per axis, :data:`STEPS_PROPOSED` change points, segments of at least 1 % of
     the samples (and 5). Each becomes two candidates that the selection tests like any other: the
     readings shifted, and the sensor moved as a rigid body (:func:`step_candidate`; a cable's
-    directions to the tool points of ``robot``, the fitted one). The rigid move is also proposed
-    where its columns beside the robot's columns of the model's ``jacobian`` (its rows of
-    ``idx``, weighted as ``residuals`` are) explain most (:func:`best_place`)."""
+    directions to the tool points of ``robot``, the fitted one). A cable's rigid move is also
+    proposed where its columns beside the robot's columns of the model's ``jacobian`` (its rows
+    of ``idx``, weighted as ``residuals`` are) explain most (:func:`best_place`)."""
     import ruptures  # imported on use: only a diagnosis needs it
 
     order = np.argsort(np.argsort(acquisition_order(data))[idx], kind="stable")  # idx in acquisition order
@@ -69,12 +69,13 @@ def step_candidates(data: Dataset, idx: np.ndarray, residuals: np.ndarray, robot
     directions = cable_directions(data, robot) if data.measurement == "cable" else None
     moves = (False,) if data.measurement == "cable" and directions is None else (False, True)
     places = {(b, rigid) for b in breaks if b < m for rigid in moves}
-    # A rigid move need not change the readings' mean: a cable's anchor moved across the cable
-    # lengthens some readings and shortens others, and the model's geometry takes most of it up.
-    # Its place is where its own columns, beside the model's, explain most (a cable sensor knocked
-    # 5-8 times its detection limit was placed 13-100 samples off by the mean's change points,
-    # the mismatch section of benches/discovery.py).
-    if True in moves and jacobian is not None:
+    # A cable's anchor moved across the cable lengthens some readings and shortens others: the
+    # readings' mean hardly changes, and the model's geometry takes most of it up. Its place is
+    # where its own columns, beside the model's, explain most (a cable sensor knocked 5-8 times
+    # its detection limit was placed 13-100 samples off by the mean's change points, the mismatch
+    # section of benches/discovery.py). A tracker's knock moves the mean by its translation, where
+    # the change points find it; proposed there too, such scans cut slow waves of a drift into steps.
+    if directions is not None and jacobian is not None:
         whole = step_candidate(data, int(idx[order[1]]), True, directions).basis[idx][order][:, :3]
         model = np.asarray(jacobian.toarray() if is_sparse(jacobian) else jacobian)
         model = model.reshape(len(idx), -1, model.shape[1])[order][:, :3]
