@@ -229,6 +229,12 @@ JUMP_Z = float(norm.isf(0.025))
 #: residual test measured no correlation length): a sensor's zero that wanders over 5-20
 #: samples leaves arcs that a change-point search cuts into steps.
 ARC_SPACINGS = (4.0, 8.0, 16.0)
+#: ... and, as shares of the session, the knot spacings of the slow arcs a step must also beat:
+#: a wave of the reading on a trend (a drift that is neither a line nor one of its curves). They
+#: keep their trend, as a step's level change does: without it a step cut out of a wave of 1.5
+#: periods on a ramp beat every arc by 2.4 standard errors (the mismatch section of
+#: benches/discovery.py, seed 34, file 189), with it by 1.5.
+SLOW_ARC_SHARES = (1 / 8, 1 / 4)
 
 #: Terms of acquisition time judged with the correlation in time of the residuals they leave
 #: (:func:`~.wander.serial_inflation`); a wander models that correlation itself.
@@ -548,7 +554,8 @@ class Round:
     max_effects: int
     #: Per step (label): the largest random-fold gain of a gradual change: its ramps
     #: (:func:`~.change_points.ramps`), the curves of the model's linear drift and, where no
-    #: wander is offered, the arcs of a wandering reading (:data:`ARC_SPACINGS`).
+    #: wander is offered, the arcs of a wandering reading (:data:`ARC_SPACINGS`,
+    #: :data:`SLOW_ARC_SHARES`).
     gradual: dict = field(default_factory=dict)
     #: Per step (label): by how many standard errors the step's held-out errors on the random
     #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
@@ -674,16 +681,22 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     shared_errs = []  # every step's alternatives
     if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
         shared_errs = list(curve_errs().values())
-    if steps and not any(c.kind == "wander" for c in pool + ext.causes):
-        # No wander offered (the residual test measured no correlation length): where no wander can
-        # be named, the arcs of a wandering reading must not be taken for a jump. (Where wanders
-        # are offered they compete as candidates: as arcs here, a 5x step lost to the wander that
-        # follows it over the random folds, seed 30 of benches/discovery.py, file 48.)
-        if state.arcs is None:  # built once a pass: they depend on the samples' order alone
-            state.arcs = list(
-                {arc.detail["spacing"]: arc for arc in (wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS)}.values()
-            )  # a long session widens them alike
-        arcs = progress(state.arcs, desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
+    if steps and state.arcs is None:  # built once a pass: they depend on the samples' order alone
+        span = len(state.dataset) - 1
+        fine = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
+        slow = [wander_candidate(state.dataset, share * span, trend=True) for share in SLOW_ARC_SHARES]
+        # a long session widens the fine arcs alike (a wander has at most MAX_KNOTS knots)
+        state.arcs = {"fine": list({arc.label: arc for arc in fine}.values()), "slow": slow}
+    if steps:
+        # A slow wave on a trend must not be taken for a jump, wanders offered or not: those
+        # offered follow the residuals' correlation length, and one of a few samples' knots
+        # misses every held-out block (a wave of 1.7 periods cut into two steps, seed 34 of
+        # benches/discovery.py, file 111). Where no wander is offered (the residual test
+        # measured no correlation length), neither may the arcs of a wandering reading be taken
+        # for one. (Where wanders are offered they compete as candidates: as fine arcs here, a
+        # 5x step lost to the wander that follows it over the random folds, seed 30, file 48.)
+        arcs = state.arcs["slow"] + ([] if any(c.kind == "wander" for c in pool + ext.causes) else state.arcs["fine"])
+        arcs = progress(arcs, desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
         shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]

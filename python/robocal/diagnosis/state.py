@@ -79,8 +79,9 @@ class Pass:
     effects: list
     rejected: list
     plots: dict = field(default_factory=dict)
-    #: The arcs of a wandering reading a step must beat (:func:`~.select.screen_round`), once built.
-    arcs: Optional[list] = None
+    #: The arcs of a wandering reading a step must beat (:func:`~.select.screen_round`), once
+    #: built: ``{"fine": [...], "slow": [...]}``.
+    arcs: Optional[dict] = None
 
     @property
     def k(self) -> int:
