@@ -231,9 +231,13 @@ JUMP_Z = float(norm.isf(0.025))
 ARC_SPACINGS = (4.0, 8.0, 16.0)
 #: ... and, as shares of the session, the knot spacings of the slow arcs a step must also beat:
 #: a wave of the reading on a trend (a drift that is neither a line nor one of its curves). They
-#: keep their trend, as a step's level change does: without it a step cut out of a wave of 1.5
-#: periods on a ramp beat every arc by 2.4 standard errors (the mismatch section of
-#: benches/discovery.py, seed 34, file 189), with it by 1.5.
+#: keep their trend, as a step's level change does (without it a step cut out of a wave of 1.5
+#: periods on a ramp beat every arc by 2.4 standard errors, with it by 1.5: the mismatch section
+#: of benches/discovery.py, seed 34, file 189). Their roughness penalty is the
+#: stiffer of the wanders' (:data:`WANDER_STIFFER`): at the wanders' own a slow arc turned as
+#: sharply as a true knock of 1.5-2.3 times its detection limit and took its place (seed 35,
+#: files 61, 74, 174, 203); three times as stiff it still did, thirty times as stiff it followed
+#: no wave.
 SLOW_ARC_SHARES = (1 / 8, 1 / 4)
 
 #: Terms of acquisition time judged with the correlation in time of the residuals they leave
@@ -684,7 +688,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
     if steps and state.arcs is None:  # built once a pass: they depend on the samples' order alone
         span = len(state.dataset) - 1
         fine = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
-        slow = [wander_candidate(state.dataset, share * span, trend=True) for share in SLOW_ARC_SHARES]
+        slow = [wander_candidate(state.dataset, share * span, ROUGHNESS * max(WANDER_STIFFER), trend=True) for share in SLOW_ARC_SHARES]
         # a long session widens the fine arcs alike (a wander has at most MAX_KNOTS knots)
         state.arcs = {"fine": list({arc.label: arc for arc in fine}.values()), "slow": slow}
     if steps:
