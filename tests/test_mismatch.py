@@ -289,3 +289,16 @@ def test_a_joints_clipped_wave_is_one_claim_about_the_joint():
     (claim,) = [e for e in report["effects"] if e["joint"] == 4]
     assert claim["kind"] == "joint_map" and [h["label"] for h in claim["with_harmonics"]] == ["joint_periodic joint 4 harmonic=3"]
     assert load_diagnosis(report).effects[-1].with_harmonics[0].params["amplitude"].unit == "deg"
+
+
+def test_a_joints_harmonics_are_one_claim_about_the_joint():
+    """A clipped sine of joint 4 (the mismatch section's other wave forms): the model holds two of
+    joint 4's harmonics and no map — one error of the joint's angle, so one entry of the report,
+    the first harmonic named, with the other under it (the two were named as two causes)."""
+    acq = mismatch.acquisition("ur10", "pose", 300, seed=17)
+    wave = {"family": "periodic_shape", "keys": {"joint": 4, "shape": "clipped", "harmonic": 2, "phase": 2.88}, "size": 0.0145}
+    report = diagnose(dataset(acq, [wave])).to_dict()
+    harmonics = [c for c in report["model"]["causes"] if c.startswith("joint_periodic joint 4 ")]
+    assert len(harmonics) >= 2  # the model keeps them all
+    (claim,) = [e for e in report["effects"] if e["joint"] == 4]
+    assert claim["kind"] == "joint_periodic" and [claim["label"]] + [h["label"] for h in claim["with_harmonics"]] == harmonics

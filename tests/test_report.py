@@ -200,8 +200,13 @@ def test_diagnosis_section_shows_structure_budget_and_sessions(calibrated, tmp_p
         {**both, "joint": 2, "label": "joint_compliance joint 2", "correlation": {"joint_compliance joint 3": -0.87}},
         {**both, "joint": 3, "label": "joint_compliance joint 3", "correlation": {"joint_compliance joint 2": "<b>"}},
     ]
+    # one joint's harmonics, one claim: the others shown beside the first, with their sizes
+    harmonic = {"kind": "joint_periodic", "joint": 4, "rmse_heldout_before": 0.4, "rmse_heldout_after": 0.3}
+    third = {**harmonic, "label": "joint_periodic joint 4 harmonic=3", "params": {"amplitude": {"value": 0.00123, "std": 0.0001, "unit": "deg"}}}
+    diagnosis["effects"].append({**harmonic, "label": "joint_periodic joint 4 harmonic=1", "params": {}, "with_harmonics": [third]})
     text = report(path, tmp_path / "corr", diagnosis=diagnosis).read_text()
     assert "correlation with joint_compliance joint 3 -0.87" in text and "<b>" not in text
+    assert "beside its joint_periodic joint 4 harmonic=3 (amplitude 0.00123" in text
     sessions = robocal.diagnose([robocal.simulate("abb-irb120", "position", samples=200, seed=2, session=s)[0] for s in range(2)]).to_dict()
     text = report(path, tmp_path / "two", diagnosis=sessions).read_text()
     assert "<h3>Sessions</h3>" in text and "sessions it was not fitted on" in text

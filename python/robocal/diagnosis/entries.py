@@ -46,19 +46,22 @@ def explained_shares(effects: list, baseline: float, final: float) -> None:
 
 
 def one_claim_per_joint(effects: list) -> None:
-    """A joint map and the harmonics of its joint the model holds beside it as one entry of
-    ``effects``: the map's, with the harmonics' entries under ``with_harmonics`` (their shares of
-    what is explained added to its own). Both are the error of one joint's angle — the map the
-    part the harmonics do not follow — and one claim of it (a clipped sine of a joint was named
-    a harmonic and, beside it, a map: two causes, the mismatch section)."""
-    for m in [e for e in effects if e["kind"] == "joint_map"]:
-        own = [e for e in effects if e["kind"] == "joint_periodic" and e["joint"] == m["joint"]]
-        if not own:
+    """The harmonics of one joint, and a joint map beside them, as one entry of ``effects``: the
+    map's, else the first harmonic named, with the other harmonics' entries under
+    ``with_harmonics`` (their shares of what is explained added to its own). All are the error
+    of one joint's angle — a map the part the harmonics do not follow — and one claim of it (a
+    clipped sine of a joint was named a harmonic and, beside it, a map or its third harmonic:
+    two causes, the mismatch section)."""
+    for joint in dict.fromkeys(e["joint"] for e in effects if e["kind"] == "joint_periodic"):
+        own = [e for e in effects if e["kind"] in ("joint_map", "joint_periodic") and e["joint"] == joint]
+        claim = next((e for e in own if e["kind"] == "joint_map"), own[0])
+        others = [e for e in own if e is not claim and e["kind"] == "joint_periodic"]
+        if not others:
             continue
-        m["with_harmonics"] = own
-        if m.get("share_of_explained") is not None:
-            m["share_of_explained"] += sum(e.get("share_of_explained") or 0.0 for e in own)
-        effects[:] = [e for e in effects if not any(e is o for o in own)]
+        claim["with_harmonics"] = others
+        if claim.get("share_of_explained") is not None:
+            claim["share_of_explained"] += sum(e.get("share_of_explained") or 0.0 for e in others)
+        effects[:] = [e for e in effects if not any(e is o for o in others)]
 
 
 def final_residuals(state: Pass) -> tuple[dict, dict, np.ndarray]:

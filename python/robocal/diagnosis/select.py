@@ -40,7 +40,7 @@ report as far as it is written) and leaves it updated:
 7. :func:`~.physical.physical_model`: a tolerance prior on the kinematics where the data leave the geometry
    undetermined, kept if it costs at most :data:`~.physical.PRIOR_COST` of held-out error.
 8. The report (:mod:`.entries`): :func:`~.entries.describe_causes` (uncertainties, shares of what is
-   explained), :func:`~.entries.one_claim_per_joint` (a map and its joint's harmonics one entry), :func:`~.entries.final_residuals` (error floor, what the residuals are),
+   explained), :func:`~.entries.one_claim_per_joint` (one joint's harmonics and map one entry), :func:`~.entries.final_residuals` (error floor, what the residuals are),
    :func:`~.outliers.name_outliers` (the outliers re-decided under the final model),
    :func:`~.entries.baseline_entry` and :func:`~.entries.final_entry`.
 """

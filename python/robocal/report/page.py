@@ -610,6 +610,7 @@ def _diagnosis_table(report: DiagnosisReport) -> str:
         # A structural cause's alternatives have their own column in the structure section.
         alike = "" if e.kind in STRUCTURAL else alike_words(e.significance)
         quantities = _quantities(e.params) + _esc(correlation_words(e.correlation) + alike + settling_words(e.after_long_moves))
+        quantities += "".join(f", beside its {_esc(h.label)} ({_quantities(h.params)})" for h in e.with_harmonics)  # one claim of the joint
         rows.append([_esc(e.label), quantities, _fixed(e.rmse_before, 4), _fixed(e.rmse_after, 4)])
     several, b, f = report.several, report.baseline, report.final
     final = None if f is None else f.held_out(several)
