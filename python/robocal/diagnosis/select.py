@@ -68,6 +68,7 @@ from ..causes.candidates import (
     Candidate,
     compliance_candidate,
     acquisition_order,
+    acquisition_position,
     curved_drift,
     drift_candidate,
     free_mass_candidate,
@@ -682,7 +683,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
                 screened_curves[curve.label] = screened if screened is not None else screen.errors(ext.weighted_columns(x, curve, parts, p))["random"]
         return screened_curves
 
-    shared_errs = []  # every step's alternatives
+    shared_errs, slow_errs = [], []  # every step's alternatives
     if steps and any(c.kind == "drift" and not curved_drift(c) for c in ext.causes):
         shared_errs = list(curve_errs().values())
     if steps and state.arcs is None:  # built once a pass: they depend on the samples' order alone
@@ -692,16 +693,19 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # a long session widens the fine arcs alike (a wander has at most MAX_KNOTS knots)
         state.arcs = {"fine": list({arc.label: arc for arc in fine}.values()), "slow": slow}
     if steps:
-        # A slow wave on a trend must not be taken for a jump, wanders offered or not: those
-        # offered follow the residuals' correlation length, and one of a few samples' knots
-        # misses every held-out block (a wave of 1.7 periods cut into two steps, seed 34 of
-        # benches/discovery.py, file 111). Where no wander is offered (the residual test
-        # measured no correlation length), neither may the arcs of a wandering reading be taken
-        # for one. (Where wanders are offered they compete as candidates: as fine arcs here, a
-        # 5x step lost to the wander that follows it over the random folds, seed 30, file 48.)
-        arcs = state.arcs["slow"] + ([] if any(c.kind == "wander" for c in pool + ext.causes) else state.arcs["fine"])
-        arcs = progress(arcs, desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
-        shared_errs += [screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs]
+        # Where no wander is offered (the residual test measured no correlation length), the arcs
+        # of a wandering reading must not be taken for a jump. (Where wanders are offered they
+        # compete as candidates: as arcs here, a 5x step lost to the wander that follows it over
+        # the random folds, seed 30 of benches/discovery.py, file 48.) Nor, wanders offered or
+        # not, a slow wave on a trend: those offered follow the residuals' correlation length,
+        # and one of a few samples' knots misses every held-out block (a wave of 1.7 periods cut
+        # into two steps, seed 34, file 111).
+        fine = [] if any(c.kind == "wander" for c in pool + ext.causes) else state.arcs["fine"]
+        arcs = progress(fine + state.arcs["slow"], desc=f"diagnose: round {len(ext.causes) + 1}, the steps against a wandering reading's arcs", unit="arc")
+        arc_errs = {arc.label: screen.errors(ext.weighted_columns(x, arc, parts, p), arc.penalty)["random"] for arc in arcs}
+        shared_errs += [arc_errs[arc.label] for arc in fine]
+        slow_errs = [arc_errs[arc.label] for arc in state.arcs["slow"]]
+    position = acquisition_position(state.dataset)
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs
@@ -710,7 +714,15 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # Not scaled for residuals alike in time: the differences gather where the two models
         # differ (around the step); the public D2 file's 2.9 mm jump of the cable zero, 1.6
         # standard errors so scaled, beats its ramp by 8.3.
-        screening.jump_z[c.label] = paired_z(best[on], step_errs[c.label][on])
+        z = paired_z(best[on], step_errs[c.label][on])
+        # ... and the slow arcs where a jump differs from them: within the finer arc's knot
+        # spacing of the step (judged on every sample, the arcs' fit of the whole session
+        # outweighed a true knock of 1.5-2.3 times its limit, seed 36, file 193).
+        near = on & (np.abs(position[keep] - position[c.detail["sample"]]) <= min(SLOW_ARC_SHARES) * np.ptp(position))
+        if slow_errs and near.any():
+            slow = min(slow_errs, key=lambda e: float(np.mean(e[near])))
+            z = min(z, paired_z(slow[near], step_errs[c.label][near]))
+        screening.jump_z[c.label] = z
         smooth = [screen.errors(ext.weighted_columns(x, t, parts, p))["random"] for t in transitions(state.dataset, c)]
         screening.smooth_z[c.label] = min(paired_z(e[on], step_errs[c.label][on]) for e in smooth)
         shift = c.label.replace(" frame=rigid", "")
