@@ -232,9 +232,9 @@ JUMP_Z = float(norm.isf(0.025))
 ARC_SPACINGS = (4.0, 8.0, 16.0)
 #: ... and, as shares of the session, the knot spacings of the slow arcs a step must also beat:
 #: a wave of the reading on a trend (a drift that is neither a line nor one of its curves). They
-#: keep their trend, as a step's level change does (without it a step cut out of a wave of 1.5
-#: periods on a ramp beat every arc by 2.4 standard errors, with it by 1.5: the mismatch section
-#: of benches/discovery.py, seed 34, file 189). Their roughness penalty is the
+#: keep their trend, as a step's level change does: the wave rides on the drift's line (without
+#: it they left the verdict on a wave cut into a step as it was: the mismatch section of
+#: benches/discovery.py, seed 34, file 189). Their roughness penalty is the
 #: stiffer of the wanders' (:data:`WANDER_STIFFER`): at the wanders' own a slow arc turned as
 #: sharply as a true knock of 1.5-2.3 times its detection limit and took its place (seed 35,
 #: files 61, 74, 174, 203); three times as stiff it still did, thirty times as stiff it followed
@@ -559,11 +559,11 @@ class Round:
     max_effects: int
     #: Per step (label): the largest random-fold gain of a gradual change: its ramps
     #: (:func:`~.change_points.ramps`), the curves of the model's linear drift and, where no
-    #: wander is offered, the arcs of a wandering reading (:data:`ARC_SPACINGS`,
-    #: :data:`SLOW_ARC_SHARES`).
+    #: wander is offered, the arcs of a wandering reading (:data:`ARC_SPACINGS`).
     gradual: dict = field(default_factory=dict)
     #: Per step (label): by how many standard errors the step's held-out errors on the random
-    #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`).
+    #: folds beat those of its best gradual alternative, sample by sample (:func:`paired_z`), or
+    #: of the best slow arc (:data:`SLOW_ARC_SHARES`) on the samples around it, whichever is less.
     jump_z: dict = field(default_factory=dict)
     #: Per step (label): the same against its smooth level changes (:func:`~.change_points.transitions`):
     #: below :data:`SHAPE_Z` the step is named with "drift" as what the data cannot tell it from.
@@ -877,7 +877,7 @@ def confirm(state: Pass, screening: Round) -> Optional[Candidate]:
             if gradual_level:
                 why = f"the round's largest level change ({gradual_level}) is gradual: no jump shown"
             else:
-                gradual = "a gradual change (a ramp from the same sample, a curve of the model's drift, or a wandering reading)"
+                gradual = "a gradual change (a ramp from the same sample, a curve of the model's drift, a wandering reading, or a slow change around it)"
                 why = (
                     f"{gradual} gains {screening.gradual[c.label]:.3g} mm on the random folds against the step's {item[0]:.3g} mm; "
                     f"the step's held-out errors beat it by {screening.jump_z[c.label]:.2f} standard errors, below {JUMP_Z:.2f}: no jump shown"
