@@ -387,10 +387,15 @@ def test_a_small_wander_on_one_axis_of_a_tracker_is_named_as_wander_and_not_as_s
 @pytest.mark.parametrize("seed", [25221, 3])
 def test_a_step_of_a_tracker_is_placed_by_its_position_rows(seed):
     """The change points are sought in the position rows a step moves: with the rotation rows'
-    noise beside them a 0.037 mm step was placed 7 samples off."""
+    noise beside them a 0.037 mm step was placed 7 samples off. It is found where it is; named,
+    unless a slow change of the level around it predicts the samples as well — then it is refused
+    there as gradual (seed 25221: the slow arcs a step must beat, docs/diagnose.md), never named
+    elsewhere."""
     report = named("abb-irb120", "pose", ["step:sample=117,axis=z,size=0.037267"], seed=seed)
-    assert kinds(report) == [("step", None)]
-    assert abs(report["effects"][0]["params"]["sample"]["value"] - 117) <= 5
+    steps = [e["params"]["sample"]["value"] for e in report["effects"] if e["kind"] == "step"]
+    gradual = [int(r["label"].split("sample=")[1].split()[0]) for r in report["rejected"] if r["kind"] == "step" and "no jump shown" in r["reason"]]
+    assert len(steps) <= 1 and all(abs(v - 117) <= 5 for v in steps)
+    assert steps or any(abs(v - 117) <= 5 for v in gradual)
 
 
 @pytest.mark.parametrize(
@@ -487,17 +492,16 @@ def robot_of(data):
     return robot(data.robot)
 
 
-def test_a_step_cut_from_a_slow_wave_is_stated_as_a_level_change_the_data_cannot_place_in_time():
+def test_a_step_cut_from_a_slow_wave_is_not_named_but_a_sharp_step_is():
     """A drift with a slow wave (made outside robocal's candidates: a ramp plus a sine of a third of it, period two thirds
-    of the session, along a tracker direction) was named a step and nothing else, as if the level had jumped. It is still
-    named (a true step of 1-3 times its limit is not told from a smooth change either), but with "drift" as what the data
-    cannot tell it from; a sharp step of the same size is not."""
+    of the session, along a tracker direction) was named a step and nothing else, as if the level had jumped (later with
+    "drift" as what the data cannot tell it from). A step must beat the slow arcs of the session around it: this one does
+    not, and is not named; a sharp step of the same size is, with nothing it cannot be told from."""
     data, _ = simulate("hsr-jr680", "position", samples=300, seed=8)
     t = np.linspace(0.0, 1.0, len(data))
     wave = 0.05 * (t + 0.36 * np.sin(2.0 * np.pi * t / 0.645 + 1.13))
     named = diagnose(replace(data, y=data.y + np.outer(wave, [-0.3356, 0.3077, 0.8903])), robot="hsr-jr680").effects
-    steps = [e for e in named if e["kind"] == "step"]
-    assert steps and all(e["significance"]["undetermined_between"] == ["drift"] for e in steps), [e["label"] for e in named]
+    assert not [e for e in named if e["kind"] == "step"], [e["label"] for e in named]
     sharp, _ = simulate("hsr-jr680", "position", samples=300, seed=8, effects=["step:sample=150,size=0.1"])
     [step] = [e for e in diagnose(sharp, robot="hsr-jr680").effects if e["kind"] == "step"]
     assert step["params"]["sample"]["value"] == 150 and step["significance"]["undetermined_between"] == []
