@@ -688,10 +688,10 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         shared_errs = list(curve_errs().values())
     if steps and state.arcs is None:  # built once a pass: they depend on the samples' order alone
         span = len(state.dataset) - 1
-        fine = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
-        slow = [wander_candidate(state.dataset, share * span, ROUGHNESS * max(WANDER_STIFFER), trend=True) for share in SLOW_ARC_SHARES]
+        fine_arcs = [wander_candidate(state.dataset, spacing) for spacing in ARC_SPACINGS]
+        slow_arcs = [wander_candidate(state.dataset, share * span, ROUGHNESS * max(WANDER_STIFFER), trend=True) for share in SLOW_ARC_SHARES]
         # a long session widens the fine arcs alike (a wander has at most MAX_KNOTS knots)
-        state.arcs = {"fine": list({arc.label: arc for arc in fine}.values()), "slow": slow}
+        state.arcs = {"fine": list({arc.label: arc for arc in fine_arcs}.values()), "slow": slow_arcs}
     if steps:
         # Where no wander is offered (the residual test measured no correlation length), the arcs
         # of a wandering reading must not be taken for a jump. (Where wanders are offered they
@@ -706,6 +706,7 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         shared_errs += [arc_errs[arc.label] for arc in fine]
         slow_errs = [arc_errs[arc.label] for arc in state.arcs["slow"]]
     position = acquisition_position(state.dataset)
+    kept_position, around = position[keep], min(SLOW_ARC_SHARES) * np.ptp(position)  # the finer slow arc's knot spacing
     for c in steps:  # judged on the samples the step is
         on = judgeable(c, keep, schemes)["random"]
         errs = [screen.errors(ext.weighted_columns(x, ramp, parts, p))["random"] for ramp in ramps(state.dataset, c)] + shared_errs
@@ -718,10 +719,10 @@ def screen_round(state: Pass, pool: list, wander_offered: bool, *, alpha: float,
         # ... and the slow arcs where a jump differs from them: within the finer arc's knot
         # spacing of the step (judged on every sample, the arcs' fit of the whole session
         # outweighed a true knock of 1.5-2.3 times its limit, seed 36, file 193).
-        near = on & (np.abs(position[keep] - position[c.detail["sample"]]) <= min(SLOW_ARC_SHARES) * np.ptp(position))
+        near = on & (np.abs(kept_position - position[c.detail["sample"]]) <= around)
         if slow_errs and near.any():
-            slow = min(slow_errs, key=lambda e: float(np.mean(e[near])))
-            z = min(z, paired_z(slow[near], step_errs[c.label][near]))
+            closest = min(slow_errs, key=lambda e: float(np.mean(e[near])))
+            z = min(z, paired_z(closest[near], step_errs[c.label][near]))
         screening.jump_z[c.label] = z
         smooth = [screen.errors(ext.weighted_columns(x, t, parts, p))["random"] for t in transitions(state.dataset, c)]
         screening.smooth_z[c.label] = min(paired_z(e[on], step_errs[c.label][on]) for e in smooth)
